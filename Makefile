@@ -1,0 +1,35 @@
+# pumpsim: set-up, kernels, demo, tests and benchmarks. Everything runs inside .venv.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: install codegen demo test test-all bench clean
+
+install: $(STAMP)
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+codegen: install
+	$(BIN)/python -m codegen.build
+
+demo: codegen
+	mkdir -p out
+	$(BIN)/pumpsim simulate examples/test_rig.toml --out out/test_rig.csv --plot out/test_rig.png
+	$(BIN)/pumpsim simulate examples/ellipse_4vanes.toml --out out/ellipse_4vanes.csv --plot out/ellipse_4vanes.png
+
+test: codegen
+	$(BIN)/python -m pytest -q
+
+test-all: codegen
+	$(BIN)/python -m pytest -q -m 'slow or not slow'
+
+bench: codegen
+	mkdir -p out
+	$(BIN)/python bench/run.py --json out/bench.json
+
+clean:
+	rm -rf generated/*/ out .pytest_cache

@@ -1,0 +1,1 @@
+"""Code generation: SymPy mechanics -> CasADi functions -> C shared libraries in generated/."""

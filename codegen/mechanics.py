@@ -1,0 +1,158 @@
+"""One vane, derived once as mechanics with SymPy (report §5.4): frames, points, velocities,
+accelerations and virtual power (Kane's method).
+
+The slot-wall reactions are brought into the equations with two *non-admissible* virtual
+velocities (report §5.4.15-16): a lateral slide v_w of the vane along the slot normal w and a
+relative tilt rate w_t about G. The admissible speeds are the rotor speed omega and the slide
+speed sdot. Everything is symbolic in the slot angle phi, so N vanes are assembled later in CasADi
+by evaluating the same expressions at phi_i.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+from sympy.physics.vector import Point, ReferenceFrame, dynamicsymbols
+
+# Input symbols of the derived expressions, by name (the CasADi assembly binds them).
+SYMBOL_NAMES = (
+    # rotor motion and slot
+    "theta omega omegadot phi "
+    # vane coordinate
+    "s sdot sddot "
+    # geometry and inertia
+    "slot_radius slot_tilt rotor_radius L h m J rho "
+    # housing contact point C and inward unit normal n at C (inertial components)
+    "Cx Cy nx ny "
+    # forces: housing normal N, slot walls F1 F2 with contact sides sigma1 sigma2, slot bottom Fb
+    "N F1 F2 sigma1 sigma2 Fb "
+    # evaluated friction coefficients (odd in slip speed) and viscous tip coefficient
+    "mu_h mu_r c_visc"
+).split()
+
+
+@dataclass(frozen=True)
+class VaneMechanics:
+    sym: dict  # name -> sympy Symbol
+    points: dict  # point name -> (x, y) inertial components
+    slot_u: tuple  # slot direction u (inertial)
+    slot_w: tuple  # slot side normal w (inertial)
+    mouth_depth: sp.Expr  # l_m: distance from Ob to the slot mouth along u
+    tip_slip: sp.Expr  # v_t: velocity of the vane's material point at C along t = z x n
+    equations: dict  # 'slide', 'lateral', 'tilt' -> virtual-power residual (= 0)
+    drive_torque_share: sp.Expr  # what this vane adds to the drive torque
+    kinetic_energy: sp.Expr
+    velocity_check: sp.Expr  # |v_G(from differentiation) - v_G(velocity field)|^2, must be 0
+
+
+def derive_vane() -> VaneMechanics:
+    S = {n: sp.Symbol(n, real=True) for n in SYMBOL_NAMES}
+    t = sp.Symbol("t")
+    th, sv = dynamicsymbols("theta_t s_t")
+
+    Nf = ReferenceFrame("N")  # inertial
+    Rf = Nf.orientnew("R", "Axis", [th, Nf.z])  # rotor
+    Sf = Rf.orientnew("S", "Axis", [S["phi"] + S["slot_tilt"], Rf.z])  # slot (= vane: no tilt)
+    u, w, z = Sf.x, Sf.y, Nf.z
+
+    O = Point("O")
+    O.set_vel(Nf, 0)
+    phi, rb = S["phi"], S["slot_radius"]
+    Ob = O.locatenew("Ob", rb * sp.cos(phi) * Rf.x + rb * sp.sin(phi) * Rf.y)
+    # slot mouth: the point Ob + l_m u on the centre line at the rotor radius
+    beta, Rr = S["slot_tilt"], S["rotor_radius"]
+    l_m = -rb * sp.cos(beta) + sp.sqrt(Rr**2 - rb**2 * sp.sin(beta) ** 2)
+    L, rho, h = S["L"], S["rho"], S["h"]
+    A = Ob.locatenew("A", sv * u)
+    G = Ob.locatenew("G", (sv + L / 2) * u)
+    B = Ob.locatenew("B", (sv + L) * u)
+    P = Ob.locatenew("P", (sv + L - rho) * u)
+    Mo = Ob.locatenew("M", l_m * u)
+    C = O.locatenew("C", S["Cx"] * Nf.x + S["Cy"] * Nf.y)
+    n_hat = S["nx"] * Nf.x + S["ny"] * Nf.y
+    t_hat = z.cross(n_hat)
+    Q1 = A.locatenew("Q1", -S["sigma1"] * h / 2 * w)
+    Q2 = Mo.locatenew("Q2", -S["sigma2"] * h / 2 * w)
+
+    # derivatives of the coordinates -> plain symbols
+    to_plain = {
+        th.diff(t, 2): S["omegadot"], sv.diff(t, 2): S["sddot"],
+        th.diff(t): S["omega"], sv.diff(t): S["sdot"],
+    }
+    to_plain_q = {th: S["theta"], sv: S["s"]}
+
+    def plain(expr):
+        return sp.sympify(expr).subs(to_plain).subs(to_plain_q)
+
+    # Velocity field of the vane: admissible speeds (omega, sdot), auxiliary speeds (vw, wt).
+    vw, wt = sp.symbols("v_w w_t", real=True)
+    speeds = (S["omega"], S["sdot"], vw, wt)
+
+    def vane_velocity(X):
+        rX = X.pos_from(O)
+        return S["omega"] * z.cross(rX) + S["sdot"] * u + vw * w + wt * z.cross(X.pos_from(G))
+
+    def rotor_velocity(X):
+        return S["omega"] * z.cross(X.pos_from(O))
+
+    vane_angvel = (S["omega"] + wt) * z
+    rotor_angvel = S["omega"] * z
+
+    # acceleration of G by differentiation of its position (true kinematics)
+    rG = G.pos_from(O)
+    vG_true = rG.dt(Nf)
+    aG = vG_true.dt(Nf)
+
+    def comps(vec):
+        return tuple(plain(vec.dot(e)) for e in (Nf.x, Nf.y))
+
+    aG_xy = comps(aG)
+    aG_vec = aG_xy[0] * Nf.x + aG_xy[1] * Nf.y
+    vG_field = vane_velocity(G).subs({vw: 0, wt: 0})
+    vcheck = comps(vG_true - vG_field)
+    velocity_check = vcheck[0] ** 2 + vcheck[1] ** 2
+
+    v_at_C = vane_velocity(C).subs({vw: 0, wt: 0})
+    v_t = plain(v_at_C.dot(t_hat))
+
+    mu_h, mu_r = S["mu_h"], S["mu_r"]
+    s1, s2 = S["sigma1"], S["sigma2"]
+    F_housing = S["N"] * n_hat - (mu_h * S["N"] + S["c_visc"] * v_t) * t_hat
+    F_slot1 = S["F1"] * w - mu_r * s1 * S["F1"] * u  # |F1| = sigma1 F1
+    F_slot2 = S["F2"] * w - mu_r * s2 * S["F2"] * u
+    F_bottom = S["Fb"] * u
+
+    # (point, force, body) triples; reactions act on the rotor with opposite sign, same point
+    on_vane = [(C, F_housing), (Q1, F_slot1), (Q2, F_slot2), (A, F_bottom), (G, -S["m"] * aG_vec)]
+    on_rotor = [(Q1, -F_slot1), (Q2, -F_slot2), (A, -F_bottom)]
+    vane_inertia_torque = -S["J"] * S["omegadot"] * z
+
+    def generalized_force(speed):
+        total = 0
+        for X, F in on_vane:
+            total += F.dot(vane_velocity(X).diff(speed, Nf))
+        for X, F in on_rotor:
+            total += F.dot(rotor_velocity(X).diff(speed, Nf))
+        total += vane_inertia_torque.dot(vane_angvel.diff(speed, Nf))
+        total += 0 * rotor_angvel.diff(speed, Nf).dot(z)
+        return sp.expand(plain(total.subs({vw: 0, wt: 0}) if hasattr(total, "subs") else total))
+
+    gf = {name: generalized_force(sp_) for name, sp_ in zip(("rotor", "slide", "lateral", "tilt"), speeds)}
+
+    ke = plain(sp.Rational(1, 2) * S["m"] * vG_true.dot(vG_true)
+               + sp.Rational(1, 2) * S["J"] * S["omega"] ** 2)
+
+    pts = {"Ob": Ob, "A": A, "G": G, "B": B, "P": P, "M": Mo, "Q1": Q1, "Q2": Q2}
+    return VaneMechanics(
+        sym=S,
+        points={k: comps(X.pos_from(O)) for k, X in pts.items()},
+        slot_u=comps(u),
+        slot_w=comps(w),
+        mouth_depth=l_m,
+        tip_slip=v_t,
+        equations={k: gf[k] for k in ("slide", "lateral", "tilt")},
+        # rotor virtual power: tau - tau_b - I_r omegadot + sum_i gf_rotor_i = 0
+        drive_torque_share=-gf["rotor"],
+        kinetic_energy=ke,
+        velocity_check=velocity_check,
+    )

@@ -1,0 +1,372 @@
+"""Assemble the pump model in CasADi from the one-vane mechanics (SymPy is used only here).
+
+`build_model(structure)` returns a frozen `ModelSpec`: named CasADi functions, each with named
+inputs and outputs, that `codegen.build` compiles to one shared library per variant.
+
+Constrained model (Model 2) per vane, given the rotor motion (theta, omega, omegadot):
+1. position: the tip-arc centre P lies at distance rho from the housing along its normal,
+   Phi(theta, s, alpha) = P(theta, s) - C(alpha) - rho n(alpha) = 0, solved for (s, alpha) by a ray
+   intersection guess and unrolled Newton steps;
+2. velocity and acceleration from Phi_q qdot = 0 and Phi_q qddot + (Phi_q qdot)_q qdot = 0;
+3. dynamics: for each contact-side set (sigma1, sigma2) the virtual-power equations are linear in
+   (N, F1, F2); the consistent set (sign F_j = sigma_j) is selected, and the number of consistent
+   sets is returned so the runtime can report a friction paradox.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+
+from pumpsim import laws
+from pumpsim.parameters import Parameter, Structure, layout
+
+from .housing import derive_housing
+from .mechanics import SYMBOL_NAMES, derive_vane
+from .to_casadi import lambdify_casadi
+
+RAY_ITERATIONS = 4  # fixed-point iterations for the ray/housing intersection (initial guess)
+NEWTON_ITERATIONS = 5  # quadratic convergence from the ray guess: 1e-16 m after 3-4 in practice
+FORWARD_ITERATIONS = 4  # Newton on omegadot; the torque is piecewise affine in omegadot
+SIGN_SETS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
+CONSISTENCY_TOL = 1e-9  # relative: a contact-side set is consistent if sign errors < tol * |forces|
+
+VANE_OUTPUTS = (
+    "s", "sdot", "sddot", "alpha", "alphadot", "normal", "slot1", "slot2", "torque_share",
+    "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "n_consistent", "ambiguity",
+    "position_residual", "torque_slope",
+)
+
+
+class _CasadiOps:
+    fmin = staticmethod(ca.fmin)
+    fmax = staticmethod(ca.fmax)
+    fabs = staticmethod(ca.fabs)
+    sign = staticmethod(ca.sign)
+    sqrt = staticmethod(ca.sqrt)
+    power = staticmethod(ca.power)
+    if_else = staticmethod(ca.if_else)
+
+
+CASADI_OPS = _CasadiOps()
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    structure: Structure
+    parameters: tuple[Parameter, ...]
+    functions: dict  # name -> casadi.Function (exported, compiled)
+    vane_outputs: tuple = VANE_OUTPUTS
+
+    def function_names(self):
+        return tuple(self.functions)
+
+
+class _Builder:
+    def __init__(self, structure: Structure):
+        self.st = structure
+        self.params = layout(structure)
+        self.p = ca.SX.sym("p", len(self.params))
+        self.P = {q.name: self.p[i] for i, q in enumerate(self.params)}
+        self._mechanics()
+        self._housing()
+
+    # -- symbolic building blocks --------------------------------------------------------------
+    def _mechanics(self):
+        mech = derive_vane()
+        self.mech_names = ["Ob", "A", "G", "B", "P", "M"]
+        exprs = []
+        for k in self.mech_names:
+            exprs += list(mech.points[k])
+        exprs += list(mech.slot_u) + list(mech.slot_w)
+        exprs += [mech.mouth_depth, mech.tip_slip, mech.equations["slide"],
+                  mech.equations["lateral"], mech.equations["tilt"], mech.drive_torque_share,
+                  mech.kinetic_energy]
+        sx_in = [ca.SX.sym(n) for n in SYMBOL_NAMES]
+        out = lambdify_casadi([mech.sym[n] for n in SYMBOL_NAMES], exprs)(*sx_in)
+        self.mech_fun = ca.Function("vane_mechanics", [ca.vertcat(*sx_in)], [ca.vertcat(*out)])
+
+    def mech(self, **values):
+        """Evaluate the one-vane mechanics; unset inputs are zero."""
+        vec = ca.vertcat(*[values.get(n, 0.0) for n in SYMBOL_NAMES])
+        out = self.mech_fun(vec)
+        res, i = {}, 0
+        for k in self.mech_names:
+            res[k] = out[i:i + 2]
+            i += 2
+        res["u"], res["w"] = out[i:i + 2], out[i + 2:i + 4]
+        i += 4
+        for k in ("mouth_depth", "tip_slip", "eq_slide", "eq_lateral", "eq_tilt", "torque_share",
+                  "kinetic_energy"):
+            res[k] = out[i]
+            i += 1
+        return res
+
+    def geometry(self):
+        P = self.P
+        return dict(slot_radius=P["rotor.slot_radius"], slot_tilt=P["rotor.slot_tilt"],
+                    rotor_radius=P["rotor.radius"], L=P["vane.length"], h=P["vane.thickness"],
+                    m=P["vane.mass"], J=P["vane.inertia"], rho=P["vane.tip_radius"])
+
+    def _housing(self):
+        K = self.st.harmonics
+        hc = derive_housing(K)
+        args = [hc.alpha] + [hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")]
+        for trip in hc.harmonic_syms:
+            args += list(trip)
+        f = lambdify_casadi(args, [*hc.point, *hc.normal, hc.radius, hc.curvature_sign])
+        al = ca.SX.sym("alpha")
+        hp = ca.SX.sym("hp", 5 + 3 * K)
+        out = f(al, *[hp[i] for i in range(hp.shape[0])])
+        self.housing_raw = ca.Function("housing_raw", [al, hp], [ca.vertcat(*out)])
+        P = self.P
+        hvals = [P["housing.a"], P["housing.b"], P["housing.center.0"], P["housing.center.1"],
+                 P["housing.angle"]]
+        for j in range(K):
+            hvals += [P[f"housing.harmonics.{j}.order"], P[f"housing.harmonics.{j}.amplitude"],
+                      P[f"housing.harmonics.{j}.phase"]]
+        self.hp_of_p = ca.vertcat(*hvals)
+
+    def housing(self, alpha):
+        o = self.housing_raw(alpha, self.hp_of_p)
+        return dict(C=o[0:2], n=o[2:4], r=o[4], curvature=o[5])
+
+    def friction(self, v, which):
+        P = self.P
+        pre = f"friction.{which}"
+        return laws.friction_coefficient(v, P[f"{pre}.static"], P[f"{pre}.dynamic"],
+                                         P[f"{pre}.v_static"], P[f"{pre}.v_dynamic"], CASADI_OPS)
+
+    # -- constrained model (Model 2) ------------------------------------------------------------
+    def constraint_expr(self, theta, phi, s, alpha):
+        g = self.geometry()
+        m = self.mech(theta=theta, phi=phi, s=s, **g)
+        hs = self.housing(alpha)
+        return m["P"] - hs["C"] - g["rho"] * hs["n"]
+
+    def solve_position(self, theta, phi):
+        """Initial guess from the ray/housing intersection, then Newton on Phi(s, alpha) = 0."""
+        g = self.geometry()
+        base = self.mech(theta=theta, phi=phi, **g)
+        Ob, u = base["Ob"], base["u"]
+        ch = ca.vertcat(self.P["housing.center.0"], self.P["housing.center.1"])
+        d = Ob - ch
+        du, dd = ca.dot(d, u), ca.dot(d, d)
+        r = 0.5 * (self.P["housing.a"] + self.P["housing.b"])
+        lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
+        for _ in range(RAY_ITERATIONS):
+            X = Ob + lam * u
+            alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
+            r = self.housing(alpha)["r"]
+            lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
+        X = Ob + lam * u
+        alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
+        s = lam - g["L"]
+        ys, ya = ca.SX.sym("s"), ca.SX.sym("a")
+        th_s, ph_s = ca.SX.sym("th"), ca.SX.sym("ph")
+        phi_e = self.constraint_expr(th_s, ph_s, ys, ya)
+        jac = ca.jacobian(phi_e, ca.vertcat(ys, ya))
+        newton = ca.Function("newton_step", [th_s, ph_s, ys, ya, self.p],
+                             [ca.vertcat(ys, ya) - ca.solve(jac, phi_e), ca.norm_2(phi_e)])
+        y = ca.vertcat(s, alpha)
+        for _ in range(NEWTON_ITERATIONS):
+            y, _ = newton(theta, phi, y[0], y[1], self.p)
+        _, res = newton(theta, phi, y[0], y[1], self.p)
+        return y[0], y[1], res
+
+    def kinematics_constrained(self, theta, omega, omegadot, phi):
+        s, alpha, res = self.solve_position(theta, phi)
+        # velocity and acceleration from the constraint (exact derivatives of Phi)
+        th, ys, ya = ca.SX.sym("th"), ca.SX.sym("s"), ca.SX.sym("a")
+        q = ca.vertcat(th, ys, ya)
+        qd = ca.SX.sym("qd", 3)
+        ph = ca.SX.sym("ph")
+        phi_e = self.constraint_expr(th, ph, ys, ya)
+        Phi_q = ca.jacobian(phi_e, q)
+        gamma = ca.jacobian(ca.mtimes(Phi_q, qd), q) @ qd  # (Phi_q qdot)_q qdot
+        kin = ca.Function("constraint_terms", [q, qd, ph, self.p], [Phi_q, gamma])
+        Pq, _ = kin(ca.vertcat(theta, s, alpha), ca.DM.zeros(3), phi, self.p)
+        Jy, Jt = Pq[:, 1:3], Pq[:, 0]
+        yd = -ca.solve(Jy, Jt * omega)
+        qdot = ca.vertcat(omega, yd)
+        _, gam = kin(ca.vertcat(theta, s, alpha), qdot, phi, self.p)
+        ydd = -ca.solve(Jy, Jt * omegadot + gam)
+        return dict(s=s, alpha=alpha, sdot=yd[0], alphadot=yd[1], sddot=ydd[0], res=res)
+
+    def vane_constrained(self) -> ca.Function:
+        theta, omega, omegadot, phi, factor = (ca.SX.sym(n) for n in
+                                              ("theta", "omega", "omegadot", "phi", "factor"))
+        k = self.kinematics_constrained(theta, omega, omegadot, phi)
+        hs = self.housing(k["alpha"])
+        g = self.geometry()
+        common = dict(theta=theta, omega=omega, omegadot=omegadot, phi=phi, s=k["s"],
+                      sdot=k["sdot"], sddot=k["sddot"], Cx=hs["C"][0], Cy=hs["C"][1],
+                      nx=hs["n"][0], ny=hs["n"][1],
+                      c_visc=self.P["effects.viscous_tip_friction"], **g)
+        v_t = self.mech(**common)["tip_slip"]
+        mu_h = factor * self.friction(v_t, "housing")
+        mu_r = self.friction(k["sdot"], "slot")
+        common.update(mu_h=mu_h, mu_r=mu_r)
+        x = ca.SX.sym("x", 3)  # N, F1, F2
+        sig = ca.SX.sym("sig", 2)
+        m = self.mech(N=x[0], F1=x[1], F2=x[2], sigma1=sig[0], sigma2=sig[1], **common)
+        eqs = ca.vertcat(m["eq_slide"], m["eq_lateral"], m["eq_tilt"])
+        A = ca.jacobian(eqs, x)
+        b = -ca.substitute(eqs, x, ca.DM.zeros(3))
+        cands, errs, scales = [], [], []
+        for sg in SIGN_SETS:
+            Ai = ca.substitute(A, sig, ca.DM(sg))
+            bi = ca.substitute(b, sig, ca.DM(sg))
+            xi = ca.solve(Ai, bi)
+            cands.append(xi)
+            errs.append(ca.fmax(0, -sg[0] * xi[1]) + ca.fmax(0, -sg[1] * xi[2]))
+            scales.append(ca.fabs(xi[0]) + ca.fabs(xi[1]) + ca.fabs(xi[2]))
+        scale = scales[0]
+        for sc in scales[1:]:
+            scale = ca.fmax(scale, sc)
+        tol = CONSISTENCY_TOL * scale + 1e-300
+        best, best_err = cands[0], errs[0]
+        for xi, ei in zip(cands[1:], errs[1:]):
+            take = ei < best_err
+            best = ca.if_else(take, xi, best)
+            best_err = ca.if_else(take, ei, best_err)
+        n_cons = sum(ca.if_else(e <= tol, 1.0, 0.0) for e in errs)
+        amb = 0.0
+        for xi, ei in zip(cands, errs):
+            diff = ca.mmax(ca.fabs(xi - best)) / (scale + 1e-300)
+            amb = ca.fmax(amb, ca.if_else(ei <= tol, diff, 0.0))
+        sel_sig = ca.vertcat(ca.if_else(best[1] >= 0, 1.0, -1.0), ca.if_else(best[2] >= 0, 1.0, -1.0))
+        final = self.mech(N=best[0], F1=best[1], F2=best[2], sigma1=sel_sig[0], sigma2=sel_sig[1],
+                          **common)
+        outs = dict(s=k["s"], sdot=k["sdot"], sddot=k["sddot"], alpha=k["alpha"],
+                    alphadot=k["alphadot"], normal=best[0], slot1=best[1], slot2=best[2],
+                    torque_share=final["torque_share"], tip_slip=v_t, mu_housing=mu_h,
+                    mu_slot=mu_r, kinetic_energy=final["kinetic_energy"], n_consistent=n_cons,
+                    ambiguity=amb, position_residual=k["res"],
+                    # d(torque share)/d(omegadot) on the selected branch, for forward dynamics
+                    torque_slope=ca.jacobian(final["torque_share"], omegadot))
+        return ca.Function("vane_constrained", [theta, omega, omegadot, phi, factor, self.p],
+                           [outs[n] for n in VANE_OUTPUTS],
+                           ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS))
+
+    # -- N-vane assembly (MX: the vane function is generated once and called N times) ----------
+    def slot_angles(self, p):
+        N = self.st.vanes
+        idx = {q.name: i for i, q in enumerate(self.params)}
+        phi0 = p[idx["rotor.first_slot_angle"]]
+        return ca.horzcat(*[phi0 + 2 * math.pi * i / N for i in range(N)])
+
+    def factors(self, p):
+        idx = {q.name: i for i, q in enumerate(self.params)}
+        return ca.horzcat(*[p[idx[f"effects.vane_friction_factor.{i}"]] for i in range(self.st.vanes)])
+
+    def pget(self, p, name):
+        return p[[q.name for q in self.params].index(name)]
+
+    def assemble(self, vane_fn):
+        N = self.st.vanes
+        vmap = vane_fn.map(N)
+        p = ca.MX.sym("p", len(self.params))
+        theta, omega, omegadot, tau = (ca.MX.sym(n) for n in ("theta", "omega", "omegadot", "torque"))
+        phis, facs = self.slot_angles(p), self.factors(p)
+        Ir, tb = self.pget(p, "rotor.inertia"), self.pget(p, "operation.bearing_torque")
+
+        def required_torque(wd):
+            outs = vmap(theta, omega, wd, phis, facs, p)
+            return Ir * wd + tb + ca.sum2(outs[VANE_OUTPUTS.index("torque_share")]), outs
+
+        tq, outs = required_torque(omegadot)
+        inv = ca.Function("inverse_dynamics", [theta, omega, omegadot, p], [tq, *outs],
+                          ["theta", "omega", "omegadot", "p"], ["torque", *VANE_OUTPUTS])
+        # forward dynamics: Newton on omegadot; the required torque is piecewise affine in it and
+        # each vane returns its slope on the selected branch, so no nested AD is needed
+        slope_i = VANE_OUTPUTS.index("torque_slope")
+        w = ca.MX(0.0)
+        for _ in range(FORWARD_ITERATIONS):
+            rt, o = required_torque(w)
+            w = w - (rt - tau) / (Ir + ca.sum2(o[slope_i]))
+        rt, outs_f = required_torque(w)
+        r_fin = rt - tau
+        fwd = ca.Function("forward_dynamics", [theta, omega, tau, p], [w, r_fin, *outs_f],
+                          ["theta", "omega", "torque", "p"], ["omegadot", "torque_residual", *VANE_OUTPUTS])
+        x = ca.MX.sym("x", 2)
+        wd_x = fwd(x[0], x[1], tau, p)[0]
+        ode = ca.Function("ode_rhs", [x, tau, p], [ca.vertcat(x[1], wd_x)],
+                          ["x", "torque", "p"], ["xdot"])
+        # positions only (geometry checks)
+        ppos = ca.Function("positions", [theta, p],
+                           [vmap(theta, 0, 0, phis, facs, p)[i] for i in
+                            (VANE_OUTPUTS.index("s"), VANE_OUTPUTS.index("alpha"),
+                             VANE_OUTPUTS.index("position_residual"))],
+                           ["theta", "p"], ["s", "alpha", "position_residual"])
+        return inv, fwd, ode, ppos
+
+    # -- report form (§6.3): Phi(q), Phi_q, gamma and [M V; Phi_q 0][qdd; eps] = [delta; gamma] --
+    def report_form(self):
+        N = self.st.vanes
+        p = self.p
+        q = ca.SX.sym("q", 1 + 2 * N)  # theta, s_0..s_{N-1}, alpha_0..alpha_{N-1}
+        qd = ca.SX.sym("qd", 1 + 2 * N)
+        sig = ca.SX.sym("sigma", 2 * N)
+        drive = ca.SX.sym("omegadot")  # speed drive: theta'' = omegadot
+        qdd = ca.SX.sym("qdd", 1 + 2 * N)
+        eps = ca.SX.sym("eps", 3 * N)  # N_i, F1_i, F2_i
+        tau = ca.SX.sym("tau")
+        th = q[0]
+        phis = [self.pget(p, "rotor.first_slot_angle") + 2 * math.pi * i / N for i in range(N)]
+        g = self.geometry()
+        Phi, eqs = [], []
+        rotor = tau - self.P["operation.bearing_torque"] - self.P["rotor.inertia"] * qdd[0]
+        for i in range(N):
+            s, al = q[1 + i], q[1 + N + i]
+            Phi.append(self.constraint_expr(th, phis[i], s, al))
+            hs = self.housing(al)
+            kw = dict(theta=th, omega=qd[0], omegadot=qdd[0], phi=phis[i], s=s, sdot=qd[1 + i],
+                      sddot=qdd[1 + i], Cx=hs["C"][0], Cy=hs["C"][1], nx=hs["n"][0], ny=hs["n"][1],
+                      c_visc=self.P["effects.viscous_tip_friction"], **g)
+            v_t = self.mech(**kw)["tip_slip"]
+            mu_h = self.P[f"effects.vane_friction_factor.{i}"] * self.friction(v_t, "housing")
+            mu_r = self.friction(qd[1 + i], "slot")
+            m = self.mech(N=eps[3 * i], F1=eps[3 * i + 1], F2=eps[3 * i + 2], sigma1=sig[2 * i],
+                          sigma2=sig[2 * i + 1], mu_h=mu_h, mu_r=mu_r, **kw)
+            eqs += [m["eq_slide"], m["eq_lateral"], m["eq_tilt"]]
+            rotor -= m["torque_share"]
+        Phi = ca.vertcat(*Phi)
+        Phi_q = ca.jacobian(Phi, q)
+        gamma = -ca.jacobian(Phi_q @ qd, q) @ qd
+        dyn = ca.vertcat(rotor, *eqs)
+        unknowns = ca.vertcat(qdd, eps, tau)
+        rows = ca.vertcat(dyn, Phi_q @ qdd - gamma, qdd[0] - drive)
+        K = ca.jacobian(rows, unknowns)
+        rhs = -ca.substitute(rows, unknowns, ca.DM.zeros(unknowns.shape[0]))
+        f_phi = ca.Function("constraint", [q, p], [Phi], ["q", "p"], ["phi"])
+        f_phiq = ca.Function("constraint_jacobian", [q, p], [Phi_q], ["q", "p"], ["phi_q"])
+        f_gam = ca.Function("acceleration_rhs", [q, qd, p], [gamma], ["q", "qd", "p"], ["gamma"])
+        f_dyn = ca.Function("dynamic_system", [q, qd, sig, drive, p], [K, rhs],
+                            ["q", "qd", "sigma", "omegadot", "p"], ["matrix", "rhs"])
+        return f_phi, f_phiq, f_gam, f_dyn
+
+    def housing_function(self):
+        al = ca.SX.sym("alpha")
+        h = self.housing(al)
+        return ca.Function("housing_curve", [al, self.p], [h["C"], h["n"], h["r"], h["curvature"]],
+                           ["alpha", "p"], ["point", "normal", "radius", "curvature"])
+
+
+def build_model(structure: Structure) -> ModelSpec:
+    """Build every exported CasADi function of one variant (no compilation here)."""
+    if structure.model != "constrained":
+        from .contact_model import build_contact_functions  # Model 1
+
+        b = _Builder(structure)
+        fns = build_contact_functions(b)
+        fns["housing_curve"] = b.housing_function()
+        return ModelSpec(structure, b.params, fns)
+    b = _Builder(structure)
+    vane = b.vane_constrained()
+    inv, fwd, ode, pos = b.assemble(vane)
+    f_phi, f_phiq, f_gam, f_dyn = b.report_form()
+    fns = {f.name(): f for f in (inv, fwd, ode, pos, f_phi, f_phiq, f_gam, f_dyn,
+                                 b.housing_function())}
+    return ModelSpec(structure, b.params, fns)

@@ -1,0 +1,39 @@
+"""Exception classes: every user-facing failure is one of these, never a bare traceback."""
+
+
+class PumpsimError(Exception):
+    """Base class. `exit_status` is what the command line returns."""
+
+    exit_status = 1
+
+
+class ConfigError(PumpsimError):
+    """Bad configuration file or option (names the key and the limit)."""
+
+    exit_status = 2
+
+
+class DataError(PumpsimError):
+    """Bad measured data (names the row or the column)."""
+
+    exit_status = 2
+
+
+class CodegenError(PumpsimError):
+    """Generating or compiling a kernel failed, or a compiled kernel is stale."""
+
+    exit_status = 1
+
+
+class SolverError(PumpsimError):
+    """A numerical failure; the message names the time and state where it happened."""
+
+    exit_status = 1
+
+    def __init__(self, message, partial=None):
+        super().__init__(message)
+        self.partial = partial  # whatever was computed up to the failure
+
+
+class IdentificationError(PumpsimError):
+    exit_status = 1

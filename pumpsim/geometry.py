@@ -1,0 +1,85 @@
+"""Geometric admissibility (spec §1): rotor inside a convex housing, every vane reaches it with its
+bottom end inside the slot and its tip outside the rotor, at every rotor angle."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .config import PumpConfig, as_array
+from .errors import ConfigError
+from .kernels import load_kernels
+
+HOUSING_SAMPLES = 2048
+ANGLE_SAMPLES = 720
+POSITION_TOL = 1e-10  # m: the Newton solve must close the contact to this
+
+
+def housing_samples(kern, p, n=HOUSING_SAMPLES):
+    alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    pt, _, _, curv = kern.mapped("housing_curve", n)(alpha[None, :], p)
+    return alpha, np.asarray(pt), np.asarray(curv).ravel()
+
+
+def vane_positions(kern, p, theta):
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    s, alpha, res = kern.mapped("positions", theta.size)(theta[None, :], p)
+    N = kern.structure.vanes
+    return (np.asarray(s).reshape(N, -1, order="F"), np.asarray(alpha).reshape(N, -1, order="F"),
+            np.asarray(res).reshape(N, -1, order="F"))
+
+
+def mouth_depth(values) -> float:
+    rb, beta, Rr = values["rotor.slot_radius"], values["rotor.slot_tilt"], values["rotor.radius"]
+    return -rb * math.cos(beta) + math.sqrt(Rr**2 - rb**2 * math.sin(beta) ** 2)
+
+
+def check_geometry(cfg: PumpConfig) -> None:
+    pv = cfg.parameters("constrained")
+    kern = load_kernels(pv.structure)
+    p = as_array(pv)
+    v = pv.values
+    alpha, pts, curv = housing_samples(kern, p)
+    if np.any(curv <= 0):
+        i = int(np.argmin(curv))
+        raise ConfigError(f"housing is not convex at housing polar angle {alpha[i]:.3f} rad "
+                          "(reduce housing.harmonics amplitudes)")
+    dist = np.hypot(pts[0], pts[1])
+    i = int(np.argmin(dist))
+    # the rotor axis must be inside and the rotor circle strictly inside the housing
+    inside = _point_in_polygon(0.0, 0.0, pts[0], pts[1])
+    if not inside or dist[i] <= v["rotor.radius"]:
+        raise ConfigError(f"rotor circle (rotor.radius {v['rotor.radius']:.4f} m) must lie strictly "
+                          f"inside the housing; the housing comes to {dist[i]:.4f} m from the rotor axis "
+                          f"at housing polar angle {alpha[i]:.3f} rad (check housing.center)")
+    theta = np.linspace(0, 2 * math.pi, ANGLE_SAMPLES, endpoint=False)
+    s, _, res = vane_positions(kern, p, theta)
+    lm, L = mouth_depth(v), v["vane.length"]
+    if np.any(~np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
+        j = np.unravel_index(np.nanargmax(np.where(np.isfinite(res), res, np.inf)), res.shape)
+        raise ConfigError(f"vane {j[0]} does not reach the housing at rotor angle {theta[j[1]]:.3f} rad")
+    if s.min() < 0:
+        j = np.unravel_index(np.argmin(s), s.shape)
+        raise ConfigError(f"vane.length {L:.4f} m is too long: at rotor angle {theta[j[1]]:.3f} rad "
+                          f"vane {j[0]} would need s = {s[j]:.5f} m < 0 (below the slot bottom) "
+                          "to fit inside the housing")
+    if s.max() >= lm:
+        j = np.unravel_index(np.argmax(s), s.shape)
+        raise ConfigError(f"vane.length {L:.4f} m is too short: at rotor angle {theta[j[1]]:.3f} rad "
+                          f"vane {j[0]} needs s = {s[j]:.5f} m >= slot depth {lm:.5f} m (its bottom end "
+                          "would leave the slot)")
+    if (s + L).min() <= lm:
+        j = np.unravel_index(np.argmin(s), s.shape)
+        raise ConfigError(f"vane tip does not stand out of the rotor: at rotor angle {theta[j[1]]:.3f} rad "
+                          f"vane {j[0]} has s + vane.length = {s[j] + L:.5f} m <= slot depth {lm:.5f} m")
+
+
+def _point_in_polygon(x, y, px, py) -> bool:
+    inside = False
+    n = len(px)
+    j = n - 1
+    for i in range(n):
+        if (py[i] > y) != (py[j] > y) and x < (px[j] - px[i]) * (y - py[i]) / (py[j] - py[i]) + px[i]:
+            inside = not inside
+        j = i
+    return inside

@@ -1,0 +1,169 @@
+"""Simulation of the constrained model (Model 2), by prescribed speed or applied torque."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .config import PumpConfig, as_array
+from .errors import ConfigError, SolverError
+from .integrate import integrate_segmented, make_stepper
+from .kernels import load_kernels
+from .result import SimulationResult
+
+CHUNK = 20000  # samples per kernel call
+PARADOX_TOL = 1e-6  # relative spread between consistent contact-side sets that counts as a paradox
+POSITION_TOL = 1e-10  # m
+
+
+def _per_vane(arr, n_vanes):
+    """Mapped kernel output (1, n_vanes * n) -> (n_vanes, n)."""
+    return np.asarray(arr).reshape(n_vanes, -1, order="F")
+
+
+def evaluate(kern, name, args, n):
+    """Evaluate a compiled function over n samples; args are scalars or length-n arrays."""
+    outs = None
+    names = kern[name].name_out()
+    for lo in range(0, n, CHUNK):
+        hi = min(n, lo + CHUNK)
+        call = []
+        for a in args:
+            a = np.asarray(a, dtype=float)
+            call.append(a[lo:hi][None, :] if a.ndim == 1 and a.size == n else a)
+        res = kern.mapped(name, hi - lo)(*call)
+        res = [np.asarray(r) for r in (res if isinstance(res, (list, tuple)) else [res])]
+        outs = res if outs is None else [np.concatenate([o, r], axis=1) for o, r in zip(outs, res)]
+    N = kern.structure.vanes
+    return {nm: (o.ravel() if o.shape[1] == n else _per_vane(o, N)) for nm, o in zip(names, outs)}
+
+
+def inverse_dynamics(kern, p, theta, omega, omegadot):
+    theta = np.atleast_1d(np.asarray(theta, dtype=float))
+    n = theta.size
+    omega = np.broadcast_to(np.asarray(omega, dtype=float), (n,)).copy()
+    omegadot = np.broadcast_to(np.asarray(omegadot, dtype=float), (n,)).copy()
+    return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot, p], n)
+
+
+def sample_times(duration, rate):
+    if duration is None or not duration > 0:
+        raise ConfigError(f"--duration must be > 0, got {duration}")
+    if rate is None or not rate > 0:
+        raise ConfigError(f"--rate must be > 0, got {rate}")
+    n = int(math.floor(duration * rate + 1e-9)) + 1
+    if n < 2:
+        raise ConfigError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")
+    if n > 5_000_000:
+        raise ConfigError(f"--duration x --rate gives {n} samples; the limit is 5,000,000")
+    return np.arange(n) / rate
+
+
+def _diagnose(out, time, n_vanes, warnings, events):
+    """Report lift-off (negative housing reaction) and friction paradoxes; never hide them."""
+    res = out["position_residual"]
+    if np.nanmax(res) > POSITION_TOL or not np.all(np.isfinite(res)):
+        k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf).max(axis=0)))
+        raise SolverError(f"position problem did not converge at t = {time[k]:.6g} s "
+                          f"(residual {np.nanmax(res):.3g} m)")
+    neg = out["normal"] < 0
+    for i in range(n_vanes):
+        if neg[i].any():
+            k = int(np.argmax(neg[i]))
+            msg = (f"vane {i} would lift off: housing reaction {out['normal'][i, k]:.4g} N < 0 at "
+                   f"t = {time[k]:.6g} s ({int(neg[i].sum())} samples); Model 2 assumes contact, use "
+                   "--model contact")
+            warnings.append(msg)
+            events.append({"time": float(time[k]), "kind": "lift_off", "vane": i, "message": msg})
+    bad = (out["n_consistent"] < 0.5) | (out["ambiguity"] > PARADOX_TOL)
+    for i in range(n_vanes):
+        if bad[i].any():
+            k = int(np.argmax(bad[i]))
+            what = ("no consistent contact-side set" if out["n_consistent"][i, k] < 0.5 else
+                    f"{int(out['n_consistent'][i, k])} consistent contact-side sets")
+            msg = (f"friction paradox at vane {i}, t = {time[k]:.6g} s: {what} for the slot-wall "
+                   f"forces ({int(bad[i].sum())} samples); the least inconsistent set is reported")
+            warnings.append(msg)
+            events.append({"time": float(time[k]), "kind": "friction_paradox", "vane": i, "message": msg})
+
+
+def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None = None,
+             rate: float = 10000.0, method: str = "cvodes", rtol: float = 1e-8, atol: float = 1e-10,
+             max_step: float | None = None, progress=None, **options) -> SimulationResult:
+    """Simulate `cfg`. Speed drive: inverse dynamics at the prescribed speed (no integration).
+    Torque drive: theta and omega integrated; vane positions follow from theta exactly."""
+    if model == "contact":
+        from .contact import simulate_contact
+
+        return simulate_contact(cfg, duration=duration, rate=rate, method=method, rtol=rtol,
+                                atol=atol, max_step=max_step, progress=progress, **options)
+    if model != "constrained":
+        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+    if options:
+        raise ConfigError(f"unknown simulate option(s) for the constrained model: {', '.join(options)}")
+    pv = cfg.parameters("constrained")
+    kern = load_kernels(pv.structure)
+    p = as_array(pv)
+    if duration is None:
+        duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" else 0.5
+    t = sample_times(duration, rate)
+    warnings, events, stats = [], [], {}
+    N = cfg.vanes
+    if cfg.mode == "speed":
+        theta = cfg.angle + cfg.speed * t
+        omega = np.full_like(t, cfg.speed)
+        out = inverse_dynamics(kern, p, theta, omega, 0.0)
+        torque = out["torque"]
+    else:
+        theta, omega, torque, out, stats, ev = _torque_drive(kern, p, cfg, t, method, rtol, atol,
+                                                             max_step, progress)
+        events.extend(ev)
+    _diagnose(out, t, N, warnings, events)
+    vanes = {c: out[c] for c in ("s", "sdot", "normal", "slot1", "slot2")}
+    extra = {k: out[k] for k in ("tip_slip", "sddot", "kinetic_energy", "mu_housing", "mu_slot")}
+    return SimulationResult("constrained", cfg.mode, t, theta, omega, torque, vanes,
+                            dict(pv.values), stats, events, warnings, extra=extra)
+
+
+def switching_functions(kern, p, torque, friction_on):
+    """Signs whose change is a kink in the equations: friction directions and contact sides."""
+
+    def g(x):
+        o = kern["forward_dynamics"](x[0], x[1], torque, p)
+        names = kern["forward_dynamics"].name_out()
+        d = {n: np.asarray(v).ravel() for n, v in zip(names, o)}
+        parts = [d["normal"]]
+        if friction_on:
+            parts += [d["sdot"], d["slot1"], d["slot2"], d["tip_slip"]]
+        return np.concatenate(parts)
+
+    return g
+
+
+def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress):
+    torque = float(cfg.torque)
+    fwd = kern["forward_dynamics"]
+    ode = kern["ode_rhs"]
+    params = np.concatenate([p, [torque]])
+    npar = p.size
+
+    def rhs(x, pp):
+        return ode(x, pp[npar], pp[:npar])
+
+    stepper = make_stepper(rhs, 2, params, method=method, rtol=rtol, atol=atol, max_step=max_step)
+    v = dict(zip([q for q in cfg.parameters().names], p))
+    friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in ("static", "dynamic"))
+    gfun = switching_functions(kern, p, torque, friction_on)
+    x0 = np.array([cfg.angle, cfg.speed])
+    xs, ev, stats = integrate_segmented(stepper, x0, t, switch_fn=gfun, progress=progress)
+    theta, omega = xs[:, 0], xs[:, 1]
+    out = evaluate(kern, "forward_dynamics", [theta, omega, np.full_like(t, torque), p], t.size)
+    if np.nanmax(np.abs(out["torque_residual"])) > 1e-9 * max(1.0, abs(torque)) * 1e3:
+        k = int(np.nanargmax(np.abs(out["torque_residual"])))
+        raise SolverError(f"forward dynamics did not converge at t = {t[k]:.6g} s "
+                          f"(theta {theta[k]:.6g} rad, omega {omega[k]:.6g} rad/s)")
+    N = kern.structure.vanes
+    names = ["normal"] + (["sdot", "slot1", "slot2", "tip_slip"] if friction_on else [])
+    events = [{"time": float(te), "kind": f"switch_{names[i // N]}", "vane": int(i % N),
+               "message": f"{names[i // N]} of vane {i % N} changes sign"} for te, i in ev]
+    return theta, omega, np.full_like(t, torque), out, stats, events
