@@ -22,7 +22,7 @@ SYMBOL_NAMES = (
     "s sdot sddot "
     # geometry and inertia
     "slot_radius slot_tilt rotor_radius L h m J rho "
-    # housing contact point C and inward unit normal n at C (inertial components)
+    # housing contact point C and inward unit normal n at C (rotor-frame components)
     "Cx Cy nx ny "
     # forces: housing normal N, slot walls F1 F2 with contact sides sigma1 sigma2, slot bottom Fb
     "N F1 F2 sigma1 sigma2 Fb "
@@ -34,15 +34,23 @@ SYMBOL_NAMES = (
 @dataclass(frozen=True)
 class VaneMechanics:
     sym: dict  # name -> sympy Symbol
-    points: dict  # point name -> (x, y) inertial components
-    slot_u: tuple  # slot direction u (inertial)
-    slot_w: tuple  # slot side normal w (inertial)
+    points: dict  # point name -> (x, y) rotor-frame components
+    slot_u: tuple  # slot direction u (rotor frame)
+    slot_w: tuple  # slot side normal w (rotor frame)
     mouth_depth: sp.Expr  # l_m: distance from Ob to the slot mouth along u
     tip_slip: sp.Expr  # v_t: velocity of the vane's material point at C along t = z x n
     equations: dict  # 'slide', 'lateral', 'tilt' -> virtual-power residual (= 0)
     drive_torque_share: sp.Expr  # what this vane adds to the drive torque
     kinetic_energy: sp.Expr
     velocity_check: sp.Expr  # |v_G(from differentiation) - v_G(velocity field)|^2, must be 0
+
+
+def _tidy(expr):
+    """Expand and fold sin^2 + cos^2 of the slot angles (cheap; SymPy's trigsimp takes ~20 s)."""
+    e = sp.expand(expr)
+    for a in e.atoms(sp.sin):
+        e = sp.expand(e.subs(a**2, 1 - sp.cos(a.args[0]) ** 2))
+    return e
 
 
 def derive_vane() -> VaneMechanics:
@@ -68,8 +76,11 @@ def derive_vane() -> VaneMechanics:
     B = Ob.locatenew("B", (sv + L) * u)
     P = Ob.locatenew("P", (sv + L - rho) * u)
     Mo = Ob.locatenew("M", l_m * u)
-    C = O.locatenew("C", S["Cx"] * Nf.x + S["Cy"] * Nf.y)
-    n_hat = S["nx"] * Nf.x + S["ny"] * Nf.y
+    # Contact point and normal are given in rotor-frame components: every scalar equation is
+    # rotation invariant, and in the rotor frame the vane geometry does not depend on theta, so the
+    # expressions stay short (no products of sin(theta) with slot-angle terms).
+    C = O.locatenew("C", S["Cx"] * Rf.x + S["Cy"] * Rf.y)
+    n_hat = S["nx"] * Rf.x + S["ny"] * Rf.y
     t_hat = z.cross(n_hat)
     Q1 = A.locatenew("Q1", -S["sigma1"] * h / 2 * w)
     Q2 = Mo.locatenew("Q2", -S["sigma2"] * h / 2 * w)
@@ -96,7 +107,6 @@ def derive_vane() -> VaneMechanics:
         return S["omega"] * z.cross(X.pos_from(O))
 
     vane_angvel = (S["omega"] + wt) * z
-    rotor_angvel = S["omega"] * z
 
     # acceleration of G by differentiation of its position (true kinematics)
     rG = G.pos_from(O)
@@ -104,16 +114,16 @@ def derive_vane() -> VaneMechanics:
     aG = vG_true.dt(Nf)
 
     def comps(vec):
-        return tuple(plain(vec.dot(e)) for e in (Nf.x, Nf.y))
+        return tuple(_tidy((plain(vec.express(Rf).dot(e)))) for e in (Rf.x, Rf.y))
 
     aG_xy = comps(aG)
-    aG_vec = aG_xy[0] * Nf.x + aG_xy[1] * Nf.y
+    aG_vec = aG_xy[0] * Rf.x + aG_xy[1] * Rf.y
     vG_field = vane_velocity(G).subs({vw: 0, wt: 0})
     vcheck = comps(vG_true - vG_field)
     velocity_check = vcheck[0] ** 2 + vcheck[1] ** 2
 
     v_at_C = vane_velocity(C).subs({vw: 0, wt: 0})
-    v_t = plain(v_at_C.dot(t_hat))
+    v_t = _tidy((plain(v_at_C.express(Rf).dot(t_hat))))
 
     mu_h, mu_r = S["mu_h"], S["mu_r"]
     s1, s2 = S["sigma1"], S["sigma2"]
@@ -134,13 +144,12 @@ def derive_vane() -> VaneMechanics:
         for X, F in on_rotor:
             total += F.dot(rotor_velocity(X).diff(speed, Nf))
         total += vane_inertia_torque.dot(vane_angvel.diff(speed, Nf))
-        total += 0 * rotor_angvel.diff(speed, Nf).dot(z)
-        return sp.expand(plain(total.subs({vw: 0, wt: 0}) if hasattr(total, "subs") else total))
+        return _tidy((plain(total).subs({vw: 0, wt: 0})))
 
     gf = {name: generalized_force(sp_) for name, sp_ in zip(("rotor", "slide", "lateral", "tilt"), speeds)}
 
-    ke = plain(sp.Rational(1, 2) * S["m"] * vG_true.dot(vG_true)
-               + sp.Rational(1, 2) * S["J"] * S["omega"] ** 2)
+    ke = _tidy((plain(sp.Rational(1, 2) * S["m"] * vG_true.dot(vG_true)
+                                     + sp.Rational(1, 2) * S["J"] * S["omega"] ** 2)))
 
     pts = {"Ob": Ob, "A": A, "G": G, "B": B, "P": P, "M": Mo, "Q1": Q1, "Q2": Q2}
     return VaneMechanics(

@@ -26,8 +26,8 @@ from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
 from .to_casadi import lambdify_casadi
 
-RAY_ITERATIONS = 4  # fixed-point iterations for the ray/housing intersection (initial guess)
-NEWTON_ITERATIONS = 5  # quadratic convergence from the ray guess: 1e-16 m after 3-4 in practice
+RAY_ITERATIONS = 2  # fixed-point iterations for the ray/housing intersection (initial guess)
+NEWTON_ITERATIONS = 4  # scalar Newton in alpha: quadratic convergence, 1e-16 m after 3 in practice
 FORWARD_ITERATIONS = 4  # Newton on omegadot; the torque is piecewise affine in omegadot
 SIGN_SETS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
 CONSISTENCY_TOL = 1e-9  # relative: a contact-side set is consistent if sign errors < tol * |forces|
@@ -139,41 +139,53 @@ class _Builder:
                                          P[f"{pre}.v_static"], P[f"{pre}.v_dynamic"], CASADI_OPS)
 
     # -- constrained model (Model 2) ------------------------------------------------------------
+    @staticmethod
+    def to_rotor(theta, vec):
+        """Inertial components -> rotor-frame components (turn by -theta)."""
+        c, s_ = ca.cos(theta), ca.sin(theta)
+        return ca.vertcat(c * vec[0] + s_ * vec[1], -s_ * vec[0] + c * vec[1])
+
+    def tip_centre_target(self, theta, alpha):
+        """Where the tip-arc centre P must be for contact at housing point alpha (rotor frame)."""
+        hs = self.housing(alpha)
+        return self.to_rotor(theta, hs["C"] + self.geometry()["rho"] * hs["n"])
+
     def constraint_expr(self, theta, phi, s, alpha):
         g = self.geometry()
-        m = self.mech(theta=theta, phi=phi, s=s, **g)
-        hs = self.housing(alpha)
-        return m["P"] - hs["C"] - g["rho"] * hs["n"]
+        m = self.mech(phi=phi, s=s, **g)
+        return m["P"] - self.tip_centre_target(theta, alpha)
 
     def solve_position(self, theta, phi):
-        """Initial guess from the ray/housing intersection, then Newton on Phi(s, alpha) = 0."""
+        """P = C(alpha) + rho n(alpha) lies on the slot centre line: a scalar equation in alpha,
+        g(alpha) = (target(alpha) - Ob) . w = 0, solved by Newton from a ray/housing guess;
+        then s follows along u."""
         g = self.geometry()
-        base = self.mech(theta=theta, phi=phi, **g)
-        Ob, u = base["Ob"], base["u"]
+        base = self.mech(phi=phi, **g)
+        Ob, u, w = base["Ob"], base["u"], base["w"]
+        c, s_ = ca.cos(theta), ca.sin(theta)
+        Ob_i = ca.vertcat(c * Ob[0] - s_ * Ob[1], s_ * Ob[0] + c * Ob[1])
+        u_i = ca.vertcat(c * u[0] - s_ * u[1], s_ * u[0] + c * u[1])
         ch = ca.vertcat(self.P["housing.center.0"], self.P["housing.center.1"])
-        d = Ob - ch
-        du, dd = ca.dot(d, u), ca.dot(d, d)
+        d = Ob_i - ch
+        du, dd = ca.dot(d, u_i), ca.dot(d, d)
         r = 0.5 * (self.P["housing.a"] + self.P["housing.b"])
         lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
         for _ in range(RAY_ITERATIONS):
-            X = Ob + lam * u
-            alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
-            r = self.housing(alpha)["r"]
+            X = Ob_i + lam * u_i
+            r = self.housing(ca.atan2(X[1] - ch[1], X[0] - ch[0]))["r"]
             lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
-        X = Ob + lam * u
+        X = Ob_i + lam * u_i
+        a_s, th_s, ph_s = ca.SX.sym("a"), ca.SX.sym("th"), ca.SX.sym("ph")
+        bs = self.mech(phi=ph_s, **g)
+        gap = ca.dot(self.tip_centre_target(th_s, a_s) - bs["Ob"], bs["w"])
+        newton = ca.Function("newton_step", [th_s, ph_s, a_s, self.p],
+                             [a_s - gap / ca.jacobian(gap, a_s), ca.fabs(gap)], {"cse": True})
         alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
-        s = lam - g["L"]
-        ys, ya = ca.SX.sym("s"), ca.SX.sym("a")
-        th_s, ph_s = ca.SX.sym("th"), ca.SX.sym("ph")
-        phi_e = self.constraint_expr(th_s, ph_s, ys, ya)
-        jac = ca.jacobian(phi_e, ca.vertcat(ys, ya))
-        newton = ca.Function("newton_step", [th_s, ph_s, ys, ya, self.p],
-                             [ca.vertcat(ys, ya) - ca.solve(jac, phi_e), ca.norm_2(phi_e)])
-        y = ca.vertcat(s, alpha)
         for _ in range(NEWTON_ITERATIONS):
-            y, _ = newton(theta, phi, y[0], y[1], self.p)
-        _, res = newton(theta, phi, y[0], y[1], self.p)
-        return y[0], y[1], res
+            alpha, _ = newton(theta, phi, alpha, self.p)
+        _, res = newton(theta, phi, alpha, self.p)
+        s = ca.dot(self.tip_centre_target(theta, alpha) - Ob, u) - g["L"] + g["rho"]
+        return s, alpha, res
 
     def kinematics_constrained(self, theta, omega, omegadot, phi):
         s, alpha, res = self.solve_position(theta, phi)
@@ -199,10 +211,10 @@ class _Builder:
                                               ("theta", "omega", "omegadot", "phi", "factor"))
         k = self.kinematics_constrained(theta, omega, omegadot, phi)
         hs = self.housing(k["alpha"])
+        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
         g = self.geometry()
         common = dict(theta=theta, omega=omega, omegadot=omegadot, phi=phi, s=k["s"],
-                      sdot=k["sdot"], sddot=k["sddot"], Cx=hs["C"][0], Cy=hs["C"][1],
-                      nx=hs["n"][0], ny=hs["n"][1],
+                      sdot=k["sdot"], sddot=k["sddot"], Cx=C[0], Cy=C[1], nx=n[0], ny=n[1],
                       c_visc=self.P["effects.viscous_tip_friction"], **g)
         v_t = self.mech(**common)["tip_slip"]
         mu_h = factor * self.friction(v_t, "housing")
@@ -247,8 +259,9 @@ class _Builder:
                     # d(torque share)/d(omegadot) on the selected branch, for forward dynamics
                     torque_slope=ca.jacobian(final["torque_share"], omegadot))
         return ca.Function("vane_constrained", [theta, omega, omegadot, phi, factor, self.p],
-                           [outs[n] for n in VANE_OUTPUTS],
-                           ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS))
+                           [outs[nm] for nm in VANE_OUTPUTS],
+                           ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS),
+                           {"cse": True})
 
     # -- N-vane assembly (MX: the vane function is generated once and called N times) ----------
     def slot_angles(self, p):
@@ -322,8 +335,9 @@ class _Builder:
             s, al = q[1 + i], q[1 + N + i]
             Phi.append(self.constraint_expr(th, phis[i], s, al))
             hs = self.housing(al)
+            C, n = self.to_rotor(th, hs["C"]), self.to_rotor(th, hs["n"])
             kw = dict(theta=th, omega=qd[0], omegadot=qdd[0], phi=phis[i], s=s, sdot=qd[1 + i],
-                      sddot=qdd[1 + i], Cx=hs["C"][0], Cy=hs["C"][1], nx=hs["n"][0], ny=hs["n"][1],
+                      sddot=qdd[1 + i], Cx=C[0], Cy=C[1], nx=n[0], ny=n[1],
                       c_visc=self.P["effects.viscous_tip_friction"], **g)
             v_t = self.mech(**kw)["tip_slip"]
             mu_h = self.P[f"effects.vane_friction_factor.{i}"] * self.friction(v_t, "housing")

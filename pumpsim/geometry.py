@@ -17,13 +17,13 @@ POSITION_TOL = 1e-10  # m: the Newton solve must close the contact to this
 
 def housing_samples(kern, p, n=HOUSING_SAMPLES):
     alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
-    pt, _, _, curv = kern.mapped("housing_curve", n)(alpha[None, :], p)
+    pt, _, _, curv = kern.mapped("housing_curve", n)(alpha[None, :], p.reshape(-1, 1))
     return alpha, np.asarray(pt), np.asarray(curv).ravel()
 
 
 def vane_positions(kern, p, theta):
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
-    s, alpha, res = kern.mapped("positions", theta.size)(theta[None, :], p)
+    s, alpha, res = kern.mapped("positions", theta.size)(theta[None, :], p.reshape(-1, 1))
     N = kern.structure.vanes
     return (np.asarray(s).reshape(N, -1, order="F"), np.asarray(alpha).reshape(N, -1, order="F"),
             np.asarray(res).reshape(N, -1, order="F"))

@@ -21,17 +21,19 @@ def _per_vane(arr, n_vanes):
     return np.asarray(arr).reshape(n_vanes, -1, order="F")
 
 
-def evaluate(kern, name, args, n):
-    """Evaluate a compiled function over n samples; args are scalars or length-n arrays."""
+def evaluate(kern, name, samples, p, n):
+    """Evaluate a compiled function over n samples: `samples` are scalars or length-n arrays (one
+    per leading input), `p` the parameter vector shared by all samples (the last input)."""
     outs = None
     names = kern[name].name_out()
+    pcol = np.asarray(p, dtype=float).reshape(-1, 1)
     for lo in range(0, n, CHUNK):
         hi = min(n, lo + CHUNK)
         call = []
-        for a in args:
+        for a in samples:
             a = np.asarray(a, dtype=float)
-            call.append(a[lo:hi][None, :] if a.ndim == 1 and a.size == n else a)
-        res = kern.mapped(name, hi - lo)(*call)
+            call.append(a[lo:hi][None, :] if a.ndim == 1 else a)
+        res = kern.mapped(name, hi - lo)(*call, pcol)
         res = [np.asarray(r) for r in (res if isinstance(res, (list, tuple)) else [res])]
         outs = res if outs is None else [np.concatenate([o, r], axis=1) for o, r in zip(outs, res)]
     N = kern.structure.vanes
@@ -43,7 +45,7 @@ def inverse_dynamics(kern, p, theta, omega, omegadot):
     n = theta.size
     omega = np.broadcast_to(np.asarray(omega, dtype=float), (n,)).copy()
     omegadot = np.broadcast_to(np.asarray(omegadot, dtype=float), (n,)).copy()
-    return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot, p], n)
+    return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot], p, n)
 
 
 def sample_times(duration, rate):
@@ -157,7 +159,7 @@ def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress):
     x0 = np.array([cfg.angle, cfg.speed])
     xs, ev, stats = integrate_segmented(stepper, x0, t, switch_fn=gfun, progress=progress)
     theta, omega = xs[:, 0], xs[:, 1]
-    out = evaluate(kern, "forward_dynamics", [theta, omega, np.full_like(t, torque), p], t.size)
+    out = evaluate(kern, "forward_dynamics", [theta, omega, np.full_like(t, torque)], p, t.size)
     if np.nanmax(np.abs(out["torque_residual"])) > 1e-9 * max(1.0, abs(torque)) * 1e3:
         k = int(np.nanargmax(np.abs(out["torque_residual"])))
         raise SolverError(f"forward dynamics did not converge at t = {t[k]:.6g} s "

@@ -1,0 +1,116 @@
+"""pumpsim benchmarks (`make bench`): printed tables and a JSON file. Not a test: this machine is
+shared and noisy, so compare ratios measured within one run."""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pumpsim.config import as_array, load_config  # noqa: E402
+from pumpsim.kernels import load_kernels  # noqa: E402
+
+
+def best_of(fn, repeats=3):
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+def bench_inverse_dynamics(n=100_000):
+    """Inverse dynamics at constant speed, 4 vanes, ellipse, n angle samples."""
+    import casadi as ca
+
+    from codegen.model import build_model
+    from codegen.numpy_model import NumpyConstrainedModel
+
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    pv = cfg.parameters()
+    kern = load_kernels(pv.structure)
+    p = as_array(pv)
+    theta = np.linspace(0, 2 * math.pi * 50, n)
+    th_row = theta[None, :]
+    pcol = p[:, None]
+    compiled = kern["inverse_dynamics"].map(n, "serial")
+    vm = build_model(pv.structure).functions["inverse_dynamics"].map(n, "serial")
+    npm = NumpyConstrainedModel(pv.structure)
+    rows = {}
+    rows["compiled C library"] = best_of(lambda: compiled(th_row, cfg.speed, 0.0, pcol))
+    rows["CasADi virtual machine"] = best_of(lambda: vm(th_row, cfg.speed, 0.0, pcol), repeats=1)
+    rows["NumPy (lambdified SymPy)"] = best_of(lambda: npm.inverse_dynamics(theta, cfg.speed, 0.0, p), repeats=2)
+    # all three agree
+    a = np.asarray(compiled(th_row, cfg.speed, 0.0, pcol)[0]).ravel()
+    c = npm.inverse_dynamics(theta[:2000], cfg.speed, 0.0, p)[0]
+    agree = float(np.max(np.abs(a[:2000] - c)) / np.max(np.abs(c)))
+    out = {name: {"seconds": t, "samples_per_second": n / t} for name, t in rows.items()}
+    ratio_numpy = rows["NumPy (lambdified SymPy)"] / rows["compiled C library"]
+    ratio_vm = rows["CasADi virtual machine"] / rows["compiled C library"]
+    print(f"\nInverse dynamics, 4 vanes, ellipse, {n} samples")
+    print(f"{'implementation':<28}{'seconds':>10}{'samples/s':>14}")
+    for name, t in rows.items():
+        print(f"{name:<28}{t:>10.4f}{n / t:>14.3g}")
+    print(f"compiled vs NumPy: {ratio_numpy:.1f}x (target >= 20x); compiled vs VM: {ratio_vm:.1f}x "
+          f"(target >= 5x); max relative difference compiled/NumPy {agree:.1e}")
+    return {"samples": n, "rows": out, "speedup_vs_numpy": ratio_numpy, "speedup_vs_vm": ratio_vm,
+            "max_rel_difference_vs_numpy": agree}
+
+
+def bench_compile():
+    """Fresh compile of each bundled variant into a temporary cache."""
+    from codegen.build import build_variant
+
+    res = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        os.environ["PUMPSIM_GENERATED"] = tmp
+        try:
+            for name in ("ellipse_1vane", "ellipse_4vanes"):
+                cfg = load_config(ROOT / "examples" / f"{name}.toml", check_geometry=False)
+                st = cfg.structure_for("constrained")
+                t0 = time.perf_counter()
+                d = build_variant(st)
+                total = time.perf_counter() - t0
+                m = json.loads((d / "manifest.json").read_text())
+                res[st.variant] = {"total_seconds": total, **m["seconds"]}
+        finally:
+            del os.environ["PUMPSIM_GENERATED"]
+    print("\nCompile time per variant (fresh cache)")
+    print(f"{'variant':<28}{'model [s]':>10}{'C compile [s]':>15}{'total [s]':>11}")
+    for v, r in res.items():
+        print(f"{v:<28}{r['model']:>10.2f}{r['compile']:>15.2f}{r['total_seconds']:>11.2f}")
+    return res
+
+
+BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
+    ap.add_argument("--only", nargs="*", choices=list(BENCHES))
+    a = ap.parse_args()
+    result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
+                          "platform": platform.platform()}}
+    for name in a.only or BENCHES:
+        result[name] = BENCHES[name]()
+    Path(a.json).parent.mkdir(parents=True, exist_ok=True)
+    tmp = a.json + ".tmp"
+    Path(tmp).write_text(json.dumps(result, indent=1))
+    os.replace(tmp, a.json)
+    print(f"\nwrote {a.json}")
+
+
+if __name__ == "__main__":
+    main()

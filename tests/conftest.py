@@ -1,0 +1,53 @@
+import copy
+import math
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pumpsim
+from pumpsim.config import as_array, config_from_dict
+from pumpsim.geometry import check_geometry
+from pumpsim.kernels import load_kernels
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+
+
+def example_dict(name="test_rig"):
+    return tomllib.loads((EXAMPLES / f"{name}.toml").read_text())
+
+
+def make_config(base="test_rig", **changes):
+    """Config from an example with dotted-key changes, e.g. make_config(**{"rotor.vanes": 1})."""
+    d = copy.deepcopy(example_dict(base))
+    for key, val in changes.items():
+        parts = key.split(".")
+        node = d
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+        if val is None:
+            node.pop(parts[-1], None)
+        else:
+            node[parts[-1]] = val
+    cfg = config_from_dict(d)
+    check_geometry(cfg)
+    return cfg
+
+
+def kernel_and_p(cfg, model="constrained"):
+    pv = cfg.parameters(model)
+    return load_kernels(pv.structure), as_array(pv), pv
+
+
+def one_revolution(n=2048):
+    return np.linspace(0.0, 2 * math.pi, n, endpoint=False)
+
+
+@pytest.fixture
+def cfg_factory():
+    return make_config
+
+
+__all__ = ["make_config", "kernel_and_p", "one_revolution", "pumpsim"]

@@ -1,0 +1,143 @@
+"""Compiled library vs the in-process CasADi functions; cache behaviour."""
+import json
+import subprocess
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import codegen.build as build
+from codegen.model import build_model
+from pumpsim import kernels
+from pumpsim.parameters import Structure
+from tests.conftest import kernel_and_p, make_config
+from tests.tolerances import COMPILED_REL
+
+
+@pytest.fixture(scope="module")
+def ellipse():
+    cfg = make_config("ellipse_4vanes", **{"housing.harmonics": [[3, 3e-5, 0.1]],
+                                            "rotor.slot_tilt": 0.1, "vane.tip_radius": 0.001})
+    kern, p, pv = kernel_and_p(cfg)
+    spec = build_model(pv.structure)
+    return kern, p, spec
+
+
+def _close(a, b):
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    scale = max(np.abs(b).max(), 1e-300)
+    assert np.max(np.abs(a - b)) <= COMPILED_REL * scale, (np.max(np.abs(a - b)), scale)
+
+
+@pytest.mark.parametrize("name", ["inverse_dynamics", "forward_dynamics", "positions", "constraint",
+                                  "constraint_jacobian", "acceleration_rhs", "ode_rhs"])
+def test_compiled_equals_in_process_at_random_points(ellipse, name):
+    kern, p, spec = ellipse
+    f_c, f_i = kern[name], spec.functions[name]
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        args = []
+        for k, nm in enumerate(f_i.name_in()):
+            if nm == "p":
+                args.append(p)
+            elif nm == "q":
+                th = rng.uniform(0, 6.3)
+                pos = kern["positions"](th, p)
+                args.append(np.concatenate([[th], np.asarray(pos[0]).ravel(), np.asarray(pos[1]).ravel()]))
+            elif nm == "qd":
+                args.append(rng.normal(size=f_i.size1_in(k)) * [400] + 0)
+            elif nm == "x":
+                args.append([rng.uniform(0, 6.3), rng.uniform(50, 600)])
+            elif nm == "theta":
+                args.append(rng.uniform(0, 6.3))
+            elif nm == "omega":
+                args.append(rng.uniform(50, 600))
+            else:
+                args.append(rng.normal() * 0.01)
+        for a, b in zip(f_c(*args) if f_c.n_out() > 1 else [f_c(*args)],
+                        f_i(*args) if f_i.n_out() > 1 else [f_i(*args)]):
+            _close(a, b)
+
+
+def test_compiled_jacobian_equals_in_process(ellipse):
+    """Derivatives through the compiled forward-mode functions match in-process AD."""
+    kern, p, spec = ellipse
+    th, w, wd, pp = ca.MX.sym("th"), ca.MX.sym("w"), ca.MX.sym("wd"), ca.MX.sym("p", p.size)
+    inp = ca.vertcat(th, w, pp)
+    jacs = []
+    for f in (kern["inverse_dynamics"], spec.functions["inverse_dynamics"]):
+        tq = f(th, w, wd, pp)[0]
+        jacs.append(ca.Function("j", [inp, wd], [ca.jacobian(tq, inp)]))
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        x = np.concatenate([[rng.uniform(0, 6.3), rng.uniform(100, 500)], p])
+        _close(jacs[0](x, 3.0), jacs[1](x, 3.0))
+    xo = ca.MX.sym("x", 2)
+    for f in (kern["ode_rhs"], spec.functions["ode_rhs"]):
+        jacs.append(ca.Function("jo", [xo, pp], [ca.jacobian(f(xo, 0.01, pp), xo)]))
+    _close(jacs[2]([1.0, 300.0], p), jacs[3]([1.0, 300.0], p))
+
+
+@pytest.fixture
+def private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("PUMPSIM_GENERATED", str(tmp_path))
+    monkeypatch.setattr(kernels, "_LOADED", {})
+    return tmp_path
+
+
+def _count_compiles(monkeypatch):
+    calls = []
+    real = subprocess.run
+
+    def spy(cmd, *a, **kw):
+        if cmd and cmd[0] == build.CC and "-shared" in cmd:
+            calls.append(cmd)
+        return real(cmd, *a, **kw)
+
+    monkeypatch.setattr(build.subprocess, "run", spy)
+    return calls
+
+
+def test_cache_hit_never_runs_the_compiler(private_cache, monkeypatch):
+    st = Structure(vanes=2)
+    calls = _count_compiles(monkeypatch)
+    kernels.load_kernels(st)
+    assert len(calls) == 1
+    monkeypatch.setattr(kernels, "_LOADED", {})  # a new process: only the disk cache
+    kernels.load_kernels(st)
+    assert len(calls) == 1
+
+
+def test_changed_model_source_triggers_rebuild(private_cache, monkeypatch, tmp_path):
+    st = Structure(vanes=2)
+    calls = _count_compiles(monkeypatch)
+    extra = tmp_path / "model_extra.py"
+    extra.write_text("# version 1\n")
+    monkeypatch.setattr(build, "MODEL_SOURCES", [*build.MODEL_SOURCES, extra])
+    k1 = kernels.load_kernels(st)
+    extra.write_text("# version 2\n")
+    k2 = kernels.load_kernels(st)
+    assert k1.key != k2.key and len(calls) == 2
+    assert k2.folder != k1.folder
+
+
+def test_tampered_library_is_not_trusted(private_cache, monkeypatch):
+    st = Structure(vanes=2)
+    k = kernels.load_kernels(st)
+    lib = k.folder / k.manifest["library"]
+    # a new file in its place (the loaded one stays mapped): contents differ from the manifest
+    tampered = lib.with_suffix(".new")
+    tampered.write_bytes(lib.read_bytes() + b"\0")
+    tampered.replace(lib)
+    monkeypatch.setattr(kernels, "_LOADED", {})
+    with pytest.raises(Exception, match="missing or stale"):
+        kernels.load_kernels(st, build=False)
+
+
+def test_manifest_records_key_orders_and_units(private_cache):
+    k = kernels.load_kernels(Structure(vanes=2))
+    m = json.loads((k.folder / "manifest.json").read_text())
+    assert m["key"] == k.key and m["casadi"] == ca.__version__
+    assert m["parameters"][0] == {"name": "rotor.radius", "unit": "m"}
+    assert m["functions"]["inverse_dynamics"]["inputs"] == ["theta", "omega", "omegadot", "p"]
+    assert m["seconds"]["compile"] < 60
