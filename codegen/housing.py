@@ -30,8 +30,11 @@ def derive_housing(harmonic_slots: int) -> HousingCurve:
     r = a * b / sp.sqrt((b * sp.cos(al - psi)) ** 2 + (a * sp.sin(al - psi)) ** 2)
     for k, A, g in harm:
         r += A * sp.cos(k * (al - psi - g))
-    Cx = S["cx"] + r * sp.cos(al)
-    Cy = S["cy"] + r * sp.sin(al)
+    # cos(alpha), sin(alpha) by angle addition: only trig of (alpha - psi) varies per evaluation,
+    # cos(psi) and sin(psi) are shared by every evaluation in a kernel (common subexpressions)
+    ca_, sa_ = sp.cos(al - psi), sp.sin(al - psi)
+    Cx = S["cx"] + r * (ca_ * sp.cos(psi) - sa_ * sp.sin(psi))
+    Cy = S["cy"] + r * (sa_ * sp.cos(psi) + ca_ * sp.sin(psi))
     Tx, Ty = sp.diff(Cx, al), sp.diff(Cy, al)
     Tn = sp.sqrt(Tx**2 + Ty**2)
     normal = (-Ty / Tn, Tx / Tn)

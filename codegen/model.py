@@ -26,8 +26,11 @@ from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
 from .to_casadi import lambdify_casadi
 
-RAY_ITERATIONS = 2  # fixed-point iterations for the ray/housing intersection (initial guess)
-NEWTON_ITERATIONS = 4  # scalar Newton in alpha: quadratic convergence, 1e-16 m after 3 in practice
+# Scalar Newton steps in alpha from the ray/ellipse guess. Without harmonics the guess is exact for
+# rho = 0 and O(rho * curvature change) off otherwise, so two quadratic steps reach rounding; with
+# harmonics the guess is off by ~A_k/r and four steps are used. Every sample's residual is returned
+# and checked by the runtime, so a non-converged solve is reported, never used.
+NEWTON_ITERATIONS = {"plain": 2, "harmonics": 4}
 FORWARD_ITERATIONS = 4  # Newton on omegadot; the torque is piecewise affine in omegadot
 SIGN_SETS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
 CONSISTENCY_TOL = 1e-9  # relative: a contact-side set is consistent if sign errors < tol * |forces|
@@ -37,6 +40,21 @@ VANE_OUTPUTS = (
     "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "n_consistent", "ambiguity",
     "position_residual", "torque_slope",
 )
+
+
+def _solve3(A, b):
+    """3x3 linear solve by Cramer's rule (fewer instructions than a symbolic QR; the systems here
+    are well conditioned: rows are force balances with unit coefficients on F1, F2)."""
+    def det(M):
+        return (M[0, 0] * (M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1])
+                - M[0, 1] * (M[1, 0] * M[2, 2] - M[1, 2] * M[2, 0])
+                + M[0, 2] * (M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]))
+    D = det(A)
+    cols = []
+    for j in range(3):
+        Aj = ca.horzcat(*[b if k == j else A[:, k] for k in range(3)])
+        cols.append(det(Aj) / D)
+    return ca.vertcat(*cols)
 
 
 class _CasadiOps:
@@ -165,15 +183,19 @@ class _Builder:
         c, s_ = ca.cos(theta), ca.sin(theta)
         Ob_i = ca.vertcat(c * Ob[0] - s_ * Ob[1], s_ * Ob[0] + c * Ob[1])
         u_i = ca.vertcat(c * u[0] - s_ * u[1], s_ * u[0] + c * u[1])
+        # initial guess: the ray Ob + lambda u meets the base ellipse (closed form, exact when
+        # rho = 0 and there are no harmonics)
         ch = ca.vertcat(self.P["housing.center.0"], self.P["housing.center.1"])
+        psi = self.P["housing.angle"]
+        cp, sp_ = ca.cos(psi), ca.sin(psi)
         d = Ob_i - ch
-        du, dd = ca.dot(d, u_i), ca.dot(d, d)
-        r = 0.5 * (self.P["housing.a"] + self.P["housing.b"])
-        lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
-        for _ in range(RAY_ITERATIONS):
-            X = Ob_i + lam * u_i
-            r = self.housing(ca.atan2(X[1] - ch[1], X[0] - ch[0]))["r"]
-            lam = -du + ca.sqrt(ca.fmax(du**2 - dd + r**2, 0.0))
+        dx, dy = cp * d[0] + sp_ * d[1], -sp_ * d[0] + cp * d[1]
+        ux, uy = cp * u_i[0] + sp_ * u_i[1], -sp_ * u_i[0] + cp * u_i[1]
+        ia2, ib2 = 1 / self.P["housing.a"] ** 2, 1 / self.P["housing.b"] ** 2
+        qa = ux * ux * ia2 + uy * uy * ib2
+        qb = dx * ux * ia2 + dy * uy * ib2
+        qc = dx * dx * ia2 + dy * dy * ib2 - 1
+        lam = (-qb + ca.sqrt(ca.fmax(qb * qb - qa * qc, 0.0))) / qa
         X = Ob_i + lam * u_i
         a_s, th_s, ph_s = ca.SX.sym("a"), ca.SX.sym("th"), ca.SX.sym("ph")
         bs = self.mech(phi=ph_s, **g)
@@ -181,7 +203,7 @@ class _Builder:
         newton = ca.Function("newton_step", [th_s, ph_s, a_s, self.p],
                              [a_s - gap / ca.jacobian(gap, a_s), ca.fabs(gap)], {"cse": True})
         alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
-        for _ in range(NEWTON_ITERATIONS):
+        for _ in range(NEWTON_ITERATIONS["harmonics" if self.st.harmonics else "plain"]):
             alpha, _ = newton(theta, phi, alpha, self.p)
         _, res = newton(theta, phi, alpha, self.p)
         s = ca.dot(self.tip_centre_target(theta, alpha) - Ob, u) - g["L"] + g["rho"]
@@ -230,7 +252,7 @@ class _Builder:
         for sg in SIGN_SETS:
             Ai = ca.substitute(A, sig, ca.DM(sg))
             bi = ca.substitute(b, sig, ca.DM(sg))
-            xi = ca.solve(Ai, bi)
+            xi = _solve3(Ai, bi)
             cands.append(xi)
             errs.append(ca.fmax(0, -sg[0] * xi[1]) + ca.fmax(0, -sg[1] * xi[2]))
             scales.append(ca.fabs(xi[0]) + ca.fabs(xi[1]) + ca.fabs(xi[2]))

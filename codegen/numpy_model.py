@@ -14,7 +14,10 @@ from pumpsim.parameters import Structure, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
-from .model import NEWTON_ITERATIONS, RAY_ITERATIONS, SIGN_SETS
+from .model import SIGN_SETS
+
+NEWTON_ITERATIONS = 6  # 2x2 Newton in (s, alpha) from a ray/circle fixed-point guess
+RAY_ITERATIONS = 4
 
 
 class NumpyConstrainedModel:

@@ -21,6 +21,13 @@ from .parameters import Structure
 _LOADED: dict = {}
 
 
+def default_threads() -> int:
+    try:
+        return max(1, int(os.environ.get("PUMPSIM_THREADS", "") or (os.cpu_count() or 1)))
+    except ValueError:
+        return 1
+
+
 @dataclass
 class Kernels:
     structure: Structure
@@ -36,11 +43,15 @@ class Kernels:
         except KeyError:
             raise CodegenError(f"kernel {self.structure.variant} has no function '{name}'") from None
 
-    def mapped(self, name: str, n: int) -> ca.Function:
-        """`name` evaluated over n samples (columns) in one call."""
-        k = (name, n)
+    def mapped(self, name: str, n: int, threads: int | None = None) -> ca.Function:
+        """`name` evaluated over n samples (columns) in one call; large batches are spread over
+        threads (PUMPSIM_THREADS, default: the machine's cores) -- the compiled code is thread-safe."""
+        if threads is None:
+            threads = default_threads() if n >= 2000 else 1
+        k = (name, n, threads)
         if k not in self._maps:
-            self._maps[k] = self[name].map(n, "serial")
+            f = self[name]
+            self._maps[k] = f.map(n, "thread", threads) if threads > 1 else f.map(n, "serial")
         return self._maps[k]
 
 
