@@ -33,7 +33,7 @@ CFLAGS = ["-O2", "-fPIC", "-shared", "-std=c99"]
 # derivative functions compiled into the library (CasADi's external() finds them by name)
 # (forward mode: CVODES and the fits need few directions, and a full jacobian() over all of p would
 # multiply the C size by ten)
-FORWARD_DERIVATIVES = ("ode_rhs", "inverse_dynamics")
+FORWARD_DERIVATIVES = ("ode_rhs", "inverse_dynamics", "ode_speed", "ode_torque")
 
 
 def generated_dir() -> Path:

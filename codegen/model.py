@@ -173,13 +173,9 @@ class _Builder:
         m = self.mech(phi=phi, s=s, **g)
         return m["P"] - self.tip_centre_target(theta, alpha)
 
-    def solve_position(self, theta, phi):
-        """P = C(alpha) + rho n(alpha) lies on the slot centre line: a scalar equation in alpha,
-        g(alpha) = (target(alpha) - Ob) . w = 0, solved by Newton from a ray/housing guess;
-        then s follows along u."""
-        g = self.geometry()
-        base = self.mech(phi=phi, **g)
-        Ob, u, w = base["Ob"], base["u"], base["w"]
+    def ray_guess(self, theta, Ob, u):
+        """Housing parameter alpha where the slot centre line (Ob + lambda u, rotor frame) meets
+        the base ellipse: a closed form, exact when there are no harmonics."""
         c, s_ = ca.cos(theta), ca.sin(theta)
         Ob_i = ca.vertcat(c * Ob[0] - s_ * Ob[1], s_ * Ob[0] + c * Ob[1])
         u_i = ca.vertcat(c * u[0] - s_ * u[1], s_ * u[0] + c * u[1])
@@ -197,15 +193,29 @@ class _Builder:
         qc = dx * dx * ia2 + dy * dy * ib2 - 1
         lam = (-qb + ca.sqrt(ca.fmax(qb * qb - qa * qc, 0.0))) / qa
         X = Ob_i + lam * u_i
+        return ca.atan2(X[1] - ch[1], X[0] - ch[0])
+
+    def newton_alpha(self, alpha, gap, args, syms, a_sym):
+        """Newton iterations on gap(alpha) = 0; returns (alpha, |gap|)."""
+        step = ca.Function("newton_step", [*syms, a_sym, self.p],
+                           [a_sym - gap / ca.jacobian(gap, a_sym), ca.fabs(gap)], {"cse": True})
+        for _ in range(NEWTON_ITERATIONS["harmonics" if self.st.harmonics else "plain"]):
+            alpha, _ = step(*args, alpha, self.p)
+        _, res = step(*args, alpha, self.p)
+        return alpha, res
+
+    def solve_position(self, theta, phi):
+        """P = C(alpha) + rho n(alpha) lies on the slot centre line: a scalar equation in alpha,
+        g(alpha) = (target(alpha) - Ob) . w = 0, solved by Newton from a ray/housing guess;
+        then s follows along u."""
+        g = self.geometry()
+        base = self.mech(phi=phi, **g)
+        Ob, u, w = base["Ob"], base["u"], base["w"]
+        alpha = self.ray_guess(theta, Ob, u)
         a_s, th_s, ph_s = ca.SX.sym("a"), ca.SX.sym("th"), ca.SX.sym("ph")
         bs = self.mech(phi=ph_s, **g)
         gap = ca.dot(self.tip_centre_target(th_s, a_s) - bs["Ob"], bs["w"])
-        newton = ca.Function("newton_step", [th_s, ph_s, a_s, self.p],
-                             [a_s - gap / ca.jacobian(gap, a_s), ca.fabs(gap)], {"cse": True})
-        alpha = ca.atan2(X[1] - ch[1], X[0] - ch[0])
-        for _ in range(NEWTON_ITERATIONS["harmonics" if self.st.harmonics else "plain"]):
-            alpha, _ = newton(theta, phi, alpha, self.p)
-        _, res = newton(theta, phi, alpha, self.p)
+        alpha, res = self.newton_alpha(alpha, gap, [theta, phi], [th_s, ph_s], a_s)
         s = ca.dot(self.tip_centre_target(theta, alpha) - Ob, u) - g["L"] + g["rho"]
         return s, alpha, res
 
@@ -242,20 +252,36 @@ class _Builder:
         mu_h = factor * self.friction(v_t, "housing")
         mu_r = self.friction(k["sdot"], "slot")
         common.update(mu_h=mu_h, mu_r=mu_r)
-        x = ca.SX.sym("x", 3)  # N, F1, F2
+        best, n_cons, amb, final = self.solve_contact_sides(("N", "F1", "F2"), common)
+        outs = dict(s=k["s"], sdot=k["sdot"], sddot=k["sddot"], alpha=k["alpha"],
+                    alphadot=k["alphadot"], normal=best[0], slot1=best[1], slot2=best[2],
+                    torque_share=final["torque_share"], tip_slip=v_t, mu_housing=mu_h,
+                    mu_slot=mu_r, kinetic_energy=final["kinetic_energy"], n_consistent=n_cons,
+                    ambiguity=amb, position_residual=k["res"],
+                    # d(torque share)/d(omegadot) on the selected branch, for forward dynamics
+                    torque_slope=ca.jacobian(final["torque_share"], omegadot))
+        return ca.Function("vane_constrained", [theta, omega, omegadot, phi, factor, self.p],
+                           [outs[nm] for nm in VANE_OUTPUTS],
+                           ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS),
+                           {"cse": True})
+
+    def solve_contact_sides(self, unknowns, common):
+        """Solve the three vane equations (slide, lateral, tilt) for `unknowns` -- (N, F1, F2) in
+        Model 2, (sddot, F1, F2) in Model 1 -- for every contact-side set (sigma1, sigma2); keep the
+        consistent one (sign F_j = sigma_j). Returns (solution, number of consistent sets,
+        ambiguity between consistent sets relative to the force scale, mechanics at the solution)."""
+        x = ca.SX.sym("x", 3)
         sig = ca.SX.sym("sig", 2)
-        m = self.mech(N=x[0], F1=x[1], F2=x[2], sigma1=sig[0], sigma2=sig[1], **common)
+        m = self.mech(sigma1=sig[0], sigma2=sig[1], **dict(zip(unknowns, [x[0], x[1], x[2]])), **common)
         eqs = ca.vertcat(m["eq_slide"], m["eq_lateral"], m["eq_tilt"])
-        A = ca.jacobian(eqs, x)
+        A = ca.jacobian(eqs, x)  # the equations are linear in x for a fixed sign set
         b = -ca.substitute(eqs, x, ca.DM.zeros(3))
         cands, errs, scales = [], [], []
         for sg in SIGN_SETS:
-            Ai = ca.substitute(A, sig, ca.DM(sg))
-            bi = ca.substitute(b, sig, ca.DM(sg))
-            xi = _solve3(Ai, bi)
+            xi = _solve3(ca.substitute(A, sig, ca.DM(sg)), ca.substitute(b, sig, ca.DM(sg)))
             cands.append(xi)
             errs.append(ca.fmax(0, -sg[0] * xi[1]) + ca.fmax(0, -sg[1] * xi[2]))
-            scales.append(ca.fabs(xi[0]) + ca.fabs(xi[1]) + ca.fabs(xi[2]))
+            scales.append(ca.fabs(xi[1]) + ca.fabs(xi[2]) + (ca.fabs(xi[0]) if unknowns[0] == "N" else 0))
         scale = scales[0]
         for sc in scales[1:]:
             scale = ca.fmax(scale, sc)
@@ -268,22 +294,12 @@ class _Builder:
         n_cons = sum(ca.if_else(e <= tol, 1.0, 0.0) for e in errs)
         amb = 0.0
         for xi, ei in zip(cands, errs):
-            diff = ca.mmax(ca.fabs(xi - best)) / (scale + 1e-300)
+            diff = ca.mmax(ca.fabs(xi[1:] - best[1:])) / (scale + 1e-300)
             amb = ca.fmax(amb, ca.if_else(ei <= tol, diff, 0.0))
-        sel_sig = ca.vertcat(ca.if_else(best[1] >= 0, 1.0, -1.0), ca.if_else(best[2] >= 0, 1.0, -1.0))
-        final = self.mech(N=best[0], F1=best[1], F2=best[2], sigma1=sel_sig[0], sigma2=sel_sig[1],
-                          **common)
-        outs = dict(s=k["s"], sdot=k["sdot"], sddot=k["sddot"], alpha=k["alpha"],
-                    alphadot=k["alphadot"], normal=best[0], slot1=best[1], slot2=best[2],
-                    torque_share=final["torque_share"], tip_slip=v_t, mu_housing=mu_h,
-                    mu_slot=mu_r, kinetic_energy=final["kinetic_energy"], n_consistent=n_cons,
-                    ambiguity=amb, position_residual=k["res"],
-                    # d(torque share)/d(omegadot) on the selected branch, for forward dynamics
-                    torque_slope=ca.jacobian(final["torque_share"], omegadot))
-        return ca.Function("vane_constrained", [theta, omega, omegadot, phi, factor, self.p],
-                           [outs[nm] for nm in VANE_OUTPUTS],
-                           ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS),
-                           {"cse": True})
+        sel = dict(zip(unknowns, [best[0], best[1], best[2]]))
+        final = self.mech(sigma1=ca.if_else(best[1] >= 0, 1.0, -1.0),
+                          sigma2=ca.if_else(best[2] >= 0, 1.0, -1.0), **sel, **common)
+        return best, n_cons, amb, final
 
     # -- N-vane assembly (MX: the vane function is generated once and called N times) ----------
     def slot_angles(self, p):

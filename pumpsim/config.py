@@ -47,6 +47,7 @@ _SCHEMA = {
         "mode": ("str", False, "speed"), "speed": ("num", False, None),
         "speed_rpm": ("num", False, None), "angle": ("num", False, 0.0),
         "torque": ("num", False, None), "bearing_torque": ("num", False, 0.0),
+        "initial_vane_state": ("str", False, None),
     },
     "effects": {
         "viscous_tip_friction": ("num", False, 0.0), "vane_friction_factors": ("list", False, None),
@@ -121,6 +122,7 @@ class PumpConfig:
     angle: float
     torque: float | None
     contact_laws: dict = field(default_factory=dict)
+    initial_vane_state: str | None = None  # contact model: bottom | rotor | housing
     contact_given: bool = False
     path: str | None = None
 
@@ -293,6 +295,9 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         if speed < 0:
             raise ConfigError(f"operation.speed (initial speed) must be >= 0, got {speed:g}")
     values["operation.bearing_torque"] = op["bearing_torque"]
+    if op["initial_vane_state"] not in (None, "bottom", "rotor", "housing"):
+        raise ConfigError("operation.initial_vane_state must be \"bottom\", \"rotor\" or \"housing\", "
+                          f"got {op['initial_vane_state']!r}")
     # effects (absent = zero / factor one)
     ef = c["effects"]
     if ef["viscous_tip_friction"] < 0:
@@ -309,6 +314,7 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         name=c["name"] or name_default, shape=shape, vanes=r["vanes"],
         harmonics=[list(map(float, x)) for x in harm], values=values, mode=mode, speed=speed,
         angle=op["angle"], torque=op["torque"], contact_laws=laws,
+        initial_vane_state=op["initial_vane_state"],
         contact_given=ct["housing"]["stiffness"] is not None,
     )
 

@@ -1,148 +1,180 @@
 """Time integration with CasADi's SUNDIALS interfaces and located switches.
 
-The right-hand side of a pump model is continuous but has kinks where a friction direction or a
-slot contact side changes (and jumps where Model 1 changes contact state). Rather than rely on
-CasADi's experimental integrator events (casadi issue 4393), the integration is segmented: each
-output interval is integrated, the switching functions are checked for a sign change, a change is
-located by the Illinois method on re-integrations from the interval start, and the integrator is
-restarted at the switch. Between switches the equations are smooth, which is what BDF wants.
+A pump model's right-hand side has kinks or jumps where a contact state, a friction direction or a
+slot contact side changes. CasADi's integrator events are experimental (casadi issue 4393: CVODES
+fires on one crossing direction only, IDAS ignores them), so switches are handled here by
+step-and-check segmentation:
+
+- the output grid is integrated in chunks of many output intervals per CVODES call (no restart
+  inside a chunk, so BDF keeps its order and step size);
+- the switching functions are evaluated on the whole chunk at once; at the first sign change the
+  chunk is cut back to the output time before it;
+- that interval is re-integrated from its start to locate the crossing (Illinois method on the
+  integrated switching function, to `time_tol`), the integrator is restarted at the crossing and
+  the remaining part of the interval is integrated from there.
+
+Between located switches the equations are smooth, which is what BDF wants.
 """
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from .errors import SolverError
 
-STAT_KEYS = ("nsteps", "nfevals", "nlinsetups", "netfails", "nniters", "nncfails", "njevals")
+STAT_KEYS = ("nsteps", "nfevals", "nlinsetups", "netfails", "nniters", "nncfails")
+CHUNK = 64  # output intervals per integrator call
 
 
-@dataclass
-class Stepper:
-    """x(t0 + dt) = step(x(t0), dt) with a fixed parameter vector."""
+class Integrator:
+    """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
-    integ: ca.Function
-    params: np.ndarray
-    method: str
-    stats: dict = field(default_factory=lambda: {k: 0 for k in STAT_KEYS})
-    calls: int = 0
+    def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=1e-8, atol=1e-10,
+                 max_step=None, rk_steps=10):
+        self.params = np.asarray(params, dtype=float).ravel()
+        self.nx, self.dt, self.method = nx, float(dt), method
+        self.rtol, self.atol, self.max_step, self.rk_steps = rtol, atol, max_step, rk_steps
+        x = ca.MX.sym("x", nx)
+        pp = ca.MX.sym("p", self.params.size + 1)
+        self._x, self._pp = x, pp
+        self._rhs = rhs(x, pp[:-1])
+        self.stats = {k: 0 for k in STAT_KEYS}
+        self.calls = 0
+        self._chunks = {}
+        # any duration: normalised time [0, 1], the duration as the last parameter
+        self._step = self._make("step", pp[-1] * self._rhs, [1.0], normalised=True)
 
-    def __call__(self, x, dt):
+    def _make(self, name, ode, grid, normalised=False):
+        dae = {"x": self._x, "p": self._pp, "ode": ode}
+        if self.method in ("cvodes", "idas"):
+            opts = {"abstol": self.atol, "reltol": self.rtol, "max_num_steps": 500000}
+            if self.max_step and not normalised:
+                opts["max_step_size"] = self.max_step
+            return ca.integrator(name, self.method, dae, 0.0, grid, opts)
+        if self.method == "rk":
+            return ca.integrator(name, "rk", dae, 0.0, grid, {"number_of_finite_elements": self.rk_steps})
+        raise ValueError(f"unknown integration method {self.method!r}")
+
+    def _call(self, integ, x, extra):
         self.calls += 1
-        res = self.integ(x0=x, p=np.concatenate([self.params, [dt]]))
+        res = integ(x0=x, p=np.concatenate([self.params, [extra]]))
         if self.method != "rk":
-            st = self.integ.stats()
+            st = integ.stats()
             for k in STAT_KEYS:
                 v = st.get(k)
                 if isinstance(v, (int, float)):
                     self.stats[k] += int(v)
-        return np.asarray(res["xf"]).ravel()
+        return np.asarray(res["xf"])
+
+    def step(self, x, duration):
+        return self._call(self._step, x, duration).ravel()
+
+    def chunk(self, x, m):
+        if m not in self._chunks:
+            grid = list(self.dt * np.arange(1, m + 1))
+            self._chunks[m] = self._make(f"chunk{m}", self._rhs, grid)
+        return self._call(self._chunks[m], x, 0.0).T  # (m, nx)
 
 
-def make_stepper(rhs, nx: int, params, method="cvodes", rtol=1e-8, atol=1e-10, max_step=None,
-                 rk_steps=50):
-    """Integrator over normalised time [0, 1] with the duration as the last parameter.
-
-    rhs(x, p) -> xdot (CasADi, MX-callable). method: cvodes (BDF, Newton, exact Jacobian through the
-    compiled forward derivatives), idas, or rk (explicit Runge-Kutta 4 with fixed substeps)."""
-    params = np.asarray(params, dtype=float).ravel()
-    x = ca.MX.sym("x", nx)
-    pp = ca.MX.sym("p", params.size + 1)
-    T = pp[-1]
-    ode = T * rhs(x, pp[:-1])
-    opts = {}
-    if method == "cvodes":
-        opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 200000}
-        if max_step:
-            opts["max_step_size"] = max_step
-        integ = ca.integrator("step", "cvodes", {"x": x, "p": pp, "ode": ode}, 0.0, 1.0, opts)
-    elif method == "idas":
-        opts = {"abstol": atol, "reltol": rtol, "max_num_steps": 200000}
-        integ = ca.integrator("step", "idas", {"x": x, "p": pp, "ode": ode}, 0.0, 1.0, opts)
-    elif method == "rk":
-        integ = ca.integrator("step", "rk", {"x": x, "p": pp, "ode": ode}, 0.0, 1.0,
-                              {"number_of_finite_elements": rk_steps})
-    else:
-        raise ValueError(f"unknown integration method {method!r}")
-    return Stepper(integ, params, method)
-
-
-def integrate_segmented(stepper: Stepper, x0, times, switch_fn=None, on_step=None,
+def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=None,
                         time_tol=1e-11, progress=None):
-    """Integrate to every output time, locating sign changes of switch_fn(x) -> 1-D array.
+    """Integrate to every output time (uniform grid), locating sign changes of the switching
+    functions switch_fn(X) -> (len(X), n_switch) for states X (len, nx).
 
-    Returns (states (n_times, nx), events list of (time, index), stats dict).
-    A failure raises SolverError naming the time and state, with the partial result attached."""
+    Returns (states (n_times, nx), events [(time, switch index)], stats). A failure raises
+    SolverError naming the time and state, with (times, states) computed so far attached."""
     times = np.asarray(times, dtype=float)
-    xs = np.empty((times.size, len(x0)))
-    xs[0] = x0
-    x = np.asarray(x0, dtype=float)
+    n = times.size
+    xs = np.empty((n, len(x0)))
+    xs[0] = x = np.asarray(x0, dtype=float)
     events = []
-    t = times[0]
-    g = switch_fn(x) if switch_fn else None
+    g = switch_fn(x[None, :])[0] if switch_fn else None
     wall0 = _time.perf_counter()
-    for k in range(1, times.size):
-        t_end = times[k]
-        while t < t_end:
-            dt = t_end - t
-            try:
-                x_new = stepper(x, dt)
-            except RuntimeError as e:
-                raise SolverError(
-                    f"integrator failed between t = {t:.9g} s and {t_end:.9g} s from state "
-                    f"{np.array2string(x, precision=6)}: {str(e).splitlines()[-1]}",
-                    partial=(times[:k], xs[:k])) from None
-            if not np.all(np.isfinite(x_new)):
-                raise SolverError(f"integrator returned a non-finite state after t = {t:.9g} s "
-                                  f"(state {np.array2string(x, precision=6)})", partial=(times[:k], xs[:k]))
-            if switch_fn is None:
-                x, t = x_new, t_end
-                break
-            g_new = switch_fn(x_new)
-            crossed = np.nonzero(np.sign(g_new) != np.sign(g))[0]
-            crossed = [i for i in crossed if g[i] != 0.0]
-            if not crossed:
-                x, t, g = x_new, t_end, g_new
-                break
-            # locate the earliest crossing
-            t_s, idx = None, None
-            for i in crossed:
-                ti = _illinois(lambda d: switch_fn(stepper(x, d))[i], 0.0, dt, g[i], g_new[i],
-                               time_tol)
-                if t_s is None or ti < t_s:
-                    t_s, idx = ti, i
-            if t_s <= 0.0:  # switching function sits at zero: step past it
-                x, t, g = x_new, t_end, g_new
-                break
-            x = stepper(x, t_s)
-            t = t + t_s
-            g = switch_fn(x)
-            g[idx] = g_new[idx]  # count this crossing as done
-            events.append((t, int(idx)))
-        xs[k] = x
-        if on_step:
-            on_step(t, x)
+    k = 0
+    while k < n - 1:
+        m = min(CHUNK, n - 1 - k)
+        steps_before = integ.stats["nsteps"]
+        X = _guarded(lambda: integ.chunk(x, m), times[k], times[k + m], x, times[:k + 1], xs[:k + 1])
+        cut = m
+        if switch_fn is not None:
+            G = switch_fn(X)
+            prev = np.vstack([g[None, :], G[:-1]])
+            changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
+            rows = np.nonzero(changed.any(axis=1))[0]
+            if rows.size:
+                cut = int(rows[0])  # intervals accepted before the one with the crossing
+        if cut:
+            xs[k + 1:k + 1 + cut] = X[:cut]
+            x = X[cut - 1]
+            k += cut
+            g = switch_fn(x[None, :])[0] if switch_fn else None
+            if on_chunk:
+                on_chunk(times[k], cut, integ.stats["nsteps"] - steps_before)
+        if cut < m:  # the interval [times[k], times[k+1]] holds a crossing: locate, restart
+            x, g = _cross_interval(integ, switch_fn, x, g, times[k], times[k + 1], events, time_tol,
+                                   times[:k + 1], xs[:k + 1])
+            k += 1
+            xs[k] = x
         if progress:
-            progress(t)
-    stats = dict(stepper.stats)
-    stats["integrator_calls"] = stepper.calls
+            progress(times[k])
+    stats = dict(integ.stats)
+    stats["integrator_calls"] = integ.calls
     stats["events"] = len(events)
     stats["wall_time"] = _time.perf_counter() - wall0
     return xs, events, stats
 
 
+def _guarded(fn, t_a, t_b, x, done_t, done_x):
+    try:
+        out = fn()
+    except RuntimeError as e:
+        raise SolverError(
+            f"integrator failed between t = {t_a:.9g} s and {t_b:.9g} s starting from state "
+            f"{np.array2string(x, precision=6)}: {str(e).strip().splitlines()[-1]}",
+            partial=(done_t, done_x)) from None
+    if not np.all(np.isfinite(out)):
+        raise SolverError(f"integrator returned a non-finite state between t = {t_a:.9g} s and "
+                          f"{t_b:.9g} s (state at {t_a:.9g} s: {np.array2string(x, precision=6)})",
+                          partial=(done_t, done_x))
+    return out
+
+
+def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, done_x):
+    while t < t_end:
+        dt = t_end - t
+        x_new = _guarded(lambda: integ.step(x, dt), t, t_end, x, done_t, done_x)
+        g_new = switch_fn(x_new[None, :])[0]
+        crossed = [i for i in np.nonzero(np.sign(g_new) != np.sign(g))[0] if g[i] != 0.0]
+        if not crossed:
+            return x_new, g_new
+        t_s, idx = None, None
+        for i in crossed:
+            ti = _illinois(lambda d: switch_fn(integ.step(x, d)[None, :])[0][i], 0.0, dt, g[i],
+                           g_new[i], time_tol)
+            if t_s is None or ti < t_s:
+                t_s, idx = ti, i
+        if t_s >= dt:  # crossing at the interval end
+            events.append((t_end, int(idx)))
+            return x_new, g_new
+        x = _guarded(lambda: integ.step(x, t_s), t, t + t_s, x, done_t, done_x)
+        t = t + t_s
+        g = switch_fn(x[None, :])[0]
+        g[idx] = g_new[idx]  # this crossing is done
+        events.append((t, int(idx)))
+    return x, g
+
+
 def _illinois(f, a, b, fa, fb, tol, max_iter=60):
-    """Root of f on [a, b] with f(a) fa, f(b) fb of opposite signs; returns a point just after it."""
+    """Root of f on [a, b] (f(a), f(b) of opposite signs); returns a point just past it."""
     side = 0
     for _ in range(max_iter):
         c = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
         if not a < c < b:
             c = 0.5 * (a + b)
         fc = f(c)
-        if np.sign(fc) == np.sign(fb) or fc == 0.0:
+        if fc == 0.0 or np.sign(fc) == np.sign(fb):
             b, fb = c, fc
             if side == -1:
                 fa *= 0.5

@@ -7,11 +7,12 @@ import numpy as np
 
 from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
-from .integrate import integrate_segmented, make_stepper
+from .integrate import Integrator, integrate_segmented
 from .kernels import load_kernels
 from .result import SimulationResult
 
 CHUNK = 20000  # samples per kernel call
+SAMPLE_OUTPUTS = {"torque", "omegadot", "torque_residual"}  # one value per sample; others per vane
 PARADOX_TOL = 1e-6  # relative spread between consistent contact-side sets that counts as a paradox
 POSITION_TOL = 1e-10  # m
 
@@ -32,12 +33,13 @@ def evaluate(kern, name, samples, p, n):
         call = []
         for a in samples:
             a = np.asarray(a, dtype=float)
-            call.append(a[lo:hi][None, :] if a.ndim == 1 else a)
+            # 1-D: one value per sample; 2-D (k, n): a k-vector per sample; 0-D: shared
+            call.append(a[lo:hi][None, :] if a.ndim == 1 else (a[:, lo:hi] if a.ndim == 2 else a))
         res = kern.mapped(name, hi - lo)(*call, pcol)
         res = [np.asarray(r) for r in (res if isinstance(res, (list, tuple)) else [res])]
         outs = res if outs is None else [np.concatenate([o, r], axis=1) for o, r in zip(outs, res)]
     N = kern.structure.vanes
-    return {nm: (o.ravel() if o.shape[1] == n else _per_vane(o, N)) for nm, o in zip(names, outs)}
+    return {nm: (o.ravel() if nm in SAMPLE_OUTPUTS else _per_vane(o, N)) for nm, o in zip(names, outs)}
 
 
 def inverse_dynamics(kern, p, theta, omega, omegadot):
@@ -128,36 +130,35 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
 
 
 def switching_functions(kern, p, torque, friction_on):
-    """Signs whose change is a kink in the equations: friction directions and contact sides."""
+    """Signs whose change is a kink in the equations: friction directions and contact sides
+    (and the housing reaction, whose sign change is a would-be lift-off)."""
 
-    def g(x):
-        o = kern["forward_dynamics"](x[0], x[1], torque, p)
-        names = kern["forward_dynamics"].name_out()
-        d = {n: np.asarray(v).ravel() for n, v in zip(names, o)}
+    def g(X):
+        n = X.shape[0]
+        d = evaluate(kern, "forward_dynamics", [X[:, 0], X[:, 1], np.full(n, torque)], p, n)
         parts = [d["normal"]]
         if friction_on:
             parts += [d["sdot"], d["slot1"], d["slot2"], d["tip_slip"]]
-        return np.concatenate(parts)
+        return np.vstack(parts).T
 
     return g
 
 
 def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress):
     torque = float(cfg.torque)
-    fwd = kern["forward_dynamics"]
     ode = kern["ode_rhs"]
-    params = np.concatenate([p, [torque]])
     npar = p.size
 
     def rhs(x, pp):
         return ode(x, pp[npar], pp[:npar])
 
-    stepper = make_stepper(rhs, 2, params, method=method, rtol=rtol, atol=atol, max_step=max_step)
-    v = dict(zip([q for q in cfg.parameters().names], p))
+    integ = Integrator(rhs, 2, np.concatenate([p, [torque]]), t[1] - t[0], method=method, rtol=rtol,
+                       atol=atol, max_step=max_step)
+    v = dict(zip(cfg.parameters().names, p))
     friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in ("static", "dynamic"))
     gfun = switching_functions(kern, p, torque, friction_on)
     x0 = np.array([cfg.angle, cfg.speed])
-    xs, ev, stats = integrate_segmented(stepper, x0, t, switch_fn=gfun, progress=progress)
+    xs, ev, stats = integrate_segmented(integ, x0, t, switch_fn=gfun, progress=progress)
     theta, omega = xs[:, 0], xs[:, 1]
     out = evaluate(kern, "forward_dynamics", [theta, omega, np.full_like(t, torque)], p, t.size)
     if np.nanmax(np.abs(out["torque_residual"])) > 1e-9 * max(1.0, abs(torque)) * 1e3:
