@@ -149,20 +149,19 @@ def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, 
         crossed = [i for i in np.nonzero(np.sign(g_new) != np.sign(g))[0] if g[i] != 0.0]
         if not crossed:
             return x_new, g_new
-        t_s, idx = None, None
-        for i in crossed:
-            ti = _illinois(lambda d: switch_fn(integ.step(x, d)[None, :])[0][i], 0.0, dt, g[i],
-                           g_new[i], time_tol)
-            if t_s is None or ti < t_s:
-                t_s, idx = ti, i
+        roots = {i: _illinois(lambda d, i=i: switch_fn(integ.step(x, d)[None, :])[0][i], 0.0, dt,
+                              g[i], g_new[i], time_tol) for i in crossed}
+        t_s = min(roots.values())
+        simultaneous = [i for i, ti in roots.items() if ti <= t_s + 10 * time_tol]
         if t_s >= dt:  # crossing at the interval end
-            events.append((t_end, int(idx)))
+            events.extend((t_end, int(i)) for i in simultaneous)
             return x_new, g_new
         x = _guarded(lambda: integ.step(x, t_s), t, t + t_s, x, done_t, done_x)
         t = t + t_s
         g = switch_fn(x[None, :])[0]
-        g[idx] = g_new[idx]  # this crossing is done
-        events.append((t, int(idx)))
+        for i in simultaneous:  # these crossings are done
+            g[i] = g_new[i]
+            events.append((t, int(i)))
     return x, g
 
 
