@@ -36,7 +36,7 @@ def _progress_printer(total):
 
 
 def cmd_simulate(a) -> int:
-    from . import load_config, simulate
+    from . import SimulationResult, SolverError, load_config, simulate
 
     cfg = load_config(a.config)
     opts = {}
@@ -44,8 +44,15 @@ def cmd_simulate(a) -> int:
         opts["initial"] = a.initial
     duration = a.duration
     progress = _progress_printer(duration) if duration else None
-    res = simulate(cfg, model=a.model, duration=duration, rate=a.rate, method=a.method,
-                   rtol=a.rtol, atol=a.atol, max_step=a.max_step, progress=progress, **opts)
+    try:
+        res = simulate(cfg, model=a.model, duration=duration, rate=a.rate, method=a.method,
+                       rtol=a.rtol, atol=a.atol, max_step=a.max_step, progress=progress,
+                       max_steps=a.max_steps, **opts)
+    except SolverError as e:
+        if isinstance(e.partial, SimulationResult) and a.out:  # keep what was computed
+            e.partial.to_csv(a.out)
+            print(f"pumpsim: the samples computed before the failure are in {a.out}", file=sys.stderr)
+        raise
     if a.out:
         res.to_csv(a.out)
     if a.plot:
@@ -53,6 +60,28 @@ def cmd_simulate(a) -> int:
     print(res.summary())
     for w in res.warnings:
         print(f"pumpsim: warning: {w}", file=sys.stderr)
+    return 0
+
+
+def cmd_study(a) -> int:
+    from . import load_config
+    from .study import HEADER, solver_study, write_json
+
+    cfg = load_config(a.config)
+    if not cfg.contact_given:
+        from .errors import ConfigError
+
+        raise ConfigError("the solver study needs [contact.housing] with a stiffness in the config")
+    if not a.revolutions > 0:
+        from .errors import ConfigError
+
+        raise ConfigError(f"--revolutions must be > 0, got {a.revolutions}")
+    print(f"contact model solver study: {cfg.name}, constant speed, {a.revolutions:g} revolutions "
+          "from an in-contact start; deviations from Model 2 over the last revolution")
+    print(HEADER)
+    result = solver_study(cfg, revolutions=a.revolutions, speed=a.speed, log=print)
+    if a.json:
+        write_json(a.json, result)
     return 0
 
 
@@ -70,10 +99,18 @@ def build_parser():
                    help="integrator for torque drive / the contact model")
     s.add_argument("--rtol", type=float, default=1e-8)
     s.add_argument("--atol", type=float, default=1e-10)
-    s.add_argument("--max-step", type=float, dest="max_step")
+    s.add_argument("--max-step", type=float, dest="max_step", help="largest integrator step [s]")
+    s.add_argument("--max-steps", type=int, dest="max_steps", default=500000,
+                   help="integrator steps allowed per call before it gives up")
     s.add_argument("--initial", choices=["bottom", "rotor", "housing"],
                    help="contact model: initial vane state (default rotor)")
     s.set_defaults(func=cmd_simulate)
+    st = sub.add_parser("study", help="contact-model solver study (report §7-8)")
+    st.add_argument("config")
+    st.add_argument("--revolutions", type=float, default=10.0)
+    st.add_argument("--speed", type=float, help="constant speed [rad/s] (default: the config's)")
+    st.add_argument("--json", help="write the table as JSON")
+    st.set_defaults(func=cmd_study)
     return ap
 
 

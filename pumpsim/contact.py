@@ -37,7 +37,7 @@ def contact_states(penetration, s) -> list[str]:
 
 
 def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvodes", rtol=1e-8,
-                     atol=1e-10, max_step=None, progress=None, initial=None,
+                     atol=1e-10, max_step=None, progress=None, initial=None, max_steps=500000,
                      **unknown) -> SimulationResult:
     if unknown:
         raise ConfigError(f"unknown simulate option(s): {', '.join(unknown)}")
@@ -70,7 +70,7 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     else:
         rk_steps = 1
     integ = Integrator(rhs, 2 + 2 * N, np.concatenate([p, [drive]]), dt, method=method, rtol=rtol,
-                       atol=atol, max_step=max_step, rk_steps=rk_steps)
+                       atol=atol, max_step=max_step, rk_steps=rk_steps, max_steps=max_steps)
     v = pv.values
 
     def switches(X):
@@ -95,7 +95,7 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         states = ", ".join(f"vane {i} {st}" for i, st in
                            enumerate(contact_states(o["penetration"][:, -1], xx[-1][2:2 + N])))
         failure = SolverError(f"{e} -- contact states at t = {tt[-1]:.9g} s: {states}")
-        t, xs = tt, xx
+        t, xs, ev = tt, xx, []
         stats = dict(integ.stats)
         termination = f"failed after t = {t[-1]:.9g} s"
     stats["wall_time"] = _time.perf_counter() - wall0

@@ -32,10 +32,11 @@ class Integrator:
     """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
     def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=1e-8, atol=1e-10,
-                 max_step=None, rk_steps=10):
+                 max_step=None, rk_steps=10, max_steps=500000):
         self.params = np.asarray(params, dtype=float).ravel()
         self.nx, self.dt, self.method = nx, float(dt), method
         self.rtol, self.atol, self.max_step, self.rk_steps = rtol, atol, max_step, rk_steps
+        self.max_steps = int(max_steps)
         x = ca.MX.sym("x", nx)
         pp = ca.MX.sym("p", self.params.size + 1)
         self._x, self._pp = x, pp
@@ -49,18 +50,22 @@ class Integrator:
     def _make(self, name, ode, grid, normalised=False):
         dae = {"x": self._x, "p": self._pp, "ode": ode}
         if self.method in ("cvodes", "idas"):
-            opts = {"abstol": self.atol, "reltol": self.rtol, "max_num_steps": 500000}
+            opts = {"abstol": self.atol, "reltol": self.rtol, "max_num_steps": self.max_steps}
             if self.max_step and not normalised:
                 opts["max_step_size"] = self.max_step
             return ca.integrator(name, self.method, dae, 0.0, grid, opts)
-        if self.method == "rk":
-            return ca.integrator(name, "rk", dae, 0.0, grid, {"number_of_finite_elements": self.rk_steps})
+        if self.method == "rk":  # fixed steps: rk_steps per output interval (the option is a total)
+            return ca.integrator(name, "rk", dae, 0.0, grid,
+                                 {"number_of_finite_elements": self.rk_steps * len(grid)})
         raise ValueError(f"unknown integration method {self.method!r}")
 
-    def _call(self, integ, x, extra):
+    def _call(self, integ, x, extra, intervals=1):
         self.calls += 1
         res = integ(x0=x, p=np.concatenate([self.params, [extra]]))
-        if self.method != "rk":
+        if self.method == "rk":  # RK4: four right-hand sides a step
+            self.stats["nsteps"] += self.rk_steps * intervals
+            self.stats["nfevals"] += 4 * self.rk_steps * intervals
+        else:
             st = integ.stats()
             for k in STAT_KEYS:
                 v = st.get(k)
@@ -75,7 +80,7 @@ class Integrator:
         if m not in self._chunks:
             grid = list(self.dt * np.arange(1, m + 1))
             self._chunks[m] = self._make(f"chunk{m}", self._rhs, grid)
-        return self._call(self._chunks[m], x, 0.0).T  # (m, nx)
+        return self._call(self._chunks[m], x, 0.0, intervals=m).T  # (m, nx)
 
 
 def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=None,

@@ -93,18 +93,25 @@ def _diagnose(out, time, n_vanes, warnings, events):
 
 def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None = None,
              rate: float = 10000.0, method: str = "cvodes", rtol: float = 1e-8, atol: float = 1e-10,
-             max_step: float | None = None, progress=None, **options) -> SimulationResult:
+             max_step: float | None = None, progress=None, max_steps: int = 500000,
+             **options) -> SimulationResult:
     """Simulate `cfg`. Speed drive: inverse dynamics at the prescribed speed (no integration).
     Torque drive: theta and omega integrated; vane positions follow from theta exactly."""
     if model == "contact":
         from .contact import simulate_contact
 
         return simulate_contact(cfg, duration=duration, rate=rate, method=method, rtol=rtol,
-                                atol=atol, max_step=max_step, progress=progress, **options)
+                                atol=atol, max_step=max_step, progress=progress,
+                                max_steps=max_steps, **options)
     if model != "constrained":
         raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
     if options:
-        raise ConfigError(f"unknown simulate option(s) for the constrained model: {', '.join(options)}")
+        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
+    for name, val in (("rtol", rtol), ("atol", atol)):
+        if not 0 < val < 1:
+            raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
+    if max_step is not None and not max_step > 0:
+        raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)
     p = as_array(pv)
@@ -120,7 +127,7 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
         torque = out["torque"]
     else:
         theta, omega, torque, out, stats, ev = _torque_drive(kern, p, cfg, t, method, rtol, atol,
-                                                             max_step, progress)
+                                                             max_step, progress, max_steps)
         events.extend(ev)
     _diagnose(out, t, N, warnings, events)
     vanes = {c: out[c] for c in ("s", "sdot", "normal", "slot1", "slot2")}
@@ -144,7 +151,7 @@ def switching_functions(kern, p, torque, friction_on):
     return g
 
 
-def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress):
+def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress, max_steps):
     torque = float(cfg.torque)
     ode = kern["ode_rhs"]
     npar = p.size
@@ -153,7 +160,7 @@ def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress):
         return ode(x, pp[npar], pp[:npar])
 
     integ = Integrator(rhs, 2, np.concatenate([p, [torque]]), t[1] - t[0], method=method, rtol=rtol,
-                       atol=atol, max_step=max_step)
+                       atol=atol, max_step=max_step, max_steps=max_steps)
     v = dict(zip(cfg.parameters().names, p))
     friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in ("static", "dynamic"))
     gfun = switching_functions(kern, p, torque, friction_on)
