@@ -140,3 +140,94 @@ def _lambdify_matrices(args, matrices):
         return out
 
     return call
+
+
+class NumpyContactModel:
+    """Model 1's right-hand side in NumPy for SciPy's solve_ivp, lambdified from the same SymPy
+    mechanics: speed drive, sharp tip (rho = 0, the contact point on the slot centre line)."""
+
+    def __init__(self, structure: Structure):
+        self.st = structure
+        self.names = [q.name for q in layout(structure)]
+        mech = derive_vane()
+        hc = derive_housing(structure.harmonics)
+        S = mech.sym
+        al = hc.alpha
+        self.hsyms = [hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")] + [x for t in hc.harmonic_syms for x in t]
+        th = S["theta"]
+        rot = sp.Matrix([[sp.cos(th), sp.sin(th)], [-sp.sin(th), sp.cos(th)]])
+        C = rot * sp.Matrix(hc.point)
+        n = rot * sp.Matrix(hc.normal)
+        Ob, u, w = (sp.Matrix(mech.points["Ob"]), sp.Matrix(mech.slot_u), sp.Matrix(mech.slot_w))
+        B = sp.Matrix(mech.points["B"])
+        gap = (C - Ob).dot(w)  # C on the slot centre line
+        delta = -(B - C).dot(n)
+        q = [th, S["s"], al]
+        geo = [S[k] for k in ("phi", "slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J", "rho")]
+        args = [th, S["s"], al] + geo + self.hsyms
+        self._gap = sp.lambdify(args, [gap, sp.diff(gap, al)], "numpy", cse=True)
+        self._delta = sp.lambdify(args, [delta, *[sp.diff(delta, v) for v in q], *[sp.diff(gap, v) for v in q],
+                                         C[0], C[1], n[0], n[1]], "numpy", cse=True)
+        x = [S["sddot"], S["F1"], S["F2"]]
+        eqs = sp.Matrix([mech.equations[k] for k in ("slide", "lateral", "tilt")])
+        self._dyn_args = [nm for nm in SYMBOL_NAMES if nm not in ("sddot", "F1", "F2")]
+        lin_args = [S[nm] for nm in self._dyn_args]
+        self._lin = sp.lambdify(lin_args, [eqs.jacobian(x), -eqs.subs({xi: 0 for xi in x})], "numpy", cse=True)
+        self._slip = sp.lambdify([S[nm] for nm in SYMBOL_NAMES], mech.tip_slip, "numpy", cse=True)
+        self._guess = sp.lambdify([th] + geo + self.hsyms, sp.atan2(*(rot.T * Ob - sp.Matrix(
+            [hc.sym["cy"], hc.sym["cx"]])[::-1, :])[::-1]), "numpy")
+
+    def rhs_speed(self, p, theta0, omega, law_h, law_b):
+        """f(t, y) for y = [s_0.., sdot_0..] at constant speed."""
+        v = dict(zip(self.names, p))
+        hp = [v["housing.a"], v["housing.b"], v["housing.center.0"], v["housing.center.1"], v["housing.angle"]]
+        for j in range(self.st.harmonics):
+            hp += [v[f"housing.harmonics.{j}.{k}"] for k in ("order", "amplitude", "phase")]
+        g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
+                 rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
+                 m=v["vane.mass"], J=v["vane.inertia"], rho=0.0)
+        gl = [g[k] for k in ("slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J", "rho")]
+        fh = [v[f"friction.housing.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+        fs = [v[f"friction.slot.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+        ch = [v[f"contact.housing.{k}"] for k in ("stiffness", "exponent", "damping", "depth")]
+        cb = [v[f"contact.bottom.{k}"] for k in ("stiffness", "exponent", "damping", "depth")]
+        N = self.st.vanes
+        phis = [v["rotor.first_slot_angle"] + 2 * math.pi * i / N for i in range(N)]
+        alpha_prev = [None] * N
+
+        def f(t, y):
+            theta = theta0 + omega * t
+            out = np.empty(2 * N)
+            out[:N] = y[N:]
+            for i, phi in enumerate(phis):
+                s, sd = y[i], y[N + i]
+                a = alpha_prev[i]
+                if a is None:
+                    a = theta + phi
+                for _ in range(6):
+                    gv, dg = self._gap(theta, s, a, phi, *gl, *hp)
+                    a -= gv / dg
+                alpha_prev[i] = a
+                d, d_t, d_s, d_a, g_t, g_s, g_a, cx, cy, nx, ny = self._delta(theta, s, a, phi, *gl, *hp)
+                ad = -(g_t * omega + g_s * sd) / g_a
+                dd = d_t * omega + d_s * sd + d_a * ad
+                Nf = laws.contact_force(law_h, d, dd, *ch, g["m"])
+                Fb = laws.contact_force(law_b, -s, -sd, *cb, g["m"])
+                kw = dict(theta=theta, omega=omega, omegadot=0.0, phi=phi, s=s, sdot=sd, Cx=cx, Cy=cy,
+                          nx=nx, ny=ny, N=Nf, Fb=Fb, c_visc=0.0, sigma1=1.0, sigma2=1.0, mu_h=0.0,
+                          mu_r=0.0, sddot=0.0, F1=0.0, F2=0.0, **g)
+                vt = self._slip(*[kw[k] for k in SYMBOL_NAMES])
+                kw["mu_h"] = v[f"effects.vane_friction_factor.{i}"] * laws.friction_coefficient(vt, *fh)
+                kw["mu_r"] = laws.friction_coefficient(sd, *fs)
+                best, best_err = None, None
+                for s1, s2 in SIGN_SETS:
+                    kw["sigma1"], kw["sigma2"] = s1, s2
+                    A, b = self._lin(*[kw[k] for k in self._dyn_args])
+                    xs = np.linalg.solve(np.asarray(A, float), np.asarray(b, float).ravel())
+                    err = max(0, -s1 * xs[1]) + max(0, -s2 * xs[2])
+                    if best is None or err < best_err:
+                        best, best_err = xs, err
+                out[N + i] = best[0]
+            return out
+
+        return f

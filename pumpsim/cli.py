@@ -85,6 +85,75 @@ def cmd_study(a) -> int:
     return 0
 
 
+def _data_options(a):
+    from .data import DataOptions
+
+    return DataOptions(time=a.time_column, torque=a.torque_column, speed=a.speed_column,
+                       angle=a.angle_column, torque_unit=a.torque_unit, speed_unit=a.speed_unit,
+                       resample=a.resample, steady=a.steady)
+
+
+def _add_data_options(p):
+    g = p.add_argument_group("data")
+    g.add_argument("--time-column", default="time")
+    g.add_argument("--torque-column", default="torque")
+    g.add_argument("--speed-column", default="speed")
+    g.add_argument("--angle-column", default="angle")
+    g.add_argument("--torque-unit", default="N*m", help="N*m or N*mm")
+    g.add_argument("--speed-unit", default="rad/s", help="rad/s or rpm")
+    g.add_argument("--resample", type=float, help="resample to this rate [Hz]")
+    g.add_argument("--steady", action="store_true",
+                   help="fit only the constant-speed section (needs a speed column)")
+
+
+def _parse_params(text):
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        from .errors import ConfigError
+
+        raise ConfigError("--params names no parameter")
+    return names
+
+
+def _parse_initial(items):
+    from .errors import ConfigError
+
+    out = {}
+    for item in items or []:
+        name, sep, val = item.partition("=")
+        try:
+            out[name.strip()] = float(val)
+        except ValueError:
+            raise ConfigError(f"--start takes NAME=VALUE, got '{item}'") from None
+        if not sep:
+            raise ConfigError(f"--start takes NAME=VALUE, got '{item}'")
+    return out
+
+
+def cmd_identify(a) -> int:
+    import json
+
+    from . import load_config
+    from .data import load_data
+    from .identify import identify
+    from .io import write_text
+
+    cfg = load_config(a.config)
+    params = _parse_params(a.params)
+    data = load_data(a.data, _data_options(a),
+                     nominal_speed=None if "speed" in params else (cfg.speed if cfg.mode == "speed" else None))
+    res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
+                   initial=_parse_initial(a.start), max_iter=a.max_iter)
+    print(res)
+    if a.json:
+        write_text(a.json, json.dumps(res.to_json(), indent=1))
+    if a.report:
+        from .report import identification_report
+
+        identification_report(res, a.report, title=f"pumpsim identification: {cfg.name}")
+    return 0
+
+
 def build_parser():
     ap = _Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification.")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -105,6 +174,20 @@ def build_parser():
     s.add_argument("--initial", choices=["bottom", "rotor", "housing"],
                    help="contact model: initial vane state (default rotor)")
     s.set_defaults(func=cmd_simulate)
+    ip = sub.add_parser("identify", help="fit friction (and phase, speed, offsets) to measured torque")
+    ip.add_argument("config")
+    ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
+    ip.add_argument("--params", default="mu,theta0",
+                    help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
+                         "numeric config key path (e.g. housing.center.0)")
+    ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"])
+    ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
+    ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
+    ip.add_argument("--max-iter", type=int, default=50, dest="max_iter")
+    ip.add_argument("--json")
+    ip.add_argument("--report", help="self-contained HTML report")
+    _add_data_options(ip)
+    ip.set_defaults(func=cmd_identify)
     st = sub.add_parser("study", help="contact-model solver study (report §7-8)")
     st.add_argument("config")
     st.add_argument("--revolutions", type=float, default=10.0)

@@ -1,0 +1,417 @@
+"""Identification (report §12-14): fit the vane-housing COF (and phase, speed, offsets, any numeric
+config value) to a measured drive-torque signal at constant speed.
+
+Dataset -> Problem (model torque and its exact Jacobian through the compiled kernel, CasADi AD) ->
+solver (the report's Gauss-Newton with relaxation factor, Levenberg-Marquardt, or IPOPT through
+nlpsol with bounds) -> Result (estimates, standard errors, 95% intervals, correlation, history,
+residual diagnostics).
+"""
+from __future__ import annotations
+
+import difflib
+import math
+import time as _time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from scipy import stats
+
+from .config import PumpConfig, as_array
+from .data import Dataset
+from .diagnostics import residual_report
+from .errors import ConfigError, IdentificationError
+from .kernels import load_kernels
+from .parameters import layout
+
+SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay")
+METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
+SINGULAR_COND = 1e7  # condition number of the column-scaled Jacobian beyond which J'J is singular
+
+
+@dataclass
+class Estimate:
+    name: str
+    value: float | None
+    stderr: float | None
+    lower95: float | None = None
+    upper95: float | None = None
+    initial: float | None = None
+    identifiable: bool = True
+
+
+@dataclass
+class IdentificationResult:
+    estimates: dict
+    iterations: list  # [{"params": {...}, "rms": ...}]
+    rms: float
+    converged: bool
+    message: str
+    correlation: np.ndarray | None
+    diagnostics: dict
+    method: str
+    wall_time: float
+    unidentifiable: list = field(default_factory=list)
+    time: np.ndarray | None = None
+    measured: np.ndarray | None = None
+    fitted: np.ndarray | None = None
+    initial_model: np.ndarray | None = None
+    speed: float = 0.0
+    angle: np.ndarray | None = None
+    n_evaluations: int = 0
+
+    @property
+    def residual(self):
+        return self.measured - self.fitted
+
+    def value(self, name):
+        return self.estimates[name].value
+
+    def to_json(self) -> dict:
+        names = list(self.estimates)
+        return {
+            "params": {n: {"value": e.value, "stderr": e.stderr, "ci95": [e.lower95, e.upper95],
+                           "initial": e.initial, "identifiable": e.identifiable}
+                       for n, e in self.estimates.items()},
+            "iterations": self.iterations, "rms": self.rms, "converged": self.converged,
+            "message": self.message, "method": self.method, "unidentifiable": self.unidentifiable,
+            "correlation": {"names": [n for n in names if self.estimates[n].identifiable],
+                            "matrix": None if self.correlation is None else self.correlation.tolist()},
+            "diagnostics": self.diagnostics, "wall_time": self.wall_time,
+        }
+
+    def __str__(self):
+        lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
+                 f"after {len(self.iterations) - 1} iterations, residual RMS {self.rms:.6g} N m"]
+        for e in self.estimates.values():
+            if e.identifiable:
+                lines.append(f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}  (95%: {e.lower95:.6g} .. "
+                             f"{e.upper95:.6g}; start {e.initial:.6g})")
+            else:
+                lines.append(f"  {e.name:<22} not identifiable from this data")
+        d = self.diagnostics
+        lines.append(f"  residual: runs test p = {d['runs_test']['p_value']:.3g}, Ljung-Box p = "
+                     f"{d['ljung_box']['p_value']:.3g} -> {'white' if d['white_at_5pct'] else 'not white'} at 5%")
+        if d["spectrum_peaks"]:
+            lines.append("  residual peaks at shaft orders: " + ", ".join(
+                f"{p['order']:.2f}" for p in d["spectrum_peaks"][:5]))
+        return "\n".join(lines)
+
+
+class Problem:
+    """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi, exact (CasADi
+    forward AD through the compiled inverse-dynamics kernel)."""
+
+    def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None):
+        self.cfg, self.data = cfg, data
+        self.pv = cfg.parameters("constrained")
+        self.kern = load_kernels(self.pv.structure)
+        self.p0 = as_array(self.pv)
+        self.names = list(names)
+        if not self.names:
+            raise ConfigError("--params names no parameter to fit")
+        self._index = {n: i for i, n in enumerate(self.pv.names)}
+        for n in self.names:
+            self._check_name(n)
+        if len(set(self.names)) != len(self.names):
+            raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
+        v = self.pv.values
+        speed0 = float(np.mean(data.speed)) if data.speed is not None else cfg.speed
+        theta0 = float(data.angle[0]) if data.angle is not None else cfg.angle
+        self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"],
+                      "theta0": theta0, "speed": speed0, "torque_offset": 0.0, "delay": 0.0}
+        self.fixed.update(extra or {})
+        self.x0 = np.array([self._initial(n, initial or {}) for n in self.names], dtype=float)
+        self.lower = np.array([0.0 if n in ("mu", "mu_slot") or n in self._nonneg() else -np.inf
+                               for n in self.names])
+        self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
+        self.t = data.time - data.time[0]
+        self.y = data.torque
+        self._build()
+        self.n_eval = 0
+
+    def _nonneg(self):
+        """Names whose physics demands >= 0 (masses, lengths, COFs): bounds for the fit."""
+        names = {q.name for q in layout(self.pv.structure) if q.positive or q.lower >= 0}
+        return names | ({"housing.radius"} if "housing.a" in names else set())
+
+    def _check_name(self, n):
+        if n in SPECIAL or n in self._index or n == "housing.radius":
+            return
+        close = difflib.get_close_matches(n, list(SPECIAL) + list(self._index), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ConfigError(f"--params: unknown parameter '{n}'{hint}")
+
+    def _initial(self, n, initial):
+        if n in initial:
+            return float(initial[n])
+        if n in self.fixed:
+            return float(self.fixed[n])
+        if n == "housing.radius":
+            return float(self.pv.values["housing.a"])
+        return float(self.pv.values[n])
+
+    def _build(self):
+        phi = ca.MX.sym("phi", len(self.names))
+        val = {n: phi[i] for i, n in enumerate(self.names)}
+        get = lambda n: val.get(n, self.fixed.get(n))  # noqa: E731
+        v = self.pv.values
+        p = [ca.MX(x) for x in self.p0]
+
+        def setp(name, expr):
+            p[self._index[name]] = expr
+
+        mu, mu_slot = get("mu"), get("mu_slot")
+        if "mu" in val:
+            r_h = v["friction.housing.static"] / max(v["friction.housing.dynamic"], 1e-300)
+            setp("friction.housing.dynamic", mu)
+            setp("friction.housing.static", mu * r_h)
+            if "mu_slot" not in val:
+                mu_slot = mu  # slot COF tied to the housing COF unless mu_slot is named
+        if "mu" in val or "mu_slot" in val:
+            r_s = v["friction.slot.static"] / max(v["friction.slot.dynamic"], 1e-300)
+            setp("friction.slot.dynamic", mu_slot)
+            setp("friction.slot.static", mu_slot * r_s)
+        for n, e in val.items():
+            if n == "housing.radius":
+                setp("housing.a", e)
+                setp("housing.b", e)
+            elif n in self._index:
+                setp(n, e)
+        pvec = ca.vertcat(*p)
+        w = get("speed")
+        theta = get("theta0") + w * (ca.DM(self.t).T - get("delay"))
+        n = self.t.size
+        tq = self.kern.mapped("inverse_dynamics", n)(theta, w, 0.0, pvec)[0] + get("torque_offset")
+        tq = tq.T
+        self._model = ca.Function("model", [phi], [tq])
+        self._model_jac = ca.Function("model_jac", [phi], [tq, ca.jacobian(tq, phi)])
+        self._pfun = ca.Function("p_of_phi", [phi], [pvec])
+
+    def model(self, x):
+        self.n_eval += 1
+        return np.asarray(self._model(x)).ravel()
+
+    def model_and_jacobian(self, x):
+        self.n_eval += 1
+        tq, J = self._model_jac(x)
+        return np.asarray(tq).ravel(), np.asarray(J)
+
+    def residual(self, x):
+        return self.y - self.model(x)
+
+    def parameter_vector(self, x):
+        return np.asarray(self._pfun(x)).ravel()
+
+    def angle(self, x):
+        d = dict(zip(self.names, x))
+        w = d.get("speed", self.fixed["speed"])
+        return d.get("theta0", self.fixed["theta0"]) + w * (self.t - d.get("delay", self.fixed["delay"]))
+
+
+def _scaled_svd(J):
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, Vt = np.linalg.svd(J / scale, full_matrices=False)
+    return scale, U, s, Vt
+
+
+def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-10, lm=False, log=None):
+    """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
+    Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
+    least-squares solve; bounds are enforced by projection."""
+    x = np.array(x0, dtype=float)
+    m, J = prob.model_and_jacobian(x)
+    r = prob.y - m
+    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean(r**2)))}]
+    lam = 1e-3
+    converged, message = False, "maximum iterations reached"
+    for _ in range(max_iter):
+        scale, U, s, Vt = _scaled_svd(J)
+        if s[-1] < s[0] / SINGULAR_COND:
+            message = "Jacobian became singular"
+            break
+        g = U.T @ r
+        if lm:
+            while True:
+                step = (Vt.T @ (s * g / (s**2 + lam))) / scale
+                xn = np.clip(x + step, prob.lower, prob.upper)
+                mn, Jn = prob.model_and_jacobian(xn)
+                rn = prob.y - mn
+                if rn @ rn <= r @ r or lam > 1e12:
+                    lam = max(lam / 3, 1e-12)
+                    break
+                lam *= 4
+        else:
+            step = relaxation * (Vt.T @ (g / s)) / scale
+            xn = np.clip(x + step, prob.lower, prob.upper)
+            mn, Jn = prob.model_and_jacobian(xn)
+            rn = prob.y - mn
+        small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
+        x, r, J = xn, rn, Jn
+        history.append({"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean(r**2)))})
+        if log:
+            log(history[-1])
+        if small or (len(history) > 2 and abs(history[-2]["rms"] - history[-1]["rms"])
+                     <= 1e-12 * max(history[-1]["rms"], 1e-300) and np.all(np.abs(step) <= 1e-6 * (np.abs(x) + 1e-12))):
+            converged, message = True, "step below tolerance"
+            break
+    return x, r, J, history, converged, message
+
+
+def ipopt_fit(prob: Problem, x0, log=None):
+    phi = ca.MX.sym("phi", len(prob.names))
+    r = ca.DM(prob.y) - prob._model(phi)
+    nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
+    # scale the unknowns by their initial magnitude so IPOPT's tolerances mean the same for all
+    sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
+                                          "ipopt.hessian_approximation": "limited-memory",
+                                          "ipopt.tol": 1e-12, "ipopt.max_iter": 200})
+    res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
+              ubx=np.where(np.isfinite(prob.upper), prob.upper, 1e20))
+    x = np.asarray(res["x"]).ravel()
+    m, J = prob.model_and_jacobian(x)
+    st = sol.stats()
+    r0 = prob.residual(x0)
+    history = [{"params": dict(zip(prob.names, map(float, x0))), "rms": float(np.sqrt(np.mean(r0**2))),
+                "iteration": 0},
+               {"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean((prob.y - m) ** 2))),
+                "iteration": int(st.get("iter_count", 0))}]
+    return x, prob.y - m, J, history, bool(st.get("success")), str(st.get("return_status"))
+
+
+def _phase_and_speed_start(prob: Problem, x):
+    """theta0 is periodic and speed moves the phase: start from the best phase (and, when fitted,
+    the speed from the torque spectrum) so a wrong initial phase cannot trap the fit."""
+    x = np.array(x, dtype=float)
+    names = prob.names
+    t, y = prob.t, prob.y
+    d = dict(zip(names, x))
+    w = d.get("speed", prob.fixed["speed"])
+    # model over one revolution at the current parameters (theta grid)
+    grid = np.linspace(0, 2 * math.pi, 720, endpoint=False)
+    pvec = prob.parameter_vector(x)
+    from .simulate import inverse_dynamics
+
+    one_rev = inverse_dynamics(prob.kern, pvec, grid, w, 0.0)["torque"]
+    if "speed" in names and t.size > 64:
+        spec_y = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(y.size)))
+        f = np.fft.rfftfreq(y.size, t[1] - t[0])
+        k = int(np.argmax(spec_y[1:])) + 1
+        if 1 <= k < spec_y.size - 1:  # parabolic peak interpolation
+            a, b, c = np.log(spec_y[k - 1:k + 2] + 1e-300)
+            k = k + 0.5 * (a - c) / (a - 2 * b + c)
+        f_peak = k * (f[1] - f[0])
+        orders = np.abs(np.fft.rfft(one_rev - one_rev.mean()))
+        order = int(np.argmax(orders[1:])) + 1
+        candidates = [2 * math.pi * f_peak / o for o in range(1, 4 * prob.kern.structure.vanes + 1)]
+        w_new = min(candidates, key=lambda c: abs(c - w) + (1e9 if abs(c - w) > 0.5 * w else 0))
+        if abs(2 * math.pi * f_peak / order - w) < 0.5 * w:
+            w_new = 2 * math.pi * f_peak / order
+        x[names.index("speed")] = w_new
+        w = w_new
+        one_rev = inverse_dynamics(prob.kern, prob.parameter_vector(x), grid, w, 0.0)["torque"]
+    if "theta0" in names:
+        delay = d.get("delay", prob.fixed["delay"])
+        th_init = d["theta0"]
+        costs = []
+        for th0 in np.linspace(0, 2 * math.pi, 360, endpoint=False):
+            ang = np.mod(th0 + w * (t - delay), 2 * math.pi)
+            m = np.interp(ang, np.append(grid, 2 * math.pi), np.append(one_rev, one_rev[0]))
+            A = np.column_stack([m, np.ones_like(m)])
+            coef, res, *_ = np.linalg.lstsq(A, y, rcond=None)
+            cost = float(res[0]) if res.size else float(np.sum((y - A @ coef) ** 2))
+            if coef[0] > 0:
+                costs.append((cost, th0))
+        if costs:
+            # phases the torque cannot tell apart (its angular period) cost the same: take the
+            # one nearest the initial guess
+            lowest = min(c for c, _ in costs)
+            near = [th for c, th in costs if c <= lowest * (1 + 1e-6) + 1e-300]
+            dist = lambda a: abs((a - th_init + math.pi) % (2 * math.pi) - math.pi)  # noqa: E731
+            x[names.index("theta0")] = min(near, key=dist) if len(near) > 1 else \
+                min(costs)[1]
+    return x
+
+
+def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newton", relaxation=1.0,
+             initial=None, max_iter=50, log=None, multistart=True) -> IdentificationResult:
+    if method not in METHODS:
+        raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
+    if not 0 < relaxation <= 1:
+        raise ConfigError(f"--relaxation must be in (0, 1], got {relaxation:g}")
+    if cfg.mode != "speed" and "speed" not in params and data.speed is None:
+        raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
+                          "speed column in the data, or 'speed' in --params")
+    wall0 = _time.perf_counter()
+    prob = Problem(cfg, data, params, initial)
+    x0 = prob.x0.copy()
+    start = _phase_and_speed_start(prob, x0) if multistart and ({"theta0", "speed"} & set(prob.names)) else x0
+    initial_model = prob.model(x0)
+    # identifiability at the start: a near-singular J'J names the parameters instead of guessing
+    m_start, J_start = prob.model_and_jacobian(start)
+    unident = _unidentifiable(prob.names, J_start, start, m_start)
+    active = [n for n in prob.names if n not in unident]
+    if unident and active:
+        fixed = dict(zip(prob.names, start))
+        sub = Problem(cfg, data, active, {n: fixed[n] for n in active},
+                      extra={n: fixed[n] for n in unident if n in SPECIAL})
+        prob_fit, start_fit = sub, np.array([fixed[n] for n in active])
+    elif unident:
+        raise IdentificationError(f"no parameter is identifiable from this data: {', '.join(unident)}")
+    else:
+        prob_fit, start_fit = prob, start
+    if method == "ipopt":
+        x, r, J, history, converged, message = ipopt_fit(prob_fit, start_fit, log)
+    else:
+        x, r, J, history, converged, message = gauss_newton(
+            prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
+            lm=method == "levenberg-marquardt", log=log)
+    if multistart and "theta0" in prob_fit.names:  # theta0 is periodic: report it in [0, 2 pi)
+        i = prob_fit.names.index("theta0")
+        x[i] = float(np.mod(x[i], 2 * math.pi))
+        if x[i] > 2 * math.pi - 1e-12:
+            x[i] = 0.0
+    n, k = r.size, len(prob_fit.names)
+    sigma2 = float(r @ r) / max(n - k, 1)
+    scale, U, s, Vt = _scaled_svd(J)
+    cov = (Vt.T / s**2) @ Vt / np.outer(scale, scale) * sigma2
+    se = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):  # a noise-free fit has se = 0
+        corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(len(se)))
+    tq = stats.t.ppf(0.975, max(n - k, 1))
+    est = {}
+    x0d = dict(zip(prob.names, x0))
+    for i, name in enumerate(prob_fit.names):
+        est[name] = Estimate(name, float(x[i]), float(se[i]), float(x[i] - tq * se[i]),
+                             float(x[i] + tq * se[i]), x0d[name])
+    for name in unident:
+        est[name] = Estimate(name, None, None, None, None, x0d[name], identifiable=False)
+    est = {nm: est[nm] for nm in prob.names}
+    fitted = prob_fit.y - r
+    w = dict(zip(prob_fit.names, x)).get("speed", prob_fit.fixed["speed"])
+    diag = residual_report(r, prob.t[1] - prob.t[0], w, fitted=k)
+    if unident:
+        message += f"; not identifiable from this data: {', '.join(unident)}"
+    return IdentificationResult(
+        est, history, float(np.sqrt(np.mean(r**2))), converged, message, corr, diag, method,
+        _time.perf_counter() - wall0, unident, prob.t + data.time[0], prob.y, fitted, initial_model,
+        w, prob_fit.angle(x), prob.n_eval + prob_fit.n_eval)
+
+
+def _unidentifiable(names, J, x, model) -> list:
+    """Parameters the data cannot determine: those whose effect on the model is negligible (a
+    change by their own size, or by 1 for angles and offsets, moves the model by < 1e-8 of its
+    norm), and those in a near-null direction of the column-scaled Jacobian (J'J near-singular)."""
+    col = np.linalg.norm(J, axis=0)
+    size = np.maximum(np.abs(x), 1.0)
+    dead = [n for n, c, sz in zip(names, col, size) if c * sz <= 1e-8 * max(np.linalg.norm(model), 1e-300)]
+    if dead:
+        return dead
+    scale, U, s, Vt = _scaled_svd(J)
+    bad = []
+    for j in range(len(s)):
+        if s[j] < s[0] / SINGULAR_COND:
+            v = np.abs(Vt[j])
+            bad += [names[i] for i in np.nonzero(v > 0.3 * v.max())[0]]
+    return sorted(set(bad), key=names.index)
