@@ -20,6 +20,8 @@ demo: codegen
 	mkdir -p out
 	$(BIN)/pumpsim simulate examples/test_rig.toml --out out/test_rig.csv --plot out/test_rig.png
 	$(BIN)/pumpsim simulate examples/ellipse_4vanes.toml --out out/ellipse_4vanes.csv --plot out/ellipse_4vanes.png
+	$(BIN)/pumpsim identify examples/test_rig.toml examples/data/test_rig_measurement.csv --params mu \
+		--json out/test_rig_fit.json --report out/test_rig_fit.html
 
 test: codegen
 	$(BIN)/python -m pytest -q

@@ -20,13 +20,14 @@ from scipy import stats
 from .config import PumpConfig, as_array
 from .data import Dataset
 from .diagnostics import residual_report
-from .errors import ConfigError, IdentificationError
+from .errors import ConfigError
 from .kernels import load_kernels
 from .parameters import layout
 
 SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay")
 METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
-SINGULAR_COND = 1e7  # condition number of the column-scaled Jacobian beyond which J'J is singular
+SINGULAR_COND = 1e7
+_GRAPHS: dict = {}  # cached model graphs per (variant, samples, fitted names)  # condition number of the column-scaled Jacobian beyond which J'J is singular
 
 
 @dataclass
@@ -84,7 +85,7 @@ class IdentificationResult:
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
                  f"after {len(self.iterations) - 1} iterations, residual RMS {self.rms:.6g} N m"]
         for e in self.estimates.values():
-            if e.identifiable:
+            if e.identifiable and e.value is not None:
                 lines.append(f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}  (95%: {e.lower95:.6g} .. "
                              f"{e.upper95:.6g}; start {e.initial:.6g})")
             else:
@@ -152,61 +153,103 @@ class Problem:
         return float(self.pv.values[n])
 
     def _build(self):
-        phi = ca.MX.sym("phi", len(self.names))
-        val = {n: phi[i] for i, n in enumerate(self.names)}
-        get = lambda n: val.get(n, self.fixed.get(n))  # noqa: E731
+        """The torque model as CasADi functions of (theta samples, phi, base p, fixed values).
+        They depend only on the variant, the sample count and the fitted names, so they are cached
+        across fits (a multi-seed study or repeated rig measurements reuse them)."""
+        key = (self.kern.key, self.t.size, tuple(self.names))
+        if key not in _GRAPHS:
+            _GRAPHS[key] = self._graph()
+        self._fns = _GRAPHS[key]
+        self._fixed_vec = np.array([self.fixed[k] for k in SPECIAL], dtype=float)
+        self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
+        self._angle_acting = [i for i, nm in enumerate(self.names) if nm in ("theta0", "speed", "delay")]
+        self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
+
+    def _ratio(self, side):
         v = self.pv.values
-        p = [ca.MX(x) for x in self.p0]
+        return v[f"friction.{side}.static"] / max(v[f"friction.{side}.dynamic"], 1e-300)
+
+    def _graph(self):
+        n = self.t.size
+        phi = ca.MX.sym("phi", len(self.names))
+        th = ca.MX.sym("theta", n)
+        p0 = ca.MX.sym("p0", self.p0.size)
+        fixed = ca.MX.sym("fixed", len(SPECIAL))
+        ratios = ca.MX.sym("ratios", 2)
+        val = {nm: phi[i] for i, nm in enumerate(self.names)}
+        get = lambda nm: val.get(nm, fixed[SPECIAL.index(nm)])  # noqa: E731
+        p = [p0[i] for i in range(self.p0.size)]
 
         def setp(name, expr):
             p[self._index[name]] = expr
 
-        mu, mu_slot = get("mu"), get("mu_slot")
+        mu_slot = get("mu_slot")
         if "mu" in val:
-            r_h = v["friction.housing.static"] / max(v["friction.housing.dynamic"], 1e-300)
-            setp("friction.housing.dynamic", mu)
-            setp("friction.housing.static", mu * r_h)
+            setp("friction.housing.dynamic", val["mu"])
+            setp("friction.housing.static", val["mu"] * ratios[0])
             if "mu_slot" not in val:
-                mu_slot = mu  # slot COF tied to the housing COF unless mu_slot is named
+                mu_slot = val["mu"]  # slot COF tied to the housing COF unless mu_slot is named
         if "mu" in val or "mu_slot" in val:
-            r_s = v["friction.slot.static"] / max(v["friction.slot.dynamic"], 1e-300)
             setp("friction.slot.dynamic", mu_slot)
-            setp("friction.slot.static", mu_slot * r_s)
-        for n, e in val.items():
-            if n == "housing.radius":
+            setp("friction.slot.static", mu_slot * ratios[1])
+        for nm, e in val.items():
+            if nm == "housing.radius":
                 setp("housing.a", e)
                 setp("housing.b", e)
-            elif n in self._index:
-                setp(n, e)
+            elif nm in self._index:
+                setp(nm, e)
         pvec = ca.vertcat(*p)
         w = get("speed")
-        theta = get("theta0") + w * (ca.DM(self.t).T - get("delay"))
-        n = self.t.size
-        tq = self.kern.mapped("inverse_dynamics", n)(theta, w, 0.0, pvec)[0] + get("torque_offset")
-        tq = tq.T
-        self._model = ca.Function("model", [phi], [tq])
-        self._model_jac = ca.Function("model_jac", [phi], [tq, ca.jacobian(tq, phi)])
-        self._pfun = ca.Function("p_of_phi", [phi], [pvec])
+        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w, 0.0, pvec)[0].T + get("torque_offset")
+        args = [th, phi, p0, fixed, ratios]
+        # Jacobian: exact AD for everything that acts on the torque directly (COFs, geometry, the
+        # speed's centrifugal effect, offsets) with the rotor angle held fixed; for theta0, speed and
+        # delay, which act through the angle, see model_and_jacobian.
+        return {"torque": ca.Function("torque", args, [tq]),
+                "torque_jac": ca.Function("torque_jac", args, [tq, ca.jacobian(tq, phi)]),
+                "p": ca.Function("p_of_phi", [phi, p0, fixed, ratios], [pvec])}
 
-    def model(self, x):
-        self.n_eval += 1
-        return np.asarray(self._model(x)).ravel()
-
-    def model_and_jacobian(self, x):
-        self.n_eval += 1
-        tq, J = self._model_jac(x)
-        return np.asarray(tq).ravel(), np.asarray(J)
-
-    def residual(self, x):
-        return self.y - self.model(x)
-
-    def parameter_vector(self, x):
-        return np.asarray(self._pfun(x)).ravel()
+    def _args(self, x):
+        return (x, self.p0, self._fixed_vec, self._ratios)
 
     def angle(self, x):
         d = dict(zip(self.names, x))
         w = d.get("speed", self.fixed["speed"])
         return d.get("theta0", self.fixed["theta0"]) + w * (self.t - d.get("delay", self.fixed["delay"]))
+
+    def _torque(self, theta, x):
+        return np.asarray(self._fns["torque"](theta, *self._args(x))).ravel()
+
+    def model(self, x):
+        self.n_eval += 1
+        return self._torque(self.angle(x), x)
+
+    def model_and_jacobian(self, x):
+        """Torque and its Jacobian. For the angle-acting parameters (theta0, speed, delay) the
+        derivative is that of the sample-interval average of the model, [tau(theta + h) -
+        tau(theta - h)] / (2 h) with 2 h = omega dt: Coulomb friction reversals change tau over
+        ~1e-4 rad, far below a sample angle, so the pointwise d tau / d theta is a set of spikes
+        that carries no phase information at the sampling scale."""
+        self.n_eval += 1
+        theta = self.angle(x)
+        tq, J = self._fns["torque_jac"](theta, *self._args(x))
+        tq, J = np.asarray(tq).ravel(), np.array(J)
+        if self._angle_acting:
+            d = dict(zip(self.names, x))
+            w = d.get("speed", self.fixed["speed"])
+            h = abs(w) * self._half_step
+            slope = (self._torque(theta + h, x) - self._torque(theta - h, x)) / (2 * h)
+            dtheta = {"theta0": np.ones_like(theta), "speed": self.t - d.get("delay", self.fixed["delay"]),
+                      "delay": -w * np.ones_like(theta)}
+            for i in self._angle_acting:
+                J[:, i] += slope * dtheta[self.names[i]]
+        return tq, J
+
+    def residual(self, x):
+        return self.y - self.model(x)
+
+    def parameter_vector(self, x):
+        return np.asarray(self._fns["p"](*self._args(x))).ravel()
 
 
 def _scaled_svd(J):
@@ -216,7 +259,7 @@ def _scaled_svd(J):
     return scale, U, s, Vt
 
 
-def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-10, lm=False, log=None):
+def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None):
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
     Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
     least-squares solve; bounds are enforced by projection."""
@@ -236,32 +279,44 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-10, lm=F
             while True:
                 step = (Vt.T @ (s * g / (s**2 + lam))) / scale
                 xn = np.clip(x + step, prob.lower, prob.upper)
-                mn, Jn = prob.model_and_jacobian(xn)
-                rn = prob.y - mn
+                rn = prob.y - prob.model(xn)
                 if rn @ rn <= r @ r or lam > 1e12:
                     lam = max(lam / 3, 1e-12)
+                    mn, Jn = prob.model_and_jacobian(xn)
                     break
                 lam *= 4
         else:
             step = relaxation * (Vt.T @ (g / s)) / scale
-            xn = np.clip(x + step, prob.lower, prob.upper)
-            mn, Jn = prob.model_and_jacobian(xn)
-            rn = prob.y - mn
+            for _ in range(10):  # safeguard: halve a step that would increase the residual
+                xn = np.clip(x + step, prob.lower, prob.upper)
+                rn = prob.y - prob.model(xn)  # trial: the model only, the Jacobian once accepted
+                if rn @ rn <= r @ r:
+                    mn, Jn = prob.model_and_jacobian(xn)
+                    break
+                step = 0.5 * step
+            else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
+                converged, message = True, "no further decrease of the residual"
+                break
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
         x, r, J = xn, rn, Jn
         history.append({"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean(r**2)))})
         if log:
             log(history[-1])
-        if small or (len(history) > 2 and abs(history[-2]["rms"] - history[-1]["rms"])
-                     <= 1e-12 * max(history[-1]["rms"], 1e-300) and np.all(np.abs(step) <= 1e-6 * (np.abs(x) + 1e-12))):
+        if small:
             converged, message = True, "step below tolerance"
+            break
+        if history[-2]["rms"] - history[-1]["rms"] <= 1e-6 * history[-1]["rms"]:
+            converged, message = True, "residual no longer decreases (relative change < 1e-6)"
             break
     return x, r, J, history, converged, message
 
 
 def ipopt_fit(prob: Problem, x0, log=None):
     phi = ca.MX.sym("phi", len(prob.names))
-    r = ca.DM(prob.y) - prob._model(phi)
+    d = {n: phi[i] for i, n in enumerate(prob.names)}
+    theta = (d.get("theta0", prob.fixed["theta0"])
+             + d.get("speed", prob.fixed["speed"]) * (ca.DM(prob.t) - d.get("delay", prob.fixed["delay"])))
+    r = ca.DM(prob.y) - prob._fns["torque"](theta, *prob._args(phi))
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     # scale the unknowns by their initial magnitude so IPOPT's tolerances mean the same for all
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
@@ -357,8 +412,16 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         sub = Problem(cfg, data, active, {n: fixed[n] for n in active},
                       extra={n: fixed[n] for n in unident if n in SPECIAL})
         prob_fit, start_fit = sub, np.array([fixed[n] for n in active])
-    elif unident:
-        raise IdentificationError(f"no parameter is identifiable from this data: {', '.join(unident)}")
+    elif unident:  # nothing can be fitted: say so, with no numbers for the parameters
+        r = prob.y - m_start
+        est = {n: Estimate(n, None, None, None, None, v, identifiable=False) for n, v in zip(prob.names, x0)}
+        w = dict(zip(prob.names, start)).get("speed", prob.fixed["speed"])
+        return IdentificationResult(
+            est, [{"params": dict(zip(prob.names, map(float, start))), "rms": float(np.sqrt(np.mean(r**2)))}],
+            float(np.sqrt(np.mean(r**2))), False,
+            f"not identifiable from this data: {', '.join(unident)}", None,
+            residual_report(r, prob.t[1] - prob.t[0], w), method, _time.perf_counter() - wall0, unident,
+            prob.t + data.time[0], prob.y, m_start, initial_model, w, prob.angle(start), prob.n_eval)
     else:
         prob_fit, start_fit = prob, start
     if method == "ipopt":

@@ -1,0 +1,111 @@
+"""Spec §6 data rules: each rejection names the row or channel; formats, units, sections."""
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from pumpsim.data import DataOptions, load_data, resample, steady_section
+from pumpsim.errors import DataError
+from tests.conftest import ROOT
+
+W = 471.0
+GOOD_T = np.arange(0, 0.03, 1e-4)
+
+
+def write_csv(path, header, rows, comments=("# measured on the rig",)):
+    lines = list(comments) + [header] + [",".join(str(v) for v in r) for r in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def good_rows():
+    return [[t, 0.07 + 0.001 * math.sin(4 * W * t)] for t in GOOD_T]
+
+
+def test_good_csv_with_comments(tmp_path):
+    ds = load_data(write_csv(tmp_path / "d.csv", "time,torque", good_rows()), nominal_speed=W)
+    assert ds.n == GOOD_T.size and ds.speed is None
+
+
+@pytest.mark.parametrize("mutate,message", [
+    (lambda r: r.__setitem__(5, [r[5][0], float("nan")]), "row 8: torque is not a finite number"),
+    (lambda r: r.__setitem__(10, [r[8][0], r[10][1]]), "row 13: time must be strictly increasing"),
+    (lambda r: r.__setitem__(3, [r[3][0], "abc"]), "row 6: 'abc' is not a number"),
+    (lambda r: r.__setitem__(4, [r[4][0]]), "row 7: 1 values, the header has 2 columns"),
+])
+def test_bad_rows_are_named(tmp_path, mutate, message):
+    """Rows are line numbers of the file (comment and header lines count), as an editor shows."""
+    rows = good_rows()
+    mutate(rows)
+    with pytest.raises(DataError) as e:
+        load_data(write_csv(tmp_path / "d.csv", "time,torque", rows), nominal_speed=W)
+    assert message in str(e.value)
+
+
+def test_missing_column_and_too_short(tmp_path):
+    with pytest.raises(DataError, match="has no column 'torque' \\(found: time, tq\\)"):
+        load_data(write_csv(tmp_path / "a.csv", "time,tq", good_rows()), nominal_speed=W)
+    short = [r for r in good_rows() if r[0] < 0.005]
+    with pytest.raises(DataError, match="too few samples for one revolution"):
+        load_data(write_csv(tmp_path / "b.csv", "time,torque", short), nominal_speed=W)
+    with pytest.raises(DataError, match="cannot read data"):
+        load_data(tmp_path / "none.csv")
+
+
+def test_units_and_column_mapping(tmp_path):
+    rows = [[t, 1000 * tq, 5800.0] for t, tq in good_rows()]
+    ds = load_data(write_csv(tmp_path / "d.csv", "t_s,Tq_Nmm,n_rpm", rows),
+                   DataOptions(time="t_s", torque="Tq_Nmm", speed="n_rpm", torque_unit="N*mm", speed_unit="rpm"))
+    np.testing.assert_allclose(ds.torque, [r[1] for r in good_rows()])
+    np.testing.assert_allclose(ds.speed, 5800 * 2 * math.pi / 60)
+    with pytest.raises(DataError, match="torque unit must be one of"):
+        load_data(tmp_path / "d.csv", DataOptions(torque_unit="kgf"))
+
+
+def test_mat_and_tdms_files(tmp_path):
+    from nptdms import ChannelObject, TdmsWriter
+    from scipy.io import savemat
+
+    t = GOOD_T
+    tq = np.array([r[1] for r in good_rows()])
+    savemat(tmp_path / "d.mat", {"time": t, "torque": tq})
+    ds = load_data(tmp_path / "d.mat", nominal_speed=W)
+    np.testing.assert_allclose(ds.torque, tq)
+    with TdmsWriter(str(tmp_path / "d.tdms")) as w:
+        w.write_segment([ChannelObject("rig", "time", t), ChannelObject("rig", "Torque", tq)])
+    ds = load_data(tmp_path / "d.tdms", DataOptions(torque="Torque"), nominal_speed=W)
+    np.testing.assert_allclose(ds.torque, tq)
+    with pytest.raises(DataError, match="has no channel 'torque'"):
+        load_data(tmp_path / "d.tdms", nominal_speed=W)
+    bad = tq.copy()
+    bad[7] = np.nan
+    with TdmsWriter(str(tmp_path / "e.tdms")) as w:
+        w.write_segment([ChannelObject("rig", "time", t), ChannelObject("rig", "torque", bad)])
+    with pytest.raises(DataError, match="sample 7 of channel 'torque'"):
+        load_data(tmp_path / "e.tdms", nominal_speed=W)
+
+
+def test_steady_section_of_a_run_up_and_resampling():
+    t = np.linspace(0, 1.0, 5001)
+    w = np.minimum(t / 0.3, 1.0) * 600 + np.where(t > 0.8, (t - 0.8) * -2000, 0)
+    from pumpsim.data import Dataset
+
+    ds = steady_section(Dataset(t, np.ones_like(t), w), tolerance=0.01)
+    assert ds.time[0] == pytest.approx(0.297, abs=0.002) and ds.time[-1] == pytest.approx(0.803, abs=0.002)
+    r = resample(ds, 1000.0)
+    assert np.allclose(np.diff(r.time), 1e-3)
+    with pytest.raises(DataError, match="needs a speed column"):
+        steady_section(Dataset(t, np.ones_like(t)))
+
+
+def test_cli_identify_rejects_bad_data_with_status_2(tmp_path):
+    rows = good_rows()
+    rows[5][1] = float("nan")
+    f = write_csv(tmp_path / "d.csv", "time,torque", rows)
+    out = tmp_path / "fit.json"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "identify", "examples/ellipse_4vanes.toml", str(f),
+                        "--json", str(out)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and "row 8: torque is not a finite number" in r.stderr
+    assert not out.exists() and "Traceback" not in r.stderr
