@@ -154,6 +154,29 @@ def cmd_identify(a) -> int:
     return 0
 
 
+def cmd_diagnose(a) -> int:
+    import json
+
+    from . import load_config
+    from .data import load_data
+    from .diagnose import diagnose, step_table, tty_progress
+    from .io import write_text
+
+    cfg = load_config(a.config)
+    data = load_data(a.data, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
+    out = diagnose(cfg, data, progress=tty_progress())
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    print(step_table(out))
+    if a.json:
+        write_text(a.json, json.dumps({k: v for k, v in out.items() if not k.startswith("_")}, indent=1))
+    if a.report:
+        from .report import diagnosis_report
+
+        diagnosis_report(out, a.report, title=f"pumpsim diagnosis: {cfg.name}")
+    return 0
+
+
 def build_parser():
     ap = _Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification.")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -188,6 +211,13 @@ def build_parser():
     ip.add_argument("--report", help="self-contained HTML report")
     _add_data_options(ip)
     ip.set_defaults(func=cmd_identify)
+    dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model")
+    dg.add_argument("config")
+    dg.add_argument("data")
+    dg.add_argument("--json")
+    dg.add_argument("--report", help="self-contained HTML report")
+    _add_data_options(dg)
+    dg.set_defaults(func=cmd_diagnose)
     st = sub.add_parser("study", help="contact-model solver study (report §7-8)")
     st.add_argument("config")
     st.add_argument("--revolutions", type=float, default=10.0)

@@ -24,7 +24,11 @@ from .errors import ConfigError
 from .kernels import load_kernels
 from .parameters import layout
 
-SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay")
+SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay", "ripple_cos", "ripple_sin",
+           "lag")
+# ripple_cos, ripple_sin: relative speed ripple at shaft order `ripple_order`,
+#   omega = omega0 (1 + ripple_cos cos(k theta_n) - ripple_sin sin(k theta_n)); lag: first-order
+#   torque-sensor time constant [s] (0 = absent)
 METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
 SINGULAR_COND = 1e7
 _GRAPHS: dict = {}  # cached model graphs per (variant, samples, fitted names)  # condition number of the column-scaled Jacobian beyond which J'J is singular
@@ -103,7 +107,8 @@ class Problem:
     """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi, exact (CasADi
     forward AD through the compiled inverse-dynamics kernel)."""
 
-    def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None):
+    def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
+                 ripple_order: int = 1):
         self.cfg, self.data = cfg, data
         self.pv = cfg.parameters("constrained")
         self.kern = load_kernels(self.pv.structure)
@@ -120,10 +125,12 @@ class Problem:
         speed0 = float(np.mean(data.speed)) if data.speed is not None else cfg.speed
         theta0 = float(data.angle[0]) if data.angle is not None else cfg.angle
         self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"],
-                      "theta0": theta0, "speed": speed0, "torque_offset": 0.0, "delay": 0.0}
+                      "theta0": theta0, "speed": speed0, "torque_offset": 0.0, "delay": 0.0,
+                      "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0}
+        self.ripple_order = int(ripple_order)
         self.fixed.update(extra or {})
         self.x0 = np.array([self._initial(n, initial or {}) for n in self.names], dtype=float)
-        self.lower = np.array([0.0 if n in ("mu", "mu_slot") or n in self._nonneg() else -np.inf
+        self.lower = np.array([0.0 if n in ("mu", "mu_slot", "lag") or n in self._nonneg() else -np.inf
                                for n in self.names])
         self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
         self.t = data.time - data.time[0]
@@ -156,13 +163,14 @@ class Problem:
         """The torque model as CasADi functions of (theta samples, phi, base p, fixed values).
         They depend only on the variant, the sample count and the fitted names, so they are cached
         across fits (a multi-seed study or repeated rig measurements reuse them)."""
-        key = (self.kern.key, self.t.size, tuple(self.names))
+        key = (self.kern.key, self.t.size, tuple(self.names), self.ripple_order)
         if key not in _GRAPHS:
             _GRAPHS[key] = self._graph()
         self._fns = _GRAPHS[key]
         self._fixed_vec = np.array([self.fixed[k] for k in SPECIAL], dtype=float)
         self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
-        self._angle_acting = [i for i, nm in enumerate(self.names) if nm in ("theta0", "speed", "delay")]
+        self._angle_acting = [i for i, nm in enumerate(self.names)
+                              if nm in ("theta0", "speed", "delay", "ripple_cos", "ripple_sin")]
         self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
 
     def _ratio(self, side):
@@ -199,30 +207,52 @@ class Problem:
             elif nm in self._index:
                 setp(nm, e)
         pvec = ca.vertcat(*p)
-        w = get("speed")
-        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w, 0.0, pvec)[0].T + get("torque_offset")
-        args = [th, phi, p0, fixed, ratios]
+        # speed (with its ripple) and acceleration per sample: exact AD; the angle enters as th
+        t = ca.MX.sym("t", n)
+        w0, k = get("speed"), float(self.ripple_order)
+        th_n = get("theta0") + w0 * (t - get("delay"))
+        rc, rs = get("ripple_cos"), get("ripple_sin")
+        w = w0 * (1 + rc * ca.cos(k * th_n) - rs * ca.sin(k * th_n))
+        wd = -k * w0**2 * (rc * ca.sin(k * th_n) + rs * ca.cos(k * th_n))
+        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w.T, wd.T, pvec)[0].T + get("torque_offset")
+        theta = th_n + (rc * (ca.sin(k * th_n) - ca.sin(k * get("theta0")))
+                        + rs * (ca.cos(k * th_n) - ca.cos(k * get("theta0")))) / k
+        args = [th, t, phi, p0, fixed, ratios]
         # Jacobian: exact AD for everything that acts on the torque directly (COFs, geometry, the
         # speed's centrifugal effect, offsets) with the rotor angle held fixed; for theta0, speed and
         # delay, which act through the angle, see model_and_jacobian.
+        aargs = [t, phi, fixed]
         return {"torque": ca.Function("torque", args, [tq]),
                 "torque_jac": ca.Function("torque_jac", args, [tq, ca.jacobian(tq, phi)]),
+                "angle": ca.Function("angle", aargs, [theta, ca.jacobian(theta, phi)]),
                 "p": ca.Function("p_of_phi", [phi, p0, fixed, ratios], [pvec])}
 
     def _args(self, x):
         return (x, self.p0, self._fixed_vec, self._ratios)
 
     def angle(self, x):
-        d = dict(zip(self.names, x))
-        w = d.get("speed", self.fixed["speed"])
-        return d.get("theta0", self.fixed["theta0"]) + w * (self.t - d.get("delay", self.fixed["delay"]))
+        return np.asarray(self._fns["angle"](self.t, x, self._fixed_vec)[0]).ravel()
+
+    def _lag(self, x):
+        return dict(zip(self.names, x)).get("lag", self.fixed["lag"])
 
     def _torque(self, theta, x):
-        return np.asarray(self._fns["torque"](theta, *self._args(x))).ravel()
+        return np.asarray(self._fns["torque"](theta, self.t, *self._args(x))).ravel()
+
+    def _filter(self, y, T):
+        """First-order sensor: y_k = a y_(k-1) + (1 - a) u_k, a = exp(-dt/T), started at u_0."""
+        if T <= 0:
+            return y
+        from scipy.signal import lfilter
+
+        a = math.exp(-(self.t[1] - self.t[0]) / T)
+        if y.ndim > 1:
+            return np.column_stack([self._filter(c, T) for c in y.T])
+        return lfilter([1 - a], [1, -a], y, zi=[a * y[0]])[0]
 
     def model(self, x):
         self.n_eval += 1
-        return self._torque(self.angle(x), x)
+        return self._filter(self._torque(self.angle(x), x), self._lag(x))
 
     def model_and_jacobian(self, x):
         """Torque and its Jacobian. For the angle-acting parameters (theta0, speed, delay) the
@@ -231,18 +261,28 @@ class Problem:
         ~1e-4 rad, far below a sample angle, so the pointwise d tau / d theta is a set of spikes
         that carries no phase information at the sampling scale."""
         self.n_eval += 1
-        theta = self.angle(x)
-        tq, J = self._fns["torque_jac"](theta, *self._args(x))
+        theta, dtheta = self._fns["angle"](self.t, x, self._fixed_vec)
+        theta, dtheta = np.asarray(theta).ravel(), np.asarray(dtheta)
+        tq, J = self._fns["torque_jac"](theta, self.t, *self._args(x))
         tq, J = np.asarray(tq).ravel(), np.array(J)
-        if self._angle_acting:
+        slope = None
+        if self._angle_acting or "lag" in self.names:
             d = dict(zip(self.names, x))
-            w = d.get("speed", self.fixed["speed"])
-            h = abs(w) * self._half_step
+            h = abs(d.get("speed", self.fixed["speed"])) * self._half_step
             slope = (self._torque(theta + h, x) - self._torque(theta - h, x)) / (2 * h)
-            dtheta = {"theta0": np.ones_like(theta), "speed": self.t - d.get("delay", self.fixed["delay"]),
-                      "delay": -w * np.ones_like(theta)}
             for i in self._angle_acting:
-                J[:, i] += slope * dtheta[self.names[i]]
+                J[:, i] += slope * dtheta[:, i]
+        T = self._lag(x)
+        if T > 0:
+            y = self._filter(tq, T)
+            J = self._filter(J, T)
+            if "lag" in self.names:  # d y / d T by finite steps of the exact filter (1-D)
+                dT = 1e-6 * T
+                J[:, self.names.index("lag")] = (self._filter(tq, T + dT) - self._filter(tq, T - dT)) / (2 * dT)
+            return y, J
+        if "lag" in self.names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
+            w = dict(zip(self.names, x)).get("speed", self.fixed["speed"])
+            J[:, self.names.index("lag")] = -w * slope
         return tq, J
 
     def residual(self, x):
@@ -316,7 +356,7 @@ def ipopt_fit(prob: Problem, x0, log=None):
     d = {n: phi[i] for i, n in enumerate(prob.names)}
     theta = (d.get("theta0", prob.fixed["theta0"])
              + d.get("speed", prob.fixed["speed"]) * (ca.DM(prob.t) - d.get("delay", prob.fixed["delay"])))
-    r = ca.DM(prob.y) - prob._fns["torque"](theta, *prob._args(phi))
+    r = ca.DM(prob.y) - prob._fns["torque"](theta, ca.DM(prob.t), *prob._args(phi))
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     # scale the unknowns by their initial magnitude so IPOPT's tolerances mean the same for all
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
@@ -390,7 +430,7 @@ def _phase_and_speed_start(prob: Problem, x):
 
 
 def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newton", relaxation=1.0,
-             initial=None, max_iter=50, log=None, multistart=True) -> IdentificationResult:
+             initial=None, max_iter=50, log=None, multistart=True, ripple_order=1) -> IdentificationResult:
     if method not in METHODS:
         raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
     if not 0 < relaxation <= 1:
@@ -399,7 +439,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = Problem(cfg, data, params, initial)
+    prob = Problem(cfg, data, params, initial, ripple_order=ripple_order)
     x0 = prob.x0.copy()
     start = _phase_and_speed_start(prob, x0) if multistart and ({"theta0", "speed"} & set(prob.names)) else x0
     initial_model = prob.model(x0)
@@ -410,7 +450,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
     if unident and active:
         fixed = dict(zip(prob.names, start))
         sub = Problem(cfg, data, active, {n: fixed[n] for n in active},
-                      extra={n: fixed[n] for n in unident if n in SPECIAL})
+                      extra={n: fixed[n] for n in unident if n in SPECIAL}, ripple_order=ripple_order)
         prob_fit, start_fit = sub, np.array([fixed[n] for n in active])
     elif unident:  # nothing can be fitted: say so, with no numbers for the parameters
         r = prob.y - m_start

@@ -109,3 +109,39 @@ def write_page(path, title, parts) -> None:
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
             f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>")
     write_text(path, page)
+
+
+def diagnosis_report(out, path, title="pumpsim diagnosis") -> None:
+    parts = [f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(out['method'])}.</p>"]
+    rows = [("baseline", "", f"{out['baseline']['rms']:.6g}", "", "", ", ".join(
+        f"{k} = {v['value']:.6g}" for k, v in out["baseline"]["params"].items() if v["value"] is not None))]
+    for s in out["steps"]:
+        ps = ", ".join(f"{k} = {v['value']:.5g} ± {1.96 * v['stderr']:.2g}" if isinstance(v, dict) else f"{k} = {v}"
+                       for k, v in s["params"].items())
+        rows.append((s["effect"], f"{s['rms_before']:.6g}", f"{s['rms_after']:.6g}", f"{s['p_value']:.3g}",
+                     f"{s['bic_before']:.1f} -> {s['bic_after']:.1f}", ps))
+    parts.append("<h2>Steps</h2>" + table(["effect", "RMS before", "RMS after", "p-value", "BIC",
+                                           "parameters (95 % intervals)"], rows))
+    f = out["final"]
+    verdict = "white" if f["residual_white"] else "NOT white"
+    parts.append(f"<p>Final residual RMS {f['rms']:.6g} N·m, {verdict} (runs p = {f['runs_p_value']:.3g}, "
+                 f"Ljung-Box p = {f['ljung_box_p_value']:.3g}).</p>")
+    if out["unexplained"]:
+        parts.append("<p class=warn>Unexplained residual: no candidate effect explains it. Peaks at shaft orders "
+                     + ", ".join(f"{w['order']:.3f} ({w['frequency']:.1f} Hz)" for w in out["unexplained_where"])
+                     + ".</p>")
+    for a, b in out["confounded"]:
+        parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} — a measurement at a "
+                     "second speed would separate them.</p>")
+    for h in out["_history"]:
+        r = h["result"]
+        fig, ax = plt.subplots(figsize=(11, 3))
+        ax.plot(r.time, r.measured, "k", lw=0.5, label="measured")
+        ax.plot(r.time, r.fitted, "C0", lw=0.8, label=f"model ({h['label']})")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("torque [N·m]")
+        ax.legend()
+        ax.grid(alpha=0.3)
+        parts.append(f"<h2>After {html.escape(h['label'])}</h2>" + figure_html(fig))
+        parts.append(residual_figures(r.time, r.residual, r.speed, r.angle))
+    write_page(path, title, parts)

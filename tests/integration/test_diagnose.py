@@ -1,0 +1,61 @@
+"""Discrepancy workflow: what it can already be trusted with (issue 5 is not complete)."""
+import dataclasses
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+import pumpsim
+from pumpsim.data import Dataset
+from pumpsim.diagnose import diagnose
+from tests.conftest import ROOT, make_config
+
+
+def _nominal_signal(seed, extra=None):
+    cfg = make_config("ellipse_4vanes")
+    ref = pumpsim.simulate(dataclasses.replace(cfg, angle=0.4), duration=0.1, rate=10000)
+    sigma = 0.05 * np.std(ref.torque)
+    y = ref.torque + np.random.default_rng(seed).normal(0, sigma, ref.time.size)
+    if extra is not None:
+        y = y + extra(ref.time, sigma)
+    return cfg, Dataset(ref.time, y), sigma
+
+
+def test_no_effect_names_nothing():
+    cfg, ds, _ = _nominal_signal(3)
+    out = diagnose(cfg, ds)
+    assert out["effects"] == [] and not out["unexplained"] and out["final"]["residual_white"]
+
+
+def test_disturbance_outside_the_library_is_unexplained_and_located():
+    cfg, ds, _ = _nominal_signal(4, lambda t, s: 5 * s * np.sqrt(2) * np.sin(2 * np.pi * 333.3 * t))
+    out = diagnose(cfg, ds)
+    assert out["effects"] == [] and out["unexplained"]
+    orders = [w["order"] for w in out["unexplained_where"]]
+    assert any(abs(o - 333.3 / (471.0 / (2 * np.pi))) < 0.05 for o in orders)
+
+
+def test_offset_and_cof_at_one_speed_are_reported_confounded():
+    """Concentric rig at one speed: an offset and the COF both only shift a constant torque."""
+    cfg = make_config("test_rig")
+    ref = pumpsim.simulate(cfg, duration=0.05, rate=10000)
+    y = ref.torque + 0.002 + np.random.default_rng(5).normal(0, 0.0005, ref.time.size)
+    out = diagnose(cfg, Dataset(ref.time, y))
+    assert ["torque_offset", "mu"] in out["confounded"]
+    assert "torque_offset" not in out["effects"]
+    assert any("second speed" in n for n in out["notes"])
+
+
+def test_cli_diagnose_json_contract(tmp_path):
+    cfg, ds, _ = _nominal_signal(6)
+    data = tmp_path / "d.csv"
+    np.savetxt(data, np.column_stack([ds.time, ds.torque]), delimiter=",", header="time,torque", comments="")
+    js, rep = tmp_path / "d.json", tmp_path / "d.html"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", "examples/ellipse_4vanes.toml", str(data),
+                        "--json", str(js), "--report", str(rep)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(js.read_text())
+    assert set(out) >= {"baseline", "steps", "effects", "final", "unexplained", "confounded"}
+    assert set(out["final"]) >= {"rms", "params", "residual_white"} and set(out["baseline"]) >= {"rms", "params"}
+    assert "data:image/png;base64," in rep.read_text()
