@@ -4,6 +4,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import ROOT
 
 
@@ -35,3 +37,20 @@ def test_identify_rejects_unknown_parameter(tmp_path):
                         "examples/data/test_rig_measurement.csv", "--params", "mu,vane.mas"],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "unknown parameter 'vane.mas'; did you mean vane.mass" in r.stderr
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--relaxation", "1.5"], "--relaxation must be in (0, 1], got 1.5"),
+    (["--start", "mu0.1"], "--start takes NAME=VALUE, got 'mu0.1'"),
+    (["--start", "mu=abc"], "--start takes NAME=VALUE, got 'mu=abc'"),
+    (["--params", ","], "--params names no parameter"),
+    (["--torque-unit", "kgf"], "torque unit must be one of"),
+    (["--method", "newton"], "invalid choice: 'newton'"),
+])
+def test_identify_rejects_bad_options(tmp_path, args, message):
+    js = tmp_path / "fit.json"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "identify", "examples/test_rig.toml",
+                        "examples/data/test_rig_measurement.csv", "--json", str(js), *args],
+                       capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and message in r.stderr and "Traceback" not in r.stderr
+    assert not js.exists()
