@@ -62,15 +62,7 @@ class NumpyConstrainedModel:
         theta = np.asarray(theta, dtype=float)
         n = theta.size
         v = dict(zip(self.names, p))
-        hp = [v["housing.a"], v["housing.b"], v["housing.center.0"], v["housing.center.1"], v["housing.angle"]]
-        for j in range(self.st.harmonics):
-            hp += [v[f"housing.harmonics.{j}.{k}"] for k in ("order", "amplitude", "phase")]
-        g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
-                 rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
-                 m=v["vane.mass"], J=v["vane.inertia"], rho=v["vane.tip_radius"])
-        gl = [g[k] for k in ("slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J", "rho")]
-        fh = [v[f"friction.housing.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
-        fs = [v[f"friction.slot.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+        hp, g, gl, fh, fs = _unpack(v, self.st.harmonics)
         N = self.st.vanes
         torque = v["rotor.inertia"] * omegadot + v["operation.bearing_torque"] + np.zeros(n)
         normal = np.empty((N, n))
@@ -120,6 +112,22 @@ class NumpyConstrainedModel:
             torque = torque + self._share(*[kw[a] for a in SYMBOL_NAMES])
             normal[i] = best[:, 0]
         return torque, normal
+
+
+GEOMETRY_ORDER = ("slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J", "rho")
+
+
+def _unpack(v, harmonics, rho=None):
+    """Parameter values by name -> housing list, geometry dict and list, friction lists."""
+    hp = [v["housing.a"], v["housing.b"], v["housing.center.0"], v["housing.center.1"], v["housing.angle"]]
+    for j in range(harmonics):
+        hp += [v[f"housing.harmonics.{j}.{k}"] for k in ("order", "amplitude", "phase")]
+    g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
+             rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
+             m=v["vane.mass"], J=v["vane.inertia"], rho=v["vane.tip_radius"] if rho is None else rho)
+    friction = [[v[f"friction.{side}.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+                for side in ("housing", "slot")]
+    return hp, g, [g[k] for k in GEOMETRY_ORDER], friction[0], friction[1]
 
 
 def _lambdify_matrices(args, matrices):
@@ -180,15 +188,7 @@ class NumpyContactModel:
     def rhs_speed(self, p, theta0, omega, law_h, law_b):
         """f(t, y) for y = [s_0.., sdot_0..] at constant speed."""
         v = dict(zip(self.names, p))
-        hp = [v["housing.a"], v["housing.b"], v["housing.center.0"], v["housing.center.1"], v["housing.angle"]]
-        for j in range(self.st.harmonics):
-            hp += [v[f"housing.harmonics.{j}.{k}"] for k in ("order", "amplitude", "phase")]
-        g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
-                 rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
-                 m=v["vane.mass"], J=v["vane.inertia"], rho=0.0)
-        gl = [g[k] for k in ("slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J", "rho")]
-        fh = [v[f"friction.housing.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
-        fs = [v[f"friction.slot.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+        hp, g, gl, fh, fs = _unpack(v, self.st.harmonics, rho=0.0)
         ch = [v[f"contact.housing.{k}"] for k in ("stiffness", "exponent", "damping", "depth")]
         cb = [v[f"contact.bottom.{k}"] for k in ("stiffness", "exponent", "damping", "depth")]
         N = self.st.vanes

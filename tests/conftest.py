@@ -19,9 +19,9 @@ def example_dict(name="test_rig"):
     return tomllib.loads((EXAMPLES / f"{name}.toml").read_text())
 
 
-def make_config(base="test_rig", **changes):
-    """Config from an example with dotted-key changes, e.g. make_config(**{"rotor.vanes": 1})."""
-    d = copy.deepcopy(example_dict(base))
+def apply_changes(d, changes):
+    """A copy of the config dict d with dotted-key changes applied (None removes the key)."""
+    d = copy.deepcopy(d)
     for key, val in changes.items():
         parts = key.split(".")
         node = d
@@ -31,7 +31,12 @@ def make_config(base="test_rig", **changes):
             node.pop(parts[-1], None)
         else:
             node[parts[-1]] = val
-    cfg = config_from_dict(d)
+    return d
+
+
+def make_config(base="test_rig", **changes):
+    """Config from an example with dotted-key changes, e.g. make_config(**{"rotor.vanes": 1})."""
+    cfg = config_from_dict(apply_changes(example_dict(base), changes))
     check_geometry(cfg)
     return cfg
 

@@ -1,5 +1,4 @@
 """Spec §5: every rejection rule names the key and the limit; the CLI exits 2 and writes nothing."""
-import copy
 import math
 import subprocess
 import sys
@@ -9,7 +8,7 @@ import pytest
 from pumpsim.config import config_from_dict, load_config
 from pumpsim.errors import ConfigError
 from pumpsim.geometry import check_geometry
-from tests.conftest import ROOT, example_dict
+from tests.conftest import ROOT, apply_changes, example_dict
 
 REJECTIONS = [
     # (changes, message fragment)
@@ -55,31 +54,17 @@ GEOMETRY = [
 ]
 
 
-def _apply(d, changes):
-    d = copy.deepcopy(d)
-    for key, val in changes.items():
-        parts = key.split(".")
-        node = d
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        if val is None:
-            node.pop(parts[-1], None)
-        else:
-            node[parts[-1]] = val
-    return d
-
-
 @pytest.mark.parametrize("changes,message", REJECTIONS)
 def test_value_rejections_name_the_key(changes, message):
     with pytest.raises(ConfigError) as e:
-        config_from_dict(_apply(example_dict(), changes))
+        config_from_dict(apply_changes(example_dict(), changes))
     assert message in str(e.value)
 
 
 @pytest.mark.parametrize("changes,message", GEOMETRY)
 def test_geometry_rejections_name_the_condition(changes, message):
     with pytest.raises(ConfigError) as e:
-        check_geometry(config_from_dict(_apply(example_dict(), changes)))
+        check_geometry(config_from_dict(apply_changes(example_dict(), changes)))
     assert message in str(e.value)
     if "rad" in message or "too" in message:
         assert "angle" in str(e.value)
@@ -137,7 +122,7 @@ def _cli(*args):
 @pytest.mark.parametrize("changes,message", [REJECTIONS[11], GEOMETRY[1]])
 def test_cli_rejects_bad_config_with_status_2_and_writes_nothing(tmp_path, changes, message):
     cfg = tmp_path / "c.toml"
-    _write_toml(cfg, _apply(example_dict(), changes))
+    _write_toml(cfg, apply_changes(example_dict(), changes))
     out, png = tmp_path / "o.csv", tmp_path / "o.png"
     r = _cli("simulate", str(cfg), "--out", str(out), "--plot", str(png))
     assert r.returncode == 2
