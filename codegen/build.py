@@ -34,6 +34,9 @@ CFLAGS = ["-O2", "-fPIC", "-shared", "-std=c99"]
 # (forward mode: CVODES and the fits need few directions, and a full jacobian() over all of p would
 # multiply the C size by ten)
 FORWARD_DERIVATIVES = ("ode_rhs", "inverse_dynamics", "ode_speed", "ode_torque")
+# second-order forward derivatives: CVODES forward sensitivities (transient fits) differentiate the
+# first-order ones
+SECOND_ORDER = ("ode_rhs",)
 
 
 def generated_dir() -> Path:
@@ -59,7 +62,7 @@ def source_digest() -> str:
 def cache_key(structure) -> str:
     payload = json.dumps({
         "schema": SCHEMA_VERSION, "structure": structure.as_dict(), "casadi": ca.__version__,
-        "compiler": compiler_version(), "cflags": CFLAGS, "derivatives": FORWARD_DERIVATIVES,
+        "compiler": compiler_version(), "cflags": CFLAGS, "derivatives": FORWARD_DERIVATIVES, "second_order": SECOND_ORDER,
         "source": source_digest(),
     }, sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()[:20]
@@ -95,6 +98,8 @@ def build_variant(structure, log=None) -> Path:
             cg.add(f)
             if fname in FORWARD_DERIVATIVES:
                 cg.add(f.forward(1))
+            if fname in SECOND_ORDER:
+                cg.add(f.forward(1).forward(1))
         cwd = os.getcwd()
         os.chdir(tmp)
         try:

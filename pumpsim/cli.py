@@ -141,9 +141,15 @@ def cmd_identify(a) -> int:
     cfg = load_config(a.config)
     params = _parse_params(a.params)
     data = load_data(a.data, _data_options(a),
-                     nominal_speed=None if "speed" in params else (cfg.speed if cfg.mode == "speed" else None))
-    res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
-                   initial=_parse_initial(a.start), max_iter=a.max_iter)
+                     nominal_speed=None if ("speed" in params or a.transient) else
+                     (cfg.speed if cfg.mode == "speed" else None))
+    if a.transient:
+        from .transient import identify_transient
+
+        res = identify_transient(cfg, data, params=params, initial=_parse_initial(a.start), max_iter=a.max_iter)
+    else:
+        res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
+                       initial=_parse_initial(a.start), max_iter=a.max_iter)
     print(res)
     if a.json:
         write_text(a.json, json.dumps(res.to_json(), indent=1))
@@ -207,6 +213,9 @@ def build_parser():
     ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
     ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
     ip.add_argument("--max-iter", type=int, default=50, dest="max_iter")
+    ip.add_argument("--transient", action="store_true",
+                    help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
+                         "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
     ip.add_argument("--json")
     ip.add_argument("--report", help="self-contained HTML report")
     _add_data_options(ip)

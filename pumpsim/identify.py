@@ -186,27 +186,7 @@ class Problem:
         ratios = ca.MX.sym("ratios", 2)
         val = {nm: phi[i] for i, nm in enumerate(self.names)}
         get = lambda nm: val.get(nm, fixed[SPECIAL.index(nm)])  # noqa: E731
-        p = [p0[i] for i in range(self.p0.size)]
-
-        def setp(name, expr):
-            p[self._index[name]] = expr
-
-        mu_slot = get("mu_slot")
-        if "mu" in val:
-            setp("friction.housing.dynamic", val["mu"])
-            setp("friction.housing.static", val["mu"] * ratios[0])
-            if "mu_slot" not in val:
-                mu_slot = val["mu"]  # slot COF tied to the housing COF unless mu_slot is named
-        if "mu" in val or "mu_slot" in val:
-            setp("friction.slot.dynamic", mu_slot)
-            setp("friction.slot.static", mu_slot * ratios[1])
-        for nm, e in val.items():
-            if nm == "housing.radius":
-                setp("housing.a", e)
-                setp("housing.b", e)
-            elif nm in self._index:
-                setp(nm, e)
-        pvec = ca.vertcat(*p)
+        pvec = parameter_map(self._index, p0, val, get("mu_slot"), ratios)
         # speed (with its ripple) and acceleration per sample: exact AD; the angle enters as th
         t = ca.MX.sym("t", n)
         w0, k = get("speed"), float(self.ripple_order)
@@ -290,6 +270,35 @@ class Problem:
 
     def parameter_vector(self, x):
         return np.asarray(self._fns["p"](*self._args(x))).ravel()
+
+
+def parameter_map(index, p0, val, mu_slot_fixed, ratios):
+    """The runtime parameter vector with the fitted values `val` (name -> expression) put in:
+    mu sets the housing COF (static scaled by the configured ratio) and, unless mu_slot is fitted,
+    the slot COF; housing.radius sets both semi-axes; any other name is a parameter path."""
+    p = [p0[i] for i in range(p0.shape[0])]
+
+    def setp(name, expr):
+        p[index[name]] = expr
+
+    mu_slot = mu_slot_fixed
+    if "mu" in val:
+        setp("friction.housing.dynamic", val["mu"])
+        setp("friction.housing.static", val["mu"] * ratios[0])
+        if "mu_slot" not in val:
+            mu_slot = val["mu"]  # slot COF tied to the housing COF unless mu_slot is named
+    if "mu_slot" in val:
+        mu_slot = val["mu_slot"]
+    if "mu" in val or "mu_slot" in val:
+        setp("friction.slot.dynamic", mu_slot)
+        setp("friction.slot.static", mu_slot * ratios[1])
+    for nm, e in val.items():
+        if nm == "housing.radius":
+            setp("housing.a", e)
+            setp("housing.b", e)
+        elif nm in index:
+            setp(nm, e)
+    return ca.vertcat(*p)
 
 
 def _scaled_svd(J):
