@@ -77,9 +77,6 @@ class ModelSpec:
     functions: dict  # name -> casadi.Function (exported, compiled)
     vane_outputs: tuple = VANE_OUTPUTS
 
-    def function_names(self):
-        return tuple(self.functions)
-
 
 class _Builder:
     def __init__(self, structure: Structure):

@@ -20,14 +20,23 @@ NEWTON_ITERATIONS = 6  # 2x2 Newton in (s, alpha) from a ray/circle fixed-point 
 RAY_ITERATIONS = 4
 
 
-class NumpyConstrainedModel:
+class _NumpyModel:
+    """Shared set-up: the parameter names, the one-vane mechanics and the housing curve."""
+
     def __init__(self, structure: Structure):
         self.st = structure
         self.names = [q.name for q in layout(structure)]
-        mech = derive_vane()
-        hc = derive_housing(structure.harmonics)
+        self.mech = derive_vane()
+        self.hc = derive_housing(structure.harmonics)
+        self.hsyms = ([self.hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")]
+                      + [x for t in self.hc.harmonic_syms for x in t])
+
+
+class NumpyConstrainedModel(_NumpyModel):
+    def __init__(self, structure: Structure):
+        super().__init__(structure)
+        mech, hc = self.mech, self.hc
         S = mech.sym
-        self.hsyms = [hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")] + [x for t in hc.harmonic_syms for x in t]
         al = hc.alpha
         C, n = sp.Matrix(hc.point), sp.Matrix(hc.normal)
         P = sp.Matrix(mech.points["P"])  # rotor frame
@@ -150,18 +159,15 @@ def _lambdify_matrices(args, matrices):
     return call
 
 
-class NumpyContactModel:
+class NumpyContactModel(_NumpyModel):
     """Model 1's right-hand side in NumPy for SciPy's solve_ivp, lambdified from the same SymPy
     mechanics: speed drive, sharp tip (rho = 0, the contact point on the slot centre line)."""
 
     def __init__(self, structure: Structure):
-        self.st = structure
-        self.names = [q.name for q in layout(structure)]
-        mech = derive_vane()
-        hc = derive_housing(structure.harmonics)
+        super().__init__(structure)
+        mech, hc = self.mech, self.hc
         S = mech.sym
         al = hc.alpha
-        self.hsyms = [hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")] + [x for t in hc.harmonic_syms for x in t]
         th = S["theta"]
         rot = sp.Matrix([[sp.cos(th), sp.sin(th)], [-sp.sin(th), sp.cos(th)]])
         C = rot * sp.Matrix(hc.point)
@@ -182,8 +188,6 @@ class NumpyContactModel:
         lin_args = [S[nm] for nm in self._dyn_args]
         self._lin = sp.lambdify(lin_args, [eqs.jacobian(x), -eqs.subs({xi: 0 for xi in x})], "numpy", cse=True)
         self._slip = sp.lambdify([S[nm] for nm in SYMBOL_NAMES], mech.tip_slip, "numpy", cse=True)
-        self._guess = sp.lambdify([th] + geo + self.hsyms, sp.atan2(*(rot.T * Ob - sp.Matrix(
-            [hc.sym["cy"], hc.sym["cx"]])[::-1, :])[::-1]), "numpy")
 
     def rhs_speed(self, p, theta0, omega, law_h, law_b):
         """f(t, y) for y = [s_0.., sdot_0..] at constant speed."""

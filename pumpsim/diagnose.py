@@ -181,12 +181,13 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     current = base
     history = [{"label": "baseline", "result": base}]
     steps, effects, confounded = [], [], []
-    n = data.n
+    screened_for = None  # the state whose candidates were last screened (their collinearity is known)
     for _ in range(max_effects):
         if current.diagnostics["white_at_5pct"]:
             break
         cands = candidates(state.cfg, set(effects))
         scored = []
+        screened_for = state
         for c in cands:
             say(f"screening {c.label}")
             s = score_test(state, c)
@@ -223,11 +224,13 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         state, current = new_state, res
         history.append({"label": best.label, "result": res})
     # a last screen for collinearity, whatever the residual: a white residual can hide an effect that
-    # a fitted parameter absorbed (an offset inside mu at one speed)
-    for c in candidates(state.cfg, set(effects)):
-        s = score_test(state, c)
-        if s["partner"] is not None and [c.effect, s["partner"]] not in confounded:
-            confounded.append([c.effect, s["partner"]])
+    # a fitted parameter absorbed (an offset inside mu at one speed). Skipped when the loop already
+    # screened the final state.
+    if screened_for is not state:
+        for c in candidates(state.cfg, set(effects)):
+            s = score_test(state, c)
+            if s["partner"] is not None and [c.effect, s["partner"]] not in confounded:
+                confounded.append([c.effect, s["partner"]])
     white = bool(current.diagnostics["white_at_5pct"])
     spec = order_spectrum(current.residual, data.time[1] - data.time[0], current.speed)
     where = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}

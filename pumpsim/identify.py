@@ -130,7 +130,8 @@ class Problem:
         self.ripple_order = int(ripple_order)
         self.fixed.update(extra or {})
         self.x0 = np.array([self._initial(n, initial or {}) for n in self.names], dtype=float)
-        self.lower = np.array([0.0 if n in ("mu", "mu_slot", "lag") or n in self._nonneg() else -np.inf
+        nonneg = self._nonneg()
+        self.lower = np.array([0.0 if n in ("mu", "mu_slot", "lag") or n in nonneg else -np.inf
                                for n in self.names])
         self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
         self.t = data.time - data.time[0]
@@ -163,7 +164,11 @@ class Problem:
         """The torque model as CasADi functions of (theta samples, phi, base p, fixed values).
         They depend only on the variant, the sample count and the fitted names, so they are cached
         across fits (a multi-seed study or repeated rig measurements reuse them)."""
-        key = (self.kern.key, self.t.size, tuple(self.names), self.ripple_order)
+        # a speed ripple makes omega and omegadot per-sample expressions; without one they stay
+        # scalars (a third less work in the Jacobian)
+        self._ripple = (any(n in self.names for n in ("ripple_cos", "ripple_sin"))
+                        or self.fixed["ripple_cos"] != 0 or self.fixed["ripple_sin"] != 0)
+        key = (self.kern.key, self.t.size, tuple(self.names), self.ripple_order, self._ripple)
         if key not in _GRAPHS:
             _GRAPHS[key] = self._graph()
         self._fns = _GRAPHS[key]
@@ -191,12 +196,15 @@ class Problem:
         t = ca.MX.sym("t", n)
         w0, k = get("speed"), float(self.ripple_order)
         th_n = get("theta0") + w0 * (t - get("delay"))
-        rc, rs = get("ripple_cos"), get("ripple_sin")
-        w = w0 * (1 + rc * ca.cos(k * th_n) - rs * ca.sin(k * th_n))
-        wd = -k * w0**2 * (rc * ca.sin(k * th_n) + rs * ca.cos(k * th_n))
-        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w.T, wd.T, pvec)[0].T + get("torque_offset")
-        theta = th_n + (rc * (ca.sin(k * th_n) - ca.sin(k * get("theta0")))
-                        + rs * (ca.cos(k * th_n) - ca.cos(k * get("theta0")))) / k
+        if self._ripple:
+            rc, rs = get("ripple_cos"), get("ripple_sin")
+            w = (w0 * (1 + rc * ca.cos(k * th_n) - rs * ca.sin(k * th_n))).T
+            wd = (-k * w0**2 * (rc * ca.sin(k * th_n) + rs * ca.cos(k * th_n))).T
+            theta = th_n + (rc * (ca.sin(k * th_n) - ca.sin(k * get("theta0")))
+                            + rs * (ca.cos(k * th_n) - ca.cos(k * get("theta0")))) / k
+        else:
+            w, wd, theta = w0, 0.0, th_n
+        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w, wd, pvec)[0].T + get("torque_offset")
         args = [th, t, phi, p0, fixed, ratios]
         # Jacobian: exact AD for everything that acts on the torque directly (COFs, geometry, the
         # speed's centrifugal effect, offsets) with the rotor angle held fixed; for theta0, speed and
@@ -308,12 +316,14 @@ def _scaled_svd(J):
     return scale, U, s, Vt
 
 
-def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None):
+def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
+                 start=None):
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
     Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
-    least-squares solve; bounds are enforced by projection."""
+    least-squares solve; bounds are enforced by projection. `start` = (model, Jacobian) at x0 when
+    the caller has them already."""
     x = np.array(x0, dtype=float)
-    m, J = prob.model_and_jacobian(x)
+    m, J = start if start is not None else prob.model_and_jacobian(x)
     r = prob.y - m
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean(r**2)))}]
     lam = 1e-3
@@ -331,7 +341,7 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=Fa
                 rn = prob.y - prob.model(xn)
                 if rn @ rn <= r @ r or lam > 1e12:
                     lam = max(lam / 3, 1e-12)
-                    mn, Jn = prob.model_and_jacobian(xn)
+                    _, Jn = prob.model_and_jacobian(xn)
                     break
                 lam *= 4
         else:
@@ -340,7 +350,7 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=Fa
                 xn = np.clip(x + step, prob.lower, prob.upper)
                 rn = prob.y - prob.model(xn)  # trial: the model only, the Jacobian once accepted
                 if rn @ rn <= r @ r:
-                    mn, Jn = prob.model_and_jacobian(xn)
+                    _, Jn = prob.model_and_jacobian(xn)
                     break
                 step = 0.5 * step
             else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
@@ -473,12 +483,14 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
             prob.t + data.time[0], prob.y, m_start, initial_model, w, prob.angle(start), prob.n_eval)
     else:
         prob_fit, start_fit = prob, start
+    # the identifiability check already evaluated the full problem at the start: reuse it
+    at_start = (m_start, J_start) if prob_fit is prob else None
     if method == "ipopt":
         x, r, J, history, converged, message = ipopt_fit(prob_fit, start_fit, log)
     else:
         x, r, J, history, converged, message = gauss_newton(
             prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
-            lm=method == "levenberg-marquardt", log=log)
+            lm=method == "levenberg-marquardt", log=log, start=at_start)
     if multistart and "theta0" in prob_fit.names:  # theta0 is periodic: report it in [0, 2 pi)
         i = prob_fit.names.index("theta0")
         x[i] = float(np.mod(x[i], 2 * math.pi))
