@@ -51,6 +51,7 @@ _SCHEMA = {
     },
     "effects": {
         "viscous_tip_friction": ("num", False, 0.0), "vane_friction_factors": ("list", False, None),
+        "speed_ripple": ("list", False, None),
     },
 }
 
@@ -125,6 +126,8 @@ class PumpConfig:
     initial_vane_state: str | None = None  # contact model: bottom | rotor | housing
     contact_given: bool = False
     path: str | None = None
+    # speed mode: omega = speed (1 + amplitude cos(order theta_n + phase)), theta_n the nominal angle
+    speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
 
     def structure_for(self, model: str = "constrained") -> Structure:
         if model not in MODELS:
@@ -309,13 +312,24 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
                           f"(one per vane), got {facs!r}")
     for i, x in enumerate(facs):
         values[f"effects.vane_friction_factor.{i}"] = float(x)
+    ripple = ef["speed_ripple"]
+    if ripple is not None:
+        if (len(ripple) != 3 or not all(_is_num(x) for x in ripple) or ripple[0] != int(ripple[0])
+                or ripple[0] < 1):
+            raise ConfigError("effects.speed_ripple must be [order (integer >= 1), relative amplitude, "
+                              f"phase], got {ripple!r}")
+        if not 0 <= ripple[1] < 1:
+            raise ConfigError(f"effects.speed_ripple amplitude must be in [0, 1), got {ripple[1]:g}")
+        if mode != "speed":
+            raise ConfigError("effects.speed_ripple needs operation.mode = \"speed\" (a prescribed speed)")
+        ripple = (int(ripple[0]), float(ripple[1]), float(ripple[2]))
 
     return PumpConfig(
         name=c["name"] or name_default, shape=shape, vanes=r["vanes"],
         harmonics=[list(map(float, x)) for x in harm], values=values, mode=mode, speed=speed,
         angle=op["angle"], torque=op["torque"], contact_laws=laws,
         initial_vane_state=op["initial_vane_state"],
-        contact_given=ct["housing"]["stiffness"] is not None,
+        contact_given=ct["housing"]["stiffness"] is not None, speed_ripple=ripple,
     )
 
 

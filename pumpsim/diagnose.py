@@ -7,13 +7,18 @@ effect, add it, refit, show the gap shrink -- and say "unexplained" rather than 
    from the model's sensitivities at the current fit -- no refit needed to rank. Serially
    correlated residuals make nominal p-values too small, so the test is done on prewhitened
    quantities: an AR(1) filter estimated on the current residual is applied to the residual and to
-   every Jacobian column (a GLS score test).
-4. The best candidate is added when its score p-value beats 0.01 / (number of candidates tested)
-   (Bonferroni); it is kept when the refit passes a likelihood-ratio test (prewhitened, p < 0.01)
-   and lowers BIC. Repeat until the residual is white or nothing significant is left.
-5. Candidates whose sensitivities are nearly collinear with a fitted parameter (cosine > 0.995)
-   are reported in `confounded` instead of being picked; a residual that stays non-white with no
-   significant candidate is `unexplained`, with its spectral peaks.
+   every Jacobian column (a GLS score test). Where the pump's symmetry cancels a defect's
+   first-order effect (an eccentric housing, odd out-of-round orders with an even vane count), the
+   test uses the second-order terms (exact Jacobians at +-probe points).
+4. Candidates whose score p-value beats 0.01 / (number tested) (Bonferroni) are significant; the
+   three whose joint one-step estimate gives the lowest nonlinear residual are refitted, and the
+   lowest BIC wins. It is
+   kept when its likelihood-ratio test (prewhitened, p < 0.01) passes and BIC falls. When a second
+   effect comes within 10 BIC units of it, the two are reported `confounded` and neither is picked.
+   Repeat until the residual is white or nothing significant is left.
+5. Candidates nearly collinear with a fitted parameter (cosine > 0.995) whose projected score is
+   not significant could hide inside that parameter: reported in `confounded`. A residual that
+   stays non-white with no significant candidate is `unexplained`, with its spectral peaks.
 
 Physics worth knowing: with N identical, equally spaced vanes, housing-fixed defects only appear at
 multiples of N shaft orders; other orders point to vane-to-vane differences or drive/sensor effects.
@@ -38,6 +43,8 @@ SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
 COLLINEAR = 0.995
 MAX_EFFECTS = 4
+CONTENDERS = 3  # candidates refitted per step to choose among the significant ones
+BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
 
 
 @dataclass
@@ -45,20 +52,29 @@ class Candidate:
     effect: str
     params: list  # parameter names for Problem
     order: int | None = None  # shaft order (out-of-round, speed ripple)
+    # geometric defects of a pump with identical, equally spaced vanes can leave the torque
+    # unchanged to first order (an eccentric housing with N >= 2: the per-vane changes at odd orders
+    # cancel in the sum); their score test then uses the second-order terms
+    symmetric: bool = False
 
     @property
     def label(self):
         return f"{self.effect}(k={self.order})" if self.order else self.effect
+
+    def config(self, cfg: PumpConfig) -> PumpConfig:
+        return _with_harmonic_pair(cfg, self.order) if self.effect == "housing_out_of_round" else cfg
 
 
 def candidates(cfg: PumpConfig, added: set) -> list:
     N = cfg.vanes
     out = []
     if "rotor_eccentricity" not in added:
-        out.append(Candidate("rotor_eccentricity", ["housing.center.0", "housing.center.1"]))
+        out.append(Candidate("rotor_eccentricity", ["housing.center.0", "housing.center.1"], symmetric=True))
     if "housing_out_of_round" not in added:
         j = len(cfg.harmonics)
-        out += [Candidate("housing_out_of_round", [f"housing.harmonics.{j}.amplitude"], k) for k in range(2, 9)]
+        out += [Candidate("housing_out_of_round", [f"housing.harmonics.{j}.amplitude",
+                                                   f"housing.harmonics.{j + 1}.amplitude"], k, symmetric=True)
+                for k in range(2, 9)]
     if "speed_ripple" not in added:
         out += [Candidate("speed_ripple", ["ripple_cos", "ripple_sin"], k) for k in range(1, 2 * N + 1)]
     for name, params in (("torque_offset", ["torque_offset"]), ("sensor_lag", ["lag"]),
@@ -70,22 +86,29 @@ def candidates(cfg: PumpConfig, added: set) -> list:
     return out
 
 
-def _with_harmonic(cfg: PumpConfig, k: int, phase: float = 0.0) -> PumpConfig:
-    """The config with one more housing-harmonic slot of order k (zero amplitude)."""
+def _with_harmonic_pair(cfg: PumpConfig, k: int) -> PumpConfig:
+    """The config with two more housing-harmonic slots of order k, phases 0 and pi/(2k), zero
+    amplitudes a and b: a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b),
+    so the fit needs no phase wrapping and the absent defect (a = b = 0) is a regular point."""
     j = len(cfg.harmonics)
     vals = dict(cfg.values)
-    vals.update({f"housing.harmonics.{j}.order": float(k), f"housing.harmonics.{j}.amplitude": 0.0,
-                 f"housing.harmonics.{j}.phase": phase})
-    return dataclasses.replace(cfg, harmonics=cfg.harmonics + [[float(k), 0.0, phase]], values=vals)
+    pair = [[float(k), 0.0, 0.0], [float(k), 0.0, math.pi / (2 * k)]]
+    for i, (order, amp, phase) in enumerate(pair):
+        vals.update({f"housing.harmonics.{j + i}.order": order, f"housing.harmonics.{j + i}.amplitude": amp,
+                     f"housing.harmonics.{j + i}.phase": phase})
+    return dataclasses.replace(cfg, harmonics=cfg.harmonics + pair, values=vals)
 
 
-def _prewhiten(r, cols):
-    """AR(1) prewhitening: z_k = v_k - rho v_(k-1), rho from the lag-1 autocorrelation of r."""
+def _ar1(r):
+    """Lag-1 autocorrelation of r, the AR(1) coefficient of the prewhitening filter."""
     rc = r - r.mean()
     rho = float(np.dot(rc[1:], rc[:-1]) / max(np.dot(rc, rc), 1e-300))
-    rho = min(max(rho, -0.99), 0.99)
-    f = lambda v: v[1:] - rho * v[:-1]  # noqa: E731
-    return f(r), (f(cols) if cols.ndim == 1 else cols[1:] - rho * cols[:-1]), rho
+    return min(max(rho, -0.99), 0.99)
+
+
+def _prewhiten(v, rho):
+    """z_k = v_k - rho v_(k-1) (rows of a matrix, or a vector)."""
+    return v[1:] - rho * v[:-1]
 
 
 class State:
@@ -103,27 +126,80 @@ class State:
                        ripple_order=ripple_order or self.ripple_order)
 
 
+def _probe_scale(state: State) -> float:
+    """Probe step for geometric defects: 1e-3 of the housing size (tens of micrometres)."""
+    v = state.cfg.values
+    return 1e-3 * max(v.get("housing.a", 0.0), v.get("housing.b", 0.0), 1e-3)
+
+
+def _second_order_columns(prob, x0, nb, J0e, h):
+    """If the candidate's first-order sensitivities vanish (symmetry), the columns of the quadratic
+    model d tau = 1/2 sum_ij H_ij e_i e_j in the unknowns (e_i e_j, i <= j); else None."""
+    q = J0e.shape[1]
+    H = []
+    for i in range(q):
+        xp, xm = x0.copy(), x0.copy()
+        xp[nb + i] += h
+        xm[nb + i] -= h
+        Jp = prob.model_and_jacobian(xp)[1][:, nb:]
+        if i == 0 and np.linalg.norm(J0e) > 1e-6 * np.linalg.norm(Jp - J0e):
+            return None  # a genuine first-order effect
+        Jm = prob.model_and_jacobian(xm)[1][:, nb:]
+        H.append((Jp - Jm) / (2 * h))  # column j: d2 tau / de_i de_j
+    cols, pairs = [], []
+    for i in range(q):
+        for j in range(i, q):
+            cols.append(0.5 * H[i][:, i] if i == j else 0.5 * (H[i][:, j] + H[j][:, i]))
+            pairs.append((i, j))
+    return np.column_stack(cols), pairs
+
+
+def _probe_grid(prob, nb, Jb, h, directions=8, radii=(0.5, 1, 2, 4, 8, 16)):
+    """The model at finite defect sizes r (cos b, sin b), b in [0, pi) (the mirror defect gives the
+    same torque), with the fitted parameters' linear correction: the best point and its residual.
+    Where the torque reacts to a defect only through the instants of friction reversals (a
+    non-analytic, sampling-dependent change), this finds what no Taylor term can."""
+    best = (None, None, np.inf)
+    for rr in radii:
+        for b in np.arange(directions) * math.pi / directions:
+            x = prob.x0.copy()
+            x[nb:nb + 2] = rr * h * math.cos(b), rr * h * math.sin(b)
+            r = prob.y - prob.model(x)
+            if nb:
+                d = np.linalg.lstsq(Jb, r, rcond=None)[0]
+                x[:nb] += d
+                r = r - Jb @ d
+            if r @ r < best[2]:
+                best = (x, r, float(r @ r))
+    x = np.clip(best[0], prob.lower, prob.upper)
+    return x, prob.y - prob.model(x)
+
+
+def _rank_one_start(coef, pairs, q):
+    """e with e e' closest to the fitted quadratic coefficients (c_ii = e_i^2, c_ij = e_i e_j);
+    the overall sign stays open (the defect and its mirror give the same torque)."""
+    P = np.zeros((q, q))
+    for c, (i, j) in zip(coef, pairs):
+        P[i, j] = P[j, i] = c if i == j else 0.5 * c
+    w, V = np.linalg.eigh(P)
+    e = math.sqrt(abs(w[-1])) * V[:, -1]
+    return e if e[int(np.argmax(np.abs(e)))] >= 0 else -e
+
+
 def score_test(state: State, cand: Candidate):
-    """LM statistic for adding `cand` at the current fit (prewhitened). Returns a dict with the
-    statistic, p-value, one-step estimate, and the collinearity with the fitted parameters."""
-    if cand.effect == "housing_out_of_round":
-        cols, rs = [], None
-        for phase in (0.0, math.pi / (2 * cand.order)):  # the cos and sin directions of A cos(k(...))
-            prob = state.problem(cand.params, cfg=_with_harmonic(state.cfg, cand.order, phase))
-            m, J = prob.model_and_jacobian(prob.x0)
-            cols.append(J[:, -1])
-            rs = prob.y - m
-            Jb = J[:, :len(state.names)]
-        Je = np.column_stack(cols)
-    else:
-        prob = state.problem(cand.params, ripple_order=cand.order if cand.effect == "speed_ripple" else None)
-        m, J = prob.model_and_jacobian(prob.x0)
-        rs = prob.y - m
-        nb = len(state.names)
-        Jb, Je = J[:, :nb], J[:, nb:]
-    r_w, _, rho = _prewhiten(rs, rs)
-    Jb_w = Jb[1:] - rho * Jb[:-1]
-    Je_w = Je[1:] - rho * Je[:-1]
+    """LM statistic for adding `cand` at the current fit (prewhitened GLS score test). Returns the
+    statistic, p-value, a start for the refit, and the collinearity with the fitted parameters."""
+    prob = state.problem(cand.params, cfg=cand.config(state.cfg),
+                         ripple_order=cand.order if cand.effect == "speed_ripple" else None)
+    nb = len(state.names)
+    m, J = prob.model_and_jacobian(prob.x0)
+    rs = prob.y - m
+    Jb, Je = J[:, :nb], J[:, nb:]
+    quad = _second_order_columns(prob, prob.x0, nb, Je, _probe_scale(state)) if cand.symmetric else None
+    if quad is not None:
+        Je, pairs = quad
+    rho = _ar1(rs)
+    r_w, Jb_w, Je_w = _prewhiten(rs, rho), _prewhiten(Jb, rho), _prewhiten(Je, rho)
     # project out the fitted directions
     Q, _ = np.linalg.qr(Jb_w) if Jb_w.shape[1] else (np.zeros((r_w.size, 0)), None)
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
@@ -139,24 +215,37 @@ def score_test(state: State, cand: Candidate):
         partner = state.names[int(np.argmax(c))]
     dof = max(r_w.size - Jb_w.shape[1], 1)
     sigma2 = float(Mr @ Mr) / dof
-    G = Me.T @ Me
-    g = Me.T @ Mr
-    try:
-        delta = np.linalg.lstsq(G, g, rcond=1e-10)[0]
-    except np.linalg.LinAlgError:
-        delta = np.zeros(Je.shape[1])
-    lm = float(g @ delta) / max(sigma2, 1e-300)
-    q = Je.shape[1]
-    return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "step": delta,
-            "collinear": max(cos) if cos else 0.0, "partner": partner, "rho": rho}
+    scale = np.linalg.norm(Me, axis=0)
+    scale[scale == 0] = 1.0
+    coef, _, rank, _ = np.linalg.lstsq(Me / scale, Mr, rcond=1e-10)
+    lm = float((Mr @ (Me / scale)) @ coef) / max(sigma2, 1e-300)
+    coef = coef / scale
+    q = max(int(rank), 1)
+    step = _rank_one_start(coef, pairs, len(cand.params)) if quad is not None else coef
+    # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
+    # cheap look past the linearisation, used to choose which candidates to refit
+    x1 = prob.x0.copy()
+    x1[nb:] += step
+    if nb:
+        x1[:nb] += np.linalg.lstsq(Jb_w, r_w - Je_w @ coef, rcond=None)[0]
+    x1 = np.clip(x1, prob.lower, prob.upper)
+    r1 = prob.y - prob.model(x1)
+    if quad is not None:  # a defect seen only beyond first order: also try a grid of finite probes
+        xp, rp = _probe_grid(prob, nb, Jb, _probe_scale(state))
+        if rp @ rp < r1 @ r1:
+            x1, r1 = xp, rp
+    return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)),
+            "start": dict(zip(prob.names, x1)), "one_step_rss": float(r1 @ r1),
+            "second_order": quad is not None, "collinear": max(cos) if cos else 0.0, "partner": partner,
+            "rho": rho}
 
 
 def _bic(rss, n, k):
     return n * math.log(max(rss, 1e-300) / n) + k * math.log(n)
 
 
-def _whitened_rss(r):
-    rw, _, _ = _prewhiten(r, r)
+def _whitened_rss(r, rho):
+    rw = _prewhiten(r, rho)
     return float(rw @ rw), rw.size
 
 
@@ -169,11 +258,43 @@ def _params_json(res, names):
     return out
 
 
+def _polar(res, names, k):
+    """(a, b) -> amplitude and phase of a cos(k x) + b sin(k x) = A cos(k x - k gamma) with
+    standard errors by the delta method: the physical description of an out-of-round or ripple."""
+    ea, eb = res.estimates[names[0]], res.estimates[names[1]]
+    a, b = ea.value, eb.value
+    A = math.hypot(a, b)
+    ids = [n for n in res.estimates if res.estimates[n].identifiable]
+    C = np.eye(2)
+    if res.correlation is not None and all(n in ids for n in names):
+        i, j = ids.index(names[0]), ids.index(names[1])
+        C = res.correlation[np.ix_([i, j], [i, j])]
+    S = np.outer([ea.stderr, eb.stderr], [ea.stderr, eb.stderr]) * C
+    gA = np.array([a, b]) / max(A, 1e-300)
+    gP = np.array([-b, a]) / max(A * A, 1e-300)
+    return ({"value": A, "stderr": float(math.sqrt(max(gA @ S @ gA, 0.0)))},
+            {"value": math.atan2(b, a), "stderr": float(math.sqrt(max(gP @ S @ gP, 0.0)))})
+
+
+def _effect_params(cand, res, new_names):
+    """The step's parameters as an engineer reads them."""
+    out = _params_json(res, new_names)
+    if cand.order:
+        out["order"] = cand.order
+    if cand.effect == "housing_out_of_round":  # A cos(k (phi - gamma))
+        A, ph = _polar(res, new_names, cand.order)
+        out["amplitude"], out["phase"] = A, {"value": ph["value"] / cand.order, "stderr": ph["stderr"] / cand.order}
+    if cand.effect == "speed_ripple":  # omega = omega0 (1 + A cos(k theta + phase))
+        out["amplitude"], out["phase"] = _polar(res, new_names, cand.order)
+    return out
+
+
 def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, progress=None,
              baseline_params=None) -> dict:
     wall0 = _time.perf_counter()
     say = progress or (lambda msg: None)
     base_names = baseline_params or (["mu", "theta0"] + ([] if data.speed is not None else ["speed"]))
+    say("fitting the baseline")
     base = identify(cfg, data, base_names)
     names = [n for n in base_names if base.estimates[n].identifiable]
     values = {n: base.estimates[n].value for n in names}
@@ -182,59 +303,71 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     history = [{"label": "baseline", "result": base}]
     steps, effects, confounded = [], [], []
     screened_for = None  # the state whose candidates were last screened (their collinearity is known)
+    explained_by_confounded = False
     for _ in range(max_effects):
         if current.diagnostics["white_at_5pct"]:
             break
         cands = candidates(state.cfg, set(effects))
-        scored = []
         screened_for = state
+        scored = []
         for c in cands:
             say(f"screening {c.label}")
-            s = score_test(state, c)
-            if s["partner"] is not None:
-                pair = [c.effect, s["partner"]]
-                if pair not in confounded:
-                    confounded.append(pair)
-                continue
-            scored.append((s["p_value"], c, s))
-        if not scored:
+            scored.append((c, score_test(state, c)))
+        alpha = SCORE_ALPHA / len(scored)
+        _note_confounded(scored, alpha, confounded)
+        significant = sorted([(s["p_value"], -s["lm"], i, c, s) for i, (c, s) in enumerate(scored)
+                              if s["p_value"] < alpha], key=lambda t: t[:3])
+        if not significant:
             break
-        scored.sort(key=lambda t: (t[0], -t[2]["lm"]))
-        p_best, best, s = scored[0]
-        if p_best > SCORE_ALPHA / len(scored):
-            break
-        say(f"refitting with {best.label}")
-        new_state, res = _refit(state, best, s)
-        rss0, nw = _whitened_rss(current.residual)
-        rss1, _ = _whitened_rss(res.residual)
-        lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-        q = len(new_state.names) - len(state.names)
-        lr_p = float(stats.chi2.sf(lr, max(q, 1)))
+        # ranking needs no refit; choosing among the best few does: refit the leading candidate of
+        # each of the top effects and compare them by BIC
+        # the nonlinear model at each candidate's one-step estimate decides which few to refit
+        contenders = sorted([(c, s) for *_, c, s in significant], key=lambda cs: cs[1]["one_step_rss"])[:CONTENDERS]
+        rho = _ar1(current.residual)
+        rss0, nw = _whitened_rss(current.residual, rho)
         bic0 = _bic(rss0, nw, len(state.names))
-        bic1 = _bic(rss1, nw, len(new_state.names))
-        if lr_p >= LR_ALPHA or bic1 >= bic0:
+        fits = []
+        for c, s in contenders:
+            say(f"refitting with {c.label}")
+            new_state, res = _refit(state, c, s)
+            rss1, _ = _whitened_rss(res.residual, rho)
+            q = len(new_state.names) - len(state.names)
+            lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
+            fits.append({"cand": c, "score": s, "state": new_state, "res": res, "rss": rss1,
+                         "lr_p": float(stats.chi2.sf(lr, max(q, 1))), "bic": _bic(rss1, nw, len(new_state.names))})
+        fits.sort(key=lambda f: f["bic"])
+        best = fits[0]
+        if best["lr_p"] >= LR_ALPHA or best["bic"] >= bic0:
             break
-        eff_params = {k: v for k, v in _params_json(res, new_state.names).items() if k not in state.names}
-        if best.order:
-            eff_params["order"] = best.order
-        steps.append({"effect": best.effect, "params": eff_params, "rms_before": current.rms,
-                      "rms_after": res.rms, "p_value": p_best, "score": s["lm"], "lr_p_value": lr_p,
-                      "bic_before": bic0, "bic_after": bic1, "all_params": _params_json(res, new_state.names)})
-        effects.append(best.effect)
+        rival = next((f for f in fits[1:] if f["lr_p"] < LR_ALPHA and f["bic"] < bic0
+                      and f["bic"] - best["bic"] < BIC_DECISIVE), None)
+        if rival is not None:  # two effects explain the residual equally well: do not pick one
+            pair = [best["cand"].effect, rival["cand"].effect]
+            if pair not in confounded:
+                confounded.append(pair)
+            explained_by_confounded = True
+            break
+        c, s, res, new_state = best["cand"], best["score"], best["res"], best["state"]
+        new_names = [n for n in new_state.names if n not in state.names]
+        steps.append({"effect": c.effect, "params": _effect_params(c, res, new_names),
+                      "rms_before": current.rms, "rms_after": res.rms, "p_value": s["p_value"],
+                      "score": s["lm"], "score_dof": s["dof"], "second_order_score": s["second_order"],
+                      "lr_p_value": best["lr_p"], "bic_before": bic0, "bic_after": best["bic"],
+                      "all_params": _params_json(res, new_state.names)})
+        effects.append(c.effect)
         state, current = new_state, res
-        history.append({"label": best.label, "result": res})
+        history.append({"label": c.label, "result": res})
     # a last screen for collinearity, whatever the residual: a white residual can hide an effect that
     # a fitted parameter absorbed (an offset inside mu at one speed). Skipped when the loop already
     # screened the final state.
     if screened_for is not state:
-        for c in candidates(state.cfg, set(effects)):
-            s = score_test(state, c)
-            if s["partner"] is not None and [c.effect, s["partner"]] not in confounded:
-                confounded.append([c.effect, s["partner"]])
+        scored = [(c, score_test(state, c)) for c in candidates(state.cfg, set(effects))]
+        _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
     white = bool(current.diagnostics["white_at_5pct"])
     spec = order_spectrum(current.residual, data.time[1] - data.time[0], current.speed)
     where = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
              for p in spec["peaks"][:5]]
+    unexplained = not white and not explained_by_confounded
     out = {
         "baseline": {"rms": base.rms, "params": _params_json(base, base_names)},
         "steps": steps,
@@ -242,17 +375,28 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         "final": {"rms": current.rms, "params": _params_json(current, state.names), "residual_white": white,
                   "runs_p_value": current.diagnostics["runs_test"]["p_value"],
                   "ljung_box_p_value": current.diagnostics["ljung_box"]["p_value"]},
-        "unexplained": not white,
+        "unexplained": unexplained,
         "confounded": confounded,
-        "unexplained_where": [] if white else where,
+        "unexplained_where": where if unexplained else [],
         "notes": _notes(confounded, cfg.vanes),
-        "method": ("score (Lagrange-multiplier) tests on AR(1)-prewhitened residual and sensitivities, "
-                   f"Bonferroni alpha {SCORE_ALPHA}; acceptance by prewhitened likelihood ratio "
-                   f"(p < {LR_ALPHA}) and BIC"),
+        "method": ("score (Lagrange-multiplier) tests on AR(1)-prewhitened residual and sensitivities "
+                   "(second-order terms where symmetry cancels the first-order ones), Bonferroni alpha "
+                   f"{SCORE_ALPHA}; the leading {CONTENDERS} effects refitted and compared by BIC; acceptance by "
+                   f"prewhitened likelihood ratio (p < {LR_ALPHA}) and BIC"),
         "wall_time": _time.perf_counter() - wall0,
     }
     out["_history"] = history
     return out
+
+
+def _note_confounded(scored, alpha, confounded):
+    """A candidate nearly collinear with a fitted parameter whose own (projected) score is not
+    significant could hide inside that parameter: report the pair."""
+    for c, s in scored:
+        if s["partner"] is not None and s["p_value"] >= alpha:
+            pair = [c.effect, s["partner"]]
+            if pair not in confounded:
+                confounded.append(pair)
 
 
 def _notes(confounded, vanes):
@@ -267,38 +411,21 @@ def _notes(confounded, vanes):
 
 def _refit(state: State, cand: Candidate, score):
     """Fit the current names plus the candidate's parameters, starting from the score step."""
-    cfg = state.cfg
+    cfg = cand.config(state.cfg)
     values = dict(state.values)
-    step = score["step"]
-    ripple = state.ripple_order
-    if cand.effect == "housing_out_of_round":
-        k = cand.order
-        a_c, a_s = step
-        A, gamma = math.hypot(a_c, a_s), math.atan2(a_s, a_c) / k
-        cfg = _with_harmonic(cfg, k, gamma)
-        j = len(state.cfg.harmonics)
-        new = [f"housing.harmonics.{j}.amplitude", f"housing.harmonics.{j}.phase"]
-        values.update({new[0]: A, new[1]: gamma})
-    else:
-        new = list(cand.params)
-        base = state.problem(new).x0[len(state.names):]
-        for nm, b, d in zip(new, base, step):
-            values[nm] = b + d
-        if cand.effect == "sensor_lag":
-            values["lag"] = max(values["lag"], 1e-6)
-        if cand.effect == "speed_ripple":
-            ripple = cand.order
-    names = state.names + new
+    values.update(score["start"])  # the joint one-step estimate
+    if cand.effect == "sensor_lag":
+        values["lag"] = max(values["lag"], 1e-6)
+    ripple = cand.order if cand.effect == "speed_ripple" else state.ripple_order
+    names = state.names + list(cand.params)
     res = identify(cfg, state.data, names, initial={n: values[n] for n in names}, multistart=False,
                    ripple_order=ripple)
     fitted = {n: (res.estimates[n].value if res.estimates[n].value is not None else values[n]) for n in names}
-    new_cfg = cfg
     vals = dict(cfg.values)
     for n_, v in fitted.items():
         if n_ in vals:
             vals[n_] = v
-    new_cfg = dataclasses.replace(cfg, values=vals)
-    return State(new_cfg, state.data, names, fitted, ripple), res
+    return State(dataclasses.replace(cfg, values=vals), state.data, names, fitted, ripple), res
 
 
 def step_table(result) -> str:

@@ -23,6 +23,7 @@ from .diagnostics import residual_report
 from .errors import ConfigError
 from .kernels import load_kernels
 from .parameters import layout
+from .sensor import first_order_lag
 
 SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay", "ripple_cos", "ripple_sin",
            "lag")
@@ -228,15 +229,7 @@ class Problem:
         return np.asarray(self._fns["torque"](theta, self.t, *self._args(x))).ravel()
 
     def _filter(self, y, T):
-        """First-order sensor: y_k = a y_(k-1) + (1 - a) u_k, a = exp(-dt/T), started at u_0."""
-        if T <= 0:
-            return y
-        from scipy.signal import lfilter
-
-        a = math.exp(-(self.t[1] - self.t[0]) / T)
-        if y.ndim > 1:
-            return np.column_stack([self._filter(c, T) for c in y.T])
-        return lfilter([1 - a], [1, -a], y, zi=[a * y[0]])[0]
+        return first_order_lag(y, self.t[1] - self.t[0], T)
 
     def model(self, x):
         self.n_eval += 1

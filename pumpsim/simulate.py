@@ -63,6 +63,19 @@ def sample_times(duration, rate):
     return np.arange(n) / rate
 
 
+def speed_profile(theta0, speed, t, ripple=None):
+    """Prescribed rotor angle, speed and acceleration. A shaft-order-k ripple of relative amplitude A
+    and phase phi is a function of the nominal angle theta_n = theta0 + speed t:
+    omega = speed (1 + A cos(k theta_n + phi)), theta its exact integral."""
+    theta_n = theta0 + speed * t
+    if not ripple or ripple[1] == 0:
+        return theta_n, np.full_like(t, speed), np.zeros_like(t)
+    k, A, phi = ripple
+    arg = k * theta_n + phi
+    theta = theta_n + A / k * (np.sin(arg) - math.sin(k * theta0 + phi))
+    return theta, speed * (1 + A * np.cos(arg)), -A * k * speed**2 * np.sin(arg)
+
+
 def _diagnose(out, time, n_vanes, warnings, events):
     """Report lift-off (negative housing reaction) and friction paradoxes; never hide them."""
     res = out["position_residual"]
@@ -121,9 +134,8 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
     warnings, events, stats = [], [], {}
     N = cfg.vanes
     if cfg.mode == "speed":
-        theta = cfg.angle + cfg.speed * t
-        omega = np.full_like(t, cfg.speed)
-        out = inverse_dynamics(kern, p, theta, omega, 0.0)
+        theta, omega, omegadot = speed_profile(cfg.angle, cfg.speed, t, cfg.speed_ripple)
+        out = inverse_dynamics(kern, p, theta, omega, omegadot)
         torque = out["torque"]
     else:
         theta, omega, torque, out, stats, ev = _torque_drive(kern, p, cfg, t, method, rtol, atol,
