@@ -11,8 +11,8 @@ effect, add it, refit, show the gap shrink -- and say "unexplained" rather than 
    first-order effect (an eccentric housing, odd out-of-round orders with an even vane count), the
    test uses the second-order terms (exact Jacobians at +-probe points).
 4. Candidates whose score p-value beats 0.01 / (number tested) (Bonferroni) are significant; the
-   three whose joint one-step estimate gives the lowest nonlinear residual are refitted, and the
-   lowest BIC wins. It is
+   two best by p-value and the two whose joint one-step estimate gives the lowest nonlinear
+   residual are refitted, and the lowest BIC wins. It is
    kept when its likelihood-ratio test (prewhitened, p < 0.01) passes and BIC falls. When a second
    effect comes within 10 BIC units of it, the two are reported `confounded` and neither is picked.
    Repeat until the residual is white or nothing significant is left.
@@ -32,6 +32,7 @@ import time as _time
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 from scipy import stats
 
 from .config import PumpConfig
@@ -43,7 +44,7 @@ SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
 COLLINEAR = 0.995
 MAX_EFFECTS = 4
-CONTENDERS = 3  # candidates refitted per step to choose among the significant ones
+CONTENDERS = 2  # refitted per step: the best by score p-value and the best by one-step residual
 BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
 
 
@@ -132,20 +133,24 @@ def _probe_scale(state: State) -> float:
     return 1e-3 * max(v.get("housing.a", 0.0), v.get("housing.b", 0.0), 1e-3)
 
 
-def _second_order_columns(prob, x0, nb, J0e, h):
-    """If the candidate's first-order sensitivities vanish (symmetry), the columns of the quadratic
-    model d tau = 1/2 sum_ij H_ij e_i e_j in the unknowns (e_i e_j, i <= j); else None."""
+def _second_order_columns(prob, x0, nb, J0e, h, Jb, one_sided=False):
+    """If the candidate's first-order sensitivities vanish, or lie entirely inside the span of the
+    fitted parameters' (a short sensor lag is, to first order, a pure delay: theta0 absorbs it),
+    the columns of the quadratic model d tau = 1/2 sum_ij H_ij e_i e_j in the unknowns
+    (e_i e_j, i <= j), H from exact Jacobians at probe points; else None."""
     q = J0e.shape[1]
+    Q = np.linalg.qr(Jb)[0] if nb else np.zeros((J0e.shape[0], 0))
+    proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
     H = []
     for i in range(q):
         xp, xm = x0.copy(), x0.copy()
         xp[nb + i] += h
-        xm[nb + i] -= h
+        xm[nb + i] -= 0 if one_sided else h
         Jp = prob.model_and_jacobian(xp)[1][:, nb:]
-        if i == 0 and np.linalg.norm(J0e) > 1e-6 * np.linalg.norm(Jp - J0e):
+        if i == 0 and np.linalg.norm(proj(J0e)) > 1e-6 * np.linalg.norm(proj(Jp - J0e)):
             return None  # a genuine first-order effect
-        Jm = prob.model_and_jacobian(xm)[1][:, nb:]
-        H.append((Jp - Jm) / (2 * h))  # column j: d2 tau / de_i de_j
+        Jm = J0e if one_sided else prob.model_and_jacobian(xm)[1][:, nb:]
+        H.append((Jp - Jm) / (h if one_sided else 2 * h))  # column j: d2 tau / de_i de_j
     cols, pairs = [], []
     for i in range(q):
         for j in range(i, q):
@@ -195,7 +200,13 @@ def score_test(state: State, cand: Candidate):
     m, J = prob.model_and_jacobian(prob.x0)
     rs = prob.y - m
     Jb, Je = J[:, :nb], J[:, nb:]
-    quad = _second_order_columns(prob, prob.x0, nb, Je, _probe_scale(state)) if cand.symmetric else None
+    if cand.effect == "sensor_lag":  # one-sided (T >= 0), probe a twentieth of a radian of lag
+        quad = _second_order_columns(prob, prob.x0, nb, Je, 0.05 / prob.fixed["speed"] if "speed" not in
+                                     state.names else 0.05 / state.values["speed"], Jb, one_sided=True)
+    elif cand.symmetric:
+        quad = _second_order_columns(prob, prob.x0, nb, Je, _probe_scale(state), Jb)
+    else:
+        quad = None
     if quad is not None:
         Je, pairs = quad
     rho = _ar1(rs)
@@ -204,6 +215,16 @@ def score_test(state: State, cand: Candidate):
     Q, _ = np.linalg.qr(Jb_w) if Jb_w.shape[1] else (np.zeros((r_w.size, 0)), None)
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
     Me, Mr = proj(Je_w), proj(r_w)
+    params = list(cand.params)
+    if quad is None and Me.shape[1] > 1:
+        # parameters the data cannot tell apart (with an ellipse, vanes i and i + N/2 see the same
+        # housing): keep an independent subset, the others stay at their configured values
+        norms = np.linalg.norm(Me, axis=0)
+        _, R, piv = scipy.linalg.qr(Me / np.where(norms > 0, norms, 1.0), mode="economic", pivoting=True)
+        keep = sorted(piv[:int(np.sum(np.abs(np.diag(R)) > 1e-8))])
+        if len(keep) < Me.shape[1]:
+            params = [params[i] for i in keep]
+            Je, Je_w, Me = Je[:, keep], Je_w[:, keep], Me[:, keep]
     # collinearity of each candidate direction with the fitted ones
     cos = [float(np.linalg.norm(Q.T @ Je_w[:, j]) / max(np.linalg.norm(Je_w[:, j]), 1e-300))
            for j in range(Je_w.shape[1])]
@@ -225,17 +246,18 @@ def score_test(state: State, cand: Candidate):
     # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
     # cheap look past the linearisation, used to choose which candidates to refit
     x1 = prob.x0.copy()
-    x1[nb:] += step
+    x1[[nb + cand.params.index(n) for n in params]] += step
     if nb:
         x1[:nb] += np.linalg.lstsq(Jb_w, r_w - Je_w @ coef, rcond=None)[0]
     x1 = np.clip(x1, prob.lower, prob.upper)
     r1 = prob.y - prob.model(x1)
-    if quad is not None:  # a defect seen only beyond first order: also try a grid of finite probes
+    if quad is not None and len(cand.params) == 2:  # seen only beyond first order: try finite probes
         xp, rp = _probe_grid(prob, nb, Jb, _probe_scale(state))
         if rp @ rp < r1 @ r1:
             x1, r1 = xp, rp
     return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)),
-            "start": dict(zip(prob.names, x1)), "one_step_rss": float(r1 @ r1),
+            "params": params, "start": {n: v for n, v in zip(prob.names, x1) if n in state.names + params},
+            "one_step_rss": float(r1 @ r1),
             "second_order": quad is not None, "collinear": max(cos) if cos else 0.0, "partner": partner,
             "rho": rho}
 
@@ -322,7 +344,12 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         # ranking needs no refit; choosing among the best few does: refit the leading candidate of
         # each of the top effects and compare them by BIC
         # the nonlinear model at each candidate's one-step estimate decides which few to refit
-        contenders = sorted([(c, s) for *_, c, s in significant], key=lambda cs: cs[1]["one_step_rss"])[:CONTENDERS]
+        by_rss = sorted([(c, s) for *_, c, s in significant], key=lambda cs: cs[1]["one_step_rss"])
+        by_p = [(c, s) for *_, c, s in significant]
+        contenders = []
+        for c, s in by_p[:CONTENDERS] + by_rss[:CONTENDERS]:
+            if all(c is not c2 for c2, _ in contenders):
+                contenders.append((c, s))
         rho = _ar1(current.residual)
         rss0, nw = _whitened_rss(current.residual, rho)
         bic0 = _bic(rss0, nw, len(state.names))
@@ -381,7 +408,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         "notes": _notes(confounded, cfg.vanes),
         "method": ("score (Lagrange-multiplier) tests on AR(1)-prewhitened residual and sensitivities "
                    "(second-order terms where symmetry cancels the first-order ones), Bonferroni alpha "
-                   f"{SCORE_ALPHA}; the leading {CONTENDERS} effects refitted and compared by BIC; acceptance by "
+                   f"{SCORE_ALPHA}; the {CONTENDERS} best by p-value and by one-step residual refitted and compared by BIC; acceptance by "
                    f"prewhitened likelihood ratio (p < {LR_ALPHA}) and BIC"),
         "wall_time": _time.perf_counter() - wall0,
     }
@@ -417,7 +444,7 @@ def _refit(state: State, cand: Candidate, score):
     if cand.effect == "sensor_lag":
         values["lag"] = max(values["lag"], 1e-6)
     ripple = cand.order if cand.effect == "speed_ripple" else state.ripple_order
-    names = state.names + list(cand.params)
+    names = state.names + list(score["params"])
     res = identify(cfg, state.data, names, initial={n: values[n] for n in names}, multistart=False,
                    ripple_order=ripple)
     fitted = {n: (res.estimates[n].value if res.estimates[n].value is not None else values[n]) for n in names}
@@ -428,13 +455,20 @@ def _refit(state: State, cand: Candidate, score):
     return State(dataclasses.replace(cfg, values=vals), state.data, names, fitted, ripple), res
 
 
+def _fmt_param(k, v):
+    if not isinstance(v, dict):
+        return f"{k} {v:.4g}"
+    if v["value"] is None:
+        return f"{k} not identifiable"
+    return f"{k} {v['value']:.4g} ± {v['stderr']:.2g}"
+
+
 def step_table(result) -> str:
     lines = [f"{'step':<28}{'RMS before':>13}{'RMS after':>13}{'p-value':>11}  parameters"]
     lines.append(f"{'baseline':<28}{'':>13}{result['baseline']['rms']:>13.5g}{'':>11}  " + ", ".join(
         f"{k} {v['value']:.5g}" for k, v in result["baseline"]["params"].items() if v["value"] is not None))
     for s in result["steps"]:
-        ps = ", ".join(f"{k} {v:.4g}" if not isinstance(v, dict) else f"{k} {v['value']:.4g} ± {v['stderr']:.2g}"
-                       for k, v in s["params"].items())
+        ps = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
         lines.append(f"{s['effect']:<28}{s['rms_before']:>13.5g}{s['rms_after']:>13.5g}{s['p_value']:>11.2g}  {ps}")
     f = result["final"]
     where = ", ".join(str(w["order"]) for w in result["unexplained_where"]) or "none distinct (broadband)"

@@ -1,0 +1,139 @@
+"""Discrepancy workflow: every library effect alone, made with the simulator (or the sensor model)
+and diagnosed with the nominal config that lacks it, at effect-RMS / noise-sigma = 5."""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import pumpsim
+from pumpsim.data import Dataset
+from pumpsim.diagnose import diagnose
+from pumpsim.sensor import measured_torque
+from tests.conftest import make_config
+from tests.tolerances import EFFECT_FINAL_RMS, EFFECT_MU_REL, EFFECT_PARAM_REL
+
+MU = 0.17
+
+
+def _with(cfg, **values):
+    return dataclasses.replace(cfg, values={**cfg.values, **values})
+
+
+def _harmonic(cfg, k, amplitude, phase):
+    return dataclasses.replace(cfg, harmonics=[[float(k), amplitude, phase]], values={
+        **cfg.values, "housing.harmonics.0.order": float(k), "housing.harmonics.0.amplitude": amplitude,
+        "housing.harmonics.0.phase": phase})
+
+
+def measurement(nominal, truth, lag=0.0, offset=0.0, seed=1, duration=0.1, ratio=5.0):
+    """Torque with the effect, noise sigma = effect RMS / ratio; the effect RMS is measured against
+    the nominal simulation at the same angle."""
+    ref = pumpsim.simulate(dataclasses.replace(nominal, angle=truth.angle), duration=duration, rate=10000)
+    sim = pumpsim.simulate(truth, duration=duration, rate=10000)
+    y = measured_torque(sim.time, sim.torque, lag, offset)
+    sigma = math.sqrt(np.mean((y - ref.torque) ** 2)) / ratio
+    return Dataset(sim.time, y + np.random.default_rng(seed).normal(0, sigma, y.size)), sigma
+
+
+def _value(out, name):
+    return out["final"]["params"][name]["value"]
+
+
+def _check(out, sigma, effect, final_rms=True):
+    assert out["effects"] and out["effects"][0] == effect, out["effects"]
+    assert abs(_value(out, "mu") / MU - 1) < EFFECT_MU_REL
+    if final_rms:
+        assert out["final"]["rms"] < EFFECT_FINAL_RMS * sigma
+    assert not out["unexplained"]
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return make_config("ellipse_4vanes")
+
+
+def test_out_of_round_order_4(nominal):
+    truth = _harmonic(dataclasses.replace(nominal, angle=0.4), 4, 2e-5, 0.3)
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "housing_out_of_round")
+    p = out["steps"][0]["params"]
+    assert p["order"] == 4
+    assert abs(p["amplitude"]["value"] / 2e-5 - 1) < EFFECT_PARAM_REL
+    # phase within 10 % of the harmonic's half-period pi/k
+    assert abs(p["phase"]["value"] - 0.3) < EFFECT_PARAM_REL * math.pi / 4
+
+
+def test_rotor_eccentricity_seen_only_at_second_order(nominal):
+    """With 4 identical vanes an eccentric housing leaves the torque unchanged to first order (the
+    per-vane changes at odd orders cancel): found by the second-order score and the probe grid."""
+    truth = _with(dataclasses.replace(nominal, angle=0.4), **{"housing.center.0": 5e-4, "housing.center.1": 0.0})
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "rotor_eccentricity")
+    ex, ey = _value(out, "housing.center.0"), _value(out, "housing.center.1")
+    # the mirror eccentricity gives the same torque: compare up to sign
+    assert min(math.hypot(ex - 5e-4, ey), math.hypot(ex + 5e-4, ey)) < EFFECT_PARAM_REL * 5e-4
+
+
+def test_rotor_eccentricity_off_axis_named_and_sized(nominal):
+    """Off the ellipse's axes most of the effect is in the friction-reversal instants (sample-level
+    steps): named and sized, the final residual keeps a few reversal samples (README)."""
+    truth = _with(dataclasses.replace(nominal, angle=0.4), **{"housing.center.0": 3e-4, "housing.center.1": 3e-4})
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "rotor_eccentricity", final_rms=False)
+    ex, ey = _value(out, "housing.center.0"), _value(out, "housing.center.1")
+    assert min(math.hypot(ex - 3e-4, ey - 3e-4), math.hypot(ex + 3e-4, ey + 3e-4)) < EFFECT_PARAM_REL * math.hypot(3e-4, 3e-4)
+
+
+def test_speed_ripple(nominal):
+    truth = dataclasses.replace(nominal, angle=0.4, speed_ripple=(1, 0.01, 0.5))
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "speed_ripple")
+    p = out["steps"][0]["params"]
+    assert p["order"] == 1 and abs(p["amplitude"]["value"] / 0.01 - 1) < EFFECT_PARAM_REL
+    assert abs(p["phase"]["value"] - 0.5) < EFFECT_PARAM_REL * math.pi
+
+
+def test_sensor_lag_beyond_the_delay_it_looks_like(nominal):
+    """To first order a lag is a delay (theta0 absorbs it): the score test uses the second order."""
+    truth = dataclasses.replace(nominal, angle=0.4)
+    ds, sigma = measurement(nominal, truth, lag=2e-4)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "sensor_lag")
+    assert abs(_value(out, "lag") / 2e-4 - 1) < EFFECT_PARAM_REL
+    assert abs(_value(out, "theta0") - 0.4) < 0.01
+
+
+def test_vane_friction_spread_three_vanes():
+    """Three vanes on an ellipse: every vane's COF factor is identifiable (with four, vanes i and
+    i + 2 see the same housing and only their sums are)."""
+    nominal = make_config("ellipse_4vanes", **{"rotor.vanes": 3})
+    truth = _with(dataclasses.replace(nominal, angle=0.4), **{"effects.vane_friction_factor.1": 1.2,
+                                                               "effects.vane_friction_factor.2": 0.9})
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "vane_friction_spread")
+    assert abs(_value(out, "effects.vane_friction_factor.1") - 1.2) < EFFECT_PARAM_REL * 0.2
+    assert abs(_value(out, "effects.vane_friction_factor.2") - 0.9) < EFFECT_PARAM_REL * 0.1
+
+
+def test_vane_friction_spread_four_vanes_names_what_is_identifiable(nominal):
+    truth = _with(dataclasses.replace(nominal, angle=0.4), **{"effects.vane_friction_factor.1": 1.2,
+                                                               "effects.vane_friction_factor.3": 1.2})
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    assert out["effects"] == ["vane_friction_spread"] and out["final"]["rms"] < EFFECT_FINAL_RMS * sigma
+    fitted = [n for n in out["steps"][0]["params"] if n.startswith("effects.")]
+    assert len(fitted) == 2  # of three factors, the odd/even pair sums
+
+
+def test_two_effects_both_named(nominal):
+    truth = _harmonic(dataclasses.replace(nominal, angle=0.4, speed_ripple=(1, 0.003, -1.0)), 4, 2e-5, 0.3)
+    ds, _ = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    assert set(out["effects"]) == {"speed_ripple", "housing_out_of_round"}
+    assert out["final"]["residual_white"] and not out["unexplained"]
