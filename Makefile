@@ -22,6 +22,8 @@ demo: codegen
 	$(BIN)/pumpsim simulate examples/ellipse_4vanes.toml --out out/ellipse_4vanes.csv --plot out/ellipse_4vanes.png
 	$(BIN)/pumpsim identify examples/test_rig.toml examples/data/test_rig_measurement.csv --params mu \
 		--json out/test_rig_fit.json --report out/test_rig_fit.html
+	$(BIN)/pumpsim diagnose examples/ellipse_4vanes.toml examples/data/ellipse_hidden_effects.csv \
+		--json out/ellipse_diagnosis.json --report out/ellipse_diagnosis.html
 
 test: codegen
 	$(BIN)/python -m pytest -q

@@ -18,7 +18,8 @@ effect, add it, refit, show the gap shrink -- and say "unexplained" rather than 
    Repeat until the residual is white or nothing significant is left.
 5. Candidates nearly collinear with a fitted parameter (cosine > 0.995) whose projected score is
    not significant could hide inside that parameter: reported in `confounded`. A residual that
-   stays non-white with no significant candidate is `unexplained`, with its spectral peaks.
+   stays non-white (runs or Ljung-Box p < 0.005 each, 1 % family-wise) with no significant
+   candidate is `unexplained`, with its spectral peaks.
 
 Physics worth knowing: with N identical, equally spaced vanes, housing-fixed defects only appear at
 multiples of N shaft orders; other orders point to vane-to-vane differences or drive/sensor effects.
@@ -44,6 +45,7 @@ SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
 COLLINEAR = 0.995
 MAX_EFFECTS = 4
+UNEXPLAINED_ALPHA = 0.01  # family-wise level of the two whiteness tests behind `unexplained`
 CONTENDERS = 2  # refitted per step: the best by score p-value and the best by one-step residual
 BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
 
@@ -394,7 +396,11 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     spec = order_spectrum(current.residual, data.time[1] - data.time[0], current.speed)
     where = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
              for p in spec["peaks"][:5]]
-    unexplained = not white and not explained_by_confounded
+    # "unexplained" is a claim about the data, so it needs stronger evidence than the 5 % whiteness
+    # check that stops the search: runs or Ljung-Box below UNEXPLAINED_ALPHA / 2 (Bonferroni)
+    d = current.diagnostics
+    departs = min(d["runs_test"]["p_value"], d["ljung_box"]["p_value"]) < UNEXPLAINED_ALPHA / 2
+    unexplained = departs and not explained_by_confounded
     out = {
         "baseline": {"rms": base.rms, "params": _params_json(base, base_names)},
         "steps": steps,
@@ -468,11 +474,15 @@ def step_table(result) -> str:
     lines.append(f"{'baseline':<28}{'':>13}{result['baseline']['rms']:>13.5g}{'':>11}  " + ", ".join(
         f"{k} {v['value']:.5g}" for k, v in result["baseline"]["params"].items() if v["value"] is not None))
     for s in result["steps"]:
-        ps = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
+        shown = s["params"]
+        if "amplitude" in shown:  # the (a, b) components behind amplitude and phase: JSON only
+            shown = {k: shown[k] for k in ("order", "amplitude", "phase")}
+        ps = ", ".join(_fmt_param(k, v) for k, v in shown.items())
         lines.append(f"{s['effect']:<28}{s['rms_before']:>13.5g}{s['rms_after']:>13.5g}{s['p_value']:>11.2g}  {ps}")
     f = result["final"]
     where = ", ".join(str(w["order"]) for w in result["unexplained_where"]) or "none distinct (broadband)"
-    lines.append(f"final: RMS {f['rms']:.5g}, residual {'white' if f['residual_white'] else 'NOT white'}"
+    lines.append(f"final: RMS {f['rms']:.5g}, residual {'white' if f['residual_white'] else 'NOT white'} at 5 % "
+                 f"(runs p {f['runs_p_value']:.2g}, Ljung-Box p {f['ljung_box_p_value']:.2g})"
                  + (f"; UNEXPLAINED residual, spectral peaks at shaft orders: {where}" if result["unexplained"] else ""))
     for a, b in result["confounded"]:
         lines.append(f"confounded: {a} ~ {b} (a second speed would separate them)")
