@@ -193,9 +193,10 @@ def _rank_one_start(coef, pairs, q):
     return e if e[int(np.argmax(np.abs(e)))] >= 0 else -e
 
 
-def score_test(state: State, cand: Candidate):
+def score_test(state: State, cand: Candidate, start=True):
     """LM statistic for adding `cand` at the current fit (prewhitened GLS score test). Returns the
-    statistic, p-value, a start for the refit, and the collinearity with the fitted parameters."""
+    statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
+    the refit with the nonlinear residual there."""
     prob = state.problem(cand.params, cfg=cand.config(state.cfg),
                          ripple_order=cand.order if cand.effect == "speed_ripple" else None)
     nb = len(state.names)
@@ -247,6 +248,9 @@ def score_test(state: State, cand: Candidate):
     step = _rank_one_start(coef, pairs, len(cand.params)) if quad is not None else coef
     # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
     # cheap look past the linearisation, used to choose which candidates to refit
+    if not start:
+        return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
+                "second_order": quad is not None, "collinear": max(cos) if cos else 0.0, "partner": partner}
     x1 = prob.x0.copy()
     x1[[nb + cand.params.index(n) for n in params]] += step
     if nb:
@@ -390,7 +394,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     # a fitted parameter absorbed (an offset inside mu at one speed). Skipped when the loop already
     # screened the final state.
     if screened_for is not state:
-        scored = [(c, score_test(state, c)) for c in candidates(state.cfg, set(effects))]
+        scored = [(c, score_test(state, c, start=False)) for c in candidates(state.cfg, set(effects))]
         _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
     white = bool(current.diagnostics["white_at_5pct"])
     spec = order_spectrum(current.residual, data.time[1] - data.time[0], current.speed)

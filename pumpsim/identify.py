@@ -169,11 +169,12 @@ class Problem:
         # scalars (a third less work in the Jacobian)
         self._ripple = (any(n in self.names for n in ("ripple_cos", "ripple_sin"))
                         or self.fixed["ripple_cos"] != 0 or self.fixed["ripple_sin"] != 0)
-        key = (self.kern.key, self.t.size, tuple(self.names), self.ripple_order, self._ripple)
+        key = (self.kern.key, self.t.size, tuple(self.names), self._ripple)
         if key not in _GRAPHS:
             _GRAPHS[key] = self._graph()
         self._fns = _GRAPHS[key]
-        self._fixed_vec = np.array([self.fixed[k] for k in SPECIAL], dtype=float)
+        # the fixed values, then the ripple order (an input, so one graph serves every order)
+        self._fixed_vec = np.array([self.fixed[k] for k in SPECIAL] + [self.ripple_order], dtype=float)
         self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
         self._angle_acting = [i for i, nm in enumerate(self.names)
                               if nm in ("theta0", "speed", "delay", "ripple_cos", "ripple_sin")]
@@ -188,14 +189,14 @@ class Problem:
         phi = ca.MX.sym("phi", len(self.names))
         th = ca.MX.sym("theta", n)
         p0 = ca.MX.sym("p0", self.p0.size)
-        fixed = ca.MX.sym("fixed", len(SPECIAL))
+        fixed = ca.MX.sym("fixed", len(SPECIAL) + 1)
         ratios = ca.MX.sym("ratios", 2)
         val = {nm: phi[i] for i, nm in enumerate(self.names)}
         get = lambda nm: val.get(nm, fixed[SPECIAL.index(nm)])  # noqa: E731
         pvec = parameter_map(self._index, p0, val, get("mu_slot"), ratios)
         # speed (with its ripple) and acceleration per sample: exact AD; the angle enters as th
         t = ca.MX.sym("t", n)
-        w0, k = get("speed"), float(self.ripple_order)
+        w0, k = get("speed"), fixed[len(SPECIAL)]
         th_n = get("theta0") + w0 * (t - get("delay"))
         if self._ripple:
             rc, rs = get("ripple_cos"), get("ripple_sin")

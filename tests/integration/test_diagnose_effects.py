@@ -137,3 +137,16 @@ def test_two_effects_both_named(nominal):
     out = diagnose(nominal, ds)
     assert set(out["effects"]) == {"speed_ripple", "housing_out_of_round"}
     assert out["final"]["residual_white"] and not out["unexplained"]
+
+
+@pytest.mark.slow
+def test_false_positive_rate_without_effects(nominal):
+    """No effect present: an effect is named in at most 5 % of 40 noise seeds (2 of 40)."""
+    truth = dataclasses.replace(nominal, angle=0.4)
+    ref = pumpsim.simulate(truth, duration=0.1, rate=10000)
+    sigma = 0.05 * np.std(ref.torque)
+    named = 0
+    for seed in range(40):
+        y = ref.torque + np.random.default_rng(100 + seed).normal(0, sigma, ref.time.size)
+        named += bool(diagnose(nominal, Dataset(ref.time, y))["effects"])
+    assert named <= 2, f"effects named in {named} of 40 seeds"
