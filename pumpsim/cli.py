@@ -169,7 +169,9 @@ def cmd_diagnose(a) -> int:
     from .io import write_text
 
     cfg = load_config(a.config)
-    data = load_data(a.data, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
+    # several files: measurements of one pump at different speeds, fitted together
+    data = [load_data(d, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
+            for d in a.data]
     out = diagnose(cfg, data, progress=tty_progress())
     if sys.stderr.isatty():
         print(file=sys.stderr)
@@ -222,7 +224,8 @@ def build_parser():
     ip.set_defaults(func=cmd_identify)
     dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model")
     dg.add_argument("config")
-    dg.add_argument("data")
+    dg.add_argument("data", nargs="+", help="one or more measurements (several speeds separate "
+                    "offset, viscous friction and COF)")
     dg.add_argument("--json")
     dg.add_argument("--report", help="self-contained HTML report")
     _add_data_options(dg)

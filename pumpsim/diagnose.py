@@ -39,7 +39,7 @@ from scipy import stats
 from .config import PumpConfig
 from .data import Dataset
 from .diagnostics import order_spectrum, residual_report
-from .identify import Problem, identify
+from .identify import identify, make_problem
 
 SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
@@ -124,7 +124,7 @@ class State:
 
     def problem(self, extra_names=(), cfg=None, ripple_order=None):
         names = self.names + [n for n in extra_names if n not in self.names]
-        return Problem(cfg or self.cfg, self.data, names, initial=self.values,
+        return make_problem(cfg or self.cfg, self.data, names, initial=self.values,
                        extra={k: v for k, v in self.values.items() if k not in names},
                        ripple_order=ripple_order or self.ripple_order)
 
@@ -204,8 +204,7 @@ def score_test(state: State, cand: Candidate, start=True):
     rs = prob.y - m
     Jb, Je = J[:, :nb], J[:, nb:]
     if cand.effect == "sensor_lag":  # one-sided (T >= 0), probe a twentieth of a radian of lag
-        quad = _second_order_columns(prob, prob.x0, nb, Je, 0.05 / prob.fixed["speed"] if "speed" not in
-                                     state.names else 0.05 / state.values["speed"], Jb, one_sided=True)
+        quad = _second_order_columns(prob, prob.x0, nb, Je, 0.05 / prob.speed_of(prob.x0), Jb, one_sided=True)
     elif cand.symmetric:
         quad = _second_order_columns(prob, prob.x0, nb, Je, _probe_scale(state), Jb)
     else:
@@ -321,9 +320,13 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
              baseline_params=None) -> dict:
     wall0 = _time.perf_counter()
     say = progress or (lambda msg: None)
-    base_names = baseline_params or (["mu", "theta0"] + ([] if data.speed is not None else ["speed"]))
+    datasets = list(data) if isinstance(data, (list, tuple)) else [data]
+    data = datasets if len(datasets) > 1 else datasets[0]
+    speeds_known = all(d.speed is not None for d in datasets)
+    base_names = baseline_params or (["mu", "theta0"] + ([] if speeds_known else ["speed"]))
     say("fitting the baseline")
     base = identify(cfg, data, base_names)
+    base_names = list(base.estimates)  # per-measurement names (theta0@i) when several are fitted
     names = [n for n in base_names if base.estimates[n].identifiable]
     values = {n: base.estimates[n].value for n in names}
     state = State(cfg, data, names, values)
@@ -397,7 +400,8 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         scored = [(c, score_test(state, c, start=False)) for c in candidates(state.cfg, set(effects))]
         _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
     white = bool(current.diagnostics["white_at_5pct"])
-    spec = order_spectrum(current.residual, data.time[1] - data.time[0], current.speed)
+    first = datasets[0].time.size  # the spectrum of the first measurement (one speed)
+    spec = order_spectrum(current.residual[:first], datasets[0].time[1] - datasets[0].time[0], current.speed)
     where = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
              for p in spec["peaks"][:5]]
     # "unexplained" is a claim about the data, so it needs stronger evidence than the 5 % whiteness
@@ -415,7 +419,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         "unexplained": unexplained,
         "confounded": confounded,
         "unexplained_where": where if unexplained else [],
-        "notes": _notes(confounded, cfg.vanes),
+        "notes": _notes(confounded, cfg.vanes, len(datasets)),
         "method": ("score (Lagrange-multiplier) tests on AR(1)-prewhitened residual and sensitivities "
                    "(second-order terms where symmetry cancels the first-order ones), Bonferroni alpha "
                    f"{SCORE_ALPHA}; the {CONTENDERS} best by p-value and by one-step residual refitted and compared by BIC; acceptance by "
@@ -436,11 +440,11 @@ def _note_confounded(scored, alpha, confounded):
                 confounded.append(pair)
 
 
-def _notes(confounded, vanes):
+def _notes(confounded, vanes, measurements=1):
     notes = []
+    more = "a second speed" if measurements == 1 else "a measurement at a further speed"
     for a, b in confounded:
-        notes.append(f"{a} and {b} have nearly collinear effects on this data: a measurement at a "
-                     "second speed would separate them")
+        notes.append(f"{a} and {b} have nearly collinear effects on this data: {more} would separate them")
     notes.append(f"with {vanes} identical, equally spaced vanes, housing-fixed defects appear only at "
                  f"multiples of {vanes} shaft orders")
     return notes
@@ -489,7 +493,7 @@ def step_table(result) -> str:
                  f"(runs p {f['runs_p_value']:.2g}, Ljung-Box p {f['ljung_box_p_value']:.2g})"
                  + (f"; UNEXPLAINED residual, spectral peaks at shaft orders: {where}" if result["unexplained"] else ""))
     for a, b in result["confounded"]:
-        lines.append(f"confounded: {a} ~ {b} (a second speed would separate them)")
+        lines.append(f"confounded: {a} ~ {b} (data at another speed would separate them)")
     return "\n".join(lines)
 
 

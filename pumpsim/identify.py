@@ -270,6 +270,19 @@ class Problem:
     def residual(self, x):
         return self.y - self.model(x)
 
+    @property
+    def dt(self):
+        return self.t[1] - self.t[0]
+
+    def time_axis(self):
+        return self.t + self.data.time[0]
+
+    def speed_of(self, x):
+        return dict(zip(self.names, x)).get("speed", self.fixed["speed"])
+
+    def start(self, x):
+        return phase_and_speed_start(self, x)
+
     def parameter_vector(self, x):
         return np.asarray(self._fns["p"](*self._args(x))).ravel()
 
@@ -388,7 +401,7 @@ def ipopt_fit(prob: Problem, x0, log=None):
     return x, prob.y - m, J, history, bool(st.get("success")), str(st.get("return_status"))
 
 
-def _phase_and_speed_start(prob: Problem, x):
+def phase_and_speed_start(prob: Problem, x):
     """theta0 is periodic and speed moves the phase: start from the best phase (and, when fitted,
     the speed from the torque spectrum) so a wrong initial phase cannot trap the fit."""
     x = np.array(x, dtype=float)
@@ -442,19 +455,34 @@ def _phase_and_speed_start(prob: Problem, x):
     return x
 
 
+def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1):
+    """One measurement: Problem; several (a list of Datasets): JointProblem."""
+    if isinstance(data, (list, tuple)):
+        if len(data) > 1:
+            from .joint import JointProblem
+
+            return JointProblem(cfg, data, names, initial, extra, ripple_order)
+        data = data[0]
+    return Problem(cfg, data, names, initial, extra, ripple_order)
+
+
 def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newton", relaxation=1.0,
              initial=None, max_iter=50, log=None, multistart=True, ripple_order=1) -> IdentificationResult:
     if method not in METHODS:
         raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
     if not 0 < relaxation <= 1:
         raise ConfigError(f"--relaxation must be in (0, 1], got {relaxation:g}")
-    if cfg.mode != "speed" and "speed" not in params and data.speed is None:
+    if method == "ipopt" and isinstance(data, (list, tuple)) and len(data) > 1:
+        raise ConfigError("--method ipopt fits one measurement; use gauss-newton or levenberg-marquardt")
+    datasets = data if isinstance(data, (list, tuple)) else [data]
+    if cfg.mode != "speed" and "speed" not in params and any(d.speed is None for d in datasets):
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = Problem(cfg, data, params, initial, ripple_order=ripple_order)
+    prob = make_problem(cfg, data, params, initial, ripple_order=ripple_order)
     x0 = prob.x0.copy()
-    start = _phase_and_speed_start(prob, x0) if multistart and ({"theta0", "speed"} & set(prob.names)) else x0
+    moves_phase = any(n.split("@")[0] in ("theta0", "speed") for n in prob.names)
+    start = prob.start(x0) if multistart and moves_phase else x0
     initial_model = prob.model(x0)
     # identifiability at the start: a near-singular J'J names the parameters instead of guessing
     m_start, J_start = prob.model_and_jacobian(start)
@@ -462,19 +490,19 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
     active = [n for n in prob.names if n not in unident]
     if unident and active:
         fixed = dict(zip(prob.names, start))
-        sub = Problem(cfg, data, active, {n: fixed[n] for n in active},
+        sub = make_problem(cfg, data, active, {n: fixed[n] for n in active},
                       extra={n: fixed[n] for n in unident if n in SPECIAL}, ripple_order=ripple_order)
         prob_fit, start_fit = sub, np.array([fixed[n] for n in active])
     elif unident:  # nothing can be fitted: say so, with no numbers for the parameters
         r = prob.y - m_start
         est = {n: Estimate(n, None, None, None, None, v, identifiable=False) for n, v in zip(prob.names, x0)}
-        w = dict(zip(prob.names, start)).get("speed", prob.fixed["speed"])
+        w = prob.speed_of(start)
         return IdentificationResult(
             est, [{"params": dict(zip(prob.names, map(float, start))), "rms": float(np.sqrt(np.mean(r**2)))}],
             float(np.sqrt(np.mean(r**2))), False,
             f"not identifiable from this data: {', '.join(unident)}", None,
-            residual_report(r, prob.t[1] - prob.t[0], w), method, _time.perf_counter() - wall0, unident,
-            prob.t + data.time[0], prob.y, m_start, initial_model, w, prob.angle(start), prob.n_eval)
+            residual_report(r, prob.dt, w), method, _time.perf_counter() - wall0, unident,
+            prob.time_axis(), prob.y, m_start, initial_model, w, prob.angle(start), prob.n_eval)
     else:
         prob_fit, start_fit = prob, start
     # the identifiability check already evaluated the full problem at the start: reuse it
@@ -485,11 +513,11 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         x, r, J, history, converged, message = gauss_newton(
             prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
             lm=method == "levenberg-marquardt", log=log, start=at_start)
-    if multistart and "theta0" in prob_fit.names:  # theta0 is periodic: report it in [0, 2 pi)
-        i = prob_fit.names.index("theta0")
-        x[i] = float(np.mod(x[i], 2 * math.pi))
-        if x[i] > 2 * math.pi - 1e-12:
-            x[i] = 0.0
+    for i, nm in enumerate(prob_fit.names):  # theta0 is periodic: report it in [0, 2 pi)
+        if multistart and nm.split("@")[0] == "theta0":
+            x[i] = float(np.mod(x[i], 2 * math.pi))
+            if x[i] > 2 * math.pi - 1e-12:
+                x[i] = 0.0
     n, k = r.size, len(prob_fit.names)
     sigma2 = float(r @ r) / max(n - k, 1)
     scale, U, s, Vt = _scaled_svd(J)
@@ -507,13 +535,13 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         est[name] = Estimate(name, None, None, None, None, x0d[name], identifiable=False)
     est = {nm: est[nm] for nm in prob.names}
     fitted = prob_fit.y - r
-    w = dict(zip(prob_fit.names, x)).get("speed", prob_fit.fixed["speed"])
-    diag = residual_report(r, prob.t[1] - prob.t[0], w, fitted=k)
+    w = prob_fit.speed_of(x)
+    diag = residual_report(r, prob.dt, w, fitted=k)
     if unident:
         message += f"; not identifiable from this data: {', '.join(unident)}"
     return IdentificationResult(
         est, history, float(np.sqrt(np.mean(r**2))), converged, message, corr, diag, method,
-        _time.perf_counter() - wall0, unident, prob.t + data.time[0], prob.y, fitted, initial_model,
+        _time.perf_counter() - wall0, unident, prob.time_axis(), prob.y, fitted, initial_model,
         w, prob_fit.angle(x), prob.n_eval + prob_fit.n_eval)
 
 

@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
@@ -47,13 +48,18 @@ def test_offset_and_cof_at_one_speed_are_reported_confounded():
     assert any("second speed" in n for n in out["notes"])
 
 
-def test_cli_diagnose_json_contract(tmp_path):
-    cfg, ds, _ = _nominal_signal(6)
-    data = tmp_path / "d.csv"
-    np.savetxt(data, np.column_stack([ds.time, ds.torque]), delimiter=",", header="time,torque", comments="")
+@pytest.mark.parametrize("files", [1, 2])
+def test_cli_diagnose_json_contract(tmp_path, files):
+    paths = []
+    for i in range(files):  # two files: the same pump measured twice, fitted together
+        cfg, ds, _ = _nominal_signal(6 + i)
+        paths.append(tmp_path / f"d{i}.csv")
+        np.savetxt(paths[-1], np.column_stack([ds.time, ds.torque]), delimiter=",", header="time,torque",
+                   comments="")
     js, rep = tmp_path / "d.json", tmp_path / "d.html"
-    r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", "examples/ellipse_4vanes.toml", str(data),
-                        "--json", str(js), "--report", str(rep)], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", "examples/ellipse_4vanes.toml",
+                        *map(str, paths), "--json", str(js), "--report", str(rep)],
+                       capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     out = json.loads(js.read_text())
     assert set(out) >= {"baseline", "steps", "effects", "final", "unexplained", "confounded"}

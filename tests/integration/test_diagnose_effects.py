@@ -150,3 +150,32 @@ def test_false_positive_rate_without_effects(nominal):
         y = ref.torque + np.random.default_rng(100 + seed).normal(0, sigma, ref.time.size)
         named += bool(diagnose(nominal, Dataset(ref.time, y))["effects"])
     assert named <= 2, f"effects named in {named} of 40 seeds"
+
+
+def _at_speed(nominal, speed, angle, seed, offset=0.0, viscous=0.0):
+    nom = dataclasses.replace(nominal, speed=speed, angle=angle)
+    truth = _with(nom, **{"effects.viscous_tip_friction": viscous})
+    ds, sigma = measurement(nom, truth, offset=offset, seed=seed)
+    return Dataset(ds.time, ds.torque, speed=np.full(ds.time.size, speed)), sigma
+
+
+@pytest.mark.parametrize("effect,offset,viscous", [("torque_offset", 0.003, 0.0),
+                                                   ("viscous_tip_friction", 0.0, 0.004)])
+def test_confounded_at_one_speed_separate_at_two(nominal, effect, offset, viscous, tmp_path):
+    """On the ellipse the tip slip speed is nearly constant, so at one speed a viscous tip force and
+    a torque offset both add a near-constant torque: reported confounded, nothing named. Fitted
+    together with a second speed (viscous torque scales with speed, an offset does not) the effect
+    is named and recovered."""
+    fast, sigma_fast = _at_speed(nominal, 471.0, 0.4, 1, offset, viscous)
+    slow, sigma_slow = _at_speed(nominal, 300.0, 1.0, 2, offset, viscous)
+    one = diagnose(nominal, fast)  # one speed
+    assert one["effects"] == [] and sorted(one["confounded"][0]) == ["torque_offset", "viscous_tip_friction"]
+    assert not one["unexplained"]
+    two = diagnose(nominal, [fast, slow])
+    assert two["effects"] == [effect]
+    name = "torque_offset" if effect == "torque_offset" else "effects.viscous_tip_friction"
+    assert abs(_value(two, name) / (offset or viscous) - 1) < EFFECT_PARAM_REL
+    assert abs(_value(two, "mu") / MU - 1) < EFFECT_MU_REL
+    pooled = math.sqrt((sigma_fast**2 + sigma_slow**2) / 2)  # equal sample counts
+    assert two["final"]["rms"] < EFFECT_FINAL_RMS * pooled
+    assert {"theta0@0", "theta0@1"} <= set(two["final"]["params"])

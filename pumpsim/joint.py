@@ -1,0 +1,91 @@
+"""Several measurements fitted together: shared physics (COFs, geometry, effects), per-measurement
+phase, speed and delay. Data at two speeds separates what one speed cannot (a torque offset from a
+viscous tip force, or from the COF on a concentric rig).
+
+Per-measurement parameters are named `theta0@i`, `speed@i`, `delay@i` (i counts from 0); naming
+plain `theta0` fits one per measurement.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .identify import Problem, phase_and_speed_start
+
+LOCAL = ("theta0", "speed", "delay")
+
+
+def _base(name):
+    return name.split("@", 1)[0]
+
+
+class JointProblem:
+    """The Problem interface (model, Jacobian, bounds) over stacked measurements."""
+
+    def __init__(self, cfg, datasets, names, initial=None, extra=None, ripple_order: int = 1):
+        initial, extra = initial or {}, extra or {}
+        K = len(datasets)
+        self.names = []
+        for n in names:
+            for m in ([f"{n}@{i}" for i in range(K)] if n in LOCAL else [n]):
+                if m not in self.names:
+                    self.names.append(m)
+        self.shared = [n for n in self.names if "@" not in n]
+        self.subs, self.cols = [], []
+        for i, ds in enumerate(datasets):
+            local = [n for n in self.names if n.endswith(f"@{i}")]
+            mine = lambda d: {_base(k): v for k, v in d.items() if "@" not in k or k.endswith(f"@{i}")}  # noqa: E731
+            self.subs.append(Problem(cfg, ds, self.shared + [_base(n) for n in local], mine(initial),
+                                     mine(extra), ripple_order))
+            self.cols.append(np.array([self.names.index(n) for n in self.shared + local]))
+        self.data, self.kern, self.fixed = datasets, self.subs[0].kern, self.subs[0].fixed
+        self.x0, self.lower, self.upper = (self._gather(lambda s: s.x0), self._gather(lambda s: s.lower),
+                                           self._gather(lambda s: s.upper))
+        self.y = np.concatenate([s.y for s in self.subs])
+        self.rows = np.cumsum([0] + [s.y.size for s in self.subs])
+        self.dt = self.subs[0].dt
+
+    def _gather(self, get):
+        x = np.empty(len(self.names))
+        for s, c in zip(self.subs, self.cols):
+            x[c] = get(s)
+        return x
+
+    @property
+    def n_eval(self):
+        return sum(s.n_eval for s in self.subs)
+
+    def model(self, x):
+        return np.concatenate([s.model(x[c]) for s, c in zip(self.subs, self.cols)])
+
+    def model_and_jacobian(self, x):
+        m = np.empty(self.y.size)
+        J = np.zeros((self.y.size, len(self.names)))
+        for s, c, lo, hi in zip(self.subs, self.cols, self.rows[:-1], self.rows[1:]):
+            m[lo:hi], J[lo:hi, c] = s.model_and_jacobian(x[c])
+        return m, J
+
+    def residual(self, x):
+        return self.y - self.model(x)
+
+    def angle(self, x):
+        return np.concatenate([s.angle(x[c]) for s, c in zip(self.subs, self.cols)])
+
+    def time_axis(self):
+        """The measurements one after the other (each shifted to start where the last ended)."""
+        out, t0 = [], 0.0
+        for s in self.subs:
+            out.append(s.t + t0)
+            t0 = out[-1][-1] + s.dt
+        return np.concatenate(out)
+
+    def speed_of(self, x):
+        return self.subs[0].speed_of(x[self.cols[0]])
+
+    def parameter_vector(self, x):
+        return self.subs[0].parameter_vector(x[self.cols[0]])
+
+    def start(self, x):
+        x = np.array(x, dtype=float)
+        for s, c in zip(self.subs, self.cols):
+            x[c] = phase_and_speed_start(s, x[c])
+        return x
