@@ -213,9 +213,7 @@ def bench_diagnose(duration=0.5, rate=10000.0):
     from pumpsim.simulate import simulate
 
     base = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
-    truth = dataclasses.replace(base, angle=0.4, harmonics=[[4.0, 2e-5, 0.3]], values={
-        **base.values, "housing.harmonics.0.order": 4.0, "housing.harmonics.0.amplitude": 2e-5,
-        "housing.harmonics.0.phase": 0.3})
+    truth = dataclasses.replace(base, angle=0.4).with_harmonics([[4, 2e-5, 0.3]])
     sim = simulate(truth, duration=duration, rate=rate)
     y = sim.torque + np.random.default_rng(0).normal(0, 0.05 * np.std(sim.torque), sim.time.size)
     data = Dataset(sim.time, y)

@@ -35,11 +35,7 @@ def main():
                  "cylinder, 5800 rpm, true vane-housing COF 0.203 (static 0.213), torque noise 2 % RMS."])
     # the discrepancy demo: the nominal config (examples/ellipse_4vanes.toml) lacks two effects
     ell = load_config(HERE / "ellipse_4vanes.toml")
-    k, A, gamma = 4.0, 1.5e-5, 0.2
-    hidden = dataclasses.replace(
-        ell, angle=1.1, speed_ripple=(1, 0.002, 0.8), harmonics=[[k, A, gamma]],
-        values={**ell.values, "housing.harmonics.0.order": k, "housing.harmonics.0.amplitude": A,
-                "housing.harmonics.0.phase": gamma})
+    hidden = dataclasses.replace(ell, angle=1.1, speed_ripple=(1, 0.002, 0.8)).with_harmonics([[4, 1.5e-5, 0.2]])
     measurement(hidden, 0.2, 10000.0, 0.05, 2, HERE / "data" / "ellipse_hidden_effects.csv",
                 ["Simulated measurement with hidden effects for `pumpsim diagnose` (see README): the",
                  "4-vane ellipse pump of examples/ellipse_4vanes.toml, torque noise 5 % RMS, and two",

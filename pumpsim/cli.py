@@ -185,6 +185,13 @@ def cmd_diagnose(a) -> int:
     return 0
 
 
+def _add_fit_outputs(p):
+    """What identify and diagnose share: JSON, HTML report and the data-reading options."""
+    p.add_argument("--json")
+    p.add_argument("--report", help="self-contained HTML report")
+    _add_data_options(p)
+
+
 def build_parser():
     ap = _Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification.")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -218,17 +225,13 @@ def build_parser():
     ip.add_argument("--transient", action="store_true",
                     help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
                          "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
-    ip.add_argument("--json")
-    ip.add_argument("--report", help="self-contained HTML report")
-    _add_data_options(ip)
+    _add_fit_outputs(ip)
     ip.set_defaults(func=cmd_identify)
     dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model")
     dg.add_argument("config")
     dg.add_argument("data", nargs="+", help="one or more measurements (several speeds separate "
                     "offset, viscous friction and COF)")
-    dg.add_argument("--json")
-    dg.add_argument("--report", help="self-contained HTML report")
-    _add_data_options(dg)
+    _add_fit_outputs(dg)
     dg.set_defaults(func=cmd_diagnose)
     st = sub.add_parser("study", help="contact-model solver study (report §7-8)")
     st.add_argument("config")

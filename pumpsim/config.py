@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -129,6 +130,14 @@ class PumpConfig:
     # speed mode: omega = speed (1 + amplitude cos(order theta_n + phase)), theta_n the nominal angle
     speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
 
+    def with_harmonics(self, harmonics) -> "PumpConfig":
+        """This config with the housing harmonics [[k, A, gamma], ...] (replacing the old ones)."""
+        values = {n: v for n, v in self.values.items() if not n.startswith("housing.harmonics.")}
+        for j, (k, A, g) in enumerate(harmonics):
+            values.update(harmonic_values(j, float(k), float(A), float(g)))
+        return dataclasses.replace(self, harmonics=[[float(k), float(A), float(g)] for k, A, g in harmonics],
+                                   values=values)
+
     def structure_for(self, model: str = "constrained") -> Structure:
         if model not in MODELS:
             raise ConfigError(f"--model must be one of {', '.join(MODELS)}, got '{model}'")
@@ -150,6 +159,12 @@ class PumpConfig:
                 raise ConfigError(f"the contact model needs '{name.rsplit('.', 1)[0]}' "
                                   f"with '{name.rsplit('.', 1)[1]}' in the config")
         return pv
+
+
+def harmonic_values(j, k, A, gamma) -> dict:
+    """Parameter values of housing harmonic slot j: A cos(k (alpha - psi - gamma))."""
+    return {f"housing.harmonics.{j}.order": k, f"housing.harmonics.{j}.amplitude": A,
+            f"housing.harmonics.{j}.phase": gamma}
 
 
 def load_config(path, check_geometry: bool = True) -> PumpConfig:
@@ -245,8 +260,7 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         if abs(A) >= 0.1 * min(a, b):
             raise ConfigError(f"{path}: amplitude must be < 10% of the housing size "
                               f"({0.1 * min(a, b):.4g} m), got {A:g}")
-        values.update({f"housing.harmonics.{j}.order": k, f"housing.harmonics.{j}.amplitude": A,
-                       f"housing.harmonics.{j}.phase": g})
+        values.update(harmonic_values(j, k, A, g))
     # friction
     fr = c["friction"]
     for side in ("housing", "slot"):

@@ -93,13 +93,7 @@ def _with_harmonic_pair(cfg: PumpConfig, k: int) -> PumpConfig:
     """The config with two more housing-harmonic slots of order k, phases 0 and pi/(2k), zero
     amplitudes a and b: a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b),
     so the fit needs no phase wrapping and the absent defect (a = b = 0) is a regular point."""
-    j = len(cfg.harmonics)
-    vals = dict(cfg.values)
-    pair = [[float(k), 0.0, 0.0], [float(k), 0.0, math.pi / (2 * k)]]
-    for i, (order, amp, phase) in enumerate(pair):
-        vals.update({f"housing.harmonics.{j + i}.order": order, f"housing.harmonics.{j + i}.amplitude": amp,
-                     f"housing.harmonics.{j + i}.phase": phase})
-    return dataclasses.replace(cfg, harmonics=cfg.harmonics + pair, values=vals)
+    return cfg.with_harmonics(cfg.harmonics + [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]])
 
 
 def _ar1(r):
@@ -145,13 +139,12 @@ def _second_order_columns(prob, x0, nb, J0e, h, Jb, one_sided=False):
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
     H = []
     for i in range(q):
-        xp, xm = x0.copy(), x0.copy()
-        xp[nb + i] += h
-        xm[nb + i] -= 0 if one_sided else h
-        Jp = prob.model_and_jacobian(xp)[1][:, nb:]
+        step = np.zeros_like(x0)
+        step[nb + i] = h
+        Jp = prob.model_and_jacobian(x0 + step)[1][:, nb:]
         if i == 0 and np.linalg.norm(proj(J0e)) > 1e-6 * np.linalg.norm(proj(Jp - J0e)):
             return None  # a genuine first-order effect
-        Jm = J0e if one_sided else prob.model_and_jacobian(xm)[1][:, nb:]
+        Jm = J0e if one_sided else prob.model_and_jacobian(x0 - step)[1][:, nb:]
         H.append((Jp - Jm) / (h if one_sided else 2 * h))  # column j: d2 tau / de_i de_j
     cols, pairs = [], []
     for i in range(q):
@@ -244,12 +237,13 @@ def score_test(state: State, cand: Candidate, start=True):
     lm = float((Mr @ (Me / scale)) @ coef) / max(sigma2, 1e-300)
     coef = coef / scale
     q = max(int(rank), 1)
-    step = _rank_one_start(coef, pairs, len(cand.params)) if quad is not None else coef
+    out = {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
+           "second_order": quad is not None, "partner": partner}
+    if not start:
+        return out
     # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
     # cheap look past the linearisation, used to choose which candidates to refit
-    if not start:
-        return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
-                "second_order": quad is not None, "collinear": max(cos) if cos else 0.0, "partner": partner}
+    step = _rank_one_start(coef, pairs, len(cand.params)) if quad is not None else coef
     x1 = prob.x0.copy()
     x1[[nb + cand.params.index(n) for n in params]] += step
     if nb:
@@ -260,11 +254,9 @@ def score_test(state: State, cand: Candidate, start=True):
         xp, rp = _probe_grid(prob, nb, Jb, _probe_scale(state))
         if rp @ rp < r1 @ r1:
             x1, r1 = xp, rp
-    return {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)),
-            "params": params, "start": {n: v for n, v in zip(prob.names, x1) if n in state.names + params},
-            "one_step_rss": float(r1 @ r1),
-            "second_order": quad is not None, "collinear": max(cos) if cos else 0.0, "partner": partner,
-            "rho": rho}
+    out.update(start={n: v for n, v in zip(prob.names, x1) if n in state.names + params},
+               one_step_rss=float(r1 @ r1))
+    return out
 
 
 def _bic(rss, n, k):
@@ -321,15 +313,14 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     wall0 = _time.perf_counter()
     say = progress or (lambda msg: None)
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
-    data = datasets if len(datasets) > 1 else datasets[0]
     speeds_known = all(d.speed is not None for d in datasets)
     base_names = baseline_params or (["mu", "theta0"] + ([] if speeds_known else ["speed"]))
     say("fitting the baseline")
-    base = identify(cfg, data, base_names)
+    base = identify(cfg, datasets, base_names)
     base_names = list(base.estimates)  # per-measurement names (theta0@i) when several are fitted
     names = [n for n in base_names if base.estimates[n].identifiable]
     values = {n: base.estimates[n].value for n in names}
-    state = State(cfg, data, names, values)
+    state = State(cfg, datasets, names, values)
     current = base
     history = [{"label": "baseline", "result": base}]
     steps, effects, confounded = [], [], []
@@ -346,15 +337,13 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             scored.append((c, score_test(state, c)))
         alpha = SCORE_ALPHA / len(scored)
         _note_confounded(scored, alpha, confounded)
-        significant = sorted([(s["p_value"], -s["lm"], i, c, s) for i, (c, s) in enumerate(scored)
-                              if s["p_value"] < alpha], key=lambda t: t[:3])
-        if not significant:
+        by_p = sorted([cs for cs in scored if cs[1]["p_value"] < alpha],
+                      key=lambda cs: (cs[1]["p_value"], -cs[1]["lm"]))
+        if not by_p:
             break
-        # ranking needs no refit; choosing among the best few does: refit the leading candidate of
-        # each of the top effects and compare them by BIC
-        # the nonlinear model at each candidate's one-step estimate decides which few to refit
-        by_rss = sorted([(c, s) for *_, c, s in significant], key=lambda cs: cs[1]["one_step_rss"])
-        by_p = [(c, s) for *_, c, s in significant]
+        # ranking needs no refit; choosing among the best few does: the best by p-value and the
+        # best by the nonlinear residual at their one-step estimates are refitted, BIC decides
+        by_rss = sorted(by_p, key=lambda cs: cs[1]["one_step_rss"])
         contenders = []
         for c, s in by_p[:CONTENDERS] + by_rss[:CONTENDERS]:
             if all(c is not c2 for c2, _ in contenders):

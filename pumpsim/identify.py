@@ -230,7 +230,7 @@ class Problem:
         return np.asarray(self._fns["torque"](theta, self.t, *self._args(x))).ravel()
 
     def _filter(self, y, T):
-        return first_order_lag(y, self.t[1] - self.t[0], T)
+        return first_order_lag(y, self.dt, T)
 
     def model(self, x):
         self.n_eval += 1
@@ -455,6 +455,11 @@ def phase_and_speed_start(prob: Problem, x):
     return x
 
 
+def base_name(name):
+    """'theta0@1' (a per-measurement parameter of a joint fit) -> 'theta0'."""
+    return name.split("@", 1)[0]
+
+
 def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1):
     """One measurement: Problem; several (a list of Datasets): JointProblem."""
     if isinstance(data, (list, tuple)):
@@ -481,7 +486,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
     wall0 = _time.perf_counter()
     prob = make_problem(cfg, data, params, initial, ripple_order=ripple_order)
     x0 = prob.x0.copy()
-    moves_phase = any(n.split("@")[0] in ("theta0", "speed") for n in prob.names)
+    moves_phase = any(base_name(n) in ("theta0", "speed") for n in prob.names)
     start = prob.start(x0) if multistart and moves_phase else x0
     initial_model = prob.model(x0)
     # identifiability at the start: a near-singular J'J names the parameters instead of guessing
@@ -514,7 +519,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
             prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
             lm=method == "levenberg-marquardt", log=log, start=at_start)
     for i, nm in enumerate(prob_fit.names):  # theta0 is periodic: report it in [0, 2 pi)
-        if multistart and nm.split("@")[0] == "theta0":
+        if multistart and base_name(nm) == "theta0":
             x[i] = float(np.mod(x[i], 2 * math.pi))
             if x[i] > 2 * math.pi - 1e-12:
                 x[i] = 0.0

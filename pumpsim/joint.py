@@ -9,13 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identify import Problem, phase_and_speed_start
+from .identify import Problem, base_name, phase_and_speed_start
 
 LOCAL = ("theta0", "speed", "delay")
-
-
-def _base(name):
-    return name.split("@", 1)[0]
 
 
 class JointProblem:
@@ -33,8 +29,8 @@ class JointProblem:
         self.subs, self.cols = [], []
         for i, ds in enumerate(datasets):
             local = [n for n in self.names if n.endswith(f"@{i}")]
-            mine = lambda d: {_base(k): v for k, v in d.items() if "@" not in k or k.endswith(f"@{i}")}  # noqa: E731
-            self.subs.append(Problem(cfg, ds, self.shared + [_base(n) for n in local], mine(initial),
+            mine = lambda d: {base_name(k): v for k, v in d.items() if "@" not in k or k.endswith(f"@{i}")}  # noqa: E731
+            self.subs.append(Problem(cfg, ds, self.shared + [base_name(n) for n in local], mine(initial),
                                      mine(extra), ripple_order))
             self.cols.append(np.array([self.names.index(n) for n in self.shared + local]))
         self.data, self.kern, self.fixed = datasets, self.subs[0].kern, self.subs[0].fixed

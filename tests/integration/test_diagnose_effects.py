@@ -21,9 +21,7 @@ def _with(cfg, **values):
 
 
 def _harmonic(cfg, k, amplitude, phase):
-    return dataclasses.replace(cfg, harmonics=[[float(k), amplitude, phase]], values={
-        **cfg.values, "housing.harmonics.0.order": float(k), "housing.harmonics.0.amplitude": amplitude,
-        "housing.harmonics.0.phase": phase})
+    return cfg.with_harmonics([[k, amplitude, phase]])
 
 
 def measurement(nominal, truth, lag=0.0, offset=0.0, seed=1, duration=0.1, ratio=5.0):
