@@ -115,6 +115,15 @@ class State:
         self.cfg, self.data = cfg, data
         self.names, self.values = list(names), dict(values)
         self.ripple_order = ripple_order
+        self._jacobian = None
+
+    def jacobian(self):
+        """The fitted parameters' Jacobian at the current fit, shared by every candidate's score
+        test (a candidate at its absent value leaves the model and these columns unchanged)."""
+        if self._jacobian is None:
+            prob = self.problem()
+            self._jacobian = prob.model_and_jacobian(prob.x0)[1]
+        return self._jacobian
 
     def problem(self, extra_names=(), cfg=None, ripple_order=None):
         names = self.names + [n for n in extra_names if n not in self.names]
@@ -135,16 +144,17 @@ def _second_order_columns(prob, x0, nb, J0e, h, Jb, one_sided=False):
     the columns of the quadratic model d tau = 1/2 sum_ij H_ij e_i e_j in the unknowns
     (e_i e_j, i <= j), H from exact Jacobians at probe points; else None."""
     q = J0e.shape[1]
+    cols = range(nb, nb + q)
     Q = np.linalg.qr(Jb)[0] if nb else np.zeros((J0e.shape[0], 0))
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
     H = []
     for i in range(q):
         step = np.zeros_like(x0)
         step[nb + i] = h
-        Jp = prob.model_and_jacobian(x0 + step)[1][:, nb:]
+        Jp = prob.model_and_jacobian(x0 + step, cols)[1]
         if i == 0 and np.linalg.norm(proj(J0e)) > 1e-6 * np.linalg.norm(proj(Jp - J0e)):
             return None  # a genuine first-order effect
-        Jm = J0e if one_sided else prob.model_and_jacobian(x0 - step)[1][:, nb:]
+        Jm = J0e if one_sided else prob.model_and_jacobian(x0 - step, cols)[1]
         H.append((Jp - Jm) / (h if one_sided else 2 * h))  # column j: d2 tau / de_i de_j
     cols, pairs = [], []
     for i in range(q):
@@ -193,9 +203,9 @@ def score_test(state: State, cand: Candidate, start=True):
     prob = state.problem(cand.params, cfg=cand.config(state.cfg),
                          ripple_order=cand.order if cand.effect == "speed_ripple" else None)
     nb = len(state.names)
-    m, J = prob.model_and_jacobian(prob.x0)
+    m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
     rs = prob.y - m
-    Jb, Je = J[:, :nb], J[:, nb:]
+    Jb = state.jacobian()
     if cand.effect == "sensor_lag":  # one-sided (T >= 0), probe a twentieth of a radian of lag
         quad = _second_order_columns(prob, prob.x0, nb, Je, 0.05 / prob.speed_of(prob.x0), Jb, one_sided=True)
     elif cand.symmetric:

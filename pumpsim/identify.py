@@ -21,7 +21,7 @@ from .config import PumpConfig, as_array
 from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError
-from .kernels import load_kernels
+from .kernels import load_kernels, map_samples
 from .parameters import layout
 from .sensor import first_order_lag
 
@@ -31,8 +31,9 @@ SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay", "ripple
 #   omega = omega0 (1 + ripple_cos cos(k theta_n) - ripple_sin sin(k theta_n)); lag: first-order
 #   torque-sensor time constant [s] (0 = absent)
 METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
-SINGULAR_COND = 1e7
-_GRAPHS: dict = {}  # cached model graphs per (variant, samples, fitted names)  # condition number of the column-scaled Jacobian beyond which J'J is singular
+SINGULAR_COND = 1e7  # condition number of the column-scaled Jacobian beyond which J'J is singular
+Z_SPECIAL = ("theta0", "speed", "delay", "torque_offset", "ripple_cos", "ripple_sin")  # in the kernel graph
+ANGLE_ACTING = ("theta0", "speed", "delay", "ripple_cos", "ripple_sin")  # act through the rotor angle
 
 
 @dataclass
@@ -106,7 +107,14 @@ class IdentificationResult:
 
 class Problem:
     """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi, exact (CasADi
-    forward AD through the compiled inverse-dynamics kernel)."""
+    forward AD through the compiled inverse-dynamics kernel).
+
+    Every fitted name acts on the model through z = (runtime parameter vector, theta0, speed,
+    delay, torque_offset, ripple_cos, ripple_sin), and z is affine in the fitted values: z(x) =
+    z(x0) + S (x - x0), S a constant seed matrix. The compiled graph is one sample's torque and its
+    derivatives along the columns of S, mapped over the samples: it depends only on the variant and
+    the number of directions, never on the names or the sample count, so building it is cheap and
+    every fit, candidate and joint measurement shares it."""
 
     def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
                  ripple_order: int = 1):
@@ -137,7 +145,10 @@ class Problem:
         self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
         self.t = data.time - data.time[0]
         self.y = data.torque
-        self._build()
+        self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
+        self._seeds = self._seed_matrix()
+        self._angle_acting = [i for i, nm in enumerate(self.names) if nm in ANGLE_ACTING]
+        self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
         self.n_eval = 0
 
     def _nonneg(self):
@@ -161,73 +172,66 @@ class Problem:
             return float(self.pv.values["housing.a"])
         return float(self.pv.values[n])
 
-    def _build(self):
-        """The torque model as CasADi functions of (theta samples, phi, base p, fixed values).
-        They depend only on the variant, the sample count and the fitted names, so they are cached
-        across fits (a multi-seed study or repeated rig measurements reuse them)."""
-        # a speed ripple makes omega and omegadot per-sample expressions; without one they stay
-        # scalars (a third less work in the Jacobian)
-        self._ripple = (any(n in self.names for n in ("ripple_cos", "ripple_sin"))
-                        or self.fixed["ripple_cos"] != 0 or self.fixed["ripple_sin"] != 0)
-        key = (self.kern.key, self.t.size, tuple(self.names), self._ripple)
-        if key not in _GRAPHS:
-            _GRAPHS[key] = self._graph()
-        self._fns = _GRAPHS[key]
-        # the fixed values, then the ripple order (an input, so one graph serves every order)
-        self._fixed_vec = np.array([self.fixed[k] for k in SPECIAL] + [self.ripple_order], dtype=float)
-        self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
-        self._angle_acting = [i for i, nm in enumerate(self.names)
-                              if nm in ("theta0", "speed", "delay", "ripple_cos", "ripple_sin")]
-        self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
-
     def _ratio(self, side):
         v = self.pv.values
         return v[f"friction.{side}.static"] / max(v[f"friction.{side}.dynamic"], 1e-300)
 
-    def _graph(self):
-        n = self.t.size
-        phi = ca.MX.sym("phi", len(self.names))
-        th = ca.MX.sym("theta", n)
-        p0 = ca.MX.sym("p0", self.p0.size)
-        fixed = ca.MX.sym("fixed", len(SPECIAL) + 1)
-        ratios = ca.MX.sym("ratios", 2)
-        val = {nm: phi[i] for i, nm in enumerate(self.names)}
-        get = lambda nm: val.get(nm, fixed[SPECIAL.index(nm)])  # noqa: E731
-        pvec = parameter_map(self._index, p0, val, get("mu_slot"), ratios)
-        # speed (with its ripple) and acceleration per sample: exact AD; the angle enters as th
-        t = ca.MX.sym("t", n)
-        w0, k = get("speed"), fixed[len(SPECIAL)]
-        th_n = get("theta0") + w0 * (t - get("delay"))
-        if self._ripple:
-            rc, rs = get("ripple_cos"), get("ripple_sin")
-            w = (w0 * (1 + rc * ca.cos(k * th_n) - rs * ca.sin(k * th_n))).T
-            wd = (-k * w0**2 * (rc * ca.sin(k * th_n) + rs * ca.cos(k * th_n))).T
-            theta = th_n + (rc * (ca.sin(k * th_n) - ca.sin(k * get("theta0")))
-                            + rs * (ca.cos(k * th_n) - ca.cos(k * get("theta0")))) / k
-        else:
-            w, wd, theta = w0, 0.0, th_n
-        tq = self.kern.mapped("inverse_dynamics", n)(th.T, w, wd, pvec)[0].T + get("torque_offset")
-        args = [th, t, phi, p0, fixed, ratios]
-        # Jacobian: exact AD for everything that acts on the torque directly (COFs, geometry, the
-        # speed's centrifugal effect, offsets) with the rotor angle held fixed; for theta0, speed and
-        # delay, which act through the angle, see model_and_jacobian.
-        aargs = [t, phi, fixed]
-        return {"torque": ca.Function("torque", args, [tq]),
-                "torque_jac": ca.Function("torque_jac", args, [tq, ca.jacobian(tq, phi)]),
-                "angle": ca.Function("angle", aargs, [theta, ca.jacobian(theta, phi)]),
-                "p": ca.Function("p_of_phi", [phi, p0, fixed, ratios], [pvec])}
+    def _values(self, x):
+        """Every special value at x: the fitted ones from x, the others fixed."""
+        d = dict(self.fixed)
+        d.update(zip(self.names, x))
+        return d
 
-    def _args(self, x):
-        return (x, self.p0, self._fixed_vec, self._ratios)
+    def z(self, x):
+        """The kernel-graph input z at the fitted values x."""
+        d = self._values(x)
+        p = parameter_map(self._index, self.p0, dict(zip(self.names, x)), d["mu_slot"], self._ratios)
+        return np.concatenate([np.asarray(p, dtype=float).ravel(), [d[s] for s in Z_SPECIAL]])
+
+    def _seed_matrix(self):
+        """S = dz/dx: the map from fitted values to z is affine, so each column is the image of
+        a unit fitted value with everything else zero ('lag' acts after the kernel: a zero column)."""
+        S = np.zeros((self.p0.size + len(Z_SPECIAL), len(self.names)))
+        zeros = np.zeros(self.p0.size)
+        for j, nm in enumerate(self.names):
+            unit = {n: float(n == nm) for n in self.names}
+            S[:self.p0.size, j] = np.asarray(parameter_map(self._index, zeros, unit, 0.0, self._ratios),
+                                             dtype=float).ravel()
+            if nm in Z_SPECIAL:
+                S[self.p0.size + Z_SPECIAL.index(nm), j] = 1.0
+        return S
+
+    def angle_and_jacobian(self, x, lib=np):
+        """Rotor angle per sample and its derivative by the fitted values (lib = ca for a symbolic
+        x): the integral of omega = omega0 (1 + rc cos(k theta_n) - rs sin(k theta_n)) with the
+        nominal angle theta_n = theta0 + omega0 (t - delay)."""
+        d = self._values(x)
+        th0, w0, dl, rc, rs, k = (d["theta0"], d["speed"], d["delay"], d["ripple_cos"], d["ripple_sin"],
+                                  self.ripple_order)
+        t = self.t if lib is np else ca.DM(self.t)
+        thn = th0 + w0 * (t - dl)
+        theta = thn + (rc * (lib.sin(k * thn) - lib.sin(k * th0)) + rs * (lib.cos(k * thn) - lib.cos(k * th0))) / k
+        if lib is not np:
+            return theta, None
+        g = 1 + rc * np.cos(k * thn) - rs * np.sin(k * thn)  # omega / omega0
+        cols = {"theta0": g - rc * math.cos(k * th0) + rs * math.sin(k * th0), "speed": (t - dl) * g,
+                "delay": -w0 * g, "ripple_cos": (np.sin(k * thn) - math.sin(k * th0)) / k,
+                "ripple_sin": (np.cos(k * thn) - math.cos(k * th0)) / k}
+        J = np.zeros((t.size, len(self.names)))
+        for j, nm in enumerate(self.names):
+            if nm in cols:
+                J[:, j] = cols[nm]
+        return theta, J
 
     def angle(self, x):
-        return np.asarray(self._fns["angle"](self.t, x, self._fixed_vec)[0]).ravel()
+        return self.angle_and_jacobian(x)[0]
 
     def _lag(self, x):
-        return dict(zip(self.names, x)).get("lag", self.fixed["lag"])
+        return self._values(x)["lag"]
 
     def _torque(self, theta, x):
-        return np.asarray(self._fns["torque"](theta, self.t, *self._args(x))).ravel()
+        f = sample_torque(self.kern, 0, theta.size)
+        return np.asarray(f(theta, self.t, self.z(x), self.ripple_order)).ravel()
 
     def _filter(self, y, T):
         return first_order_lag(y, self.dt, T)
@@ -236,36 +240,45 @@ class Problem:
         self.n_eval += 1
         return self._filter(self._torque(self.angle(x), x), self._lag(x))
 
-    def model_and_jacobian(self, x):
-        """Torque and its Jacobian. For the angle-acting parameters (theta0, speed, delay) the
-        derivative is that of the sample-interval average of the model, [tau(theta + h) -
-        tau(theta - h)] / (2 h) with 2 h = omega dt: Coulomb friction reversals change tau over
-        ~1e-4 rad, far below a sample angle, so the pointwise d tau / d theta is a set of spikes
-        that carries no phase information at the sampling scale."""
+    def model_and_jacobian(self, x, cols=None):
+        """Torque and its Jacobian (the columns `cols` only, default all). For the angle-acting
+        parameters (theta0, speed, delay, ripple) the derivative is that of the sample-interval
+        average of the model, [tau(theta + h) - tau(theta - h)] / (2 h) with 2 h = omega dt:
+        Coulomb friction reversals change tau over ~1e-4 rad, far below a sample angle, so the
+        pointwise d tau / d theta is a set of spikes that carries no phase information at the
+        sampling scale."""
         self.n_eval += 1
-        theta, dtheta = self._fns["angle"](self.t, x, self._fixed_vec)
-        theta, dtheta = np.asarray(theta).ravel(), np.asarray(dtheta)
-        tq, J = self._fns["torque_jac"](theta, self.t, *self._args(x))
-        tq, J = np.asarray(tq).ravel(), np.array(J)
-        slope = None
-        if self._angle_acting or "lag" in self.names:
-            d = dict(zip(self.names, x))
-            h = abs(d.get("speed", self.fixed["speed"])) * self._half_step
-            slope = (self._torque(theta + h, x) - self._torque(theta - h, x)) / (2 * h)
-            for i in self._angle_acting:
-                J[:, i] += slope * dtheta[:, i]
+        cols = list(range(len(self.names))) if cols is None else list(cols)
+        names = [self.names[c] for c in cols]
+        theta, dtheta = self.angle_and_jacobian(x)
+        f = sample_torque(self.kern, len(cols), theta.size)
+        tq, J = f(theta, self.t, self.z(x), self.ripple_order, self._seeds[:, cols])
+        tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
         T = self._lag(x)
+        slope = None
+        if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
+            h = abs(self.speed_of(x)) * self._half_step
+            slope = (self._torque(theta + h, x) - self._torque(theta - h, x)) / (2 * h)
+            for i, c in enumerate(cols):
+                if self.names[c] in ANGLE_ACTING:
+                    J[:, i] += slope * dtheta[:, c]
         if T > 0:
             y = self._filter(tq, T)
             J = self._filter(J, T)
-            if "lag" in self.names:  # d y / d T by finite steps of the exact filter (1-D)
+            if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
                 dT = 1e-6 * T
-                J[:, self.names.index("lag")] = (self._filter(tq, T + dT) - self._filter(tq, T - dT)) / (2 * dT)
+                J[:, names.index("lag")] = (self._filter(tq, T + dT) - self._filter(tq, T - dT)) / (2 * dT)
             return y, J
-        if "lag" in self.names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
-            w = dict(zip(self.names, x)).get("speed", self.fixed["speed"])
-            J[:, self.names.index("lag")] = -w * slope
+        if "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
+            J[:, names.index("lag")] = -self.speed_of(x) * slope
         return tq, J
+
+    def symbolic_model(self, phi):
+        """The (unfiltered) model torque as a CasADi expression of symbolic fitted values phi."""
+        theta, _ = self.angle_and_jacobian([phi[i] for i in range(len(self.names))], lib=ca)
+        z = ca.DM(self.z(self.x0)) + ca.mtimes(ca.DM(self._seeds), phi - ca.DM(self.x0))
+        f = sample_torque(self.kern, 0, self.t.size)
+        return f(theta.T, ca.DM(self.t).T, z, self.ripple_order).T
 
     def residual(self, x):
         return self.y - self.model(x)
@@ -278,13 +291,42 @@ class Problem:
         return self.t + self.data.time[0]
 
     def speed_of(self, x):
-        return dict(zip(self.names, x)).get("speed", self.fixed["speed"])
+        return self._values(x)["speed"]
 
     def start(self, x):
         return phase_and_speed_start(self, x)
 
     def parameter_vector(self, x):
-        return np.asarray(self._fns["p"](*self._args(x))).ravel()
+        return self.z(x)[:self.p0.size]
+
+
+_SAMPLE_FNS: dict = {}  # per (variant key, directions[, samples]): see sample_torque
+
+
+def sample_torque(kern, directions: int, samples: int) -> ca.Function:
+    """One sample's drive torque at angle theta and time t given z (runtime parameters, theta0,
+    speed, delay, torque_offset, ripple_cos, ripple_sin) and the ripple order k -- the speed and
+    acceleration come from the ripple at the nominal angle -- with, for directions m > 0, its
+    derivatives along the m columns of a seed matrix S; mapped over `samples` samples."""
+    key = (kern.key, directions)
+    if key not in _SAMPLE_FNS:
+        npar = len(layout(kern.structure))
+        th, t, k = ca.MX.sym("theta"), ca.MX.sym("t"), ca.MX.sym("k")
+        z = ca.MX.sym("z", npar + len(Z_SPECIAL))
+        theta0, w0, delay, offset, rc, rs = (z[npar + i] for i in range(len(Z_SPECIAL)))
+        thn = theta0 + w0 * (t - delay)
+        w = w0 * (1 + rc * ca.cos(k * thn) - rs * ca.sin(k * thn))
+        wd = -k * w0**2 * (rc * ca.sin(k * thn) + rs * ca.cos(k * thn))
+        tq = kern["inverse_dynamics"](th, w, wd, z[:npar])[0] + offset
+        if directions == 0:
+            _SAMPLE_FNS[key] = ca.Function("torque", [th, t, z, k], [tq])
+        else:
+            S = ca.MX.sym("S", z.size1(), directions)
+            _SAMPLE_FNS[key] = ca.Function("torque_dir", [th, t, z, k, S], [tq, ca.jtimes(tq, z, S)])
+    mkey = key + (samples,)
+    if mkey not in _SAMPLE_FNS:
+        _SAMPLE_FNS[mkey] = map_samples(_SAMPLE_FNS[key], samples)
+    return _SAMPLE_FNS[mkey]
 
 
 def parameter_map(index, p0, val, mu_slot_fixed, ratios):
@@ -379,10 +421,7 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=Fa
 
 def ipopt_fit(prob: Problem, x0, log=None):
     phi = ca.MX.sym("phi", len(prob.names))
-    d = {n: phi[i] for i, n in enumerate(prob.names)}
-    theta = (d.get("theta0", prob.fixed["theta0"])
-             + d.get("speed", prob.fixed["speed"]) * (ca.DM(prob.t) - d.get("delay", prob.fixed["delay"])))
-    r = ca.DM(prob.y) - prob._fns["torque"](theta, ca.DM(prob.t), *prob._args(phi))
+    r = ca.DM(prob.y) - prob.symbolic_model(phi)
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     # scale the unknowns by their initial magnitude so IPOPT's tolerances mean the same for all
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,

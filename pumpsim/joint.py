@@ -53,11 +53,16 @@ class JointProblem:
     def model(self, x):
         return np.concatenate([s.model(x[c]) for s, c in zip(self.subs, self.cols)])
 
-    def model_and_jacobian(self, x):
+    def model_and_jacobian(self, x, cols=None):
+        cols = list(range(len(self.names))) if cols is None else list(cols)
         m = np.empty(self.y.size)
-        J = np.zeros((self.y.size, len(self.names)))
+        J = np.zeros((self.y.size, len(cols)))
         for s, c, lo, hi in zip(self.subs, self.cols, self.rows[:-1], self.rows[1:]):
-            m[lo:hi], J[lo:hi, c] = s.model_and_jacobian(x[c])
+            mine = [i for i, ci in enumerate(c) if ci in cols]  # the sub-problem's columns asked for
+            if not mine:
+                m[lo:hi] = s.model(x[c])
+                continue
+            m[lo:hi], J[lo:hi, [cols.index(c[i]) for i in mine]] = s.model_and_jacobian(x[c], mine)
         return m, J
 
     def residual(self, x):

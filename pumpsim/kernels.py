@@ -44,15 +44,19 @@ class Kernels:
             raise CodegenError(f"kernel {self.structure.variant} has no function '{name}'") from None
 
     def mapped(self, name: str, n: int, threads: int | None = None) -> ca.Function:
-        """`name` evaluated over n samples (columns) in one call; large batches are spread over
-        threads (PUMPSIM_THREADS, default: the machine's cores) -- the compiled code is thread-safe."""
-        if threads is None:
-            threads = default_threads() if n >= 2000 else 1
+        """The kernel `name` over n samples (see map_samples), cached."""
         k = (name, n, threads)
         if k not in self._maps:
-            f = self[name]
-            self._maps[k] = f.map(n, "thread", threads) if threads > 1 else f.map(n, "serial")
+            self._maps[k] = map_samples(self[name], n, threads)
         return self._maps[k]
+
+
+def map_samples(f: ca.Function, n: int, threads: int | None = None) -> ca.Function:
+    """f evaluated over n samples (columns) in one call; large batches are spread over threads
+    (PUMPSIM_THREADS, default: the machine's cores) -- the compiled code is thread-safe."""
+    if threads is None:
+        threads = default_threads() if n >= 2000 else 1
+    return f.map(n, "thread", threads) if threads > 1 else f.map(n, "serial")
 
 
 def _check(folder, key) -> dict | None:
