@@ -65,16 +65,13 @@ def cmd_simulate(a) -> int:
 
 def cmd_study(a) -> int:
     from . import load_config
+    from .errors import ConfigError
     from .study import HEADER, solver_study, write_json
 
     cfg = load_config(a.config)
     if not cfg.contact_given:
-        from .errors import ConfigError
-
         raise ConfigError("the solver study needs [contact.housing] with a stiffness in the config")
     if not a.revolutions > 0:
-        from .errors import ConfigError
-
         raise ConfigError(f"--revolutions must be > 0, got {a.revolutions}")
     print(f"contact model solver study: {cfg.name}, constant speed, {a.revolutions:g} revolutions "
           "from an in-contact start; deviations from Model 2 over the last revolution")

@@ -24,6 +24,7 @@ from .errors import ConfigError
 from .kernels import load_kernels, map_samples
 from .parameters import layout
 from .sensor import first_order_lag
+from .simulate import ripple_motion
 
 SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay", "ripple_cos", "ripple_sin",
            "lag")
@@ -147,7 +148,6 @@ class Problem:
         self.y = data.torque
         self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
         self._seeds = self._seed_matrix()
-        self._angle_acting = [i for i, nm in enumerate(self.names) if nm in ANGLE_ACTING]
         self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
         self.n_eval = 0
 
@@ -210,10 +210,9 @@ class Problem:
                                   self.ripple_order)
         t = self.t if lib is np else ca.DM(self.t)
         thn = th0 + w0 * (t - dl)
-        theta = thn + (rc * (lib.sin(k * thn) - lib.sin(k * th0)) + rs * (lib.cos(k * thn) - lib.cos(k * th0))) / k
+        theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
         if lib is not np:
             return theta, None
-        g = 1 + rc * np.cos(k * thn) - rs * np.sin(k * thn)  # omega / omega0
         cols = {"theta0": g - rc * math.cos(k * th0) + rs * math.sin(k * th0), "speed": (t - dl) * g,
                 "delay": -w0 * g, "ripple_cos": (np.sin(k * thn) - math.sin(k * th0)) / k,
                 "ripple_sin": (np.cos(k * thn) - math.cos(k * th0)) / k}
@@ -229,16 +228,16 @@ class Problem:
     def _lag(self, x):
         return self._values(x)["lag"]
 
-    def _torque(self, theta, x):
+    def _torque(self, theta, z):
         f = sample_torque(self.kern, 0, theta.size)
-        return np.asarray(f(theta, self.t, self.z(x), self.ripple_order)).ravel()
+        return np.asarray(f(theta, self.t, z, self.ripple_order)).ravel()
 
     def _filter(self, y, T):
         return first_order_lag(y, self.dt, T)
 
     def model(self, x):
         self.n_eval += 1
-        return self._filter(self._torque(self.angle(x), x), self._lag(x))
+        return self._filter(self._torque(self.angle(x), self.z(x)), self._lag(x))
 
     def model_and_jacobian(self, x, cols=None):
         """Torque and its Jacobian (the columns `cols` only, default all). For the angle-acting
@@ -251,14 +250,15 @@ class Problem:
         cols = list(range(len(self.names))) if cols is None else list(cols)
         names = [self.names[c] for c in cols]
         theta, dtheta = self.angle_and_jacobian(x)
+        z = self.z(x)
         f = sample_torque(self.kern, len(cols), theta.size)
-        tq, J = f(theta, self.t, self.z(x), self.ripple_order, self._seeds[:, cols])
+        tq, J = f(theta, self.t, z, self.ripple_order, self._seeds[:, cols])
         tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
         T = self._lag(x)
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step
-            slope = (self._torque(theta + h, x) - self._torque(theta - h, x)) / (2 * h)
+            slope = (self._torque(theta + h, z) - self._torque(theta - h, z)) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
@@ -314,9 +314,7 @@ def sample_torque(kern, directions: int, samples: int) -> ca.Function:
         th, t, k = ca.MX.sym("theta"), ca.MX.sym("t"), ca.MX.sym("k")
         z = ca.MX.sym("z", npar + len(Z_SPECIAL))
         theta0, w0, delay, offset, rc, rs = (z[npar + i] for i in range(len(Z_SPECIAL)))
-        thn = theta0 + w0 * (t - delay)
-        w = w0 * (1 + rc * ca.cos(k * thn) - rs * ca.sin(k * thn))
-        wd = -k * w0**2 * (rc * ca.sin(k * thn) + rs * ca.cos(k * thn))
+        _, w, wd = ripple_motion(theta0 + w0 * (t - delay), theta0, w0, rc, rs, k, ca)
         tq = kern["inverse_dynamics"](th, w, wd, z[:npar])[0] + offset
         if directions == 0:
             _SAMPLE_FNS[key] = ca.Function("torque", [th, t, z, k], [tq])
@@ -562,19 +560,9 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
             x[i] = float(np.mod(x[i], 2 * math.pi))
             if x[i] > 2 * math.pi - 1e-12:
                 x[i] = 0.0
-    n, k = r.size, len(prob_fit.names)
-    sigma2 = float(r @ r) / max(n - k, 1)
-    scale, U, s, Vt = _scaled_svd(J)
-    cov = (Vt.T / s**2) @ Vt / np.outer(scale, scale) * sigma2
-    se = np.sqrt(np.diag(cov))
-    with np.errstate(invalid="ignore", divide="ignore"):  # a noise-free fit has se = 0
-        corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(len(se)))
-    tq = stats.t.ppf(0.975, max(n - k, 1))
-    est = {}
+    k = len(prob_fit.names)
     x0d = dict(zip(prob.names, x0))
-    for i, name in enumerate(prob_fit.names):
-        est[name] = Estimate(name, float(x[i]), float(se[i]), float(x[i] - tq * se[i]),
-                             float(x[i] + tq * se[i]), x0d[name])
+    est, corr = fit_estimates(prob_fit.names, x, [x0d[n] for n in prob_fit.names], r, J)
     for name in unident:
         est[name] = Estimate(name, None, None, None, None, x0d[name], identifiable=False)
     est = {nm: est[nm] for nm in prob.names}
@@ -587,6 +575,22 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         est, history, float(np.sqrt(np.mean(r**2))), converged, message, corr, diag, method,
         _time.perf_counter() - wall0, unident, prob.time_axis(), prob.y, fitted, initial_model,
         w, prob_fit.angle(x), prob.n_eval + prob_fit.n_eval)
+
+
+def fit_estimates(names, x, initial, r, J):
+    """Estimates with standard errors, 95 % t-intervals and their correlation from the residual r
+    and Jacobian J at the fit x: covariance sigma^2 (J'J)^-1 through the column-scaled SVD."""
+    n, k = r.size, len(names)
+    sigma2 = float(r @ r) / max(n - k, 1)
+    scale, _, s, Vt = _scaled_svd(J)
+    cov = (Vt.T / s**2) @ Vt / np.outer(scale, scale) * sigma2
+    se = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):  # a noise-free fit has se = 0
+        corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(k))
+    tq = stats.t.ppf(0.975, max(n - k, 1))
+    est = {nm: Estimate(nm, float(x[i]), float(se[i]), float(x[i] - tq * se[i]), float(x[i] + tq * se[i]),
+                        float(initial[i])) for i, nm in enumerate(names)}
+    return est, corr
 
 
 def _unidentifiable(names, J, x, model) -> list:

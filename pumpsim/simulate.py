@@ -63,17 +63,25 @@ def sample_times(duration, rate):
     return np.arange(n) / rate
 
 
+def ripple_motion(theta_n, theta_start, omega0, rc, rs, k, lib=np):
+    """Rotor angle, speed and acceleration under a shaft-order-k speed ripple, as functions of the
+    nominal angle theta_n (= theta_start at the start): omega = omega0 (1 + rc cos(k theta_n) -
+    rs sin(k theta_n)) -- rc = A cos(phase), rs = A sin(phase) -- and theta its exact integral from
+    theta_start. lib: numpy, or casadi for symbolic arguments (simulation, fits and their graphs
+    share this one formula)."""
+    c, s = lib.cos(k * theta_n), lib.sin(k * theta_n)
+    theta = theta_n + (rc * (s - lib.sin(k * theta_start)) + rs * (c - lib.cos(k * theta_start))) / k
+    return theta, omega0 * (1 + rc * c - rs * s), -k * omega0**2 * (rc * s + rs * c)
+
+
 def speed_profile(theta0, speed, t, ripple=None):
-    """Prescribed rotor angle, speed and acceleration. A shaft-order-k ripple of relative amplitude A
-    and phase phi is a function of the nominal angle theta_n = theta0 + speed t:
-    omega = speed (1 + A cos(k theta_n + phi)), theta its exact integral."""
+    """Prescribed rotor angle, speed and acceleration; ripple = (k, A, phase) gives
+    omega = speed (1 + A cos(k theta_n + phase)) with theta_n = theta0 + speed t."""
     theta_n = theta0 + speed * t
     if not ripple or ripple[1] == 0:
         return theta_n, np.full_like(t, speed), np.zeros_like(t)
-    k, A, phi = ripple
-    arg = k * theta_n + phi
-    theta = theta_n + A / k * (np.sin(arg) - math.sin(k * theta0 + phi))
-    return theta, speed * (1 + A * np.cos(arg)), -A * k * speed**2 * np.sin(arg)
+    k, A, phase = ripple
+    return ripple_motion(theta_n, theta0, speed, A * math.cos(phase), A * math.sin(phase), k)
 
 
 def _diagnose(out, time, n_vanes, warnings, events):

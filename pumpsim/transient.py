@@ -14,13 +14,12 @@ import time as _time
 
 import casadi as ca
 import numpy as np
-from scipy import stats
 
 from .config import PumpConfig, as_array
 from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError, DataError
-from .identify import Estimate, IdentificationResult, _scaled_svd, gauss_newton, parameter_map
+from .identify import IdentificationResult, fit_estimates, gauss_newton, parameter_map
 from .kernels import load_kernels
 from .parameters import layout
 
@@ -93,16 +92,8 @@ def identify_transient(cfg: PumpConfig, data: Dataset, params=("mu", "speed0"), 
     prob = TransientProblem(cfg, data, params, initial)
     m0 = prob.model(prob.x0)
     x, r, J, history, converged, message = gauss_newton(prob, prob.x0, max_iter=max_iter)
-    n, k = r.size, len(prob.names)
-    sigma2 = float(r @ r) / max(n - k, 1)
-    scale, _, s, Vt = _scaled_svd(J)
-    cov = (Vt.T / s**2) @ Vt / np.outer(scale, scale) * sigma2
-    se = np.sqrt(np.diag(cov))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(k))
-    tq = stats.t.ppf(0.975, max(n - k, 1))
-    est = {nm: Estimate(nm, float(x[i]), float(se[i]), float(x[i] - tq * se[i]), float(x[i] + tq * se[i]),
-                        float(prob.x0[i])) for i, nm in enumerate(prob.names)}
+    k = len(prob.names)
+    est, corr = fit_estimates(prob.names, x, prob.x0, r, J)
     w = float(np.mean(data.speed))
     diag = residual_report(r, prob.t[1] - prob.t[0], w, fitted=k)
     d = dict(zip(prob.names, x))
