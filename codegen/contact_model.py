@@ -14,13 +14,14 @@ import casadi as ca
 
 from pumpsim import laws
 
-from .model import CASADI_OPS
+from .model import CASADI_OPS, FORWARD_ITERATIONS
 
 CONTACT_VANE_OUTPUTS = (
     "sddot", "normal", "slot1", "slot2", "bottom", "penetration", "penetration_rate", "alpha",
     "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "potential_energy", "torque_share",
     "torque_slope", "n_consistent", "ambiguity", "position_residual",
 )
+RATE_COLUMNS = ("theta", "omega", "omegadot", "s", "sdot")  # what one vane's rates depend on
 
 
 def contact_law(b, side, delta, delta_dot):
@@ -40,7 +41,8 @@ def contact_law(b, side, delta, delta_dot):
     return force, energy
 
 
-def vane_contact(b) -> ca.Function:
+def vane_functions(b) -> dict:
+    """One vane: every output (vane_contact), the lean rates the ODEs need, their Jacobians."""
     th, w, wd, s, sd, phi, factor = (ca.SX.sym(n) for n in
                                      ("theta", "omega", "omegadot", "s", "sdot", "phi", "factor"))
     g = b.geometry()
@@ -89,49 +91,112 @@ def vane_contact(b) -> ca.Function:
                 kinetic_energy=final["kinetic_energy"], potential_energy=e_h + e_b,
                 torque_share=final["torque_share"], torque_slope=ca.jacobian(final["torque_share"], wd),
                 n_consistent=n_cons, ambiguity=amb, position_residual=res)
-    return ca.Function("vane_contact", [th, w, wd, s, sd, phi, factor, b.p],
-                       [outs[k] for k in CONTACT_VANE_OUTPUTS],
-                       ["theta", "omega", "omegadot", "s", "sdot", "phi", "factor", "p"],
-                       list(CONTACT_VANE_OUTPUTS), {"cse": True})
+    args = [th, w, wd, s, sd, phi, factor, b.p]
+    names = ["theta", "omega", "omegadot", "s", "sdot", "phi", "factor", "p"]
+
+    def fn(name, out_names, exprs):  # an SX function keeps only what its outputs need
+        return ca.Function(name, args, exprs, names, out_names, {"cse": True})
+
+    q = ca.vertcat(th, w, wd, s, sd)  # RATE_COLUMNS
+    sdd, share = outs["sddot"], outs["torque_share"]
+    return {
+        "vane_contact": fn("vane_contact", list(CONTACT_VANE_OUTPUTS), [outs[k] for k in CONTACT_VANE_OUTPUTS]),
+        # lean right-hand sides: the prescribed-speed ODE needs sddot only, the torque drive
+        # also the vane's drive-torque share and its slope for the Newton solve on omegadot
+        "vane_accel": fn("vane_accel", ["sddot"], [sdd]),
+        "vane_rates": fn("vane_rates", ["sddot", "torque_share", "torque_slope"],
+                         [sdd, share, outs["torque_slope"]]),
+        # and their derivatives (one vane, scalar AD: a few times the cost of the vane itself)
+        "vane_accel_jac": fn("vane_accel_jac", ["d_sddot"], [ca.jacobian(sdd, q)]),
+        "vane_rates_jac": fn("vane_rates_jac", ["d_rates"], [ca.jacobian(ca.vertcat(sdd, share), q)]),
+    }
 
 
 def build_contact_functions(b) -> dict:
     N = b.st.vanes
-    vmap = vane_contact(b).map(N)
+    vf = vane_functions(b)
     p = ca.MX.sym("p", len(b.params))
     th, w, wd, tau = (ca.MX.sym(n) for n in ("theta", "omega", "omegadot", "torque"))
     s, sd = ca.MX.sym("s", N), ca.MX.sym("sdot", N)
     phis, facs = b.slot_angles(p), b.factors(p)
     Ir, tb = b.pget(p, "rotor.inertia"), b.pget(p, "operation.bearing_torque")
     i_share = CONTACT_VANE_OUTPUTS.index("torque_share")
-    i_slope = CONTACT_VANE_OUTPUTS.index("torque_slope")
-    i_sdd = CONTACT_VANE_OUTPUTS.index("sddot")
 
-    def evaluate(th_, w_, wd_, s_, sd_):
-        o = vmap(th_, w_, wd_, s_.T, sd_.T, phis, facs, p)
-        return Ir * wd_ + tb + ca.sum2(o[i_share]), o
+    def vanes(name, th_, w_, wd_, s_, sd_):  # one row per output, one column per vane
+        return vf[name].map(N)(th_, w_, wd_, s_.T, sd_.T, phis, facs, p)
 
-    tq, o = evaluate(th, w, wd, s, sd)
-    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [tq, *o],
+    o = vanes("vane_contact", th, w, wd, s, sd)
+    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [Ir * wd + tb + ca.sum2(o[i_share]), *o],
                       ["theta", "omega", "omegadot", "s", "sdot", "p"], ["torque", *CONTACT_VANE_OUTPUTS])
-    # torque drive: Newton on omegadot (piecewise affine, slope from the vanes)
-    wdk = ca.MX(0.0)
-    for _ in range(4):
-        rt, ok = evaluate(th, w, wdk, s, sd)
-        wdk = wdk - (rt - tau) / (Ir + ca.sum2(ok[i_slope]))
-    rt, of = evaluate(th, w, wdk, s, sd)
-    fwd = ca.Function("contact_forward", [th, w, tau, s, sd, p], [wdk, rt - tau, *of],
+
+    def forward_omegadot(th_, w_, s_, sd_):
+        """Torque drive: Newton on omegadot (the torque is piecewise affine in it, slope from the
+        vanes)."""
+        wdk = ca.MX(0.0)
+        for _ in range(FORWARD_ITERATIONS):
+            _, share, slope = vanes("vane_rates", th_, w_, wdk, s_, sd_)
+            wdk = wdk - (Ir * wdk + tb + ca.sum2(share) - tau) / (Ir + ca.sum2(slope))
+        return wdk
+
+    wd_f = forward_omegadot(th, w, s, sd)
+    of = vanes("vane_contact", th, w, wd_f, s, sd)
+    fwd = ca.Function("contact_forward", [th, w, tau, s, sd, p],
+                      [wd_f, Ir * wd_f + tb + ca.sum2(of[i_share]) - tau, *of],
                       ["theta", "omega", "torque", "s", "sdot", "p"],
                       ["omegadot", "torque_residual", *CONTACT_VANE_OUTPUTS])
-    x = ca.MX.sym("x", 2 + 2 * N)  # theta, omega, s_0.., sdot_0..
+
+    # ODEs for the integrator, x = (theta, omega, s_0.., sdot_0..), and their Jacobians in x and
+    # in the drive (omegadot or torque), assembled from the per-vane derivatives: vane i's
+    # acceleration depends on (theta, omega, omegadot, s_i, sdot_i) only (RATE_COLUMNS)
+    nx = 2 + 2 * N
+    x = ca.MX.sym("x", nx)
     xs, xsd = x[2:2 + N], x[2 + N:]
-    o_sp = evaluate(x[0], x[1], wd, xs, xsd)[1]
-    ode_speed = ca.Function("ode_speed", [x, wd, p],
-                            [ca.vertcat(x[1], wd, xsd, o_sp[i_sdd].T)], ["x", "omegadot", "p"], ["xdot"])
-    wd_t = fwd(x[0], x[1], tau, xs, xsd, p)[0]
-    o_tq = evaluate(x[0], x[1], wd_t, xs, xsd)[1]
-    ode_torque = ca.Function("ode_torque", [x, tau, p],
-                             [ca.vertcat(x[1], wd_t, xsd, o_tq[i_sdd].T)], ["x", "torque", "p"], ["xdot"])
+    col = {"theta": lambda i: 0, "omega": lambda i: 1, "s": lambda i: 2 + i, "sdot": lambda i: 2 + N + i}
+    kinematic = {(0, 1): 1.0, **{(2 + i, 2 + N + i): 1.0 for i in range(N)}}  # theta' = omega, s' = sdot
+
+    sdd = vanes("vane_accel", x[0], x[1], wd, xs, xsd)
+    ode_speed = ca.Function("ode_speed", [x, wd, p], [ca.vertcat(x[1], wd, xsd, sdd.T)],
+                            ["x", "omegadot", "p"], ["xdot"])
+    D = ca.reshape(vanes("vane_accel_jac", x[0], x[1], wd, xs, xsd), len(RATE_COLUMNS), N)
+    jx, jd = dict(kinematic), {1: 1.0}
+    for i in range(N):
+        for k, c in enumerate(RATE_COLUMNS):
+            if c == "omegadot":
+                jd[2 + N + i] = D[k, i]
+            else:
+                jx[(2 + N + i, col[c](i))] = D[k, i]
+    ode_speed_jac = ca.Function("ode_speed_jac", [x, wd, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
+                                ["x", "omegadot", "p"], ["jac_xdot_x", "jac_xdot_omegadot"])
+
+    wd_t = forward_omegadot(x[0], x[1], xs, xsd)
+    sdd_t = vanes("vane_rates", x[0], x[1], wd_t, xs, xsd)[0]
+    ode_torque = ca.Function("ode_torque", [x, tau, p], [ca.vertcat(x[1], wd_t, xsd, sdd_t.T)],
+                             ["x", "torque", "p"], ["xdot"])
+    # omegadot(x, torque) is implicit in the rotor equation R = Ir wd + tb + sum share_i - torque
+    # = 0: d wd = -(dR/dx dx - d torque) / (dR/d wd); every vane's row picks up d sddot_i/d wd d wd
+    nr, kw = len(RATE_COLUMNS), RATE_COLUMNS.index("omegadot")
+    D = ca.reshape(vanes("vane_rates_jac", x[0], x[1], wd_t, xs, xsd), 2, nr * N)  # rows: sddot, share
+    R_wd = Ir + sum(D[1, nr * i + kw] for i in range(N))
+    dW = {}  # d omegadot / d x_j
+    for i in range(N):
+        for k, c in enumerate(RATE_COLUMNS):
+            if c != "omegadot":
+                j = col[c](i)
+                dW[j] = dW.get(j, 0.0) - D[1, nr * i + k] / R_wd
+    jx, jd = dict(kinematic), {1: 1.0 / R_wd}
+    for j, v in dW.items():
+        jx[(1, j)] = v
+    for i in range(N):
+        r = 2 + N + i
+        d_wd = D[0, nr * i + kw]
+        jd[r] = d_wd / R_wd
+        for j, v in dW.items():
+            jx[(r, j)] = d_wd * v
+        for k, c in enumerate(RATE_COLUMNS):
+            if c != "omegadot":
+                jx[(r, col[c](i))] = jx[(r, col[c](i))] + D[0, nr * i + k]
+    ode_torque_jac = ca.Function("ode_torque_jac", [x, tau, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
+                                 ["x", "torque", "p"], ["jac_xdot_x", "jac_xdot_torque"])
     # Model 2 state, for starting on the housing
     vc = b.vane_constrained().map(N)
     from .model import VANE_OUTPUTS
@@ -141,5 +206,13 @@ def build_contact_functions(b) -> dict:
                          [oc[VANE_OUTPUTS.index("s")].T, oc[VANE_OUTPUTS.index("sdot")].T,
                           oc[VANE_OUTPUTS.index("normal")].T],
                          ["theta", "omega", "p"], ["s", "sdot", "normal"])
-    return {f.name(): f for f in (dyn, fwd, ode_speed, ode_torque, cstate)}
+    return {f.name(): f for f in (dyn, fwd, ode_speed, ode_speed_jac, ode_torque, ode_torque_jac, cstate)}
 
+
+def _sparse(nrow, ncol, entries):
+    """A sparse MX matrix from {(row, col): value} (or {row: value} for a column): the pattern
+    CVODES factorises."""
+    cells = {(k, 0) if isinstance(k, int) else k: v for k, v in entries.items()}
+    keys = sorted(cells, key=lambda rc: (rc[1], rc[0]))  # column-major, as CasADi stores them
+    sp = ca.Sparsity.triplet(nrow, ncol, [r for r, _ in keys], [c for _, c in keys])
+    return ca.MX(sp, ca.vertcat(*[ca.MX(cells[k]) if isinstance(cells[k], float) else cells[k] for k in keys]))

@@ -202,7 +202,9 @@ def build_parser():
     s.add_argument("--method", choices=["cvodes", "idas", "rk"], default="cvodes",
                    help="integrator for torque drive / the contact model")
     s.add_argument("--rtol", type=float, default=1e-8)
-    s.add_argument("--atol", type=float, default=1e-10)
+    s.add_argument("--atol", type=float, default=1e-10,
+                   help="absolute tolerance of positions [rad, m]; the contact model allows "
+                        "atol x starting speed for speeds and vane velocities [rad/s, m/s]")
     s.add_argument("--max-step", type=float, dest="max_step", help="largest integrator step [s]")
     s.add_argument("--max-steps", type=int, dest="max_steps", default=500000,
                    help="integrator steps allowed per call before it gives up")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import math
 import time as _time
 
+import casadi as ca
 import numpy as np
 
 from .config import PumpConfig, as_array
@@ -28,6 +29,30 @@ def initial_state(kern, p, cfg, initial):
     else:
         raise ConfigError(f"initial vane state must be one of {', '.join(INITIAL_STATES)}, got '{initial}'")
     return np.concatenate([[th0, w0], s0, sd0])
+
+
+def ode_with_jacobian(kern, name, p) -> ca.Function:
+    """xdot(x, drive) of the compiled ODE `name` with the parameters fixed, carrying the compiled
+    Jacobian (<name>_jac) as its own: CasADi cannot see inside a compiled function and would
+    otherwise differentiate the whole ODE once per state colour (and in p)."""
+    f, fj = kern[name], kern[name + "_jac"]
+    x, d, out = ca.MX.sym("x", f.size1_in(0)), ca.MX.sym("drive"), ca.MX.sym("out_xdot", f.size1_out(0))
+    P = ca.DM(p)
+    jac = ca.Function("jac_xdot", [x, d, out], list(fj(x, d, P)), ["x", "drive", "out_xdot"],
+                      ["jac_xdot_x", "jac_xdot_drive"])
+    return ca.Function("xdot", [x, d], [f(x, d, P)], ["x", "drive"], ["xdot"],
+                       {"custom_jacobian": jac, "jac_penalty": 0})
+
+
+def state_scale(cfg) -> np.ndarray:
+    """Nominal sizes of (theta, omega, s_i, sdot_i) for the absolute tolerance: atol applies to
+    positions (rad, m) and atol * omega_0 to speeds (rad/s, m/s), i.e. a speed error is measured by
+    the position error it makes while the rotor turns one radian. A vane velocity passes through
+    zero twice a stroke, where the relative tolerance allows nothing and the absolute one alone
+    decides the step. Without a starting speed there is no such time scale: 1 rad/s."""
+    w = abs(cfg.speed) if cfg.speed else 1.0
+    N = cfg.vanes
+    return np.concatenate([[1.0, w], np.ones(N), np.full(N, w)])
 
 
 def contact_states(penetration, s) -> list[str]:
@@ -55,13 +80,13 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     t = sample_times(duration, rate)
     x0 = initial_state(kern, p, cfg, initial)
     if cfg.mode == "speed":
-        ode, dyn, drive = kern["ode_speed"], "contact_dynamics", 0.0
+        ode, dyn, drive = "ode_speed", "contact_dynamics", 0.0
     else:
-        ode, dyn, drive = kern["ode_torque"], "contact_forward", float(cfg.torque)
-    npar = p.size
+        ode, dyn, drive = "ode_torque", "contact_forward", float(cfg.torque)
+    xdot = ode_with_jacobian(kern, ode, p)
 
     def rhs(x, pp):
-        return ode(x, pp[npar], pp[:npar])
+        return xdot(x, pp[0])
 
     dt = t[1] - t[0]
     if method == "rk":  # explicit: fixed substeps no longer than max_step (default 1 us)
@@ -69,14 +94,15 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         rk_steps = max(1, int(math.ceil(dt / max_step)))
     else:
         rk_steps = 1
-    integ = Integrator(rhs, 2 + 2 * N, np.concatenate([p, [drive]]), dt, method=method, rtol=rtol,
-                       atol=atol, max_step=max_step, rk_steps=rk_steps, max_steps=max_steps)
+    integ = Integrator(rhs, 2 + 2 * N, [drive], dt, method=method, rtol=rtol, atol=atol,
+                       max_step=max_step, rk_steps=rk_steps, max_steps=max_steps,
+                       scale=state_scale(cfg))
     v = pv.values
 
     def switches(X):
         """Contact-state changes (report Table 1): housing penetration and slot-bottom contact.
         Friction-direction and contact-side kinks are continuous and left to error control."""
-        return np.hstack([_grid(kern, dyn, X, drive, p)["penetration"].T, X[:, 2:2 + N]])
+        return np.hstack([_grid(kern, dyn, X, drive, p, ["penetration"])["penetration"].T, X[:, 2:2 + N]])
 
     step_log = []
 
@@ -125,11 +151,11 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     return res
 
 
-def _grid(kern, name, xs, drive, p):
+def _grid(kern, name, xs, drive, p, outputs=None):
     from .simulate import evaluate
 
     N = kern.structure.vanes
     n = xs.shape[0]
     samples = [xs[:, 0], xs[:, 1], np.full(n, drive)]
     # per-vane vector inputs (s, sdot) are N-by-1 per sample: stack as N rows of n columns
-    return evaluate(kern, name, samples + [xs[:, 2:2 + N].T, xs[:, 2 + N:].T], p, n)
+    return evaluate(kern, name, samples + [xs[:, 2:2 + N].T, xs[:, 2 + N:].T], p, n, outputs)

@@ -32,15 +32,18 @@ class Integrator:
     """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
     def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=1e-8, atol=1e-10,
-                 max_step=None, rk_steps=10, max_steps=500000):
+                 max_step=None, rk_steps=10, max_steps=500000, scale=None):
+        """scale: a nominal size per state; the integrator works on x / scale, so the absolute
+        tolerance of state i is atol * scale[i] (the relative one is unchanged)."""
         self.params = np.asarray(params, dtype=float).ravel()
         self.nx, self.dt, self.method = nx, float(dt), method
         self.rtol, self.atol, self.max_step, self.rk_steps = rtol, atol, max_step, rk_steps
         self.max_steps = int(max_steps)
-        x = ca.MX.sym("x", nx)
+        self.scale = np.ones(nx) if scale is None else np.asarray(scale, dtype=float).ravel()
+        y = ca.MX.sym("x", nx)
         pp = ca.MX.sym("p", self.params.size + 1)
-        self._x, self._pp = x, pp
-        self._rhs = rhs(x, pp[:-1])
+        self._x, self._pp = y, pp
+        self._rhs = rhs(self.scale * y, pp[:-1]) / self.scale
         self.stats = {k: 0 for k in STAT_KEYS}
         self.calls = 0
         self._chunks = {}
@@ -61,7 +64,7 @@ class Integrator:
 
     def _call(self, integ, x, extra, intervals=1):
         self.calls += 1
-        res = integ(x0=x, p=np.concatenate([self.params, [extra]]))
+        res = integ(x0=np.asarray(x, dtype=float) / self.scale, p=np.concatenate([self.params, [extra]]))
         if self.method == "rk":  # RK4: four right-hand sides a step
             self.stats["nsteps"] += self.rk_steps * intervals
             self.stats["nfevals"] += 4 * self.rk_steps * intervals
@@ -71,7 +74,7 @@ class Integrator:
                 v = st.get(k)
                 if isinstance(v, (int, float)):
                     self.stats[k] += int(v)
-        return np.asarray(res["xf"])
+        return np.asarray(res["xf"]) * self.scale[:, None]
 
     def step(self, x, duration):
         return self._call(self._step, x, duration).ravel()

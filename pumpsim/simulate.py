@@ -22,11 +22,13 @@ def _per_vane(arr, n_vanes):
     return np.asarray(arr).reshape(n_vanes, -1, order="F")
 
 
-def evaluate(kern, name, samples, p, n):
+def evaluate(kern, name, samples, p, n, outputs=None):
     """Evaluate a compiled function over n samples: `samples` are scalars or length-n arrays (one
-    per leading input), `p` the parameter vector shared by all samples (the last input)."""
+    per leading input), `p` the parameter vector shared by all samples (the last input).
+    `outputs`: the names to return (default all; converting is a good part of a short call)."""
     outs = None
     names = kern[name].name_out()
+    keep = [i for i, nm in enumerate(names) if outputs is None or nm in outputs]
     pcol = np.asarray(p, dtype=float).reshape(-1, 1)
     for lo in range(0, n, CHUNK):
         hi = min(n, lo + CHUNK)
@@ -36,10 +38,11 @@ def evaluate(kern, name, samples, p, n):
             # 1-D: one value per sample; 2-D (k, n): a k-vector per sample; 0-D: shared
             call.append(a[lo:hi][None, :] if a.ndim == 1 else (a[:, lo:hi] if a.ndim == 2 else a))
         res = kern.mapped(name, hi - lo)(*call, pcol)
-        res = [np.asarray(r) for r in (res if isinstance(res, (list, tuple)) else [res])]
+        res = res if isinstance(res, (list, tuple)) else [res]
+        res = [np.asarray(res[i]) for i in keep]
         outs = res if outs is None else [np.concatenate([o, r], axis=1) for o, r in zip(outs, res)]
     N = kern.structure.vanes
-    return {nm: (o.ravel() if nm in SAMPLE_OUTPUTS else _per_vane(o, N)) for nm, o in zip(names, outs)}
+    return {names[i]: (o.ravel() if names[i] in SAMPLE_OUTPUTS else _per_vane(o, N)) for i, o in zip(keep, outs)}
 
 
 def inverse_dynamics(kern, p, theta, omega, omegadot):
