@@ -14,6 +14,9 @@ from .kernels import load_kernels
 from .result import SimulationResult
 
 INITIAL_STATES = ("bottom", "rotor", "housing")
+# a penetration or slot position this small [m] is a rounding zero (lengths ~1e-2 m carry ~1e-18 m):
+# a vane started on the housing at Model 2's position is touching, not crossing (|delta| ~ 1e-50)
+TOUCHING = 1e-15
 
 
 def initial_state(kern, p, cfg, initial):
@@ -102,7 +105,8 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     def switches(X):
         """Contact-state changes (report Table 1): housing penetration and slot-bottom contact.
         Friction-direction and contact-side kinks are continuous and left to error control."""
-        return np.hstack([_grid(kern, dyn, X, drive, p, ["penetration"])["penetration"].T, X[:, 2:2 + N]])
+        g = np.hstack([_grid(kern, dyn, X, drive, p, ["penetration"])["penetration"].T, X[:, 2:2 + N]])
+        return np.where(np.abs(g) < TOUCHING, 0.0, g)
 
     step_log = []
 

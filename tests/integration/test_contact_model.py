@@ -151,6 +151,17 @@ def test_contact_start_is_located_at_the_free_flight_crossing_time():
     assert abs(hits[0] - t_star) < 1e-9 * 1e3 * t_star  # integrator tolerance on the crossing
 
 
+def test_a_vane_started_on_the_housing_is_touching_not_crossing():
+    """Model 2's position puts the tip on the housing to rounding (|delta| ~ 1e-27..1e-50 m): that
+    is a touching start, not a contact change to locate at t ~ 1e-15 s (which restarted the
+    integrator dozens of times before the first output sample)."""
+    res = pumpsim.simulate(make_config("ellipse_4vanes"), model="contact", duration=0.002, rate=2000,
+                           initial="housing", rtol=1e-6, atol=1e-10)
+    assert np.all(res.vanes["penetration"][:, 1:] > 0)  # it stays pressed on
+    assert not res.events, res.events
+    assert res.stats["integrator_calls"] == 1  # one chunk, no restarts
+
+
 def test_stiff_contact_completes_and_reports_statistics():
     cfg = _stiff(1e6, base="ellipse_4vanes")
     res = pumpsim.simulate(cfg, model="contact", duration=0.02, rate=10000, initial="rotor",
