@@ -151,20 +151,25 @@ def build_contact_functions(b) -> dict:
     nx = 2 + 2 * N
     x = ca.MX.sym("x", nx)
     xs, xsd = x[2:2 + N], x[2 + N:]
-    col = {"theta": lambda i: 0, "omega": lambda i: 1, "s": lambda i: 2 + i, "sdot": lambda i: 2 + N + i}
+    nr = len(RATE_COLUMNS)
+
+    def state_column(c, i):  # the state behind vane i's RATE_COLUMNS entry c
+        return {"theta": 0, "omega": 1, "s": 2 + i, "sdot": 2 + N + i}[c]
+
+    def partials(D, row, i):  # vane i's derivatives of output `row` by column name
+        return {c: D[row, nr * i + k] for k, c in enumerate(RATE_COLUMNS)}
+
     kinematic = {(0, 1): 1.0, **{(2 + i, 2 + N + i): 1.0 for i in range(N)}}  # theta' = omega, s' = sdot
 
     sdd = vanes("vane_accel", x[0], x[1], wd, xs, xsd)
     ode_speed = ca.Function("ode_speed", [x, wd, p], [ca.vertcat(x[1], wd, xsd, sdd.T)],
                             ["x", "omegadot", "p"], ["xdot"])
-    D = ca.reshape(vanes("vane_accel_jac", x[0], x[1], wd, xs, xsd), len(RATE_COLUMNS), N)
+    D = vanes("vane_accel_jac", x[0], x[1], wd, xs, xsd)  # 1 x (nr N)
     jx, jd = dict(kinematic), {1: 1.0}
     for i in range(N):
-        for k, c in enumerate(RATE_COLUMNS):
-            if c == "omegadot":
-                jd[2 + N + i] = D[k, i]
-            else:
-                jx[(2 + N + i, col[c](i))] = D[k, i]
+        d = partials(D, 0, i)
+        jd[2 + N + i] = d.pop("omegadot")
+        jx.update({(2 + N + i, state_column(c, i)): v for c, v in d.items()})
     ode_speed_jac = ca.Function("ode_speed_jac", [x, wd, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
                                 ["x", "omegadot", "p"], ["jac_xdot_x", "jac_xdot_omegadot"])
 
@@ -174,27 +179,25 @@ def build_contact_functions(b) -> dict:
                              ["x", "torque", "p"], ["xdot"])
     # omegadot(x, torque) is implicit in the rotor equation R = Ir wd + tb + sum share_i - torque
     # = 0: d wd = -(dR/dx dx - d torque) / (dR/d wd); every vane's row picks up d sddot_i/d wd d wd
-    nr, kw = len(RATE_COLUMNS), RATE_COLUMNS.index("omegadot")
-    D = ca.reshape(vanes("vane_rates_jac", x[0], x[1], wd_t, xs, xsd), 2, nr * N)  # rows: sddot, share
-    R_wd = Ir + sum(D[1, nr * i + kw] for i in range(N))
+    D = vanes("vane_rates_jac", x[0], x[1], wd_t, xs, xsd)  # 2 x (nr N): rows sddot, share
+    accel = [partials(D, 0, i) for i in range(N)]
+    share = [partials(D, 1, i) for i in range(N)]
+    R_wd = Ir + sum(sh["omegadot"] for sh in share)
     dW = {}  # d omegadot / d x_j
-    for i in range(N):
-        for k, c in enumerate(RATE_COLUMNS):
+    for i, sh in enumerate(share):
+        for c, v in sh.items():
             if c != "omegadot":
-                j = col[c](i)
-                dW[j] = dW.get(j, 0.0) - D[1, nr * i + k] / R_wd
+                j = state_column(c, i)
+                dW[j] = dW.get(j, 0.0) - v / R_wd
     jx, jd = dict(kinematic), {1: 1.0 / R_wd}
-    for j, v in dW.items():
-        jx[(1, j)] = v
-    for i in range(N):
+    jx.update({(1, j): v for j, v in dW.items()})
+    for i, a in enumerate(accel):
         r = 2 + N + i
-        d_wd = D[0, nr * i + kw]
-        jd[r] = d_wd / R_wd
-        for j, v in dW.items():
-            jx[(r, j)] = d_wd * v
-        for k, c in enumerate(RATE_COLUMNS):
+        jd[r] = a["omegadot"] / R_wd
+        jx.update({(r, j): a["omegadot"] * v for j, v in dW.items()})
+        for c, v in a.items():
             if c != "omegadot":
-                jx[(r, col[c](i))] = jx[(r, col[c](i))] + D[0, nr * i + k]
+                jx[(r, state_column(c, i))] += v
     ode_torque_jac = ca.Function("ode_torque_jac", [x, tau, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
                                  ["x", "torque", "p"], ["jac_xdot_x", "jac_xdot_torque"])
     # Model 2 state, for starting on the housing
