@@ -24,3 +24,7 @@ REPORT_FORM_REL = 1e-9
 EFFECT_PARAM_REL = 0.10
 EFFECT_MU_REL = 0.01
 EFFECT_FINAL_RMS = 1.15
+# CVODES vs IDAS on the contact model (two BDF codes, explicit ODE vs implicit residual) at rtol
+# 1e-8 over 0.01 s of stiff contact (~800 steps): the global error is ~1e2-1e3 x rtol (observed
+# 5e-6 of the RMS torque); 1e-4 leaves 20x room and still fails on any modelling difference.
+INTEGRATOR_CROSS_REL = 1e-4
