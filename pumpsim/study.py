@@ -68,7 +68,8 @@ def solver_study(cfg, revolutions=10.0, per_revolution=360, speed=None, rows=Non
         entry = {
             "name": row["name"], "method": row.get("method", "cvodes"),
             "steps": st.get("nsteps", 0), "failed_steps": st.get("netfails", 0),
-            "rhs_evaluations": st.get("nfevals", 0), "newton_iterations": st.get("nniters", 0),
+            "rhs_evaluations": st.get("nfevals", 0), "jacobian_evaluations": st.get("njevals", 0),
+            "newton_iterations": st.get("nniters", 0),
             "wall_time": st["wall_time"], "events": st.get("events", 0),
             "torque_deviation": float(np.max(np.abs(res.torque[last] - ref.torque[last])) / rms_t),
             "normal_deviation": float(np.max(np.abs(res.vanes["normal"][:, last]
@@ -80,12 +81,12 @@ def solver_study(cfg, revolutions=10.0, per_revolution=360, speed=None, rows=Non
     return {"speed": speed, "revolutions": revolutions, "rows": out}
 
 
-HEADER = (f"{'setting':<44}{'steps':>9}{'failed':>8}{'rhs evals':>11}{'wall [s]':>10}"
+HEADER = (f"{'setting':<44}{'steps':>9}{'failed':>8}{'rhs evals':>11}{'jac evals':>11}{'wall [s]':>10}"
           f"{'max dev torque':>16}{'max dev N':>11}")
 
 
 def format_row(e):
-    return (f"{e['name']:<44}{e['steps']:>9}{e['failed_steps']:>8}{e['rhs_evaluations']:>11}"
+    return (f"{e['name']:<44}{e['steps']:>9}{e['failed_steps']:>8}{e['rhs_evaluations']:>11}{e['jacobian_evaluations']:>11}"
             f"{e['wall_time']:>10.3f}{e['torque_deviation']:>16.3%}{e['normal_deviation']:>11.3%}")
 
 

@@ -178,9 +178,10 @@ def test_stiff_contact_completes_and_reports_statistics():
     res = pumpsim.simulate(cfg, model="contact", duration=0.02, rate=10000, initial="rotor",
                            rtol=1e-6, atol=1e-10)
     assert res.termination == "completed"
-    for key in ("nsteps", "netfails", "nfevals", "nlinsetups", "wall_time"):
+    for key in ("nsteps", "netfails", "nfevals", "njevals", "nlinsetups", "wall_time"):
         assert key in res.stats
     assert res.stats["nsteps"] > 0 and res.stats["nfevals"] >= res.stats["nsteps"]
+    assert 0 < res.stats["njevals"] <= res.stats["nlinsetups"]  # a Jacobian per solver setup at most
     assert np.all(res.vanes["normal"] >= 0)
 
 
