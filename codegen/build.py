@@ -64,7 +64,8 @@ def source_digest() -> str:
 def cache_key(structure) -> str:
     payload = json.dumps({
         "schema": SCHEMA_VERSION, "structure": structure.as_dict(), "casadi": ca.__version__,
-        "compiler": compiler_version(), "cflags": CFLAGS, "derivatives": FORWARD_DERIVATIVES, "second_order": SECOND_ORDER, "source": source_digest(),
+        "compiler": compiler_version(), "cflags": CFLAGS, "derivatives": FORWARD_DERIVATIVES,
+        "second_order": SECOND_ORDER, "source": source_digest(),
     }, sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()[:20]
 

@@ -97,7 +97,7 @@ def vane_functions(b) -> dict:
     def fn(name, out_names, exprs):  # an SX function keeps only what its outputs need
         return ca.Function(name, args, exprs, names, out_names, {"cse": True})
 
-    q = ca.vertcat(th, w, wd, s, sd)  # RATE_COLUMNS
+    q = ca.vertcat(*[dict(theta=th, omega=w, omegadot=wd, s=s, sdot=sd)[c] for c in RATE_COLUMNS])
     sdd, share = outs["sddot"], outs["torque_share"]
     return {
         "vane_contact": fn("vane_contact", list(CONTACT_VANE_OUTPUTS), [outs[k] for k in CONTACT_VANE_OUTPUTS]),
@@ -125,8 +125,11 @@ def build_contact_functions(b) -> dict:
     def vanes(name, th_, w_, wd_, s_, sd_):  # one row per output, one column per vane
         return vf[name].map(N)(th_, w_, wd_, s_.T, sd_.T, phis, facs, p)
 
+    def rotor_torque(wd_, share):  # the drive torque the rotor equation needs at omegadot wd_
+        return Ir * wd_ + tb + ca.sum2(share)
+
     o = vanes("vane_contact", th, w, wd, s, sd)
-    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [Ir * wd + tb + ca.sum2(o[i_share]), *o],
+    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [rotor_torque(wd, o[i_share]), *o],
                       ["theta", "omega", "omegadot", "s", "sdot", "p"], ["torque", *CONTACT_VANE_OUTPUTS])
 
     def forward_omegadot(th_, w_, s_, sd_):
@@ -135,13 +138,13 @@ def build_contact_functions(b) -> dict:
         wdk = ca.MX(0.0)
         for _ in range(FORWARD_ITERATIONS):
             _, share, slope = vanes("vane_rates", th_, w_, wdk, s_, sd_)
-            wdk = wdk - (Ir * wdk + tb + ca.sum2(share) - tau) / (Ir + ca.sum2(slope))
+            wdk = wdk - (rotor_torque(wdk, share) - tau) / (Ir + ca.sum2(slope))
         return wdk
 
     wd_f = forward_omegadot(th, w, s, sd)
     of = vanes("vane_contact", th, w, wd_f, s, sd)
     fwd = ca.Function("contact_forward", [th, w, tau, s, sd, p],
-                      [wd_f, Ir * wd_f + tb + ca.sum2(of[i_share]) - tau, *of],
+                      [wd_f, rotor_torque(wd_f, of[i_share]) - tau, *of],
                       ["theta", "omega", "torque", "s", "sdot", "p"],
                       ["omegadot", "torque_residual", *CONTACT_VANE_OUTPUTS])
 
@@ -177,7 +180,7 @@ def build_contact_functions(b) -> dict:
     sdd_t = vanes("vane_rates", x[0], x[1], wd_t, xs, xsd)[0]
     ode_torque = ca.Function("ode_torque", [x, tau, p], [ca.vertcat(x[1], wd_t, xsd, sdd_t.T)],
                              ["x", "torque", "p"], ["xdot"])
-    # omegadot(x, torque) is implicit in the rotor equation R = Ir wd + tb + sum share_i - torque
+    # omegadot(x, torque) is implicit in the rotor equation R = rotor_torque(wd, share) - torque
     # = 0: d wd = -(dR/dx dx - d torque) / (dR/d wd); every vane's row picks up d sddot_i/d wd d wd
     D = vanes("vane_rates_jac", x[0], x[1], wd_t, xs, xsd)  # 2 x (nr N): rows sddot, share
     accel = [partials(D, 0, i) for i in range(N)]

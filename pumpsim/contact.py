@@ -48,11 +48,10 @@ def ode_with_jacobian(kern, name, p) -> ca.Function:
 
 
 def state_scale(cfg) -> np.ndarray:
-    """Nominal sizes of (theta, omega, s_i, sdot_i) for the absolute tolerance: atol applies to
-    positions (rad, m) and atol * omega_0 to speeds (rad/s, m/s), i.e. a speed error is measured by
-    the position error it makes while the rotor turns one radian. A vane velocity passes through
-    zero twice a stroke, where the relative tolerance allows nothing and the absolute one alone
-    decides the step. Without a starting speed there is no such time scale: 1 rad/s."""
+    """Nominal sizes of (theta, omega, s_i, sdot_i) for the absolute tolerance: atol for positions
+    (rad, m), atol * omega_0 for speeds (rad/s, m/s) -- a speed error counts as the position error
+    it makes while the rotor turns one radian (1 rad/s from rest). Where a vane velocity passes
+    zero the absolute tolerance alone decides the step."""
     w = abs(cfg.speed) if cfg.speed else 1.0
     N = cfg.vanes
     return np.concatenate([[1.0, w], np.ones(N), np.full(N, w)])
