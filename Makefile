@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 codegen: install
-	$(BIN)/python -m codegen.build
+	$(BIN)/python -m pumpsim.kernels examples/*.toml
 
 demo: codegen
 	mkdir -p out

@@ -1,11 +1,15 @@
 """Compile a model variant to a C shared library in generated/<variant>-<key>/ with a manifest.
 
-The cache key hashes everything that decides the generated code: the model source (codegen/ and the
-runtime modules it embeds), the structure, the CasADi version, the compiler and its flags and a
-schema version. The runtime compares the key before it trusts a library, so a stale library is never
-used. Builds go to a temporary folder that is renamed into place (atomic on one file system).
+The one entry point the runtime uses is `build_variant(structure)` (imported lazily, only when no
+trusted library exists). The key and the trust rules are the contract's
+(`pumpsim.model_spec.manifest`): the key hashes the generated C source, the codegen options, the
+CasADi version and the compiler flags. A build whose key already exists reuses that library and
+only records this tree's source fingerprint in its manifest -- no compiler run. Builds go to a
+temporary folder that is renamed into place (atomic on one file system).
 
-`python -m codegen.build [--vanes N ...]` builds the bundled examples' variants (`make codegen`).
+`python -m codegen.build --structure '{"model": "constrained", "vanes": 4, ...}'` builds one
+variant; `make codegen` builds the bundled examples' variants through the runtime
+(`python -m pumpsim.kernels`).
 """
 from __future__ import annotations
 
@@ -22,12 +26,10 @@ from pathlib import Path
 
 import casadi as ca
 
-SCHEMA_VERSION = 1
-ROOT = Path(__file__).resolve().parent.parent
-# sources whose content decides the generated code
-MODEL_SOURCES = sorted(
-    [*(ROOT / "codegen").glob("*.py"), ROOT / "pumpsim" / "parameters.py", ROOT / "pumpsim" / "laws.py"]
-)
+from pumpsim.errors import CodegenError
+from pumpsim.model_spec import manifest as mf
+from pumpsim.model_spec.parameters import Structure
+
 CC = os.environ.get("PUMPSIM_CC", "gcc")
 CFLAGS = ["-O2", "-fPIC", "-shared", "-std=c99"]
 # derivative functions compiled into the library (CasADi's external() finds them by name)
@@ -39,103 +41,93 @@ FORWARD_DERIVATIVES = ("ode_rhs", "inverse_dynamics")
 # second-order forward derivatives: CVODES forward sensitivities (transient fits) differentiate the
 # first-order ones
 SECOND_ORDER = ("ode_rhs",)
+OPTIONS = {"cflags": CFLAGS, "forward_derivatives": list(FORWARD_DERIVATIVES),
+           "second_order": list(SECOND_ORDER)}
 
 
-def generated_dir() -> Path:
-    return Path(os.environ.get("PUMPSIM_GENERATED", ROOT / "generated"))
-
-
-def compiler_version() -> str:
+def generate_c(spec, name: str, folder: Path) -> Path:
+    """Write the C source of every exported function (and its derivatives) into folder."""
+    cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    for fname, f in spec.functions.items():
+        cg.add(f)
+        if fname in FORWARD_DERIVATIVES:
+            cg.add(f.forward(1))
+        if fname in SECOND_ORDER:
+            cg.add(f.forward(1).forward(1))
+    cwd = os.getcwd()
+    os.chdir(folder)
     try:
-        out = subprocess.run([CC, "--version"], capture_output=True, text=True, check=True)
-        return out.stdout.splitlines()[0]
-    except (OSError, subprocess.CalledProcessError):
-        return "unavailable"
+        cg.generate()
+    finally:
+        os.chdir(cwd)
+    return folder / f"{name}.c"
 
 
-def source_digest() -> str:
-    h = hashlib.sha256()
-    for path in MODEL_SOURCES:
-        h.update(path.name.encode())
-        h.update(path.read_bytes())
-    return h.hexdigest()
+def compile_library(structure, source: Path, log) -> tuple[Path, float]:
+    lib = source.with_suffix(".so")
+    cmd = [CC, *CFLAGS, str(source), "-o", str(lib), "-lm"]
+    log(f"compiling {structure.variant} ({source.stat().st_size // 1024} KiB of C)")
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+    except OSError as e:
+        raise CodegenError(f"compiling {structure.variant}: cannot run the C compiler '{CC}' "
+                           f"({e.strerror}); install gcc or set PUMPSIM_CC") from None
+    if proc.returncode != 0:
+        raise CodegenError(f"compiling {structure.variant} failed:\n{proc.stderr[-2000:]}")
+    return lib, time.perf_counter() - t0
 
 
-def cache_key(structure) -> str:
-    payload = json.dumps({
-        "schema": SCHEMA_VERSION, "structure": structure.as_dict(), "casadi": ca.__version__,
-        "compiler": compiler_version(), "cflags": CFLAGS, "derivatives": FORWARD_DERIVATIVES,
-        "second_order": SECOND_ORDER, "source": source_digest(),
-    }, sort_keys=True)
-    return hashlib.sha256(payload.encode()).hexdigest()[:20]
-
-
-def variant_dir(structure, key: str | None = None) -> Path:
-    return generated_dir() / f"{structure.variant}-{key or cache_key(structure)}"
-
-
-def library_name(structure) -> str:
-    return f"pumpsim_{structure.variant.replace('-', '_')}"
+def _record_fingerprint(folder: Path, fingerprint: str | None) -> None:
+    m = mf.read_manifest(folder)
+    if fingerprint is not None and fingerprint not in m.setdefault("source_fingerprints", []):
+        m["source_fingerprints"].append(fingerprint)
+        mf.write_manifest(folder, m)
 
 
 def build_variant(structure, log=None) -> Path:
-    """Generate C, compile, write the manifest; return the variant folder."""
+    """Generate C, compile unless a library with the same key exists, write the manifest; return
+    the variant folder."""
     from .model import build_model
 
-    key = cache_key(structure)
-    final = variant_dir(structure, key)
-    if (final / "manifest.json").exists():
-        return final
     log = log or (lambda msg: None)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    _sweep_stale_temporaries(final.parent)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.tmp-", dir=final.parent))
+    fingerprint = mf.source_fingerprint()
+    base = mf.generated_dir()
+    base.mkdir(parents=True, exist_ok=True)
+    _sweep_stale_temporaries(base)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{structure.variant}.tmp-", dir=base))
     try:
         t0 = time.perf_counter()
         spec = build_model(structure)
+        source = generate_c(spec, mf.library_name(structure), tmp)
         t_model = time.perf_counter() - t0
-        name = library_name(structure)
-        cg = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        for fname, f in spec.functions.items():
-            cg.add(f)
-            if fname in FORWARD_DERIVATIVES:
-                cg.add(f.forward(1))
-            if fname in SECOND_ORDER:
-                cg.add(f.forward(1).forward(1))
-        cwd = os.getcwd()
-        os.chdir(tmp)
-        try:
-            cg.generate()
-        finally:
-            os.chdir(cwd)
-        t1 = time.perf_counter()
-        lib = tmp / f"{name}.so"
-        cmd = [CC, *CFLAGS, str(tmp / f"{name}.c"), "-o", str(lib), "-lm"]
-        log(f"compiling {structure.variant} ({(tmp / f'{name}.c').stat().st_size // 1024} KiB of C)")
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            from pumpsim.errors import CodegenError
-
-            raise CodegenError(f"compiling {structure.variant} failed:\n{proc.stderr[-2000:]}")
-        t_compile = time.perf_counter() - t1
+        c_sha = hashlib.sha256(source.read_bytes()).hexdigest()
+        key = mf.content_key(c_sha, ca.__version__, OPTIONS)
+        final = mf.variant_dir(structure, key)
+        if mf.trusted_manifest(final, structure.variant, ca.__version__, None) is not None:
+            _record_fingerprint(final, fingerprint)  # same library: nothing to compile
+            log(f"{final.name}: the model source changed, the generated code did not")
+            return final
+        lib, t_compile = compile_library(structure, source, log)
         manifest = {
             "key": key, "variant": structure.variant, "structure": structure.as_dict(),
             "library": lib.name, "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(),
-            "casadi": ca.__version__, "compiler": compiler_version(), "cflags": CFLAGS,
-            "source_sha256": source_digest(), "schema": SCHEMA_VERSION,
+            "c_source": source.name, "c_source_sha256": c_sha, "casadi": ca.__version__,
+            "options": OPTIONS, "schema": mf.SCHEMA_VERSION,
+            "source_fingerprints": [fingerprint] if fingerprint else [],
             "functions": {
                 n: {"inputs": f.name_in(), "outputs": f.name_out()} for n, f in spec.functions.items()
             },
             "parameters": [{"name": q.name, "unit": q.unit} for q in spec.parameters],
-            "vane_outputs": list(spec.vane_outputs),
             "seconds": {"model": round(t_model, 3), "compile": round(t_compile, 3)},
         }
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=1))
+        mf.write_manifest(tmp, manifest)
         try:
             os.replace(tmp, final)
         except OSError:  # another process won the race: its build is as good as ours
-            if not (final / "manifest.json").exists():
+            if mf.read_manifest(final) is None:
                 raise
+            _record_fingerprint(final, fingerprint)
         log(f"built {final.name} in {t_model + t_compile:.1f} s "
             f"(model {t_model:.1f} s, C compile {t_compile:.1f} s)")
         return final
@@ -155,23 +147,14 @@ def _sweep_stale_temporaries(folder: Path, age_s: float = 3600.0) -> None:
 
 
 def main(argv=None) -> int:
-    from pumpsim.config import load_config
-
-    ap = argparse.ArgumentParser(description="Build the compiled kernels for configuration files.")
-    ap.add_argument("configs", nargs="*", help="TOML configs whose variants to build")
-    ap.add_argument("--model", choices=["constrained", "contact"], action="append")
+    ap = argparse.ArgumentParser(description="Build compiled kernel variants (see pumpsim.kernels for configs).")
+    ap.add_argument("--structure", action="append", required=True,
+                    help='JSON of a Structure, e.g. \'{"model": "constrained", "vanes": 4, "harmonics": 0}\'')
     args = ap.parse_args(argv)
-    configs = args.configs or sorted(str(p) for p in (ROOT / "examples").glob("*.toml"))
-    seen = set()
-    for path in configs:
-        cfg = load_config(path, check_geometry=False)
-        for model in args.model or ["constrained"]:
-            st = cfg.structure_for(model)
-            if st in seen:
-                continue
-            seen.add(st)
-            d = build_variant(st, log=lambda m: print(m, flush=True))
-            print(f"{st.variant}: {d}")
+    for text in args.structure:
+        st = Structure(**json.loads(text))
+        d = build_variant(st, log=lambda m: print(m, flush=True))
+        print(f"{st.variant}: {d}")
     return 0
 
 

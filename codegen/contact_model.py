@@ -12,15 +12,11 @@ from __future__ import annotations
 
 import casadi as ca
 
-from pumpsim import laws
+from pumpsim.model_spec import laws
+from pumpsim.model_spec.outputs import CONTACT_VANE_OUTPUTS, VANE_OUTPUTS
 
 from .model import CASADI_OPS, FORWARD_ITERATIONS
 
-CONTACT_VANE_OUTPUTS = (
-    "sddot", "normal", "slot1", "slot2", "bottom", "penetration", "penetration_rate", "alpha",
-    "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "potential_energy", "torque_share",
-    "torque_slope", "n_consistent", "ambiguity", "position_residual",
-)
 RATE_COLUMNS = ("theta", "omega", "omegadot", "s", "sdot")  # what one vane's rates depend on
 
 
@@ -205,8 +201,6 @@ def build_contact_functions(b) -> dict:
                                  ["x", "torque", "p"], ["jac_xdot_x", "jac_xdot_torque"])
     # Model 2 state, for starting on the housing
     vc = b.vane_constrained().map(N)
-    from .model import VANE_OUTPUTS
-
     oc = vc(th, w, 0.0, phis, facs, p)
     cstate = ca.Function("constrained_state", [th, w, p],
                          [oc[VANE_OUTPUTS.index("s")].T, oc[VANE_OUTPUTS.index("sdot")].T,

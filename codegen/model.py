@@ -1,7 +1,8 @@
 """Assemble the pump model in CasADi from the one-vane mechanics (SymPy is used only here).
 
-`build_model(structure)` returns a frozen `ModelSpec`: named CasADi functions, each with named
-inputs and outputs, that `codegen.build` compiles to one shared library per variant.
+`build_model(structure)` returns a frozen `BuiltModel`: named CasADi functions, each with the
+input and output names the contract declares (pumpsim/model_spec/outputs.py), that
+`codegen.build` compiles to one shared library per variant.
 
 Constrained model (Model 2) per vane, given the rotor motion (theta, omega, omegadot):
 1. position: the tip-arc centre P lies at distance rho from the housing along its normal,
@@ -19,8 +20,9 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from pumpsim import laws
-from pumpsim.parameters import Parameter, Structure, layout
+from pumpsim.model_spec import laws
+from pumpsim.model_spec.outputs import VANE_OUTPUTS, check_signature
+from pumpsim.model_spec.parameters import Parameter, Structure, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
@@ -34,13 +36,6 @@ NEWTON_ITERATIONS = {"plain": 2, "harmonics": 4}
 FORWARD_ITERATIONS = 4  # Newton on omegadot; the torque is piecewise affine in omegadot
 SIGN_SETS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
 CONSISTENCY_TOL = 1e-9  # relative: a contact-side set is consistent if sign errors < tol * |forces|
-
-VANE_OUTPUTS = (
-    "s", "sdot", "sddot", "alpha", "alphadot", "normal", "slot1", "slot2", "torque_share",
-    "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "n_consistent", "ambiguity",
-    "position_residual", "torque_slope",
-)
-
 
 def _solve3(A, b):
     """3x3 linear solve by Cramer's rule (fewer instructions than a symbolic QR; the systems here
@@ -57,25 +52,18 @@ def _solve3(A, b):
     return ca.vertcat(*cols)
 
 
-class _CasadiOps:
-    fmin = staticmethod(ca.fmin)
-    fmax = staticmethod(ca.fmax)
-    fabs = staticmethod(ca.fabs)
-    sign = staticmethod(ca.sign)
-    sqrt = staticmethod(ca.sqrt)
-    power = staticmethod(ca.power)
-    if_else = staticmethod(ca.if_else)
-
-
-CASADI_OPS = _CasadiOps()
+CASADI_OPS = laws.make_ops(ca.fmin, ca.fmax, ca.fabs, ca.sign, ca.sqrt, ca.power, ca.if_else)
 
 
 @dataclass(frozen=True)
-class ModelSpec:
+class BuiltModel:
     structure: Structure
     parameters: tuple[Parameter, ...]
     functions: dict  # name -> casadi.Function (exported, compiled)
-    vane_outputs: tuple = VANE_OUTPUTS
+
+    def __post_init__(self):
+        for name, f in self.functions.items():  # the contract decides names and shapes
+            check_signature(self.structure.model, name, f.name_in(), f.name_out())
 
 
 class _Builder:
@@ -400,10 +388,10 @@ class _Builder:
         al = ca.SX.sym("alpha")
         h = self.housing(al)
         return ca.Function("housing_curve", [al, self.p], [h["C"], h["n"], h["r"], h["curvature"]],
-                           ["alpha", "p"], ["point", "normal", "radius", "curvature"])
+                           ["alpha", "p"], ["point", "normal_vector", "radius", "curvature"])
 
 
-def build_model(structure: Structure) -> ModelSpec:
+def build_model(structure: Structure) -> BuiltModel:
     """Build every exported CasADi function of one variant (no compilation here)."""
     if structure.model != "constrained":
         from .contact_model import build_contact_functions  # Model 1
@@ -411,11 +399,11 @@ def build_model(structure: Structure) -> ModelSpec:
         b = _Builder(structure)
         fns = build_contact_functions(b)
         fns["housing_curve"] = b.housing_function()
-        return ModelSpec(structure, b.params, fns)
+        return BuiltModel(structure, b.params, fns)
     b = _Builder(structure)
     vane = b.vane_constrained()
     inv, fwd, ode, pos = b.assemble(vane)
     f_phi, f_phiq, f_gam, f_dyn = b.report_form()
     fns = {f.name(): f for f in (inv, fwd, ode, pos, f_phi, f_phiq, f_gam, f_dyn,
                                  b.housing_function())}
-    return ModelSpec(structure, b.params, fns)
+    return BuiltModel(structure, b.params, fns)

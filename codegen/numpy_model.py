@@ -9,8 +9,8 @@ import math
 import numpy as np
 import sympy as sp
 
-from pumpsim import laws
-from pumpsim.parameters import Structure, layout
+from pumpsim.model_spec import laws
+from pumpsim.model_spec.parameters import Structure, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
-from .parameters import CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, ParameterVector, Structure
+from .model_spec.parameters import CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, ParameterVector, Structure
 
 RPM = 2 * math.pi / 60
 

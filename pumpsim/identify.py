@@ -22,7 +22,7 @@ from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError
 from .kernels import load_kernels, map_samples
-from .parameters import layout
+from .model_spec.parameters import layout
 from .sensor import first_order_lag
 from .simulate import ripple_motion
 

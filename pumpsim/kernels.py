@@ -1,14 +1,18 @@
 """Load compiled kernels, never stale ones.
 
-The variant folder name carries the cache key (a hash of the model source, structure, CasADi
-version and compiler flags). Before a library is loaded its manifest key and the library's own
-hash are checked; a missing or mismatched variant is rebuilt (set PUMPSIM_NO_BUILD=1 to refuse
-instead). Loaded kernels are cached in memory per key.
+The runtime finds a variant's library by the contract's rules (`model_spec.manifest`): a
+manifest of the same variant, schema and CasADi version whose key matches its recorded contents,
+whose library has the recorded hash and which lists this tree's source fingerprint. No compiler
+and no SymPy is involved in that check. A missing or stale variant is built through one entry
+point, `codegen.build.build_variant`, imported only then (set PUMPSIM_NO_BUILD=1 to refuse
+instead). Loaded kernels are cached in memory per variant and source.
+
+`python -m pumpsim.kernels [CONFIG ...] [--model contact]` loads (building when needed) the
+variants of configuration files; `make codegen` runs it on the bundled examples.
 """
 from __future__ import annotations
 
-import hashlib
-import json
+import argparse
 import os
 import sys
 from dataclasses import dataclass, field
@@ -16,7 +20,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from .errors import CodegenError
-from .parameters import Structure
+from .model_spec import manifest as mf
+from .model_spec.parameters import MODELS, Structure
 
 _LOADED: dict = {}
 
@@ -59,44 +64,62 @@ def map_samples(f: ca.Function, n: int, threads: int | None = None) -> ca.Functi
     return f.map(n, "thread", threads) if threads > 1 else f.map(n, "serial")
 
 
-def _check(folder, key) -> dict | None:
-    mpath = folder / "manifest.json"
-    if not mpath.exists():
-        return None
-    manifest = json.loads(mpath.read_text())
-    lib = folder / manifest.get("library", "")
-    if manifest.get("key") != key or not lib.exists():
-        return None
-    if hashlib.sha256(lib.read_bytes()).hexdigest() != manifest.get("library_sha256"):
-        return None
-    return manifest
+def _log_if_terminal(msg):
+    if sys.stderr.isatty():
+        print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+
+
+def _build(structure: Structure, log):
+    """The one way the runtime builds a variant (codegen is imported here and nowhere else)."""
+    from codegen.build import build_variant
+
+    return build_variant(structure, log=log or _log_if_terminal)
 
 
 def load_kernels(structure: Structure, build: bool | None = None, log=None) -> Kernels:
-    from codegen.build import build_variant, cache_key, variant_dir  # no SymPy import here
-
-    key = cache_key(structure)
-    if key in _LOADED:
-        return _LOADED[key]
-    folder = variant_dir(structure, key)
-    manifest = _check(folder, key)
+    fingerprint = mf.source_fingerprint()
+    memo = (structure, fingerprint, str(mf.generated_dir()))
+    if memo in _LOADED:
+        return _LOADED[memo]
+    folder, manifest = mf.find_variant(structure, ca.__version__, fingerprint)
     if manifest is None:
         if build is None:
             build = os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0")
         if not build:
             raise CodegenError(
-                f"compiled kernel for {structure.variant} is missing or stale (key {key}); "
+                f"compiled kernel for {structure.variant} is missing or stale (source "
+                f"{fingerprint}, CasADi {ca.__version__}, in {mf.generated_dir()}); "
                 "run `make codegen` or unset PUMPSIM_NO_BUILD")
-        if log is None:
-            def log(msg):
-                if sys.stderr.isatty():
-                    print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
-        folder = build_variant(structure, log=log)
-        manifest = _check(folder, key)
+        folder = _build(structure, log)
+        manifest = mf.trusted_manifest(folder, structure.variant, ca.__version__, fingerprint)
         if manifest is None:
             raise CodegenError(f"build of {structure.variant} did not produce a valid library")
     lib = str(folder / manifest["library"])
     fns = {name: ca.external(name, lib) for name in manifest["functions"]}
-    k = Kernels(structure, key, folder, manifest, fns)
-    _LOADED[key] = k
+    k = Kernels(structure, manifest["key"], folder, manifest, fns)
+    _LOADED[memo] = k
     return k
+
+
+def main(argv=None) -> int:
+    from .config import load_config
+
+    ap = argparse.ArgumentParser(description="Load (and build when missing or stale) the compiled "
+                                             "kernels of configuration files.")
+    ap.add_argument("configs", nargs="+", help="TOML configs whose variants to load")
+    ap.add_argument("--model", choices=MODELS, action="append")
+    args = ap.parse_args(argv)
+    seen = set()
+    for path in args.configs:
+        cfg = load_config(path, check_geometry=False)
+        for model in args.model or ["constrained"]:
+            st = cfg.structure_for(model)
+            if st not in seen:
+                seen.add(st)
+                k = load_kernels(st, log=lambda m: print(m, flush=True))
+                print(f"{st.variant}: {k.folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -9,10 +9,10 @@ from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
 from .kernels import load_kernels
+from .model_spec import outputs as kernel_outputs
 from .result import SimulationResult
 
 CHUNK = 20000  # samples per kernel call
-SAMPLE_OUTPUTS = {"torque", "omegadot", "torque_residual"}  # one value per sample; others per vane
 PARADOX_TOL = 1e-6  # relative spread between consistent contact-side sets that counts as a paradox
 POSITION_TOL = 1e-10  # m
 
@@ -20,6 +20,16 @@ POSITION_TOL = 1e-10  # m
 def _per_vane(arr, n_vanes):
     """Mapped kernel output (1, n_vanes * n) -> (n_vanes, n)."""
     return np.asarray(arr).reshape(n_vanes, -1, order="F")
+
+
+def _shaped(name, arr, n_vanes):
+    """A mapped output in the shape the contract declares for it."""
+    kind = kernel_outputs.shape(name)
+    if kind == "sample":
+        return arr.ravel()
+    if kind == "vane":
+        return _per_vane(arr, n_vanes)
+    raise ValueError(f"kernel output '{name}' ({kind}) is not a per-sample or per-vane output")
 
 
 def evaluate(kern, name, samples, p, n, outputs=None):
@@ -42,7 +52,7 @@ def evaluate(kern, name, samples, p, n, outputs=None):
         res = [np.asarray(res[i]) for i in keep]
         outs = res if outs is None else [np.concatenate([o, r], axis=1) for o, r in zip(outs, res)]
     N = kern.structure.vanes
-    return {names[i]: (o.ravel() if names[i] in SAMPLE_OUTPUTS else _per_vane(o, N)) for i, o in zip(keep, outs)}
+    return {names[i]: _shaped(names[i], o, N) for i, o in zip(keep, outs)}
 
 
 def inverse_dynamics(kern, p, theta, omega, omegadot):

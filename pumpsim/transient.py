@@ -21,7 +21,7 @@ from .diagnostics import residual_report
 from .errors import ConfigError, DataError
 from .identify import IdentificationResult, fit_estimates, gauss_newton, parameter_map
 from .kernels import load_kernels
-from .parameters import layout
+from .model_spec.parameters import layout
 
 TRANSIENT_SPECIAL = ("mu", "mu_slot", "speed0", "theta0")
 

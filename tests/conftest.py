@@ -1,5 +1,8 @@
 import copy
 import math
+import os
+import shutil
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -13,6 +16,37 @@ from pumpsim.kernels import load_kernels
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
+
+
+def pytest_configure(config):
+    """Tests never write into the repository's generated/: every variant a test needs is loaded
+    from, or built into, a temporary cache that starts as a copy of the libraries `make codegen`
+    built (set here, before collection, so a module-level config load cannot miss it)."""
+    from pumpsim.model_spec import manifest as mf
+
+    cache = Path(tempfile.mkdtemp(prefix="pumpsim-generated-"))
+    for folder in (ROOT / "generated").glob("*-*"):
+        if folder.is_dir() and mf.read_manifest(folder) is not None:
+            shutil.copytree(folder, cache / folder.name)
+    config._pumpsim_cache = (cache, os.environ.get("PUMPSIM_GENERATED"))
+    os.environ["PUMPSIM_GENERATED"] = str(cache)
+
+
+def pytest_unconfigure(config):
+    cache, before = getattr(config, "_pumpsim_cache", (None, None))
+    if cache is None:
+        return
+    if before is None:
+        os.environ.pop("PUMPSIM_GENERATED", None)
+    else:
+        os.environ["PUMPSIM_GENERATED"] = before
+    shutil.rmtree(cache, ignore_errors=True)
+
+
+@pytest.fixture(scope="session")
+def kernel_cache():
+    """The session's temporary kernel cache (see pytest_configure)."""
+    return Path(os.environ["PUMPSIM_GENERATED"])
 
 
 def example_dict(name="test_rig"):

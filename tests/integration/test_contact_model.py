@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import pumpsim
-from pumpsim import laws
+from pumpsim.model_spec import laws
 from tests.conftest import make_config
 from tests.tolerances import INTEGRATOR_CROSS_REL
 

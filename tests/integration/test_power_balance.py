@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from pumpsim import laws
+from pumpsim.model_spec import laws
 from pumpsim.simulate import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL

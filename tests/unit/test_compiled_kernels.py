@@ -10,7 +10,8 @@ import codegen.build as build
 from codegen.model import build_model
 from pumpsim import kernels
 from pumpsim.contact import ode_with_jacobian
-from pumpsim.parameters import Structure
+from pumpsim.model_spec import manifest as mf
+from pumpsim.model_spec.parameters import Structure
 from tests.conftest import kernel_and_p, make_config
 from tests.tolerances import COMPILED_REL
 
@@ -138,17 +139,24 @@ def test_cache_hit_never_runs_the_compiler(private_cache, monkeypatch):
     assert len(calls) == 1
 
 
-def test_changed_model_source_triggers_rebuild(private_cache, monkeypatch, tmp_path):
+def test_changed_model_expression_triggers_rebuild(private_cache, monkeypatch):
+    """A source change the fingerprint sees sends the runtime to the builder; a changed expression
+    gives new C, a new key and a compile; an unchanged expression gives the old key and no
+    compile (the manifest then lists both fingerprints)."""
+    import codegen.model
+
     st = Structure(vanes=2)
     calls = _count_compiles(monkeypatch)
-    extra = tmp_path / "model_extra.py"
-    extra.write_text("# version 1\n")
-    monkeypatch.setattr(build, "MODEL_SOURCES", [*build.MODEL_SOURCES, extra])
     k1 = kernels.load_kernels(st)
-    extra.write_text("# version 2\n")
-    k2 = kernels.load_kernels(st)
-    assert k1.key != k2.key and len(calls) == 2
-    assert k2.folder != k1.folder
+    fingerprint = mf.source_fingerprint()
+    monkeypatch.setattr(mf, "source_fingerprint", lambda folders=None: fingerprint + "-refactored")
+    k2 = kernels.load_kernels(st)  # same expressions: SymPy runs, the compiler does not
+    assert k2.key == k1.key and len(calls) == 1
+    assert {fingerprint, fingerprint + "-refactored"} <= set(mf.read_manifest(k2.folder)["source_fingerprints"])
+    monkeypatch.setattr(mf, "source_fingerprint", lambda folders=None: fingerprint + "-edited")
+    monkeypatch.setattr(codegen.model, "CONSISTENCY_TOL", 2e-9)  # an edited expression
+    k3 = kernels.load_kernels(st)
+    assert k3.key != k1.key and len(calls) == 2 and k3.folder != k1.folder
 
 
 def test_tampered_library_is_not_trusted(private_cache, monkeypatch):

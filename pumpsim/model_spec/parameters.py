@@ -10,7 +10,7 @@ import difflib
 import math
 from dataclasses import dataclass, field
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 INF = math.inf
 

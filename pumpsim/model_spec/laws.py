@@ -1,27 +1,22 @@
 """Friction and contact laws (spec §3), written once for any backend.
 
 `ops` supplies fmin, fmax, fabs, sign, if_else, sqrt, power: NumPy for the runtime and tests
-(`NUMPY_OPS`), CasADi for the generated kernels (codegen builds its own ops table).
+(`NUMPY_OPS`), CasADi for the generated kernels (codegen builds its table with `make_ops`).
 """
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 
 
-class _NumpyOps:
-    fmin = staticmethod(np.minimum)
-    fmax = staticmethod(np.maximum)
-    fabs = staticmethod(np.abs)
-    sign = staticmethod(np.sign)
-    sqrt = staticmethod(np.sqrt)
-    power = staticmethod(np.power)
-
-    @staticmethod
-    def if_else(c, a, b):
-        return np.where(c, a, b)
+def make_ops(fmin, fmax, fabs, sign, sqrt, power, if_else) -> SimpleNamespace:
+    """The operations the laws use, from one backend."""
+    return SimpleNamespace(fmin=fmin, fmax=fmax, fabs=fabs, sign=sign, sqrt=sqrt, power=power,
+                           if_else=if_else)
 
 
-NUMPY_OPS = _NumpyOps()
+NUMPY_OPS = make_ops(np.minimum, np.maximum, np.abs, np.sign, np.sqrt, np.power, np.where)
 
 
 def step(x, x0, h0, x1, h1, ops=NUMPY_OPS):

@@ -1,0 +1,133 @@
+"""Names, units and shapes of every output the compiled kernels export.
+
+codegen builds each exported function with exactly these input and output names (the build fails
+on a function or output not declared here); the runtime reshapes a mapped kernel's outputs by the
+shape declared here -- a new output gets its shape here, not by a guess in the runtime.
+
+Shapes: "sample" -- one value per sample; "vane" -- one value per vane and sample (the runtime
+returns an (n_vanes, n_samples) array); "other" -- vectors and matrices the runtime reads directly
+(states, Jacobians, the report form), never through the per-sample evaluator.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Output:
+    name: str
+    unit: str
+    shape: str  # sample | vane | other
+    doc: str = ""
+
+
+def _declare(*rows) -> dict:
+    return {name: Output(name, unit, shape, doc) for name, unit, shape, doc in rows}
+
+
+OUTPUTS = _declare(
+    ("torque", "N m", "sample", "drive torque (inverse dynamics), the measured shaft torque"),
+    ("omegadot", "rad/s^2", "sample", "rotor acceleration (forward dynamics)"),
+    ("torque_residual", "N m", "sample", "rotor-equation residual after the Newton solve on omegadot"),
+    ("s", "m", "vane", "vane extension from the slot bottom"),
+    ("sdot", "m/s", "vane", "vane sliding velocity"),
+    ("sddot", "m/s^2", "vane", "vane sliding acceleration"),
+    ("alpha", "rad", "vane", "housing-curve parameter of the tip contact"),
+    ("alphadot", "rad/s", "vane", "its rate"),
+    ("normal", "N", "vane", "housing normal force on the tip"),
+    ("slot1", "N", "vane", "slot-wall force at the vane's bottom end"),
+    ("slot2", "N", "vane", "slot-wall force at the slot mouth"),
+    ("bottom", "N", "vane", "slot-bottom contact force (Model 1)"),
+    ("penetration", "m", "vane", "housing penetration, > 0 is interference (Model 1)"),
+    ("penetration_rate", "m/s", "vane", "its exact time derivative (Model 1)"),
+    ("torque_share", "N m", "vane", "the vane's share of the drive torque"),
+    ("torque_slope", "kg m^2", "vane", "d torque_share / d omegadot on the selected contact sides"),
+    ("tip_slip", "m/s", "vane", "tip slip speed along the housing"),
+    ("mu_housing", "-", "vane", "vane-housing friction coefficient in use"),
+    ("mu_slot", "-", "vane", "slot friction coefficient in use"),
+    ("kinetic_energy", "J", "vane", "vane kinetic energy"),
+    ("potential_energy", "J", "vane", "elastic energy in the penalty contacts (Model 1)"),
+    ("n_consistent", "-", "vane", "number of consistent contact-side sets (1 unless a paradox)"),
+    ("ambiguity", "-", "vane", "force spread between consistent sets, relative to the force scale"),
+    ("position_residual", "m", "vane", "closure of the position solve"),
+    ("xdot", "-", "other", "state derivative"),
+    ("jac_xdot_x", "-", "other", "d xdot / d x"),
+    ("jac_xdot_omegadot", "-", "other", "d xdot / d omegadot"),
+    ("jac_xdot_torque", "-", "other", "d xdot / d torque"),
+    ("phi", "m", "other", "constraint Phi(q)"),
+    ("phi_q", "-", "other", "constraint Jacobian"),
+    ("gamma", "-", "other", "acceleration right-hand side"),
+    ("matrix", "-", "other", "report form [M V; Phi_q 0]"),
+    ("rhs", "-", "other", "report form right-hand side"),
+    ("point", "m", "other", "housing point"),
+    ("normal_vector", "-", "other", "housing outward normal"),
+    ("radius", "m", "other", "housing polar radius"),
+    ("curvature", "-", "other", "housing curvature sign"),
+)
+
+# one vane's outputs, in the order the vane functions return them
+VANE_OUTPUTS = (
+    "s", "sdot", "sddot", "alpha", "alphadot", "normal", "slot1", "slot2", "torque_share",
+    "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "n_consistent", "ambiguity",
+    "position_residual", "torque_slope",
+)
+CONTACT_VANE_OUTPUTS = (
+    "sddot", "normal", "slot1", "slot2", "bottom", "penetration", "penetration_rate", "alpha",
+    "tip_slip", "mu_housing", "mu_slot", "kinetic_energy", "potential_energy", "torque_share",
+    "torque_slope", "n_consistent", "ambiguity", "position_residual",
+)
+
+
+@dataclass(frozen=True)
+class Signature:
+    inputs: tuple
+    outputs: tuple
+
+
+_CONSTRAINED = {
+    "inverse_dynamics": Signature(("theta", "omega", "omegadot", "p"), ("torque", *VANE_OUTPUTS)),
+    "forward_dynamics": Signature(("theta", "omega", "torque", "p"),
+                                  ("omegadot", "torque_residual", *VANE_OUTPUTS)),
+    "ode_rhs": Signature(("x", "torque", "p"), ("xdot",)),
+    "positions": Signature(("theta", "p"), ("s", "alpha", "position_residual")),
+    "constraint": Signature(("q", "p"), ("phi",)),
+    "constraint_jacobian": Signature(("q", "p"), ("phi_q",)),
+    "acceleration_rhs": Signature(("q", "qd", "p"), ("gamma",)),
+    "dynamic_system": Signature(("q", "qd", "sigma", "omegadot", "p"), ("matrix", "rhs")),
+}
+_CONTACT = {
+    "contact_dynamics": Signature(("theta", "omega", "omegadot", "s", "sdot", "p"),
+                                  ("torque", *CONTACT_VANE_OUTPUTS)),
+    "contact_forward": Signature(("theta", "omega", "torque", "s", "sdot", "p"),
+                                 ("omegadot", "torque_residual", *CONTACT_VANE_OUTPUTS)),
+    "ode_speed": Signature(("x", "omegadot", "p"), ("xdot",)),
+    "ode_speed_jac": Signature(("x", "omegadot", "p"), ("jac_xdot_x", "jac_xdot_omegadot")),
+    "ode_torque": Signature(("x", "torque", "p"), ("xdot",)),
+    "ode_torque_jac": Signature(("x", "torque", "p"), ("jac_xdot_x", "jac_xdot_torque")),
+    "constrained_state": Signature(("theta", "omega", "p"), ("s", "sdot", "normal")),
+}
+_BOTH = {"housing_curve": Signature(("alpha", "p"), ("point", "normal_vector", "radius", "curvature"))}
+
+
+def signatures(model: str) -> dict:
+    """Exported function name -> Signature for one model ("constrained" | "contact")."""
+    return {**(_CONTACT if model == "contact" else _CONSTRAINED), **_BOTH}
+
+
+def shape(name: str) -> str:
+    """The declared shape of output `name` (KeyError names the undeclared output)."""
+    try:
+        return OUTPUTS[name].shape
+    except KeyError:
+        raise KeyError(f"kernel output '{name}' is not declared in pumpsim/model_spec/outputs.py") from None
+
+
+def check_signature(model: str, fname: str, inputs, outputs) -> None:
+    """Raise ValueError unless function `fname` has exactly the declared input and output names."""
+    sig = signatures(model).get(fname)
+    if sig is None:
+        raise ValueError(f"exported function '{fname}' is not declared in pumpsim/model_spec/outputs.py")
+    undeclared = [o for o in outputs if o not in OUTPUTS]
+    if tuple(inputs) != sig.inputs or tuple(outputs) != sig.outputs or undeclared:
+        raise ValueError(f"'{fname}' exports inputs {list(inputs)} and outputs {list(outputs)}; the "
+                         f"contract declares {list(sig.inputs)} and {list(sig.outputs)}")
