@@ -56,7 +56,7 @@ def cmd_simulate(a) -> int:
     if a.out:
         res.to_csv(a.out)
     if a.plot:
-        res.plot(a.plot)
+        res.plot(a.plot, name=cfg.name, x=a.plot_x)
     print(res.summary())
     for w in res.warnings:
         print(f"pumpsim: warning: {w}", file=sys.stderr)
@@ -153,7 +153,7 @@ def cmd_identify(a) -> int:
     if a.report:
         from .report import identification_report
 
-        identification_report(res, a.report, title=f"pumpsim identification: {cfg.name}")
+        identification_report(res, a.report, title=f"pumpsim identification: {cfg.name}", cfg=cfg, data=data)
     return 0
 
 
@@ -178,7 +178,7 @@ def cmd_diagnose(a) -> int:
     if a.report:
         from .report import diagnosis_report
 
-        diagnosis_report(out, a.report, title=f"pumpsim diagnosis: {cfg.name}")
+        diagnosis_report(out, a.report, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data)
     return 0
 
 
@@ -199,6 +199,9 @@ def build_parser():
     s.add_argument("--rate", type=float, default=10000.0, help="output sample rate [Hz]")
     s.add_argument("--out", help="CSV file for the spec §7 columns")
     s.add_argument("--plot", help="PNG file for the figure set")
+    s.add_argument("--plot-x", dest="plot_x", choices=["angle", "time"], default="angle",
+                   help="figure x axis: rotor angle in degrees with revolutions overlaid, or time "
+                        "(default: %(default)s)")
     s.add_argument("--method", choices=["cvodes", "idas", "rk"], default="cvodes",
                    help="integrator for torque drive / the contact model")
     s.add_argument("--rtol", type=float, default=1e-8)

@@ -40,6 +40,7 @@ from .config import PumpConfig
 from .data import Dataset
 from .diagnostics import order_spectrum, residual_report
 from .identify import identify, make_problem
+from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
 SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
@@ -334,6 +335,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     current = base
     history = [{"label": "baseline", "result": base}]
     steps, effects, confounded = [], [], []
+    screens = []  # every candidate's score test at each step, for the report's ranking table
     screened_for = None  # the state whose candidates were last screened (their collinearity is known)
     explained_by_confounded = False
     for _ in range(max_effects):
@@ -347,6 +349,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             scored.append((c, score_test(state, c)))
         alpha = SCORE_ALPHA / len(scored)
         _note_confounded(scored, alpha, confounded)
+        screens.append(_ranking(scored, alpha, effects, current.residual.size))
         by_p = sorted([cs for cs in scored if cs[1]["p_value"] < alpha],
                       key=lambda cs: (cs[1]["p_value"], -cs[1]["lm"]))
         if not by_p:
@@ -372,6 +375,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                          "lr_p": float(stats.chi2.sf(lr, max(q, 1))), "bic": _bic(rss1, nw, len(new_state.names))})
         fits.sort(key=lambda f: f["bic"])
         best = fits[0]
+        _note_refits(screens[-1], fits, bic0)
         if best["lr_p"] >= LR_ALPHA or best["bic"] >= bic0:
             break
         rival = next((f for f in fits[1:] if f["lr_p"] < LR_ALPHA and f["bic"] < bic0
@@ -390,6 +394,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                       "lr_p_value": best["lr_p"], "bic_before": bic0, "bic_after": best["bic"],
                       "all_params": _params_json(res, new_state.names)})
         effects.append(c.effect)
+        screens[-1]["chosen"] = c.label
         state, current = new_state, res
         history.append({"label": c.label, "result": res})
     # a last screen for collinearity, whatever the residual: a white residual can hide an effect that
@@ -424,9 +429,29 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                    f"{SCORE_ALPHA}; the {CONTENDERS} best by p-value and by one-step residual refitted and compared by BIC; acceptance by "
                    f"prewhitened likelihood ratio (p < {LR_ALPHA}) and BIC"),
         "wall_time": _time.perf_counter() - wall0,
+        "screens": screens,
     }
     out["_history"] = history
     return out
+
+
+def _ranking(scored, alpha, effects, n) -> dict:
+    """One screen's candidates, best first: what was tested, how strongly, what was refitted."""
+    rows = [{"candidate": c.label, "effect": c.effect, "order": c.order, "p_value": s["p_value"],
+             "score": s["lm"], "dof": s["dof"], "significant": bool(s["p_value"] < alpha),
+             "one_step_rms": math.sqrt(s["one_step_rss"] / n) if "one_step_rss" in s else None,
+             "collinear_with": s["partner"]} for c, s in scored]
+    rows.sort(key=lambda r: (r["p_value"], -r["score"]))
+    return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows,
+            "chosen": None}
+
+
+def _note_refits(screen, fits, bic0):
+    """Mark the refitted contenders of a screen with their BIC change and likelihood-ratio p."""
+    by_label = {r["candidate"]: r for r in screen["candidates"]}
+    for f in fits:
+        row = by_label[f["cand"].label]
+        row["refit_delta_bic"], row["refit_lr_p_value"] = f["bic"] - bic0, f["lr_p"]
 
 
 def _note_confounded(scored, alpha, confounded):
@@ -468,23 +493,12 @@ def _refit(state: State, cand: Candidate, score):
     return State(dataclasses.replace(cfg, values=vals), state.data, names, fitted, ripple), res
 
 
-def _fmt_param(k, v):
-    if not isinstance(v, dict):
-        return f"{k} {v:.4g}"
-    if v["value"] is None:
-        return f"{k} not identifiable"
-    return f"{k} {v['value']:.4g} ± {v['stderr']:.2g}"
-
-
 def step_table(result) -> str:
     lines = [f"{'step':<28}{'RMS before':>13}{'RMS after':>13}{'p-value':>11}  parameters"]
     lines.append(f"{'baseline':<28}{'':>13}{result['baseline']['rms']:>13.5g}{'':>11}  " + ", ".join(
-        f"{k} {v['value']:.5g}" for k, v in result["baseline"]["params"].items() if v["value"] is not None))
+        parameter_text(k, v["value"], v["stderr"]) for k, v in result["baseline"]["params"].items()))
     for s in result["steps"]:
-        shown = s["params"]
-        if "amplitude" in shown:  # the (a, b) components behind amplitude and phase: JSON only
-            shown = {k: shown[k] for k in ("order", "amplitude", "phase")}
-        ps = ", ".join(_fmt_param(k, v) for k, v in shown.items())
+        ps = ", ".join(step_parameters(s))  # amplitude/phase with units; (a, b) in the JSON only
         lines.append(f"{s['effect']:<28}{s['rms_before']:>13.5g}{s['rms_after']:>13.5g}{s['p_value']:>11.2g}  {ps}")
     f = result["final"]
     where = ", ".join(str(w["order"]) for w in result["unexplained_where"]) or "none distinct (broadband)"
@@ -493,6 +507,9 @@ def step_table(result) -> str:
                  + (f"; UNEXPLAINED residual, spectral peaks at shaft orders: {where}" if result["unexplained"] else ""))
     for a, b in result["confounded"]:
         lines.append(f"confounded: {a} ~ {b} (data at another speed would separate them)")
+    lines.append(PLUS_MINUS)
+    if not f["residual_white"]:
+        lines.append(OPTIMISTIC)
     return "\n".join(lines)
 
 

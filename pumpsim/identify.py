@@ -23,6 +23,7 @@ from .diagnostics import residual_report
 from .errors import ConfigError
 from .kernels import load_kernels, map_samples
 from .model_spec.parameters import layout
+from .presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe
 from .sensor import first_order_lag
 from .simulate import ripple_motion
 
@@ -93,7 +94,9 @@ class IdentificationResult:
                  f"after {len(self.iterations) - 1} iterations, residual RMS {self.rms:.6g} N m"]
         for e in self.estimates.values():
             if e.identifiable and e.value is not None:
-                lines.append(f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}  (95%: {e.lower95:.6g} .. "
+                unit = UNIT_TEXT.get(describe(e.name)[1], describe(e.name)[1])
+                unit = "" if unit in ("–", "?") else f" {unit}"
+                lines.append(f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}{unit}  (95%: {e.lower95:.6g} .. "
                              f"{e.upper95:.6g}; start {e.initial:.6g})")
             else:
                 lines.append(f"  {e.name:<22} not identifiable from this data")
@@ -103,6 +106,9 @@ class IdentificationResult:
         if d["spectrum_peaks"]:
             lines.append("  residual peaks at shaft orders: " + ", ".join(
                 f"{p['order']:.2f}" for p in d["spectrum_peaks"][:5]))
+        lines.append(f"  {PLUS_MINUS}")
+        if not d["white_at_5pct"]:
+            lines.append(f"  {OPTIMISTIC}")
         return "\n".join(lines)
 
 

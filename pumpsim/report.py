@@ -1,4 +1,18 @@
-"""Self-contained HTML reports (figures embedded as base64 PNG)."""
+"""Self-contained HTML reports for identification and diagnosis (figures embedded as base64 PNG,
+no external files, scripts or fonts: they open anywhere, including headless browsers).
+
+Every report starts with a provenance block (data files and their SHA-256, config, date, pumpsim
+version, compiled kernel), shows every parameter with its unit, and uses "±" for one standard error
+exactly as the terminal output does (`presentation.PLUS_MINUS`). When the residual is not white the
+intervals are flagged as optimistic, with the AR(1) inflation factor that would widen them.
+
+What the diagnosis report reads (a dict or an object with these keys/attributes): `baseline`
+{rms, params}, `steps` [{effect, params, rms_before, rms_after, p_value, bic_before, bic_after,
+all_params}], `final` {rms, params, residual_white, runs_p_value, ljung_box_p_value},
+`unexplained`, `unexplained_where`, `confounded`, `notes`, `method`, optionally `screens` (the
+candidate ranking per step) and `history` / `_history` ([{label, result}] with each model's
+IdentificationResult: residual, time, speed, angle, estimates).
+"""
 from __future__ import annotations
 
 import base64
@@ -11,137 +25,438 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from .diagnostics import order_spectrum, synchronous_average  # noqa: E402
 from .io import write_text  # noqa: E402
+from .plotting import _wrapped, tidy_axis  # noqa: E402
+from .presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate, fmt_number,  # noqa: E402
+                           parameter_text, provenance, step_parameters)
 
-CSS = ("body{font-family:sans-serif;max-width:1000px;margin:2em auto;color:#222}"
-       "table{border-collapse:collapse}td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}"
-       "th{background:#eee}img{max-width:100%}.warn{color:#a40}")
+CSS = ("body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1150px;margin:1.5em auto;color:#222;"
+       "line-height:1.35}h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}"
+       "table{border-collapse:collapse;margin:.4em 0}td,th{border:1px solid #bbb;padding:3px 8px}"
+       "th{background:#eee;text-align:left}td.n{text-align:right;white-space:nowrap;"
+       "font-variant-numeric:tabular-nums}td.t{text-align:left}span.nb{white-space:nowrap}"
+       "img{max-width:100%}.warn{color:#8a3b00;background:#fff4e5;border-left:4px solid #e08a00;"
+       "padding:.4em .8em}.ok{background:#eef7ee;border-left:4px solid #3a3;padding:.4em .8em}"
+       "table.prov td{font-size:.85em;font-family:monospace}.note{font-size:.88em;color:#555}"
+       "tr.chosen td{background:#eef7ee;font-weight:bold}")
+RPM = 60 / (2 * math.pi)
+RANKING_SHOWN = 8  # candidates shown per screen; the full ranking is one click away
 
 
 def figure_html(fig) -> str:
+    """The figure as an embedded PNG; bbox 'tight' so no axis label is clipped."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
+    fig.savefig(buf, format="png", dpi=96, bbox_inches="tight", pad_inches=0.15)
     plt.close(fig)
-    return f'<img src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
+    return f'<img alt="figure" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
+
+
+class Cell:
+    """A table cell: numbers right-aligned and never wrapped, text left-aligned."""
+
+    def __init__(self, text, numeric=None, raw=False):
+        self.text = text if raw else html.escape(str(text))
+        self.numeric = numeric
+
+
+def table(headers, rows, cls=None, row_classes=None) -> str:
+    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
+    body = []
+    for k, r in enumerate(rows):
+        cells = []
+        for c in r:
+            if not isinstance(c, Cell):
+                c = Cell(fmt_number(c) if isinstance(c, (int, float)) or c is None else c,
+                         numeric=isinstance(c, (int, float)) or c is None)
+            cells.append(f"<td class={'n' if c.numeric else 't'}>{c.text}</td>")
+        rc = f" class={row_classes[k]}" if row_classes and row_classes[k] else ""
+        body.append(f"<tr{rc}>" + "".join(cells) + "</tr>")
+    c = f" class={cls}" if cls else ""
+    return f"<table{c}><tr>{h}</tr>{''.join(body)}</table>"
+
+
+def nb(text) -> str:
+    """Escaped text that does not wrap (a number with its unit)."""
+    return f"<span class=nb>{html.escape(text)}</span>"
+
+
+def provenance_html(rows) -> str:
+    return "<h2>Provenance</h2>" + table(["item", "value"], [(k, Cell(v, False)) for k, v in rows], cls="prov")
+
+
+def provenance_line(rows) -> str:
+    """One line under the title: what was fitted, when, with which version (details at the end)."""
+    d = dict(rows)
+    data = [v for k, v in rows if k.startswith("data file") and not k.endswith(("SHA-256", "samples"))]
+    shas = [v[:12] for k, v in rows if k.startswith("data file") and k.endswith("SHA-256")]
+    bits = [f"data {', '.join(html.escape(x.rsplit('/', 1)[-1]) for x in data)}"
+            + (f" (SHA-256 {', '.join(shas)}…)" if shas else "") if data else "",
+            f"config {html.escape(d['config'].split(' (')[0])}" if "config" in d else "",
+            f"pumpsim {html.escape(d.get('pumpsim version', '?'))}", html.escape(d.get("date (UTC)", "")) + " UTC"]
+    return f"<p class=note>{' · '.join(b for b in bits if b)} — provenance at the end.</p>"
+
+
+def write_page(path, title, parts) -> None:
+    page = (f"<!doctype html><html lang=en><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
+            f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>")
+    write_text(path, page)
+
+
+# -- shared pieces -------------------------------------------------------------------------------
+
+def ar1(r) -> float:
+    r = np.asarray(r, dtype=float) - np.mean(r)
+    return float(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300))
+
+
+def interval_warning(white: bool, runs_p: float, lb_p: float, residual=None) -> str:
+    """The standard errors assume independent errors; a correlated residual makes them too small."""
+    if white:
+        return ""
+    extra = ""
+    if residual is not None and len(residual) > 2:
+        rho = ar1(residual)
+        if rho > 0:
+            extra = (f" The residual's lag-1 autocorrelation is {rho:.2f}: for AR(1) errors the standard "
+                     f"errors are too small by about √((1+ρ)/(1−ρ)) = {math.sqrt((1 + rho) / (1 - rho)):.2g}×.")
+    return (f"<p class=warn><b>Intervals are optimistic.</b> Runs test p = {runs_p:.3g}, Ljung–Box p = "
+            f"{lb_p:.3g}: {html.escape(OPTIMISTIC)}; the model misses something systematic.{extra}</p>")
+
+
+def param_row(name, value, stderr, lower=None, upper=None, start=None, harmonics=None):
+    """(parameter, meaning, unit, start, estimate ± s.e., 95 % interval) in display units."""
+    label, unit = describe(name, harmonics)
+    f, shown = display_scale(unit, value)
+    sc = (lambda v: None if v is None else v * f)
+    est = fmt_estimate(sc(value), sc(stderr))
+    extra = ""
+    if unit == "rad" and value is not None:
+        extra = f" ({math.degrees(value):.4g}°)"
+    elif unit == "rad/s" and value is not None:
+        extra = f" ({value * RPM:.6g} rpm)"
+    ci = "—" if lower is None or value is None else f"{sc(lower):.6g} … {sc(upper):.6g}"
+    return [Cell(name), Cell(label), Cell(shown), Cell(fmt_number(sc(start)) if start is not None else "—", True),
+            Cell(nb(est + extra), True, raw=True), Cell(nb(ci), True, raw=True)]
+
+
+PARAM_HEADERS = ["parameter", "meaning", "unit", "start", "estimate ± s.e.", "95 % interval"]
 
 
 def residual_figures(t, residual, speed, angle, title="residual"):
     """Residual in time, in shaft orders and as an angle-domain average (one figure)."""
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3))
-    ax[0].plot(t, residual, lw=0.6)
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.1))
+    milli = np.nanmax(np.abs(residual)) < 0.1
+    k = 1e3 if milli else 1.0
+    u = "mN·m" if milli else "N·m"
+    ax[0].plot(t, residual * k, lw=0.5, color="0.25")
     ax[0].set_xlabel("time [s]")
-    ax[0].set_ylabel(f"{title} [N·m]")
+    ax[0].set_ylabel(f"{title} [{u}]")
+    ax[0].set_title("residual (measured − model)", fontsize=9)
     sp = order_spectrum(residual, t[1] - t[0], speed)
-    ax[1].plot(sp["order"], sp["amplitude"], lw=0.8)
-    for pk in sp["peaks"][:5]:
-        ax[1].annotate(f"{pk['order']:.2f}", (pk["order"], pk["amplitude"]), fontsize=7)
-    ax[1].set_xlim(0, min(40, sp["order"].max()))
-    ax[1].set_xlabel("shaft order")
-    ax[1].set_ylabel("amplitude [N·m]")
+    ax[1].plot(sp["order"], sp["amplitude"] * k, lw=0.8)
+    top = min(40, sp["order"].max())
+    for pk in [p for p in sp["peaks"] if p["order"] <= top][:5]:
+        ax[1].annotate(f"{pk['order']:.2f}", (pk["order"], pk["amplitude"] * k), fontsize=7,
+                       xytext=(2, 2), textcoords="offset points")
+    ax[1].set_xlim(0, top)
+    ax[1].set_xlabel(f"shaft order (1 = {sp['shaft_hz']:.4g} Hz)")
+    ax[1].set_ylabel(f"amplitude [{u}]")
+    ax[1].set_title("order spectrum (Hann window)", fontsize=9)
     sa = synchronous_average(residual, angle)
-    ax[2].plot(np.degrees(sa["angle"]), sa["average"])
-    ax[2].set_xlabel("rotor angle [deg]")
-    ax[2].set_ylabel("angle-domain average [N·m]")
+    ax[2].plot(np.degrees(sa["angle"]), sa["average"] * k)
+    ax[2].set_xlim(0, 360)
+    ax[2].set_xticks(range(0, 361, 90))
+    ax[2].set_xlabel("rotor angle θ [deg]")
+    ax[2].set_ylabel(f"angle-domain average [{u}]")
+    ax[2].set_title("synchronous average over revolutions", fontsize=9)
     for a in ax:
+        a.grid(alpha=0.3)
+        tidy_axis(a)
+    fig.tight_layout()
+    return figure_html(fig)
+
+
+def torque_overlay(res, label="fitted model", show_initial=True):
+    """Measured torque (dots) and the model against the rotor angle in degrees, all revolutions
+    overlaid: a steady pump's torque is one curve, not a solid band over time."""
+    theta = np.asarray(res.angle, dtype=float)
+    deg = np.degrees(np.mod(theta, 2 * math.pi))
+    turns = abs(theta[-1] - theta[0]) / (2 * math.pi)
+    fig, ax = plt.subplots(figsize=(11.5, 3.8))
+    ax.plot(deg, res.measured, ".", ms=1.5, color="0.55", label=f"measured ({len(deg)} samples)")
+    # the models over the last revolution only: a line per revolution would smear the torque steps
+    last = np.abs(theta - theta[0]) >= abs(theta[-1] - theta[0]) - 2 * math.pi
+    tag = " (last revolution)" if turns > 1 else ""
+    if show_initial and getattr(res, "initial_model", None) is not None:
+        ax.plot(*_wrapped(deg[last], np.asarray(res.initial_model)[last]), color="C1", lw=1.0, ls="--",
+                label="initial model" + tag)
+    ax.plot(*_wrapped(deg[last], np.asarray(res.fitted)[last]), color="C0", lw=1.3, label=label + tag)
+    ax.set_xlim(0, 360)
+    ax.set_xticks(range(0, 361, 45))
+    ax.set_xlabel(f"rotor angle θ [deg] ({turns:.3g} revolutions overlaid)")
+    ax.set_ylabel("drive torque τ [N·m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8, markerscale=5)
+    ax.grid(alpha=0.3)
+    tidy_axis(ax)
+    fig.tight_layout()
+    return figure_html(fig)
+
+
+def _status(res) -> str:
+    d = res.diagnostics
+    cls = "ok" if res.converged and d["white_at_5pct"] and not res.unidentifiable else "warn"
+    return (f"<p class={cls}>{html.escape(res.method)}: <b>{'converged' if res.converged else 'NOT converged'}</b>"
+            f" ({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
+            f"{nb(format(res.rms, '.4g') + ' N·m')}, residual {'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
+            f"{res.wall_time:.2f} s.</p>")
+
+
+# -- identification --------------------------------------------------------------------------------
+
+def identification_report(res, path, title="pumpsim identification", cfg=None, data=None,
+                          provenance_rows=None) -> None:
+    """Write the HTML report of an IdentificationResult to `path`.
+
+    cfg: the PumpConfig fitted (names, harmonic orders, kernel key for the provenance block);
+    data: the Dataset(s) or file path(s) fitted (file name and SHA-256); provenance_rows replaces
+    the computed provenance."""
+    harmonics = getattr(cfg, "harmonics", None)
+    rows_p = provenance_rows if provenance_rows is not None else provenance(cfg, data)
+    parts = [f"<h1>{html.escape(title)}</h1>", provenance_line(rows_p), _status(res)]
+    if res.unidentifiable:
+        parts.append(f"<p class=warn>Not identifiable from this data (no number given): "
+                     f"{html.escape(', '.join(res.unidentifiable))}</p>")
+    d = res.diagnostics
+    parts.append(interval_warning(d["white_at_5pct"], d["runs_test"]["p_value"], d["ljung_box"]["p_value"],
+                                  res.residual))
+    rows = []
+    for e in res.estimates.values():
+        rows.append(param_row(e.name, e.value, e.stderr, e.lower95, e.upper95, e.initial, harmonics))
+    parts.append("<h2>Parameters</h2>" + table(PARAM_HEADERS, rows)
+                 + f"<p class=note>{html.escape(PLUS_MINUS)}. Lengths are shown in mm or µm; "
+                   "the config and the JSON are SI.</p>")
+    if res.correlation is not None and len(res.correlation) > 1:
+        names = [n for n, e in res.estimates.items() if e.identifiable]
+        parts.append("<h3>Correlation of the estimates</h3>" + table(
+            [""] + names, [[Cell(n)] + [Cell(f"{v:+.3f}", True) for v in r] for n, r in zip(names, res.correlation)]))
+    parts.append("<h2>Measured and model torque</h2>" + torque_overlay(res))
+    parts.append("<h2>Iteration history</h2>" + _iteration_figure(res, harmonics))
+    parts.append("<h2>Residual</h2><p>" + html.escape(
+        f"Runs test p = {d['runs_test']['p_value']:.3g} ({d['runs_test']['runs']} runs), Ljung–Box p = "
+        f"{d['ljung_box']['p_value']:.3g} over {d['ljung_box']['lags']} lags: "
+        f"{'white' if d['white_at_5pct'] else 'not white'} at 5 %.") + "</p>")
+    parts.append(residual_figures(res.time, res.residual, res.speed, res.angle))
+    parts.append(provenance_html(rows_p))
+    write_page(path, title, parts)
+
+
+def _iteration_figure(res, harmonics=None):
+    names = list(res.iterations[0]["params"])
+    fig, ax = plt.subplots(1, len(names) + 1, figsize=(3.3 * (len(names) + 1), 2.9), squeeze=False)
+    ax = ax[0]
+    its = np.arange(len(res.iterations))
+    for a, n in zip(ax, names):
+        label, unit = describe(n, harmonics)
+        vals = np.array([it["params"][n] for it in res.iterations], dtype=float)
+        f, shown = display_scale(unit, float(np.nanmax(np.abs(vals))) if vals.size else None)
+        a.plot(its, vals * f, "o-", ms=4)
+        a.set_title(f"{n} [{shown}]", fontsize=9)
+        tidy_axis(a, vals * f)
+    rms = np.array([max(it["rms"], 1e-300) for it in res.iterations])
+    if rms.max() / rms.min() > 30:
+        ax[-1].semilogy(its, rms, "o-", ms=4, color="k")
+        ax[-1].set_title("residual RMS [N·m]", fontsize=9)
+    else:
+        milli = rms.max() < 0.1
+        ax[-1].plot(its, rms * (1e3 if milli else 1.0), "o-", ms=4, color="k")
+        ax[-1].set_title(f"residual RMS [{'mN·m' if milli else 'N·m'}]", fontsize=9)
+        tidy_axis(ax[-1])
+    for a in ax:
+        a.set_xlabel("iteration")
+        a.xaxis.set_major_locator(MaxNLocator(integer=True))
         a.grid(alpha=0.3)
     fig.tight_layout()
     return figure_html(fig)
 
 
-def table(headers, rows) -> str:
-    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in headers)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(_fmt(c))}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
+# -- diagnosis -------------------------------------------------------------------------------------
+
+def _get(out, key, default=None):
+    if isinstance(out, dict):
+        return out.get(key, default)
+    return getattr(out, key, default)
 
 
-def _fmt(x):
-    if isinstance(x, float):
-        return "—" if math.isnan(x) else f"{x:.6g}"
-    return "—" if x is None else str(x)
+def _history(out):
+    return _get(out, "history") or _get(out, "_history") or []
 
 
-def identification_report(res, path, title="pumpsim identification") -> None:
-    parts = [f"<h1>{html.escape(title)}</h1>",
-             f"<p>{html.escape(res.method)}: {'converged' if res.converged else 'not converged'} "
-             f"({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
-             f"{res.rms:.6g} N·m, {res.wall_time:.3f} s.</p>"]
-    if res.unidentifiable:
-        parts.append(f"<p class=warn>Not identifiable from this data: {', '.join(res.unidentifiable)}</p>")
-    rows = [(e.name, e.initial, e.value, e.stderr, e.lower95, e.upper95) for e in res.estimates.values()]
-    parts.append("<h2>Parameters</h2>" + table(["parameter", "start", "estimate", "std. error",
-                                                  "95% low", "95% high"], rows))
-    if res.correlation is not None and len(res.correlation) > 1:
-        names = [n for n, e in res.estimates.items() if e.identifiable]
-        parts.append("<h3>Correlation</h3>" + table([""] + names, [[n, *map(float, r)]
-                                                                   for n, r in zip(names, res.correlation)]))
-    fig, ax = plt.subplots(figsize=(11, 3.5))
-    ax.plot(res.time, res.measured, "k", lw=0.6, label="measured")
-    ax.plot(res.time, res.initial_model, "C1", lw=0.8, label="initial model")
-    ax.plot(res.time, res.fitted, "C0", lw=0.8, label="fitted model")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("torque [N·m]")
-    ax.legend()
-    ax.grid(alpha=0.3)
-    parts.append("<h2>Measured, initial and fitted torque</h2>" + figure_html(fig))
-    names = list(res.iterations[0]["params"])
-    fig, ax = plt.subplots(1, len(names) + 1, figsize=(3.2 * (len(names) + 1), 2.8))
-    its = np.arange(len(res.iterations))
-    for a, n in zip(ax, names):
-        a.plot(its, [it["params"][n] for it in res.iterations], "o-")
-        a.set_title(n)
-        a.set_xlabel("iteration")
-    ax[-1].semilogy(its, [max(it["rms"], 1e-300) for it in res.iterations], "o-")
-    ax[-1].set_title("residual RMS")
-    fig.tight_layout()
-    parts.append("<h2>Iteration history</h2>" + figure_html(fig))
-    d = res.diagnostics
-    parts.append("<h2>Residual</h2><p>" + html.escape(
-        f"runs test p = {d['runs_test']['p_value']:.3g} (runs {d['runs_test']['runs']}), Ljung-Box p = "
-        f"{d['ljung_box']['p_value']:.3g} over {d['ljung_box']['lags']} lags: "
-        f"{'white' if d['white_at_5pct'] else 'not white'} at 5%.") + "</p>")
-    parts.append(residual_figures(res.time, res.residual, res.speed, res.angle))
-    write_page(path, title, parts)
+def bic_chain(history) -> list | None:
+    """BIC of every model in the history with ONE prewhitening filter (AR(1) of the baseline
+    residual), so a step's "before" is the previous step's "after". The workflow's own decision
+    prewhitens each step with the residual it starts from; its ΔBIC is shown beside this."""
+    from .diagnose import _bic, _whitened_rss
 
-
-def write_page(path, title, parts) -> None:
-    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
-            f"<style>{CSS}</style></head><body>{''.join(parts)}</body></html>")
-    write_text(path, page)
-
-
-def diagnosis_report(out, path, title="pumpsim diagnosis") -> None:
-    parts = [f"<h1>{html.escape(title)}</h1>", f"<p>{html.escape(out['method'])}.</p>"]
-    rows = [("baseline", "", f"{out['baseline']['rms']:.6g}", "", "", ", ".join(
-        f"{k} = {v['value']:.6g}" for k, v in out["baseline"]["params"].items() if v["value"] is not None))]
-    for s in out["steps"]:
-        ps = ", ".join(f"{k} = {v['value']:.5g} ± {1.96 * v['stderr']:.2g}" if isinstance(v, dict) else f"{k} = {v}"
-                       for k, v in s["params"].items())
-        rows.append((s["effect"], f"{s['rms_before']:.6g}", f"{s['rms_after']:.6g}", f"{s['p_value']:.3g}",
-                     f"{s['bic_before']:.1f} -> {s['bic_after']:.1f}", ps))
-    parts.append("<h2>Steps</h2>" + table(["effect", "RMS before", "RMS after", "p-value", "BIC",
-                                           "parameters (95 % intervals)"], rows))
-    f = out["final"]
-    verdict = "white" if f["residual_white"] else "NOT white"
-    parts.append(f"<p>Final residual RMS {f['rms']:.6g} N·m, {verdict} (runs p = {f['runs_p_value']:.3g}, "
-                 f"Ljung-Box p = {f['ljung_box_p_value']:.3g}).</p>")
-    if out["unexplained"]:
-        parts.append("<p class=warn>Unexplained residual: no candidate effect explains it. Peaks at shaft orders "
-                     + ", ".join(f"{w['order']:.3f} ({w['frequency']:.1f} Hz)" for w in out["unexplained_where"])
-                     + ".</p>")
-    for a, b in out["confounded"]:
-        parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} — a measurement at a "
-                     "second speed would separate them.</p>")
-    for h in out["_history"]:
+    if not history:
+        return None
+    rho = min(max(ar1(history[0]["result"].residual), -0.99), 0.99)
+    out = []
+    for h in history:
         r = h["result"]
-        fig, ax = plt.subplots(figsize=(11, 3))
-        ax.plot(r.time, r.measured, "k", lw=0.5, label="measured")
-        ax.plot(r.time, r.fitted, "C0", lw=0.8, label=f"model ({h['label']})")
-        ax.set_xlabel("time [s]")
-        ax.set_ylabel("torque [N·m]")
-        ax.legend()
-        ax.grid(alpha=0.3)
-        parts.append(f"<h2>After {html.escape(h['label'])}</h2>" + figure_html(fig))
+        rss, n = _whitened_rss(np.asarray(r.residual, dtype=float), rho)
+        k = sum(1 for e in r.estimates.values() if e.identifiable)
+        out.append(_bic(rss, n, k))
+    return out, rho
+
+
+def _nb_list(items) -> str:
+    return "; ".join(nb(x) for x in items)
+
+
+def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, provenance_rows=None) -> None:
+    """Write the HTML report of a diagnosis (see the module docstring for what it reads)."""
+    rows_p = provenance_rows if provenance_rows is not None else provenance(cfg, data)
+    history = _history(out)
+    steps = _get(out, "steps", [])
+    final = _get(out, "final")
+    parts = [f"<h1>{html.escape(title)}</h1>", provenance_line(rows_p)]
+    named = [s["effect"] for s in steps]
+    verdict = (f"Effects named: <b>{html.escape(', '.join(named))}</b>." if named else
+               "No effect of the library is named.")
+    white = final["residual_white"]
+    rms_final, rms_base = f"{final['rms']:.4g} N·m", f"{_get(out, 'baseline')['rms']:.4g} N·m"
+    verdict += (f" Final residual RMS {nb(rms_final)} (baseline {nb(rms_base)}), "
+                f"{'white' if white else '<b>not white</b>'} at 5 % "
+                f"(runs p = {final['runs_p_value']:.3g}, Ljung–Box p = {final['ljung_box_p_value']:.3g}).")
+    parts.append(f"<p class={'ok' if white and not _get(out, 'unexplained') else 'warn'}>{verdict}</p>")
+    if _get(out, "unexplained"):
+        parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Peaks at shaft "
+                     "orders " + ", ".join(nb(f"{w['order']:.3f} ({w['frequency']:.1f} Hz)")
+                                           for w in _get(out, "unexplained_where", [])) + ".</p>")
+    for a, b in _get(out, "confounded", []):
+        parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} have nearly collinear "
+                     f"effects on this data, which cannot tell them apart: {html.escape(a)} is not named "
+                     "(see the notes).</p>")
+    last_res = history[-1]["result"] if history else None
+    parts.append(interval_warning(white, final["runs_p_value"], final["ljung_box_p_value"],
+                                  None if last_res is None else last_res.residual))
+    parts.append(_steps_table(out, history, steps))
+    parts.append(_final_table(out, history, steps, cfg))
+    screens = _get(out, "screens") or []
+    if screens:
+        parts.append("<h2>Candidate ranking</h2><p class=note>Each screen tests every candidate of the library "
+                     "by a score (Lagrange-multiplier) test at the current fit, no refit; the significant ones "
+                     "(p below the Bonferroni level) are ranked by p-value, the best few refitted and compared "
+                     "by BIC. ΔBIC &lt; 0 favours the candidate.</p>")
+        for i, sc in enumerate(screens):
+            parts.append(_ranking_table(i, sc))
+    notes = _get(out, "notes", [])
+    if notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
+    parts.append(f"<p class=note>Method: {html.escape(str(_get(out, 'method', '')))}.</p>")
+    for h in history:
+        r = h["result"]
+        parts.append(f"<h2>Model after: {html.escape(h['label'])} (RMS {r.rms:.4g} N·m)</h2>")
+        parts.append(torque_overlay(r, label=f"model ({h['label']})", show_initial=False))
         parts.append(residual_figures(r.time, r.residual, r.speed, r.angle))
+    parts.append(provenance_html(rows_p))
     write_page(path, title, parts)
+
+
+def _steps_table(out, history, steps) -> str:
+    chain = bic_chain(history) if len(history) == len(steps) + 1 else None
+    base = _get(out, "baseline")
+    headers = ["step", "RMS [N·m]", "RMS change", "score-test p", "BIC", "ΔBIC (step's test)", "parameters (± s.e.)"]
+    base_items = [parameter_text(n, v["value"], v["stderr"]) for n, v in base["params"].items()]
+    rows = [[Cell("baseline"), Cell(f"{base['rms']:.5g}", True), Cell("", True), Cell("", True),
+             Cell("—" if chain is None else f"{chain[0][0]:.1f}", True), Cell("", True),
+             Cell(_nb_list(base_items), raw=True)]]
+    for i, s in enumerate(steps):
+        change = (s["rms_after"] - s["rms_before"]) / s["rms_before"] * 100 if s["rms_before"] else float("nan")
+        rows.append([Cell(s["effect"]), Cell(f"{s['rms_after']:.5g}", True), Cell(f"{change:+.1f} %", True),
+                     Cell(f"{s['p_value']:.2g}", True),
+                     Cell("—" if chain is None else f"{chain[0][i + 1]:.1f}", True),
+                     Cell(f"{s['bic_after'] - s['bic_before']:+.1f}", True),
+                     Cell(_nb_list(step_parameters(s)), raw=True)])
+    note = (f"BIC = n ln(RSS/n) + k ln n of each model's residual, all prewhitened with one AR(1) filter "
+            f"(ρ = {chain[1]:.3f}, the baseline residual's), so each step's 'before' is the row above. "
+            "ΔBIC is the workflow's acceptance test, which prewhitens with the AR(1) coefficient of the "
+            "residual that step starts from." if chain else
+            "ΔBIC is the workflow's acceptance test (prewhitened with the AR(1) coefficient of the residual "
+            "the step starts from).")
+    return ("<h2>Steps</h2>" + table(headers, rows)
+            + f"<p class=note>{html.escape(note)} {html.escape(PLUS_MINUS)}.</p>")
+
+
+def _final_table(out, history, steps, cfg) -> str:
+    """Every parameter of the final model with its unit; out-of-round and ripple coefficients as
+    amplitude and phase (from the final fit, delta-method standard errors)."""
+    harmonics = list(getattr(cfg, "harmonics", []) or [])
+    polar_names = {}
+    for s in steps:
+        if "amplitude" in s["params"]:
+            raw = [n for n, v in s["params"].items() if isinstance(v, dict) and n not in ("amplitude", "phase")]
+            polar_names[s["effect"]] = (raw, s["params"].get("order"))
+        if s["effect"] == "housing_out_of_round":
+            k = s["params"]["order"]
+            harmonics += [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]]
+    rows = []
+    last = history[-1]["result"] if history else None
+    skip = {n for raw, _ in polar_names.values() for n in raw}
+    params = _get(out, "final")["params"]
+    for n, v in params.items():
+        if n in skip:
+            continue
+        e = last.estimates.get(n) if last is not None else None
+        rows.append(param_row(n, v["value"], v["stderr"], getattr(e, "lower95", None), getattr(e, "upper95", None),
+                              None, harmonics))
+    if last is not None:
+        from .diagnose import _polar
+
+        for effect, (raw, k) in polar_names.items():
+            if not all(n in last.estimates and last.estimates[n].identifiable for n in raw):
+                continue
+            A, ph = _polar(last, raw, k)
+            if effect == "housing_out_of_round":
+                rows.append(_polar_row(f"out-of-round k = {k}", "radial amplitude A_k", A, 1e6, "µm"))
+                rows.append(_polar_row(f"out-of-round k = {k}", "phase γ_k (A cos k(α − γ))",
+                                       {"value": ph["value"] / k, "stderr": ph["stderr"] / k}, 1.0, "rad"))
+            else:
+                rows.append(_polar_row(f"speed ripple k = {k}", "amplitude (ω = ω0 (1 + A cos(kθ + φ)))", A, 100, "% of ω0"))
+                rows.append(_polar_row(f"speed ripple k = {k}", "phase φ", ph, 1.0, "rad"))
+    return ("<h2>Final model parameters</h2>" + table(["parameter", "meaning", "unit", "estimate ± s.e."],
+                                                      [[r[0], r[1], r[2], r[4]] for r in rows])
+            + f"<p class=note>{html.escape(PLUS_MINUS)}.</p>")
+
+
+def _polar_row(name, meaning, v, f, unit):
+    extra = f" ({math.degrees(v['value']):.4g}°)" if unit == "rad" else ""
+    return [Cell(name), Cell(meaning), Cell(unit), None,
+            Cell(nb(fmt_estimate(v["value"] * f, v["stderr"] * f) + extra), True, raw=True)]
+
+
+def _ranking_table(i, screen) -> str:
+    headers = ["rank", "candidate", "score-test p", "significant", "one-step RMS [N·m]", "refit ΔBIC",
+               "refit LR p", "collinear with"]
+    rows, classes = [], []
+    for k, r in enumerate(screen["candidates"], 1):
+        rows.append([Cell(str(k), True), Cell(r["candidate"]), Cell(f"{r['p_value']:.2g}", True),
+                     Cell("yes" if r["significant"] else "no"),
+                     Cell("—" if r.get("one_step_rms") is None else f"{r['one_step_rms']:.5g}", True),
+                     Cell("—" if r.get("refit_delta_bic") is None else f"{r['refit_delta_bic']:+.1f}", True),
+                     Cell("—" if r.get("refit_lr_p_value") is None else f"{r['refit_lr_p_value']:.2g}", True),
+                     Cell(r.get("collinear_with") or "")])
+        classes.append("chosen" if r["candidate"] == screen.get("chosen") else None)
+    chosen = screen.get("chosen")
+    shown = RANKING_SHOWN
+    visible = table(headers, rows[:shown], row_classes=classes[:shown])
+    if len(rows) > shown:
+        visible += (f"<details><summary>all {len(rows)} candidates</summary>"
+                    + table(headers, rows, row_classes=classes) + "</details>")
+    head = (f"<h3>Screen {i + 1} (after {html.escape(screen['after'])}): "
+            f"{'chose ' + html.escape(chosen) if chosen else 'nothing accepted'}; Bonferroni level "
+            f"{screen['alpha']:.2g}</h3>")
+    return head + visible

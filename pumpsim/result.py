@@ -52,10 +52,12 @@ class SimulationResult:
         with atomic_path(path) as tmp:
             np.savetxt(tmp, data, delimiter=",", header=",".join(cols), comments="", fmt="%.10g")
 
-    def plot(self, path) -> None:
+    def plot(self, path, name: str | None = None, x: str = "angle") -> None:
+        """Figure set (.png/.svg/.pdf): versus rotor angle in degrees, revolutions overlaid
+        (x="time": versus time); `name` (the config's) goes into the title."""
         from .plotting import plot_simulation
 
-        plot_simulation(self, path)
+        plot_simulation(self, path, name=name, x=x)
 
     def summary(self) -> str:
         tq = self.torque

@@ -1,0 +1,198 @@
+"""How numbers are shown to an engineer: parameter names and units, the meaning of "±", value
+formatting and the provenance of a result. One place, so the CLI text and the HTML reports agree.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import math
+import re
+from pathlib import Path
+
+# "±" means the same on the terminal, in JSON ("stderr") and in the HTML reports.
+PLUS_MINUS = "± = one standard error (1σ, from σ²(JᵀJ)⁻¹); 95 % intervals use the t distribution"
+
+OPTIMISTIC = ("the residual is not white: the ± and the intervals assume independent errors and are "
+              "optimistic (too narrow)")
+
+# fitted names that are not config keys (identify.SPECIAL): label, SI unit
+_SPECIAL = {
+    "mu": ("vane–housing COF μ (dynamic)", "-"),
+    "mu_slot": ("slot-wall COF μ_r (dynamic)", "-"),
+    "theta0": ("rotor angle at the first sample θ0", "rad"),
+    "speed": ("rotor speed ω", "rad/s"),
+    "speed0": ("initial rotor speed ω0", "rad/s"),
+    "torque_offset": ("torque-sensor offset", "N m"),
+    "delay": ("time delay of the torque signal", "s"),
+    "lag": ("torque-sensor time constant", "s"),
+    "ripple_cos": ("speed ripple, cos component (relative)", "-"),
+    "ripple_sin": ("speed ripple, sin component (relative)", "-"),
+}
+_CONFIG_DOC = {
+    "housing.center.0": "housing centre x (rotor eccentricity)",
+    "housing.center.1": "housing centre y (rotor eccentricity)",
+    "housing.a": "housing semi-axis a", "housing.b": "housing semi-axis b",
+    "housing.angle": "housing angle ψ",
+    "effects.viscous_tip_friction": "viscous tip friction (force per slip speed)",
+    "operation.bearing_torque": "bearing torque",
+}
+UNIT_TEXT = {"-": "–", "N m": "N·m", "kg m^2": "kg·m²", "N s/m": "N·s/m", "rad": "rad", "m": "m"}
+
+
+def _registry_unit(name: str) -> str | None:
+    from .model_spec.parameters import Structure, layout
+
+    generic = re.sub(r"^(housing\.harmonics|effects\.vane_friction_factor)\.\d+", r"\1.0", name)
+    units = {p.name: p.unit for p in layout(Structure(model="contact", vanes=1, harmonics=1))}
+    return units.get(generic)
+
+
+def split_measurement(name: str):
+    """'theta0@1' -> ('theta0', 1); 'mu' -> ('mu', None): joint fits name per-measurement values."""
+    base, sep, idx = name.partition("@")
+    return base, (int(idx) if sep and idx.isdigit() else None)
+
+
+def describe(name: str, harmonics=None) -> tuple[str, str]:
+    """(label an engineer reads, SI unit) for a fitted parameter name. `harmonics`: the config's
+    list of [k, A, γ] so a harmonic slot is named by its order instead of its index."""
+    base, meas = split_measurement(name)
+    suffix = f" (measurement {meas + 1})" if meas is not None else ""
+    if base in _SPECIAL:
+        label, unit = _SPECIAL[base]
+        return label + suffix, unit
+    m = re.fullmatch(r"housing\.harmonics\.(\d+)\.(order|amplitude|phase)", base)
+    if m:
+        j, what = int(m.group(1)), m.group(2)
+        unit = {"order": "-", "amplitude": "m", "phase": "rad"}[what]
+        if harmonics is not None and j < len(harmonics):
+            k, _, gamma = harmonics[j]
+            part = {"amplitude": f"radial amplitude A{int(k)}", "order": "order",
+                    "phase": "phase γ"}[what]
+            return f"housing harmonic k = {int(k)} (γ = {gamma:.4g} rad), {part}{suffix}", unit
+        return f"housing harmonic slot {j}, {what}{suffix}", unit
+    m = re.fullmatch(r"effects\.vane_friction_factor\.(\d+)", base)
+    if m:
+        return f"housing-COF factor of vane {m.group(1)}{suffix}", "-"
+    unit = _registry_unit(base) or "?"
+    return _CONFIG_DOC.get(base, base) + suffix, unit
+
+
+def display_scale(unit: str, value: float | None) -> tuple[float, str]:
+    """(factor, unit shown): lengths in mm or µm, everything else in SI."""
+    if unit == "m" and value is not None and math.isfinite(value):
+        return (1e6, "µm") if abs(value) < 1e-3 else (1e3, "mm")
+    return 1.0, UNIT_TEXT.get(unit, unit)
+
+
+def fmt_estimate(value, stderr, digits: int = 2) -> str:
+    """'0.202945 ± 0.000091': the value rounded to the standard error's `digits` significant
+    digits (at least 4 significant digits of the value)."""
+    if value is None:
+        return "not identifiable"
+    if stderr is None or not math.isfinite(stderr) or stderr <= 0:
+        return f"{value:.6g}"
+    e = math.floor(math.log10(stderr)) - (digits - 1)
+    dec = max(0, -e)
+    if abs(value) > 0 and math.floor(math.log10(abs(value))) - e < 3:  # keep >= 4 digits of the value
+        dec = max(dec, 3 - math.floor(math.log10(abs(value))))
+    if dec > 9 or abs(value) >= 1e7:
+        return f"{value:.4g} ± {stderr:#.{digits}g}"
+    return f"{value:.{dec}f} ± {stderr:#.{digits}g}"
+
+
+def fmt_number(x, sig: int = 6) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "—"
+    if isinstance(x, (int,)) and not isinstance(x, bool):
+        return str(x)
+    return f"{x:.{sig}g}".replace("e-0", "e-").replace("e+0", "e+")
+
+
+def sha256(path) -> str | None:
+    try:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        return h.hexdigest()
+    except OSError:
+        return None
+
+
+def provenance(cfg=None, data=None, kernel_key=None) -> list[tuple[str, str]]:
+    """What a reader needs to reproduce a result: data file(s) and their SHA-256, the config (name,
+    path, SHA-256), the date (UTC), the pumpsim version and the compiled kernel's cache key.
+    `data`: a Dataset, a path, or a list of them."""
+    from . import __version__
+
+    rows = []
+    items = data if isinstance(data, (list, tuple)) else ([data] if data is not None else [])
+    for i, d in enumerate(items):
+        src = getattr(d, "source", d)
+        tag = "data file" if len(items) == 1 else f"data file {i + 1}"
+        if src:
+            p = Path(str(src))
+            digest = sha256(p)
+            rows.append((tag, str(p.resolve()) if p.exists() else str(src)))
+            rows.append((f"{tag} SHA-256", digest or "(not a file: arrays passed in memory)"))
+            n = getattr(d, "n", None)
+            if n is not None:
+                rows.append((f"{tag} samples", str(n)))
+        else:
+            rows.append((tag, "(arrays passed in memory)"))
+    if cfg is not None:
+        rows.append(("config", f"{cfg.name}" + (f" ({Path(cfg.path).resolve()})" if cfg.path else "")))
+        if cfg.path and sha256(cfg.path):
+            rows.append(("config SHA-256", sha256(cfg.path)))
+    if kernel_key is None and cfg is not None:
+        kernel_key = kernel_key_of(cfg)
+    if kernel_key:
+        rows.append(("compiled kernel", kernel_key))
+    rows.append(("pumpsim version", __version__))
+    rows.append(("date (UTC)", _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")))
+    return rows
+
+
+def kernel_key_of(cfg, model: str = "constrained") -> str | None:
+    """Variant and cache key of the compiled kernel the config selects (never builds one)."""
+    try:
+        from .kernels import load_kernels
+
+        st = cfg.parameters(model).structure
+        return f"{st.variant}-{load_kernels(st, build=False).key}"
+    except Exception:  # provenance must never break a report  # noqa: BLE001
+        return None
+
+
+def step_parameters(step) -> list[str]:
+    """A diagnosis step's parameters as an engineer reads them: order, amplitude and phase with
+    units (out-of-round in µm, speed ripple in % of ω0), other parameters with their units; the
+    (a, b) components behind an amplitude stay in the JSON."""
+    p = step["params"]
+    items = []
+    if "order" in p:
+        items.append(f"order k = {p['order']}")
+    if "amplitude" in p:
+        A, ph = p["amplitude"], p["phase"]
+        if step["effect"] == "housing_out_of_round":
+            items.append(f"radial amplitude {fmt_estimate(A['value'] * 1e6, A['stderr'] * 1e6)} µm")
+            items.append(f"phase γ {fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)")
+        else:  # speed ripple: omega = omega0 (1 + A cos(k theta + phase)), A relative
+            items.append(f"amplitude {fmt_estimate(A['value'] * 100, A['stderr'] * 100)} % of ω0")
+            items.append(f"phase {fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)")
+        return items
+    for name, v in p.items():
+        if isinstance(v, dict):
+            items.append(parameter_text(name, v["value"], v["stderr"]))
+    return items
+
+
+def parameter_text(name, value, stderr) -> str:
+    """'mu 0.16999 ± 0.00038', 'housing centre x … 12.1 ± 0.4 µm': name, estimate ± s.e., unit."""
+    if value is None:
+        return f"{name} not identifiable"
+    _, unit = describe(name)
+    f, shown = display_scale(unit, value)
+    text = f"{name} {fmt_estimate(value * f, None if stderr is None else stderr * f)}"
+    return text if shown in ("–", "?") else f"{text} {shown}"

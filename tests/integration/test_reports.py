@@ -1,0 +1,155 @@
+"""HTML reports: provenance with the right SHA-256, "±" meaning the same on the terminal and in the
+HTML, units on every parameter, the optimistic-interval warning exactly when the residual is not
+white, amplitude/phase instead of raw harmonic coefficients, the candidate ranking, a BIC chain
+whose "before" is the previous "after", integer iteration ticks, self-contained pages."""
+import dataclasses
+import hashlib
+import html
+import math
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import pumpsim
+from pumpsim.diagnose import diagnose, step_table
+from pumpsim.presentation import OPTIMISTIC, PLUS_MINUS, describe
+from pumpsim.report import bic_chain, diagnosis_report
+from tests.conftest import ROOT, make_config
+from tests.integration.test_diagnose_effects import measurement
+
+RIG = ["examples/test_rig.toml", "examples/data/test_rig_measurement.csv"]
+HIDDEN = ["examples/ellipse_4vanes.toml", "examples/data/ellipse_hidden_effects.csv"]
+
+
+def _identify(tmp_path, files, params):
+    rep = tmp_path / "fit.html"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "identify", *files, "--params", params,
+                        "--report", str(rep)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return r.stdout, html.unescape(rep.read_text())
+
+
+def _text(page):
+    return re.sub(r"<[^>]+>", " ", page)
+
+
+def test_identify_report_provenance_units_and_interval_meaning(tmp_path):
+    stdout, page = _identify(tmp_path, RIG, "mu,theta0")
+    sha = hashlib.sha256((ROOT / RIG[1]).read_bytes()).hexdigest()
+    cfg_sha = hashlib.sha256((ROOT / RIG[0]).read_bytes()).hexdigest()
+    text = _text(page)
+    assert sha in text and cfg_sha in text and "test_rig_measurement.csv" in text
+    assert f"pumpsim version {pumpsim.__version__}" in re.sub(r"\s+", " ", text)
+    assert re.search(r"compiled kernel\s+constrained-n4-h0-[0-9a-f]{8,}", text)
+    assert re.search(r"date \(UTC\)\s+\d{4}-\d\d-\d\d \d\d:\d\d:\d\d", text)
+    # "±" is explained by the same sentence on the terminal and in the HTML
+    assert PLUS_MINUS in stdout and PLUS_MINUS in text
+    # every parameter row names its unit
+    rows = re.findall(r"<tr><td class=t>(\w+)</td><td class=t>[^<]*</td><td class=t>([^<]*)</td>", page)
+    assert {n for n, _ in rows} >= {"mu", "theta0"} and all(u for _, u in rows)
+    assert dict(rows)["theta0"] == "rad" and dict(rows)["mu"] == "–"
+    # a white residual on the rig: no optimistic-interval warning anywhere
+    assert OPTIMISTIC not in stdout and "Intervals are optimistic" not in text
+    assert page.count("data:image/png;base64,") >= 3
+    assert not re.search(r"<(img|script|link)[^>]+(src|href)=\"(http|/|\.)", page)
+
+
+def test_identify_warns_that_intervals_are_optimistic_when_the_residual_is_not_white(tmp_path):
+    stdout, page = _identify(tmp_path, HIDDEN, "mu,theta0")  # two hidden effects: residual not white
+    assert OPTIMISTIC in stdout and "Intervals are optimistic" in page and OPTIMISTIC in page
+    # the AR(1) inflation factor is stated and > 1
+    f = float(re.search(r"= ([0-9.]+)×", page).group(1))
+    assert f > 1.5
+
+
+def test_parameter_units_come_from_the_registry():
+    assert describe("housing.harmonics.5.amplitude", [[2, 0, 0]] * 4 + [[4, 0, 0], [4, 0, 0.39]])[1] == "m"
+    assert "k = 4" in describe("housing.harmonics.5.amplitude", [[2, 0, 0]] * 4 + [[4, 0, 0], [4, 0, 0.39]])[0]
+    assert describe("vane.mass") == ("vane.mass", "kg")
+    assert describe("theta0@1")[0].endswith("(measurement 2)")
+    assert describe("effects.viscous_tip_friction")[1] == "N s/m"
+
+
+@pytest.fixture(scope="module")
+def out_of_round_diagnosis():
+    nominal = make_config("ellipse_4vanes")
+    truth = dataclasses.replace(nominal, angle=0.4).with_harmonics([[4, 2e-5, 0.3]])
+    ds, _ = measurement(nominal, truth)
+    return nominal, ds, diagnose(nominal, ds)
+
+
+def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_diagnosis):
+    cfg, ds, out = out_of_round_diagnosis
+    assert out["effects"][:1] == ["housing_out_of_round"]
+    rep = tmp_path / "d.html"
+    diagnosis_report(out, rep, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=ds)
+    page = html.unescape(rep.read_text())
+    text = re.sub(r"\s+", " ", _text(page))
+    # no raw coefficient names; amplitude in µm and phase in rad with the standard error
+    assert "housing.harmonics" not in text
+    assert re.search(r"radial amplitude [0-9.]+ ± [0-9.]+ µm", text)
+    amp = float(re.search(r"radial amplitude ([0-9.]+) ±", text).group(1))
+    assert abs(amp - 20.0) < 2.0  # the truth: 20 µm
+    assert PLUS_MINUS in text and PLUS_MINUS in step_table(out)
+    # the candidate ranking: every library candidate of the first screen, the chosen one marked
+    assert "Candidate ranking" in text and "<tr class=chosen>" in page
+    first = out["screens"][0]
+    assert len(first["candidates"]) == 20 and first["chosen"] == "housing_out_of_round(k=4)"
+    ps = [c["p_value"] for c in first["candidates"]]
+    assert ps == sorted(ps)
+    for c in first["candidates"]:
+        assert c["candidate"] in text
+    # numbers never wrap: every numeric cell is nowrap, parameter lists are nowrap spans
+    assert "td.n{text-align:right;white-space:nowrap" in page and "<span class=nb>" in page
+    assert "(arrays passed in memory)" in text  # a Dataset made in memory says so, no fake hash
+
+
+def test_bic_chain_before_equals_previous_after(out_of_round_diagnosis):
+    _, _, out = out_of_round_diagnosis
+    chain, rho = bic_chain(out["_history"])
+    assert len(chain) == len(out["steps"]) + 1 and -1 < rho < 1
+    # each model's value is computed once, so a step's "before" is the previous step's "after" by
+    # construction; the chain falls where the workflow accepted an effect
+    assert all(b < a for a, b in zip(chain, chain[1:]))
+    # and it is the workflow's own BIC where the prewhitening agrees (the baseline step)
+    assert math.isclose(chain[0], out["steps"][0]["bic_before"], rel_tol=1e-9)
+
+
+def test_iteration_axes_have_integer_ticks_and_labels_are_not_clipped(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pumpsim import report
+
+    cfg = make_config("test_rig")
+    res = pumpsim.simulate(cfg, duration=0.02, rate=10000)
+    y = res.torque + np.random.default_rng(0).normal(0, 1e-3, res.torque.size)
+    from pumpsim.data import Dataset
+    from pumpsim.identify import identify
+
+    fit = identify(cfg, Dataset(res.time, y), ["mu"], initial={"mu": 0.1})
+    captured = []
+    real = report.figure_html
+
+    def grab(fig):
+        fig.canvas.draw()
+        captured.append(fig)
+        return real(fig)
+
+    report.figure_html = grab
+    try:
+        report.identification_report(fit, tmp_path / "r.html", cfg=cfg)
+    finally:
+        report.figure_html = real
+    it_fig = next(f for f in captured if any(a.get_xlabel() == "iteration" for a in f.axes))
+    for ax in it_fig.axes:
+        ticks = ax.get_xticks()
+        lo, hi = ax.get_xlim()
+        shown = [t for t in ticks if lo <= t <= hi]
+        assert all(float(t).is_integer() for t in shown), shown
+    plt.close("all")
