@@ -15,6 +15,7 @@ $(STAMP): pyproject.toml
 
 codegen: install
 	$(BIN)/python -m pumpsim.kernels examples/*.toml
+	$(BIN)/python -m pumpsim.fastkernel examples/*.toml
 
 demo: codegen
 	mkdir -p out

@@ -69,9 +69,12 @@ def bench_inverse_dynamics(n=100_000):
     print(f"compiled vs NumPy: {ratio_numpy:.1f}x single thread, {ratio_threads:.1f}x threaded "
           f"(target >= 20x); compiled vs VM: {ratio_vm:.1f}x (target >= 5x); "
           f"max relative difference compiled/NumPy {agree:.1e}")
+    from kernel_loops import bench_simd  # the SIMD library in the same run (issue 14)
+
+    simd = bench_simd(cfg, kern, p, theta, rows, best_of)
     return {"samples": n, "rows": out, "speedup_vs_numpy": ratio_numpy,
             "speedup_vs_numpy_threaded": ratio_threads, "speedup_vs_vm": ratio_vm,
-            "max_rel_difference_vs_numpy": agree}
+            "max_rel_difference_vs_numpy": agree, "simd": simd}
 
 
 def bench_compile():

@@ -1,0 +1,362 @@
+"""A second, SIMD library of the constrained model's inverse dynamics: many samples per call, several
+samples per instruction.
+
+The scalar library (codegen.build) evaluates one sample per call; CasADi's map calls it once per
+sample and the runtime converts every output from DM. Here the per-vane SX body is written out from
+CasADi's own instruction list (`Function.instruction_*`, not by rewriting generated C text) as the
+body of one `#pragma omp simd` loop over samples, inputs and outputs being arrays with one value per
+sample. gcc then evaluates 4 (AVX2) or 8 (AVX-512) samples per instruction and calls glibc's vector
+sin/cos/atan2 (libmvec) -- which it does only when
+
+- the math functions are declared `simd` (glibc declares them so only under -ffast-math, which would
+  also drop the NaN tests the model relies on): declared here, compiled with -fno-math-errno;
+- sin(x) and cos(x) of one argument are not fused into sincos, which has no vector call in gcc's
+  eyes: every cos argument gets `+ zero`, a volatile 0.0 read once (x + 0.0 == x, cos is even);
+- fmin/fmax/sign are selects, not calls (NaN behaviour kept: fmax returns the non-NaN operand).
+
+The build fails unless gcc reports both vane loops vectorised and vector-math symbols (`_ZGV...`)
+are referenced: a silently scalar loop is not a SIMD library. Key and trust follow the scalar
+library's contract (pumpsim.model_spec.manifest: C source, options, CasADi, source fingerprint,
+library hash); the options add the resolved -march=native target, the CPU's flags and the C
+library (pumpsim.model_spec.simd), so a machine with another CPU builds its own.
+
+Exported C functions (all arrays float64, outputs row-major (1 + 17 N, ld): torque, then each vane
+output for vanes 0..N-1; `ld` lets callers write a column range of a larger array):
+  pumpsim_simd_blocks(n, theta, omega, omegadot, p, block, out, ld): p is (ceil(n / block), n_p),
+      one parameter vector per block of `block` consecutive samples (block = n: one design);
+  pumpsim_simd_samples(n, theta, omega, omegadot, pt, pld, out, ld): pt is (n_p, pld), one
+      parameter vector per sample, stored by parameter.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import casadi as ca
+
+from pumpsim.errors import CodegenError
+from pumpsim.model_spec import manifest as mf
+from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, simd_options, simd_variant
+
+from . import build
+
+CHUNK = 512  # samples per pass over the vanes: the vanes' torque shares stay in L1/L2 for the sum
+VECTOR_FUNCTIONS = ("sin", "cos", "atan2")  # the model's transcendentals with a libmvec variant
+
+_UNARY = {
+    ca.OP_NEG: "(-{0})", ca.OP_SQ: "({0}*{0})", ca.OP_TWICE: "(2.*{0})", ca.OP_INV: "(1./{0})",
+    ca.OP_FABS: "fabs({0})", ca.OP_SQRT: "sqrt({0})", ca.OP_SIN: "sin({0})",
+    ca.OP_COS: "cos({0}+zero)",  # + zero: no sincos fusion (see module docstring)
+    ca.OP_TAN: "tan({0})", ca.OP_EXP: "exp({0})", ca.OP_LOG: "log({0})", ca.OP_ATAN: "atan({0})",
+    ca.OP_ASIN: "asin({0})", ca.OP_ACOS: "acos({0})", ca.OP_TANH: "tanh({0})",
+    ca.OP_SINH: "sinh({0})", ca.OP_COSH: "cosh({0})", ca.OP_FLOOR: "floor({0})",
+    ca.OP_CEIL: "ceil({0})", ca.OP_ERF: "erf({0})",
+    ca.OP_NOT: "(double)(!{0})",
+    ca.OP_SIGN: "({0}<0 ? -1. : ({0}>0 ? 1. : {0}))",  # casadi_sign
+}
+_BINARY = {
+    ca.OP_ADD: "({0}+{1})", ca.OP_SUB: "({0}-{1})", ca.OP_MUL: "({0}*{1})", ca.OP_DIV: "({0}/{1})",
+    ca.OP_LT: "(double)({0}<{1})", ca.OP_LE: "(double)({0}<={1})", ca.OP_EQ: "(double)({0}=={1})",
+    ca.OP_NE: "(double)({0}!={1})", ca.OP_AND: "(double)({0}&&{1})", ca.OP_OR: "(double)({0}||{1})",
+    ca.OP_IF_ELSE_ZERO: "({0} ? {1} : 0.)",
+    # C99 fmax/fmin as NaN-aware selects (gcc vectorises these without -ffinite-math-only)
+    ca.OP_FMAX: "({0}!={0} ? {1} : ({0}<{1} ? {1} : {0}))",
+    ca.OP_FMIN: "({0}!={0} ? {1} : ({1}<{0} ? {1} : {0}))",
+    ca.OP_POW: "pow({0},{1})", ca.OP_CONSTPOW: "pow({0},{1})", ca.OP_ATAN2: "atan2({0},{1})",
+    ca.OP_COPYSIGN: "copysign({0},{1})", ca.OP_FMOD: "fmod({0},{1})",
+}
+
+
+def _const(x: float) -> str:
+    if math.isnan(x):
+        return "NAN"
+    if math.isinf(x):
+        return "INFINITY" if x > 0 else "(-INFINITY)"
+    return repr(float(x))
+
+
+def emit_loop(f: ca.Function, name: str, per_sample: set[int]) -> str:
+    """C text of `static void name(long n, const double *const *in, double *const *out)`: f's SX
+    body in one `omp simd` loop over n samples. in[] holds one pointer per input nonzero (inputs in
+    order): for inputs in `per_sample` it points at n values (one per sample), otherwise at one
+    value shared by all samples. out[] holds one pointer per output nonzero, to n values."""
+    if not f.is_a("SXFunction"):
+        raise TypeError(f"{f.name()} is not an SX function")
+    nz_in = [f.nnz_in(i) for i in range(f.n_in())]
+    off_in = [sum(nz_in[:i]) for i in range(len(nz_in))]
+    nz_out = [f.nnz_out(i) for i in range(f.n_out())]
+    off_out = [sum(nz_out[:i]) for i in range(len(nz_out))]
+    head, body = [], []
+    used_in = set()
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        if op == ca.OP_INPUT:
+            (i, j), (w,) = f.instruction_input(k), f.instruction_output(k)
+            q = off_in[i] + j
+            used_in.add((q, i in per_sample))
+            body.append(f"w{w} = x{q}[s];" if i in per_sample else f"w{w} = x{q};")
+        elif op == ca.OP_OUTPUT:
+            (w,), (i, j) = f.instruction_input(k), f.instruction_output(k)
+            body.append(f"y{off_out[i] + j}[s] = w{w};")
+        elif op == ca.OP_CONST:
+            body.append(f"w{f.instruction_output(k)[0]} = {_const(f.instruction_constant(k))};")
+        elif op in _UNARY:
+            a = f.instruction_input(k)
+            body.append(f"w{f.instruction_output(k)[0]} = " + _UNARY[op].format(f"w{a[0]}") + ";")
+        elif op in _BINARY:
+            a = f.instruction_input(k)
+            body.append(f"w{f.instruction_output(k)[0]} = "
+                        + _BINARY[op].format(f"w{a[0]}", f"w{a[1]}") + ";")
+        else:
+            raise NotImplementedError(f"{f.name()}: SX operation {op} has no SIMD form")
+    for q, per in sorted(used_in):
+        head.append(f"  const double *restrict x{q} = in[{q}];" if per else f"  const double x{q} = *in[{q}];")
+    head += [f"  double *restrict y{q} = out[{q}];" for q in range(sum(nz_out))]
+    work = ", ".join(f"w{w}" for w in range(f.sz_w()))
+    return "\n".join([
+        f"/* {f.name()}: {f.n_instructions()} SX instructions; per-sample inputs "
+        f"{sorted(f.name_in(i) for i in per_sample)} */",
+        f"static void {name}(long n, const double *const *in, double *const *out) {{",
+        *head,
+        "  const double zero = pumpsim_zero;",
+        "  #pragma omp simd",
+        "  for (long s = 0; s < n; ++s) {",
+        f"    double {work};",
+        *("    " + line for line in body),
+        "  }",
+        "}",
+    ])
+
+
+# -- the model's functions, from the same builder and helpers as the scalar library -----------------
+def simd_functions(structure):
+    """SX functions the library loops over: the vane body (exactly the scalar library's), the
+    per-vane arguments taken from p (slot angle, friction factor) and the rotor's torque sum."""
+    from .model import VANE_OUTPUTS, _Builder
+
+    if structure.model != "constrained":
+        raise ValueError("the SIMD library covers the constrained model's inverse dynamics")
+    b = _Builder(structure)
+    vane = b.vane_constrained()
+    N = structure.vanes
+    args = ca.Function("vane_arguments", [b.p], [b.slot_angles(b.p).T, b.factors(b.p).T],
+                       ["p"], ["phi", "factor"])
+    wd, shares = ca.SX.sym("omegadot"), ca.SX.sym("torque_share", N)
+    # as codegen.model.assemble: rotor inertia, bearing torque and the vanes' shares
+    tq = b.pget(b.p, "rotor.inertia") * wd + b.pget(b.p, "operation.bearing_torque") + ca.sum1(shares)
+    torque = ca.Function("rotor_torque", [wd, shares, b.p], [tq], ["omegadot", "torque_share", "p"],
+                         ["torque"])
+    return dict(vane=vane, arguments=args, torque=torque, n_params=len(b.params),
+                outputs=("torque", *VANE_OUTPUTS),
+                share_index=VANE_OUTPUTS.index("torque_share"))
+
+
+_DRIVER = r"""
+/* One design over samples [0, n): theta.. point at sample 0, p at its parameter vector. */
+static void one_design(long n, const double *theta, const double *omega, const double *omegadot,
+                       const double *p, double *out, long ld) {
+  double arg[2 * NV];
+  const double *ain[NP];
+  double *aout[2 * NV];
+  for (int q = 0; q < NP; ++q) ain[q] = p + q;
+  for (int q = 0; q < 2 * NV; ++q) aout[q] = arg + q;
+  loop_arguments_shared(1, ain, aout);
+  const double *vin[5 + NP];
+  double *vout[NO];
+  const double *tin[1 + NV + NP];
+  for (int q = 0; q < NP; ++q) vin[5 + q] = tin[1 + NV + q] = p + q;
+  for (long lo = 0; lo < n; lo += CHUNK) {
+    long m = n - lo < CHUNK ? n - lo : CHUNK;
+    vin[0] = theta + lo; vin[1] = omega + lo; vin[2] = omegadot + lo;
+    for (int k = 0; k < NV; ++k) {
+      vin[3] = arg + k; vin[4] = arg + NV + k;
+      for (int j = 0; j < NO; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;
+      loop_vane_shared(m, vin, vout);
+    }
+    tin[0] = omegadot + lo;
+    for (int k = 0; k < NV; ++k) tin[1 + k] = out + (1 + (long)SHARE * NV + k) * ld + lo;
+    double *tout[1] = {out + lo};
+    loop_torque_shared(m, tin, tout);
+  }
+}
+
+int pumpsim_simd_blocks(long n, const double *theta, const double *omega, const double *omegadot,
+                        const double *p, long block, double *out, long ld) {
+  if (n < 0 || block < 1 || ld < n) return 1;
+  for (long b = 0; b * block < n; ++b) {
+    long lo = b * block, m = n - lo < block ? n - lo : block;
+    one_design(m, theta + lo, omega + lo, omegadot + lo, p + b * NP, out + lo, ld);
+  }
+  return 0;
+}
+
+int pumpsim_simd_samples(long n, const double *theta, const double *omega, const double *omegadot,
+                         const double *pt, long pld, double *out, long ld) {
+  if (n < 0 || pld < n || ld < n) return 1;
+  double arg[2 * NV][CHUNK];
+  const double *ain[NP], *vin[5 + NP], *tin[1 + NV + NP];
+  double *aout[2 * NV], *vout[NO];
+  for (int q = 0; q < 2 * NV; ++q) aout[q] = arg[q];
+  for (long lo = 0; lo < n; lo += CHUNK) {
+    long m = n - lo < CHUNK ? n - lo : CHUNK;
+    for (int q = 0; q < NP; ++q) ain[q] = vin[5 + q] = tin[1 + NV + q] = pt + q * pld + lo;
+    loop_arguments_samples(m, ain, aout);
+    vin[0] = theta + lo; vin[1] = omega + lo; vin[2] = omegadot + lo;
+    for (int k = 0; k < NV; ++k) {
+      vin[3] = arg[k]; vin[4] = arg[NV + k];
+      for (int j = 0; j < NO; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;
+      loop_vane_samples(m, vin, vout);
+    }
+    tin[0] = omegadot + lo;
+    for (int k = 0; k < NV; ++k) tin[1 + k] = out + (1 + (long)SHARE * NV + k) * ld + lo;
+    double *tout[1] = {out + lo};
+    loop_torque_samples(m, tin, tout);
+  }
+  return 0;
+}
+"""
+
+
+def generate_source(structure) -> tuple[str, dict]:
+    fns = simd_functions(structure)
+    N, NP = structure.vanes, fns["n_params"]
+    vane, args, torque = fns["vane"], fns["arguments"], fns["torque"]
+    decl = "".join(f"double {fn}({', '.join(['double'] * (2 if fn == 'atan2' else 1))}) "
+                   f"__attribute__((simd(\"notinbranch\")));\n" for fn in VECTOR_FUNCTIONS)
+    parts = [
+        f"/* pumpsim SIMD inverse dynamics, {structure.variant}; generated by codegen/simd.py */",
+        "#include <math.h>", decl,
+        "static volatile double pumpsim_zero_v = 0.0;",
+        "#define pumpsim_zero pumpsim_zero_v",
+        f"#define NV {N}\n#define NP {NP}\n#define NO {vane.n_out()}\n#define SHARE {fns['share_index']}"
+        f"\n#define CHUNK {CHUNK}",
+        # shared: theta, omega, omegadot per sample, the rest one value; samples: everything per sample
+        emit_loop(vane, "loop_vane_shared", {0, 1, 2}),
+        emit_loop(vane, "loop_vane_samples", set(range(vane.n_in()))),
+        emit_loop(args, "loop_arguments_shared", set()),
+        emit_loop(args, "loop_arguments_samples", {0}),
+        emit_loop(torque, "loop_torque_shared", {0, 1}),
+        emit_loop(torque, "loop_torque_samples", {0, 1, 2}),
+        _DRIVER,
+    ]
+    src = "\n".join(parts)
+    lines = src.splitlines()
+    starts = {m.group(1): i + 1 for i, ln in enumerate(lines) for m in [re.match(r"static void (loop_\w+)\(", ln)] if m}
+    ends = {name: next(i + 1 for i in range(a, len(lines)) if lines[i] == "}") for name, a in starts.items()}
+    info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]),
+            "vane_instructions": vane.n_instructions(),
+            "loop_lines": {name: [starts[name], ends[name]] for name in starts}}
+    return src, info
+
+
+def unvectorised_loops(loop_lines: dict, report: str, names=("loop_vane_shared", "loop_vane_samples")):
+    """The loops among `names` that gcc's -fopt-info-vec-optimized report does not name as
+    vectorised (a loop is found by the source lines of its function)."""
+    done = [int(m.group(1)) for m in re.finditer(r":(\d+):\d+: optimized: loop vectorized", report)]
+    return [nm for nm in names if not any(loop_lines[nm][0] <= ln <= loop_lines[nm][1] for ln in done)]
+
+
+# -- build -----------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def native_target() -> str:
+    """The options gcc derives from -march=native on this CPU (-march, -mtune and every ISA
+    -m flag). "" if gcc cannot say."""
+    try:
+        proc = subprocess.run([build.CC, *SIMD_CFLAGS, "-###", "-x", "c", "-c", os.devnull, "-o",
+                               os.devnull], capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    for line in proc.stderr.splitlines():
+        if "cc1" in line:
+            return " ".join(t.strip('"') for t in line.split() if re.match(r'"?-m(?!64)', t))
+    return ""
+
+
+def vector_symbols(lib: Path) -> list[str]:
+    """Vector-math entry points (_ZGV...) the library calls."""
+    try:
+        out = subprocess.run(["nm", "-D", "--undefined-only", str(lib)], capture_output=True,
+                             text=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return []
+    return sorted({ln.split()[-1].split("@")[0] for ln in out.splitlines() if "_ZGV" in ln})
+
+
+def _compile(structure, source: Path, info: dict, log) -> tuple[Path, dict, float]:
+    lib = source.with_suffix(".so")
+    log(f"compiling the SIMD library of {structure.variant}")
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run([build.CC, *SIMD_CFLAGS, "-fopt-info-vec-optimized", str(source), "-o",
+                               str(lib), "-lm"], capture_output=True, text=True)
+    except OSError as e:
+        raise CodegenError(f"SIMD library of {structure.variant}: cannot run '{build.CC}' ({e.strerror})") from None
+    if proc.returncode != 0:
+        raise CodegenError(f"compiling the SIMD library of {structure.variant} failed:\n{proc.stderr[-2000:]}")
+    scalar = unvectorised_loops(info["loop_lines"], proc.stderr)
+    if scalar:
+        raise CodegenError(f"the SIMD library of {structure.variant}: gcc left {', '.join(scalar)} "
+                           f"scalar with {' '.join(SIMD_CFLAGS)} on this CPU ({native_target()[:40]}...)")
+    vec = vector_symbols(lib)
+    missing = [fn for fn in VECTOR_FUNCTIONS if not any(s.endswith(f"_{fn}") for s in vec)]
+    if missing:
+        raise CodegenError(f"the SIMD library of {structure.variant} calls no vector {', '.join(missing)}"
+                           f" (found {vec or 'none'}): the compiler left its loops scalar")
+    loops = re.findall(r":(\d+):\d+: optimized: loop vectorized using (\d+) byte", proc.stderr)
+    checks = {"vector_symbols": vec, "vectorized_loops": [f"line {ln}: {b} bytes" for ln, b in loops]}
+    return lib, checks, time.perf_counter() - t0
+
+
+def build_simd(structure, log=None) -> Path:
+    """Generate, compile and check the SIMD library; return its folder. As build_variant: a key
+    that exists is reused (only this tree's fingerprint recorded), builds are atomic renames."""
+    log = log or (lambda msg: None)
+    native = native_target()
+    if not native:
+        raise CodegenError(f"{build.CC} cannot resolve -march=native here; no SIMD library")
+    sv = simd_variant(structure)
+    fingerprint = mf.source_fingerprint()
+    base = mf.generated_dir()
+    base.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{sv.variant}.tmp-", dir=base))
+    try:
+        t0 = time.perf_counter()
+        src, info = generate_source(structure)
+        source = tmp / f"{LIBRARY}.c"
+        source.write_text(src)
+        t_gen = time.perf_counter() - t0
+        c_sha = hashlib.sha256(source.read_bytes()).hexdigest()
+        options = simd_options(native)
+        key = mf.content_key(c_sha, ca.__version__, options)
+        final = mf.variant_dir(sv, key)
+        if mf.trusted_manifest(final, sv.variant, ca.__version__, None) is not None:
+            build._record_fingerprint(final, fingerprint)
+            return final
+        lib, checks, t_compile = _compile(structure, source, info, log)
+        manifest = {
+            "key": key, "variant": sv.variant, "structure": structure.as_dict(), "library": lib.name,
+            "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(), "c_source": source.name,
+            "c_source_sha256": c_sha, "casadi": ca.__version__, "options": options,
+            "schema": mf.SCHEMA_VERSION, "source_fingerprints": [fingerprint] if fingerprint else [],
+            **checks, **info, "seconds": {"generate": round(t_gen, 3), "compile": round(t_compile, 3)},
+        }
+        mf.write_manifest(tmp, manifest)
+        try:
+            os.replace(tmp, final)
+        except OSError:  # another process won the race: its build is as good as ours
+            if mf.read_manifest(final) is None:
+                raise
+            build._record_fingerprint(final, fingerprint)
+        log(f"built {final.name} in {t_gen + t_compile:.1f} s (vector calls: {', '.join(checks['vector_symbols'])})")
+        return final
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,240 @@
+"""Inverse dynamics of many samples per call, in SIMD lanes, on NumPy buffers.
+
+`load_fast_kernel(structure)` loads (or builds) the SIMD library of codegen.simd beside the scalar
+one; calling it evaluates the constrained model's inverse dynamics for arrays theta, omega, omegadot
+with one parameter vector for all samples, one per block of consecutive samples (many designs, e.g.
+one revolution each) or one per sample. No CasADi objects are involved: ctypes hands the library
+pointers to float64 arrays and it writes into one preallocated (1 + 17 N, n) array (pass `out=` to
+reuse it: fresh pages cost ~0.2 us per sample). ctypes releases the GIL during the call, so
+`threads > 1` splits the samples over threads.
+
+Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key over C source and
+options, library hash, this tree's source fingerprint) plus this CPU's instruction-set flags and C
+library (pumpsim.model_spec.simd); a missing or mismatched library is built through
+codegen.simd.build_simd, imported only then (PUMPSIM_NO_BUILD=1: refused). On a machine where no
+SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel(...,
+fallback=True)` returns the same interface over the scalar CasADi kernel.
+
+`python -m pumpsim.fastkernel CONFIG ...` loads (building when needed) the SIMD libraries of
+configuration files' constrained variants; `make codegen` runs it on the bundled examples.
+"""
+from __future__ import annotations
+
+import argparse
+import ctypes
+import os
+import sys
+from concurrent.futures import ThreadPoolExecutor
+
+import casadi as ca
+import numpy as np
+
+from .errors import CodegenError, ConfigError
+from .model_spec import manifest as mf
+from .model_spec.outputs import VANE_OUTPUTS
+from .model_spec.parameters import Structure, layout
+from .model_spec.simd import find_simd
+
+_LOADED: dict = {}
+_c_long, _ptr = ctypes.c_long, ctypes.c_void_p
+
+
+class FastInverseDynamics:
+    """Inverse dynamics over samples in SIMD lanes (see the module docstring)."""
+
+    simd = True
+
+    def __init__(self, structure: Structure, folder, manifest: dict):
+        self.structure, self.folder, self.manifest = structure, folder, manifest
+        self.key = manifest["key"]
+        self.vanes, self.n_params = manifest["vanes"], manifest["n_params"]
+        self.outputs = tuple(manifest["outputs"])  # torque, then the per-vane outputs
+        self.rows = 1 + (len(self.outputs) - 1) * self.vanes
+        lib = ctypes.CDLL(str(folder / manifest["library"]))
+        self._blocks, self._samples = lib.pumpsim_simd_blocks, lib.pumpsim_simd_samples
+        self._blocks.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
+        self._samples.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
+        self._blocks.restype = self._samples.restype = ctypes.c_int
+        self._lib = lib
+
+    # -- arguments ---------------------------------------------------------------------------------
+    def _samples_array(self, name, a, n):
+        a = np.asarray(a, dtype=float)
+        if a.ndim > 1 or (a.ndim == 1 and a.size != n):
+            raise ConfigError(f"{name} must be a scalar or have {n} samples, got shape {a.shape}")
+        return np.ascontiguousarray(np.broadcast_to(a, (n,)))
+
+    def output_array(self, n: int) -> np.ndarray:
+        """An output buffer for n samples, to pass as `out=` to repeated calls."""
+        return np.empty((self.rows, n))
+
+    def __call__(self, theta, omega, omegadot, p, block: int | None = None, out=None,
+                 threads: int = 1) -> dict:
+        """Evaluate n samples (n = len(theta)). p: (n_p,) for all samples; (n_blocks, n_p) with
+        `block` samples per row (the last block may be shorter); or (n, n_p) without `block`, one
+        vector per sample. Returns {"torque": (n,), vane output: (N, n)} -- views into `out`."""
+        theta = np.atleast_1d(np.asarray(theta, dtype=float))
+        if theta.ndim != 1:
+            raise ConfigError(f"theta must be one-dimensional, got shape {theta.shape}")
+        n = theta.size
+        theta = np.ascontiguousarray(theta)
+        omega = self._samples_array("omega", omega, n)
+        omegadot = self._samples_array("omegadot", omegadot, n)
+        p = np.asarray(p, dtype=float)
+        if p.shape[-1:] != (self.n_params,) or p.ndim > 2:
+            raise ConfigError(f"p must have {self.n_params} parameters per row ({self.structure.variant}), "
+                              f"got shape {p.shape}")
+        if out is None:
+            out = self.output_array(n)
+        elif out.shape != (self.rows, n) or out.dtype != np.float64 or not out.flags.c_contiguous:
+            raise ConfigError(f"out must be a C-contiguous float64 array of shape {(self.rows, n)}")
+        if p.ndim == 2 and block is None:
+            if p.shape[0] != n:
+                raise ConfigError(f"p has {p.shape[0]} rows for {n} samples; give block= for one "
+                                  "row per block of samples")
+            per_sample, pt = True, np.ascontiguousarray(p.T)
+        else:
+            per_sample = False
+            block = n if p.ndim == 1 else int(block)
+            rows = 1 if p.ndim == 1 else p.shape[0]
+            if block < 1 or rows != max(1, -(-n // block)):
+                raise ConfigError(f"p has {rows} rows; {n} samples in blocks of {block} need "
+                                  f"{max(1, -(-n // block))}")
+            p = np.ascontiguousarray(p)
+        # ranges for threads: whole blocks each
+        unit = 1 if per_sample else block
+        units = -(-n // unit) if n else 0
+        cuts = [min(n, unit * (units * t // max(1, threads))) for t in range(max(1, threads) + 1)]
+
+        def run(lo, hi):
+            if hi <= lo:
+                return 0
+            args = (hi - lo, theta[lo:].ctypes.data, omega[lo:].ctypes.data, omegadot[lo:].ctypes.data)
+            if per_sample:
+                return self._samples(*args, pt[:, lo:].ctypes.data, n, out[:, lo:].ctypes.data, n)
+            return self._blocks(*args, p[lo // block:].ctypes.data, block, out[:, lo:].ctypes.data, n)
+
+        if threads > 1 and n > 1:
+            with ThreadPoolExecutor(threads) as ex:
+                codes = list(ex.map(run, cuts[:-1], cuts[1:]))
+        else:
+            codes = [run(0, n)]
+        if any(codes):
+            raise CodegenError(f"SIMD inverse dynamics of {self.structure.variant} refused its arguments")
+        return self.split(out)
+
+    def split(self, out: np.ndarray) -> dict:
+        N = self.vanes
+        res = {"torque": out[0]}
+        for j, name in enumerate(self.outputs[1:]):
+            res[name] = out[1 + j * N:1 + (j + 1) * N]
+        return res
+
+
+class ScalarInverseDynamics(FastInverseDynamics):
+    """The same interface over the scalar CasADi kernel (machines without a SIMD library)."""
+
+    simd = False
+
+    def __init__(self, structure: Structure, reason: str):
+        from .kernels import load_kernels
+
+        self.structure, self.reason = structure, reason
+        self.kern = load_kernels(structure)
+        self.key, self.folder, self.manifest = self.kern.key, self.kern.folder, self.kern.manifest
+        self.vanes, self.n_params = structure.vanes, len(layout(structure))
+        self.outputs = ("torque", *VANE_OUTPUTS)
+        self.rows = 1 + len(VANE_OUTPUTS) * self.vanes
+
+    def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1):
+        from .simulate import evaluate
+
+        theta = np.atleast_1d(np.asarray(theta, dtype=float))
+        n = theta.size
+        omega = self._samples_array("omega", omega, n)
+        omegadot = self._samples_array("omegadot", omegadot, n)
+        p = np.asarray(p, dtype=float)
+        if p.shape[-1:] != (self.n_params,) or p.ndim > 2:
+            raise ConfigError(f"p must have {self.n_params} parameters per row, got shape {p.shape}")
+        out = self.output_array(n) if out is None else out
+        if p.ndim == 1:
+            block, p = n, p[None, :]
+        elif block is None:
+            block = 1
+        if p.shape[0] != max(1, -(-n // block)):
+            raise ConfigError(f"p has {p.shape[0]} rows for {n} samples in blocks of {block}")
+        N = self.vanes
+        for b, pb in enumerate(p):
+            lo, hi = b * block, min(n, (b + 1) * block)
+            r = evaluate(self.kern, "inverse_dynamics", [theta[lo:hi], omega[lo:hi], omegadot[lo:hi]],
+                         pb, hi - lo)
+            out[0, lo:hi] = r["torque"]
+            for j, name in enumerate(self.outputs[1:]):
+                out[1 + j * N:1 + (j + 1) * N, lo:hi] = r[name]
+        return self.split(out)
+
+
+def _log_if_terminal(msg):
+    if sys.stderr.isatty():
+        print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+
+
+def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: bool = False, log=None):
+    """The SIMD inverse dynamics of `structure` (constrained model), built if missing or stale
+    (unless build=False or PUMPSIM_NO_BUILD=1: then refused). fallback=True: if no SIMD library
+    can be built on this machine, the scalar kernel behind the same interface (`.simd` False,
+    `.reason` says why)."""
+    if structure.model != "constrained":
+        raise ConfigError("the fast inverse dynamics exist for the constrained model only")
+    fingerprint = mf.source_fingerprint()
+    memo = (structure, fingerprint, str(mf.generated_dir()))
+    if memo in _LOADED:
+        return _LOADED[memo]
+    folder, manifest = find_simd(structure, ca.__version__, fingerprint)
+    if manifest is None:
+        if build is None:
+            build = os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0")
+        if not build:
+            raise CodegenError(
+                f"SIMD kernel for {structure.variant} is missing or stale for this source and CPU "
+                f"(source {fingerprint}, in {mf.generated_dir()}); run `make codegen` or unset PUMPSIM_NO_BUILD")
+        from codegen.simd import build_simd  # codegen only when building
+
+        try:
+            build_simd(structure, log=log or _log_if_terminal)
+        except CodegenError as exc:
+            if not fallback:
+                raise
+            _LOADED[memo] = ScalarInverseDynamics(structure, str(exc))
+            return _LOADED[memo]
+        folder, manifest = find_simd(structure, ca.__version__, fingerprint)
+        if manifest is None:
+            raise CodegenError(f"SIMD build of {structure.variant} did not produce a valid library")
+    _LOADED[memo] = FastInverseDynamics(structure, folder, manifest)
+    return _LOADED[memo]
+
+
+def main(argv=None) -> int:
+    from .config import load_config
+
+    ap = argparse.ArgumentParser(description="Load (and build when missing or stale) the SIMD inverse "
+                                             "dynamics of configuration files' constrained variants.")
+    ap.add_argument("configs", nargs="+", help="TOML configs whose variants to load")
+    args = ap.parse_args(argv)
+    seen = set()
+    for path in args.configs:
+        st = load_config(path, check_geometry=False).structure_for("constrained")
+        if st in seen:
+            continue
+        seen.add(st)
+        try:
+            k = load_fast_kernel(st, log=lambda m: print(m, flush=True))
+        except CodegenError as exc:  # the scalar kernels still work: say so, do not fail make
+            print(f"{st.variant}: no SIMD library on this machine: {exc}", flush=True)
+            continue
+        print(f"{st.variant} (SIMD): {k.folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

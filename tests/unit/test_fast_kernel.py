@@ -1,0 +1,154 @@
+"""SIMD inverse dynamics (codegen.simd, pumpsim.fastkernel) against the scalar library; p per
+design, per block and per sample; the cache refuses stale libraries."""
+import numpy as np
+import pytest
+
+import codegen.simd as simd
+from pumpsim import fastkernel
+from pumpsim.model_spec import manifest as mf
+from pumpsim.model_spec import simd as simd_contract
+from pumpsim.errors import CodegenError, ConfigError
+from pumpsim.model_spec.parameters import Structure
+from pumpsim.simulate import inverse_dynamics
+from tests.conftest import kernel_and_p, make_config
+from tests.tolerances import SIMD_REL
+
+CASES = {"plain": {}, "harmonics": {"housing.harmonics": [[3, 3e-5, 0.1], [5, 1e-5, 0.7]]}}
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def case(request):
+    cfg = make_config("ellipse_4vanes", **{"rotor.slot_tilt": 0.1, "vane.tip_radius": 0.001},
+                      **CASES[request.param])
+    kern, p, pv = kernel_and_p(cfg)
+    return kern, fastkernel.load_fast_kernel(pv.structure), p, pv
+
+
+def random_motion(rng, n):
+    """Angles over several turns, speeds of both signs including near-standstill, accelerations."""
+    theta = rng.uniform(0, 6 * np.pi, n)
+    omega = rng.uniform(-600, 600, n)
+    omega[: n // 10] = rng.uniform(-0.02, 0.02, n // 10)
+    return theta, omega, rng.normal(0, 2e4, n)
+
+
+def assert_agree(fast, ref, length):
+    for name, r in ref.items():
+        a, r = np.asarray(fast[name]), np.asarray(r)
+        assert a.shape == r.shape, name
+        if name == "position_residual":  # rounding noise in both
+            assert np.max(np.abs(a - r)) <= SIMD_REL * length, name
+            continue
+        scale = max(np.max(np.abs(r)), 1e-300)
+        assert np.max(np.abs(a - r)) <= SIMD_REL * scale, (name, np.max(np.abs(a - r)) / scale)
+
+
+def test_simd_equals_scalar_at_random_points(case):
+    kern, fk, p, pv = case
+    assert fk.simd and any(s.startswith("_ZGV") for s in fk.manifest["vector_symbols"])
+    theta, omega, omegadot = random_motion(np.random.default_rng(3), 3001)  # not a multiple of a vector
+    ref = inverse_dynamics(kern, p, theta, omega, omegadot)
+    assert set(ref) == set(fk.outputs)
+    assert_agree(fk(theta, omega, omegadot, p), ref, pv.values["housing.a"])
+
+
+def designs(pv, rng, k):
+    """k designs around the base: masses, friction, slot radius and ellipse a few per cent apart."""
+    names = list(pv.names)
+    P = np.tile(np.asarray([pv.values[nm] for nm in names]), (k, 1))
+    for key, rel in (("vane.mass", 0.3), ("friction.housing.dynamic", 0.3), ("rotor.slot_radius", 0.05),
+                     ("housing.a", 0.01), ("rotor.first_slot_angle", 1.0)):
+        P[:, names.index(key)] *= 1 + rel * rng.uniform(-1, 1, k)
+    return P
+
+
+def test_parameters_per_block_and_per_sample(case):
+    kern, fk, p, pv = case
+    rng = np.random.default_rng(5)
+    P = designs(pv, rng, 5)
+    block = 37
+    theta, omega, omegadot = random_motion(rng, 5 * block - 11)  # the last block is shorter
+    n = theta.size
+    blocks = fk(theta, omega, omegadot, P, block=block)
+    per_sample = fk(theta, omega, omegadot, np.repeat(P, block, axis=0)[:n])
+    for b in range(5):
+        sl = slice(b * block, min(n, (b + 1) * block))
+        ref = inverse_dynamics(kern, P[b], theta[sl], omega[sl], omegadot[sl])
+        assert_agree({k: v[..., sl] for k, v in blocks.items()}, ref, pv.values["housing.a"])
+        assert_agree({k: v[..., sl] for k, v in per_sample.items()}, ref, pv.values["housing.a"])
+
+
+def test_threads_and_reused_output_give_the_same_numbers(case):
+    _, fk, p, _ = case
+    theta, omega, omegadot = random_motion(np.random.default_rng(9), 2000)
+    one = {k: v.copy() for k, v in fk(theta, omega, omegadot, p).items()}
+    out = fk.output_array(theta.size)
+    two = fk(theta, omega, omegadot, p, out=out, threads=2)
+    assert two["torque"].base is out or two["torque"] is out[0]
+    for k in one:  # the chunks cut at different samples: lanes may see other libm variants
+        np.testing.assert_allclose(two[k], one[k], rtol=0, atol=SIMD_REL * max(np.abs(one[k]).max(), 1e-9))
+
+
+def test_bad_arguments_are_named(case):
+    _, fk, p, _ = case
+    th = np.zeros(10)
+    with pytest.raises(ConfigError, match="omega must be a scalar or have 10 samples"):
+        fk(th, np.zeros(9), 0.0, p)
+    with pytest.raises(ConfigError, match="parameters per row"):
+        fk(th, 0.0, 0.0, p[:-1])
+    with pytest.raises(ConfigError, match="blocks of 4 need 3"):
+        fk(th, 0.0, 0.0, np.tile(p, (2, 1)), block=4)
+    with pytest.raises(ConfigError, match="give block="):
+        fk(th, 0.0, 0.0, np.tile(p, (3, 1)))
+    with pytest.raises(ConfigError, match="out must be"):
+        fk(th, 0.0, 0.0, p, out=np.empty((3, 10)))
+
+
+@pytest.fixture
+def private_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("PUMPSIM_GENERATED", str(tmp_path))
+    monkeypatch.setattr(fastkernel, "_LOADED", {})
+    return tmp_path
+
+
+def test_stale_foreign_or_tampered_simd_library_is_refused(private_cache, monkeypatch):
+    st = Structure(vanes=2, harmonics=0)
+    k = fastkernel.load_fast_kernel(st)
+    assert k.manifest["options"]["cpu"] == simd_contract.cpu_signature()
+
+    def refused():
+        monkeypatch.setattr(fastkernel, "_LOADED", {})
+        with pytest.raises(CodegenError, match="missing or stale"):
+            fastkernel.load_fast_kernel(st, build=False)
+
+    with monkeypatch.context() as m:  # a worker with other instruction-set flags builds its own
+        m.setattr(simd_contract, "cpu_signature", lambda: "another-cpu")
+        refused()
+    with monkeypatch.context() as m:  # an edited model source
+        m.setattr(mf, "source_fingerprint", lambda: "edited")
+        refused()
+    lib = k.folder / k.manifest["library"]
+    tampered = lib.with_suffix(".new")  # a new file in its place (the loaded one stays mapped)
+    tampered.write_bytes(lib.read_bytes() + b"\0")
+    tampered.replace(lib)
+    refused()
+
+
+def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch):
+    """Without -fno-math-errno libm calls set errno, so gcc keeps the loops scalar: no library
+    (a scalar loop is refused by name); fallback=True gives the scalar kernel behind the same
+    interface."""
+    cfg = make_config("ellipse_4vanes", **{"rotor.vanes": 2})
+    kern, p, pv = kernel_and_p(cfg)
+    monkeypatch.setattr(simd, "SIMD_CFLAGS", [f for f in simd.SIMD_CFLAGS if f != "-fno-math-errno"])
+    with pytest.raises(CodegenError, match="left loop_vane_shared, loop_vane_samples scalar"):
+        fastkernel.load_fast_kernel(pv.structure)
+    monkeypatch.setattr(fastkernel, "_LOADED", {})
+    fb = fastkernel.load_fast_kernel(pv.structure, fallback=True)
+    assert not fb.simd and "scalar" in fb.reason
+    theta, omega, omegadot = random_motion(np.random.default_rng(1), 50)
+    P = designs(pv, np.random.default_rng(2), 2)
+    got = fb(theta, omega, omegadot, P, block=25)
+    ref = inverse_dynamics(kern, P[1], theta[25:], omega[25:], omegadot[25:])
+    for name, r in ref.items():
+        np.testing.assert_array_equal(got[name][..., 25:], r)
