@@ -242,5 +242,5 @@ def bench_simd(cfg, kern, p, theta, baseline: dict, best_of) -> dict:
               f"({100 * v['libm_share']:.0f} % in libm), {v['samples_per_second']:.3g} samples/s")
     return {"rows": {k: {"seconds": t, "samples_per_second": n / t} for k, t in rows.items()},
             "c_loops": loops, "ratios": ratios, "max_rel_difference_vs_scalar": agree,
-            "library": {k: fast.manifest[k] for k in ("key", "cflags", "native", "libc", "vector_symbols",
-                                                      "vectorized_loops")}}
+            "library": {"key": fast.manifest["key"], **fast.manifest["options"],
+                        **{k: fast.manifest[k] for k in ("vector_symbols", "vectorized_loops")}}}
