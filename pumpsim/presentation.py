@@ -85,6 +85,23 @@ def display_scale(unit: str, value: float | None) -> tuple[float, str]:
     return 1.0, UNIT_TEXT.get(unit, unit)
 
 
+def _decimals(value, stderr, digits):
+    """Decimals that show the standard error to `digits` significant digits and the value to at
+    least 4; None when fixed-point notation would need more than 9 (then significant digits)."""
+    e = math.floor(math.log10(stderr)) - (digits - 1)
+    dec = max(0, -e)
+    if abs(value) > 0 and math.floor(math.log10(abs(value))) - e < 3:
+        dec = max(dec, 3 - math.floor(math.log10(abs(value))))
+    return None if dec > 9 or abs(value) >= 1e7 or stderr >= 1e7 else dec
+
+
+def _sig(value, stderr, digits):
+    """Significant digits of the value that reach the standard error's last shown digit."""
+    if value == 0:
+        return digits
+    return int(min(15, max(4, math.floor(math.log10(abs(value))) - math.floor(math.log10(stderr)) + digits)))
+
+
 def fmt_estimate(value, stderr, digits: int = 2) -> str:
     """'0.202945 ± 0.000091': the value rounded to the standard error's `digits` significant
     digits (at least 4 significant digits of the value)."""
@@ -92,13 +109,24 @@ def fmt_estimate(value, stderr, digits: int = 2) -> str:
         return "not identifiable"
     if stderr is None or not math.isfinite(stderr) or stderr <= 0:
         return f"{value:.6g}"
-    e = math.floor(math.log10(stderr)) - (digits - 1)
-    dec = max(0, -e)
-    if abs(value) > 0 and math.floor(math.log10(abs(value))) - e < 3:  # keep >= 4 digits of the value
-        dec = max(dec, 3 - math.floor(math.log10(abs(value))))
-    if dec > 9 or abs(value) >= 1e7:
-        return f"{value:.4g} ± {stderr:#.{digits}g}"
+    dec = _decimals(value, stderr, digits)
+    if dec is None:
+        return f"{value:#.{_sig(value, stderr, digits)}g} ± {stderr:#.{digits}g}"
     return f"{value:.{dec}f} ± {stderr:#.{digits}g}"
+
+
+def fmt_interval(lower, upper, stderr, digits: int = 2) -> str:
+    """'0.202766 … 0.203125' with as many digits as the estimate shows."""
+    if lower is None or upper is None:
+        return "—"
+    if stderr is None or not math.isfinite(stderr) or stderr <= 0:
+        return f"{lower:.6g} … {upper:.6g}"
+    mid = 0.5 * (lower + upper)
+    dec = _decimals(mid, stderr, digits)
+    if dec is None:
+        n = _sig(mid, stderr, digits)
+        return f"{lower:#.{n}g} … {upper:#.{n}g}"
+    return f"{lower:.{dec}f} … {upper:.{dec}f}"
 
 
 def fmt_number(x, sig: int = 6) -> str:

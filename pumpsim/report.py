@@ -9,9 +9,10 @@ intervals are flagged as optimistic, with the AR(1) inflation factor that would 
 What the diagnosis report reads (a dict or an object with these keys/attributes): `baseline`
 {rms, params}, `steps` [{effect, params, rms_before, rms_after, p_value, bic_before, bic_after,
 all_params}], `final` {rms, params, residual_white, runs_p_value, ljung_box_p_value},
-`unexplained`, `unexplained_where`, `confounded`, `notes`, `method`, optionally `screens` (the
-candidate ranking per step) and `history` / `_history` ([{label, result}] with each model's
-IdentificationResult: residual, time, speed, angle, estimates).
+`unexplained`, `unexplained_where`, `confounded`, `notes`, `method`, optionally `verdict`,
+`screens` (the candidate ranking per step) or `ranking` (one list), and `history` / `_history`
+([{label, result}] with each model's IdentificationResult: residual, time, speed, angle,
+estimates).
 """
 from __future__ import annotations
 
@@ -30,8 +31,8 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 from .diagnostics import order_spectrum, synchronous_average  # noqa: E402
 from .io import write_text  # noqa: E402
 from .plotting import _wrapped, tidy_axis  # noqa: E402
-from .presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate, fmt_number,  # noqa: E402
-                           parameter_text, provenance, step_parameters)
+from .presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate,  # noqa: E402
+                           fmt_interval, fmt_number, parameter_text, provenance, step_parameters)
 
 CSS = ("body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1150px;margin:1.5em auto;color:#222;"
        "line-height:1.35}h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}"
@@ -137,7 +138,7 @@ def param_row(name, value, stderr, lower=None, upper=None, start=None, harmonics
         extra = f" ({math.degrees(value):.4g}°)"
     elif unit == "rad/s" and value is not None:
         extra = f" ({value * RPM:.6g} rpm)"
-    ci = "—" if lower is None or value is None else f"{sc(lower):.6g} … {sc(upper):.6g}"
+    ci = "—" if value is None else fmt_interval(sc(lower), sc(upper), sc(stderr))
     return [Cell(name), Cell(label), Cell(shown), Cell(fmt_number(sc(start)) if start is not None else "—", True),
             Cell(nb(est + extra), True, raw=True), Cell(nb(ci), True, raw=True)]
 
@@ -145,28 +146,63 @@ def param_row(name, value, stderr, lower=None, upper=None, start=None, harmonics
 PARAM_HEADERS = ["parameter", "meaning", "unit", "start", "estimate ± s.e.", "95 % interval"]
 
 
-def residual_figures(t, residual, speed, angle, title="residual"):
-    """Residual in time, in shaft orders and as an angle-domain average (one figure)."""
+def segments(res, data=None) -> list:
+    """The measurements inside a result as (slice, speed [rad/s], label): one for a single fit;
+    for a joint fit the rows of each Dataset in `data` (the speed from the fitted angle, since the
+    result carries the first measurement's only)."""
+    n = len(res.time)
+    sizes = [d.n for d in data] if isinstance(data, (list, tuple)) and all(hasattr(d, "n") for d in data) else []
+    if len(sizes) < 2 or sum(sizes) != n:
+        return [(slice(0, n), float(res.speed), "")]
+    out, lo = [], 0
+    theta, t = np.asarray(res.angle, dtype=float), np.asarray(res.time, dtype=float)
+    for i, m in enumerate(sizes):
+        sl = slice(lo, lo + m)
+        w = abs(theta[sl][-1] - theta[sl][0]) / max(t[sl][-1] - t[sl][0], 1e-300)
+        out.append((sl, w, f"measurement {i + 1} ({w:.4g} rad/s)"))
+        lo += m
+    return out
+
+
+def signal_of(res) -> tuple[str, str]:
+    """What a result fitted: the drive torque, or the speed for a transient (run-up) fit."""
+    return ("rotor speed ω", "rad/s") if "transient" in str(getattr(res, "method", "")) else ("drive torque τ", "N·m")
+
+
+def residual_figures(res, data=None, title="residual"):
+    """Residual in time, in shaft orders and as an angle-domain average (one figure); a joint
+    fit's measurements each with their own speed and colour."""
+    t, residual, angle = (np.asarray(x, dtype=float) for x in (res.time, res.residual, res.angle))
+    segs = segments(res, data)
     fig, ax = plt.subplots(1, 3, figsize=(13, 3.1))
-    milli = np.nanmax(np.abs(residual)) < 0.1
+    unit = signal_of(res)[1]
+    milli = unit == "N·m" and np.nanmax(np.abs(residual)) < 0.1
     k = 1e3 if milli else 1.0
-    u = "mN·m" if milli else "N·m"
-    ax[0].plot(t, residual * k, lw=0.5, color="0.25")
-    ax[0].set_xlabel("time [s]")
+    u = "mN·m" if milli else unit
+    top = 0.0
+    for j, (sl, w, label) in enumerate(segs):
+        color = "0.25" if len(segs) == 1 else f"C{j}"
+        ax[0].plot(t[sl], residual[sl] * k, lw=0.5, color=color, label=label or None)
+        sp = order_spectrum(residual[sl], t[1] - t[0], w)
+        ax[1].plot(sp["order"], sp["amplitude"] * k, lw=0.8, color=f"C{j}", label=label or None)
+        top = max(top, min(40, sp["order"].max()))
+        for pk in [p for p in sp["peaks"] if p["order"] <= 40][:5]:
+            ax[1].annotate(f"{pk['order']:.2f}", (pk["order"], pk["amplitude"] * k), fontsize=7,
+                           xytext=(2, 2), textcoords="offset points")
+        if abs(angle[sl][-1] - angle[sl][0]) >= 2 * math.pi:
+            sa = synchronous_average(residual[sl], angle[sl])
+            ax[2].plot(np.degrees(sa["angle"]), sa["average"] * k, color=f"C{j}", label=label or None)
+        else:
+            ax[2].text(0.5, 0.5, "less than one revolution:\nno average", ha="center", va="center",
+                       transform=ax[2].transAxes, fontsize=9)
+    ax[0].set_xlabel("time [s]" + (" (measurements one after the other)" if len(segs) > 1 else ""))
     ax[0].set_ylabel(f"{title} [{u}]")
     ax[0].set_title("residual (measured − model)", fontsize=9)
-    sp = order_spectrum(residual, t[1] - t[0], speed)
-    ax[1].plot(sp["order"], sp["amplitude"] * k, lw=0.8)
-    top = min(40, sp["order"].max())
-    for pk in [p for p in sp["peaks"] if p["order"] <= top][:5]:
-        ax[1].annotate(f"{pk['order']:.2f}", (pk["order"], pk["amplitude"] * k), fontsize=7,
-                       xytext=(2, 2), textcoords="offset points")
     ax[1].set_xlim(0, top)
-    ax[1].set_xlabel(f"shaft order (1 = {sp['shaft_hz']:.4g} Hz)")
+    hz = ", ".join(f"{w / (2 * math.pi):.4g}" for _, w, _ in segs)
+    ax[1].set_xlabel(f"shaft order (1 = {hz} Hz)")
     ax[1].set_ylabel(f"amplitude [{u}]")
     ax[1].set_title("order spectrum (Hann window)", fontsize=9)
-    sa = synchronous_average(residual, angle)
-    ax[2].plot(np.degrees(sa["angle"]), sa["average"] * k)
     ax[2].set_xlim(0, 360)
     ax[2].set_xticks(range(0, 361, 90))
     ax[2].set_xlabel("rotor angle θ [deg]")
@@ -175,29 +211,56 @@ def residual_figures(t, residual, speed, angle, title="residual"):
     for a in ax:
         a.grid(alpha=0.3)
         tidy_axis(a)
+    if len(segs) > 1:
+        ax[2].legend(fontsize=7, frameon=False)
     fig.tight_layout()
     return figure_html(fig)
 
 
-def torque_overlay(res, label="fitted model", show_initial=True):
+def torque_overlay(res, data=None, label="fitted model", show_initial=True):
     """Measured torque (dots) and the model against the rotor angle in degrees, all revolutions
-    overlaid: a steady pump's torque is one curve, not a solid band over time."""
+    overlaid: a steady pump's torque is one curve, not a solid band over time. The model is drawn
+    over each measurement's last revolution (a line per revolution would smear the torque steps)."""
     theta = np.asarray(res.angle, dtype=float)
     deg = np.degrees(np.mod(theta, 2 * math.pi))
-    turns = abs(theta[-1] - theta[0]) / (2 * math.pi)
+    segs = segments(res, data)
     fig, ax = plt.subplots(figsize=(11.5, 3.8))
-    ax.plot(deg, res.measured, ".", ms=1.5, color="0.55", label=f"measured ({len(deg)} samples)")
-    # the models over the last revolution only: a line per revolution would smear the torque steps
-    last = np.abs(theta - theta[0]) >= abs(theta[-1] - theta[0]) - 2 * math.pi
-    tag = " (last revolution)" if turns > 1 else ""
-    if show_initial and getattr(res, "initial_model", None) is not None:
-        ax.plot(*_wrapped(deg[last], np.asarray(res.initial_model)[last]), color="C1", lw=1.0, ls="--",
-                label="initial model" + tag)
-    ax.plot(*_wrapped(deg[last], np.asarray(res.fitted)[last]), color="C0", lw=1.3, label=label + tag)
+    turns = []
+    for j, (sl, _, name) in enumerate(segs):
+        th = theta[sl]
+        turns.append(abs(th[-1] - th[0]) / (2 * math.pi))
+        last = np.abs(th - th[0]) >= abs(th[-1] - th[0]) - 2 * math.pi
+        tag = " (last revolution)" if turns[-1] > 1 else ""
+        pre = f"{name}: " if name else ""
+        d = deg[sl]
+        ax.plot(d, np.asarray(res.measured)[sl], ".", ms=1.5, color="0.55" if j == 0 else "0.75",
+                label=f"{pre}measured ({len(d)} samples)")
+        if show_initial and getattr(res, "initial_model", None) is not None:
+            ax.plot(*_wrapped(d[last], np.asarray(res.initial_model)[sl][last]), lw=1.0, ls="--",
+                    color="C1" if len(segs) == 1 else f"C{j}", label=f"{pre}initial model{tag}")
+        ax.plot(*_wrapped(d[last], np.asarray(res.fitted)[sl][last]), color=f"C{j}", lw=1.3,
+                label=f"{pre}{label}{tag}")
     ax.set_xlim(0, 360)
     ax.set_xticks(range(0, 361, 45))
-    ax.set_xlabel(f"rotor angle θ [deg] ({turns:.3g} revolutions overlaid)")
+    ax.set_xlabel(f"rotor angle θ [deg] ({' + '.join(f'{x:.3g}' for x in turns)} revolutions overlaid)")
     ax.set_ylabel("drive torque τ [N·m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8, markerscale=5)
+    ax.grid(alpha=0.3)
+    tidy_axis(ax)
+    fig.tight_layout()
+    return figure_html(fig)
+
+
+def time_plot(res):
+    """Measured, initial and fitted signal against time (a run-up: the speed changes)."""
+    name, unit = signal_of(res)
+    fig, ax = plt.subplots(figsize=(11.5, 3.6))
+    ax.plot(res.time, res.measured, ".", ms=1.5, color="0.55", label="measured")
+    if getattr(res, "initial_model", None) is not None:
+        ax.plot(res.time, res.initial_model, "C1--", lw=1.0, label="initial model")
+    ax.plot(res.time, res.fitted, "C0", lw=1.2, label="fitted model")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(f"{name} [{unit}]")
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8, markerscale=5)
     ax.grid(alpha=0.3)
     tidy_axis(ax)
@@ -210,7 +273,7 @@ def _status(res) -> str:
     cls = "ok" if res.converged and d["white_at_5pct"] and not res.unidentifiable else "warn"
     return (f"<p class={cls}>{html.escape(res.method)}: <b>{'converged' if res.converged else 'NOT converged'}</b>"
             f" ({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
-            f"{nb(format(res.rms, '.4g') + ' N·m')}, residual {'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
+            f"{nb(format(res.rms, '.4g') + ' ' + signal_of(res)[1])}, residual {'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
             f"{res.wall_time:.2f} s.</p>")
 
 
@@ -242,13 +305,16 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
         names = [n for n, e in res.estimates.items() if e.identifiable]
         parts.append("<h3>Correlation of the estimates</h3>" + table(
             [""] + names, [[Cell(n)] + [Cell(f"{v:+.3f}", True) for v in r] for n, r in zip(names, res.correlation)]))
-    parts.append("<h2>Measured and model torque</h2>" + torque_overlay(res))
+    if signal_of(res)[1] == "N·m":
+        parts.append("<h2>Measured and model torque</h2>" + torque_overlay(res, data))
+    else:
+        parts.append("<h2>Measured and model speed</h2>" + time_plot(res))
     parts.append("<h2>Iteration history</h2>" + _iteration_figure(res, harmonics))
     parts.append("<h2>Residual</h2><p>" + html.escape(
         f"Runs test p = {d['runs_test']['p_value']:.3g} ({d['runs_test']['runs']} runs), Ljung–Box p = "
         f"{d['ljung_box']['p_value']:.3g} over {d['ljung_box']['lags']} lags: "
         f"{'white' if d['white_at_5pct'] else 'not white'} at 5 %.") + "</p>")
-    parts.append(residual_figures(res.time, res.residual, res.speed, res.angle))
+    parts.append(residual_figures(res, data))
     parts.append(provenance_html(rows_p))
     write_page(path, title, parts)
 
@@ -266,13 +332,14 @@ def _iteration_figure(res, harmonics=None):
         a.set_title(f"{n} [{shown}]", fontsize=9)
         tidy_axis(a, vals * f)
     rms = np.array([max(it["rms"], 1e-300) for it in res.iterations])
+    unit = signal_of(res)[1]
     if rms.max() / rms.min() > 30:
         ax[-1].semilogy(its, rms, "o-", ms=4, color="k")
-        ax[-1].set_title("residual RMS [N·m]", fontsize=9)
+        ax[-1].set_title(f"residual RMS [{unit}]", fontsize=9)
     else:
-        milli = rms.max() < 0.1
+        milli = unit == "N·m" and rms.max() < 0.1
         ax[-1].plot(its, rms * (1e3 if milli else 1.0), "o-", ms=4, color="k")
-        ax[-1].set_title(f"residual RMS [{'mN·m' if milli else 'N·m'}]", fontsize=9)
+        ax[-1].set_title(f"residual RMS [{'mN·m' if milli else unit}]", fontsize=9)
         tidy_axis(ax[-1])
     for a in ax:
         a.set_xlabel("iteration")
@@ -333,9 +400,10 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
                 f"(runs p = {final['runs_p_value']:.3g}, Ljung–Box p = {final['ljung_box_p_value']:.3g}).")
     parts.append(f"<p class={'ok' if white and not _get(out, 'unexplained') else 'warn'}>{verdict}</p>")
     if _get(out, "unexplained"):
-        parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Peaks at shaft "
-                     "orders " + ", ".join(nb(f"{w['order']:.3f} ({w['frequency']:.1f} Hz)")
-                                           for w in _get(out, "unexplained_where", [])) + ".</p>")
+        parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Where: "
+                     + ", ".join(nb(_where_text(w)) for w in _get(out, "unexplained_where", [])) + ".</p>")
+    if _get(out, "verdict"):
+        parts.append(f"<p>Verdict: {html.escape(str(_get(out, 'verdict')))}.</p>")
     for a, b in _get(out, "confounded", []):
         parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} have nearly collinear "
                      f"effects on this data, which cannot tell them apart: {html.escape(a)} is not named "
@@ -345,7 +413,7 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
                                   None if last_res is None else last_res.residual))
     parts.append(_steps_table(out, history, steps))
     parts.append(_final_table(out, history, steps, cfg))
-    screens = _get(out, "screens") or []
+    screens = _screens(out)
     if screens:
         parts.append("<h2>Candidate ranking</h2><p class=note>Each screen tests every candidate of the library "
                      "by a score (Lagrange-multiplier) test at the current fit, no refit; the significant ones "
@@ -360,8 +428,8 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
     for h in history:
         r = h["result"]
         parts.append(f"<h2>Model after: {html.escape(h['label'])} (RMS {r.rms:.4g} N·m)</h2>")
-        parts.append(torque_overlay(r, label=f"model ({h['label']})", show_initial=False))
-        parts.append(residual_figures(r.time, r.residual, r.speed, r.angle))
+        parts.append(torque_overlay(r, data, label=f"model ({h['label']})", show_initial=False))
+        parts.append(residual_figures(r, data))
     parts.append(provenance_html(rows_p))
     write_page(path, title, parts)
 
@@ -438,17 +506,44 @@ def _polar_row(name, meaning, v, f, unit):
             Cell(nb(fmt_estimate(v["value"] * f, v["stderr"] * f) + extra), True, raw=True)]
 
 
+def _where_text(w) -> str:
+    if "order" in w:
+        return f"shaft order {w['order']:.3f} ({w['frequency']:.1f} Hz)"
+    if "angle_deg" in w:
+        return f"rotor angle {w['angle_deg']:.1f}°"
+    return ", ".join(f"{k} {v}" for k, v in w.items())
+
+
+def _screens(out) -> list:
+    """The candidate screens: `screens` (one per step: after, alpha, candidates, chosen) or a flat
+    `ranking` list (one screen; rows with effect/candidate, p_value/score_p_value, significant)."""
+    screens = _get(out, "screens")
+    if screens:
+        return screens
+    ranking = _get(out, "ranking")
+    if not ranking:
+        return []
+    rows = [dict(r, candidate=r.get("candidate", r.get("effect")),
+                 p_value=r.get("p_value", r.get("score_p_value"))) for r in ranking]
+    return [{"after": "the last step", "alpha": None, "candidates": rows, "chosen": None}]
+
+
+# ranking columns: header, key, format; a column is shown when some row has the key
+RANKING_COLUMNS = [("score-test p", "p_value", ".2g"), ("one-step RMS [N·m]", "one_step_rms", ".5g"),
+                   ("one-step BIC", "one_step_bic", ".1f"), ("refit ΔBIC", "refit_delta_bic", "+.1f"),
+                   ("refit LR p", "refit_lr_p_value", ".2g")]
+
+
 def _ranking_table(i, screen) -> str:
-    headers = ["rank", "candidate", "score-test p", "significant", "one-step RMS [N·m]", "refit ΔBIC",
-               "refit LR p", "collinear with"]
+    cands = screen["candidates"]
+    cols = [c for c in RANKING_COLUMNS if any(r.get(c[1]) is not None for r in cands)]
+    headers = ["rank", "candidate"] + [c[0] for c in cols[:1]] + ["significant"] + [c[0] for c in cols[1:]] \
+        + ["collinear with"]
     rows, classes = [], []
-    for k, r in enumerate(screen["candidates"], 1):
-        rows.append([Cell(str(k), True), Cell(r["candidate"]), Cell(f"{r['p_value']:.2g}", True),
-                     Cell("yes" if r["significant"] else "no"),
-                     Cell("—" if r.get("one_step_rms") is None else f"{r['one_step_rms']:.5g}", True),
-                     Cell("—" if r.get("refit_delta_bic") is None else f"{r['refit_delta_bic']:+.1f}", True),
-                     Cell("—" if r.get("refit_lr_p_value") is None else f"{r['refit_lr_p_value']:.2g}", True),
-                     Cell(r.get("collinear_with") or "")])
+    for k, r in enumerate(cands, 1):
+        vals = [Cell("—" if r.get(key) is None else format(r[key], f), True) for _, key, f in cols]
+        rows.append([Cell(str(k), True), Cell(r["candidate"])] + vals[:1]
+                    + [Cell("yes" if r.get("significant") else "no")] + vals[1:] + [Cell(r.get("collinear_with") or "")])
         classes.append("chosen" if r["candidate"] == screen.get("chosen") else None)
     chosen = screen.get("chosen")
     shown = RANKING_SHOWN
@@ -457,6 +552,6 @@ def _ranking_table(i, screen) -> str:
         visible += (f"<details><summary>all {len(rows)} candidates</summary>"
                     + table(headers, rows, row_classes=classes) + "</details>")
     head = (f"<h3>Screen {i + 1} (after {html.escape(screen['after'])}): "
-            f"{'chose ' + html.escape(chosen) if chosen else 'nothing accepted'}; Bonferroni level "
-            f"{screen['alpha']:.2g}</h3>")
+            f"{'chose ' + html.escape(chosen) if chosen else 'nothing accepted'}"
+            + (f"; Bonferroni level {screen['alpha']:.2g}" if screen.get("alpha") else "") + "</h3>")
     return head + visible

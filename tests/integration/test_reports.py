@@ -9,6 +9,7 @@ import math
 import re
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -107,6 +108,20 @@ def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_d
     assert "(arrays passed in memory)" in text  # a Dataset made in memory says so, no fake hash
 
 
+def test_diagnosis_report_reads_a_result_object_with_a_flat_ranking(tmp_path, out_of_round_diagnosis):
+    """The documented interface: attributes instead of keys, `history`, `verdict`, one `ranking`."""
+    cfg, ds, out = out_of_round_diagnosis
+    ranking = [{"effect": r["candidate"], "score_p_value": r["p_value"], "one_step_bic": -1.5,
+                "significant": r["significant"]} for r in out["screens"][0]["candidates"]]
+    obj = SimpleNamespace(**{k: v for k, v in out.items() if k not in ("_history", "screens")},
+                          history=out["_history"], ranking=ranking, verdict="housing out of round")
+    rep = tmp_path / "d.html"
+    diagnosis_report(obj, rep, cfg=cfg, data=ds)
+    text = re.sub(r"\s+", " ", _text(html.unescape(rep.read_text())))
+    assert "Verdict: housing out of round" in text and "one-step BIC" in text and "-1.5" in text
+    assert "radial amplitude" in text and PLUS_MINUS in text
+
+
 def test_bic_chain_before_equals_previous_after(out_of_round_diagnosis):
     _, _, out = out_of_round_diagnosis
     chain, rho = bic_chain(out["_history"])
@@ -153,3 +168,16 @@ def test_iteration_axes_have_integer_ticks_and_labels_are_not_clipped(tmp_path):
         shown = [t for t in ticks if lo <= t <= hi]
         assert all(float(t).is_integer() for t in shown), shown
     plt.close("all")
+
+
+@pytest.mark.parametrize("value,stderr", [(0.20294549, 9.14e-5), (149.99999891, 2.9e-7), (15.6, 0.95),
+                                          (-3.25e-5, 4.1e-7), (0.17000000012, 8.2e-9), (0.2, 1.05e10)])
+def test_estimates_are_rounded_to_their_standard_error(value, stderr):
+    """The shown value differs from the estimate by less than a tenth of the standard error, and
+    the standard error keeps two significant digits (a rounded estimate never hides its ±)."""
+    from pumpsim.presentation import fmt_estimate, fmt_interval
+
+    v, e = fmt_estimate(value, stderr).split(" ± ")
+    assert abs(float(v) - value) <= 0.1 * stderr and abs(float(e) / stderr - 1) < 0.05
+    lo, hi = fmt_interval(value - 2 * stderr, value + 2 * stderr, stderr).split(" … ")
+    assert abs(float(lo) - (value - 2 * stderr)) <= 0.1 * stderr and abs(float(hi) - (value + 2 * stderr)) <= 0.1 * stderr
