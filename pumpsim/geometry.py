@@ -38,48 +38,55 @@ def check_geometry(cfg: PumpConfig) -> None:
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)
     p = as_array(pv)
-    v = pv.values
     alpha, pts, curv = housing_samples(kern, p)
+    theta = np.linspace(0, 2 * math.pi, ANGLE_SAMPLES, endpoint=False)
+    s, _, res = vane_positions(kern, p, theta)
+    verdict = geometry_verdict(pv.values, alpha, pts, curv, theta, s, res)
+    if verdict:
+        raise ConfigError(verdict)
+
+
+def geometry_verdict(v, alpha, pts, curv, theta, s, res) -> str | None:
+    """Why the geometry is not admissible (None if it is), from housing samples (polar angles
+    alpha, points pts (2, n), curvature) and the vane positions s, residuals res (N, len(theta))."""
     if np.any(curv <= 0):
         i = int(np.argmin(curv))
-        raise ConfigError(f"housing is not convex at housing polar angle {alpha[i]:.3f} rad "
-                          "(reduce housing.harmonics amplitudes)")
+        return (f"housing is not convex at housing polar angle {alpha[i]:.3f} rad "
+                "(reduce housing.harmonics amplitudes)")
     dist = np.hypot(pts[0], pts[1])
     i = int(np.argmin(dist))
     # the rotor axis must be inside and the rotor circle strictly inside the housing
     inside = _point_in_polygon(0.0, 0.0, pts[0], pts[1])
     if not inside or dist[i] <= v["rotor.radius"]:
-        raise ConfigError(f"rotor circle (rotor.radius {v['rotor.radius']:.4f} m) must lie strictly "
-                          f"inside the housing; the housing comes to {dist[i]:.4f} m from the rotor axis "
-                          f"at housing polar angle {alpha[i]:.3f} rad (check housing.center)")
-    theta = np.linspace(0, 2 * math.pi, ANGLE_SAMPLES, endpoint=False)
-    s, _, res = vane_positions(kern, p, theta)
+        return (f"rotor circle (rotor.radius {v['rotor.radius']:.4f} m) must lie strictly "
+                f"inside the housing; the housing comes to {dist[i]:.4f} m from the rotor axis "
+                f"at housing polar angle {alpha[i]:.3f} rad (check housing.center)")
     lm, L = mouth_depth(v), v["vane.length"]
     if np.any(~np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
         j = np.unravel_index(np.nanargmax(np.where(np.isfinite(res), res, np.inf)), res.shape)
-        raise ConfigError(f"vane {j[0]} does not reach the housing at rotor angle {theta[j[1]]:.3f} rad")
+        return f"vane {j[0]} does not reach the housing at rotor angle {theta[j[1]]:.3f} rad"
     if s.min() < 0:
         j = np.unravel_index(np.argmin(s), s.shape)
-        raise ConfigError(f"vane.length {L:.4f} m is too long: at rotor angle {theta[j[1]]:.3f} rad "
-                          f"vane {j[0]} would need s = {s[j]:.5f} m < 0 (below the slot bottom) "
-                          "to fit inside the housing")
+        return (f"vane.length {L:.4f} m is too long: at rotor angle {theta[j[1]]:.3f} rad "
+                f"vane {j[0]} would need s = {s[j]:.5f} m < 0 (below the slot bottom) "
+                "to fit inside the housing")
     if s.max() >= lm:
         j = np.unravel_index(np.argmax(s), s.shape)
-        raise ConfigError(f"vane.length {L:.4f} m is too short: at rotor angle {theta[j[1]]:.3f} rad "
-                          f"vane {j[0]} needs s = {s[j]:.5f} m >= slot depth {lm:.5f} m (its bottom end "
-                          "would leave the slot)")
+        return (f"vane.length {L:.4f} m is too short: at rotor angle {theta[j[1]]:.3f} rad "
+                f"vane {j[0]} needs s = {s[j]:.5f} m >= slot depth {lm:.5f} m (its bottom end "
+                "would leave the slot)")
     if (s + L).min() <= lm:
         j = np.unravel_index(np.argmin(s), s.shape)
-        raise ConfigError(f"vane tip does not stand out of the rotor: at rotor angle {theta[j[1]]:.3f} rad "
-                          f"vane {j[0]} has s + vane.length = {s[j] + L:.5f} m <= slot depth {lm:.5f} m")
+        return (f"vane tip does not stand out of the rotor: at rotor angle {theta[j[1]]:.3f} rad "
+                f"vane {j[0]} has s + vane.length = {s[j] + L:.5f} m <= slot depth {lm:.5f} m")
+    return None
 
 
 def _point_in_polygon(x, y, px, py) -> bool:
-    inside = False
-    n = len(px)
-    j = n - 1
-    for i in range(n):
-        if (py[i] > y) != (py[j] > y) and x < (px[j] - px[i]) * (y - py[i]) / (py[j] - py[i]) + px[i]:
-            inside = not inside
-        j = i
-    return inside
+    """Even-odd rule: count the polygon edges a ray from (x, y) towards +x crosses."""
+    px, py = np.asarray(px), np.asarray(py)
+    qx, qy = np.roll(px, 1), np.roll(py, 1)  # the previous vertex of each edge
+    spans = (py > y) != (qy > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = (qx - px) * (y - py) / (qy - py) + px
+    return bool(np.count_nonzero(spans & (x < xc)) % 2)

@@ -1,0 +1,36 @@
+"""Design studies (spec §9): sweeps, tolerance Monte Carlo, global sensitivity and optimisation.
+
+    from pumpsim import design
+    study = design.load_study("examples/studies/test_rig_tolerances.toml")
+    df, stats = design.sweep(study, out="out/rig_mc")        # pandas DataFrame, one row per design/speed
+    df = design.read_results("out/rig_mc")                   # the same table read back
+    s = design.sensitivity(study)                            # Sobol S1/ST with intervals (SALib)
+    r = design.optimize(study)                               # SLSQP with exact kernel gradients
+"""
+from .execute import read_manifest, read_results, run_study
+from .study import Study, load_study, study_from_dict
+
+
+def _study(study):
+    return load_study(study) if isinstance(study, (str, bytes)) or hasattr(study, "__fspath__") else study
+
+
+def sweep(study, out=None, **kw):
+    """Run every design of a study; returns (DataFrame, RunStats). See execute.run_study."""
+    return run_study(_study(study), out=out, **kw)
+
+
+def sensitivity(study, **kw):
+    from .indices import sensitivity as _s
+
+    return _s(_study(study), **kw)
+
+
+def optimize(study, **kw):
+    from .optimiser import optimize as _o
+
+    return _o(_study(study), **kw)
+
+
+__all__ = ["Study", "load_study", "study_from_dict", "sweep", "read_results", "read_manifest",
+           "sensitivity", "optimize", "run_study"]

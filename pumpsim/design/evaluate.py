@@ -1,0 +1,239 @@
+"""Evaluate designs: config -> parameter vector -> one revolution of inverse dynamics -> outputs.
+
+`evaluate_designs(kern, P, theta, omega)` is the one place the compiled kernel is called for a batch
+of designs (P: one parameter vector per design); everything else (admissibility, reductions,
+status) is NumPy on its result. Kernels are loaded by whoever calls this -- a Dask worker loads or
+builds its own from the hashed cache; compiled functions never travel between processes.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+
+from ..config import as_array, config_from_dict
+from ..errors import ConfigError, PumpsimError
+from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
+from ..kernels import load_kernels
+from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, per_vane_name, reduce_revolution
+
+SAMPLE_OUTPUTS = ("torque",)
+
+
+class _Maps(threading.local):
+    """Per-thread cache of kernel maps over one revolution with the speed and p shared (CasADi
+    copies a shared input once per call instead of once per sample)."""
+
+    def __init__(self):
+        self.cache = {}
+        self.buffers = {}
+
+    def get(self, kern, name, n, shared):
+        key = (kern.key, name, n, shared)
+        if key not in self.cache:
+            f = kern[name] if name != "fwd_inverse_dynamics" else kern["inverse_dynamics"].forward(1)
+            self.cache[key] = f.map(f"{f.name()}_rev{n}", "serial", n, list(shared), [])
+        return self.cache[key]
+
+    def buffered(self, kern, name, n, shared, outputs):
+        """The map evaluated in place on NumPy buffers (Function.buffer: no DM conversions, which
+        cost more than the kernel). Returns (inputs, outputs by name, evaluate)."""
+        key = (kern.key, name, n, shared, tuple(outputs))
+        if key not in self.buffers:
+            f = self.get(kern, name, n, shared)
+            buf, run = f.buffer()
+            args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+            for i, a in enumerate(args):
+                buf.set_arg(i, memoryview(a))
+            res = {}
+            for i, nm in enumerate(f.name_out()):
+                if nm in outputs:
+                    res[nm] = np.zeros(f.nnz_out(i))
+                    buf.set_res(i, memoryview(res[nm]))
+            self.buffers[key] = (args, res, run, buf)
+        return self.buffers[key][:3]
+
+
+_MAPS = _Maps()
+
+
+def revolution(angle0: float, n: int) -> np.ndarray:
+    return angle0 + 2 * math.pi * np.arange(n) / n
+
+
+def _split(names, res, N, keep):
+    out = {}
+    for i, nm in enumerate(names):
+        if nm in keep:
+            a = np.asarray(res[i])
+            out[nm] = a.ravel() if nm in SAMPLE_OUTPUTS else a.reshape(N, -1, order="F")
+    return out
+
+
+def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
+    """Inverse dynamics at constant speed for a batch of designs of one compiled variant.
+    P: (designs, len(p)); theta: (n,) rotor angles shared by all designs; omega: (designs,).
+    Returns name -> (designs, n) for the torque and (designs, N, n) per vane."""
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    theta = np.asarray(theta, dtype=float)
+    D, n, N = P.shape[0], theta.size, kern.structure.vanes
+    args, res, run = _MAPS.buffered(kern, "inverse_dynamics", n, (1, 2, 3), outputs)
+    args[0][:] = theta
+    args[2][0] = 0.0
+    out = {nm: np.empty((D, n) if nm in SAMPLE_OUTPUTS else (D, N, n)) for nm in outputs}
+    for d in range(D):
+        args[1][0] = omega[d]
+        args[3][:] = P[d]
+        run()
+        for nm in outputs:
+            # per-vane outputs come vane-major within each sample: (n, N) in C order
+            out[nm][d] = res[nm] if nm in SAMPLE_OUTPUTS else res[nm].reshape(n, N).T
+    return out
+
+
+def kernel_tangents(kern, p, theta, omega, dP, domega) -> dict:
+    """Directional derivatives of the kernel outputs along k directions (dP (k, len(p)) in p,
+    domega (k,) in the speed) by the compiled forward-mode AD. Returns name -> (k, ...)."""
+    n, N = theta.size, kern.structure.vanes
+    f = kern["inverse_dynamics"]
+    names = f.name_out()
+    nom = _MAPS.get(kern, "inverse_dynamics", n, (1, 2, 3))(theta[None, :], omega, 0.0, p[:, None])
+    nom = nom if isinstance(nom, (list, tuple)) else [nom]
+    # inputs: theta, omega, omegadot, p, the nominal outputs, then their seeds (theta's is 0)
+    k_in = 4 + len(names)
+    fw = _MAPS.get(kern, "fwd_inverse_dynamics", n, (1, 2, 3, k_in, k_in + 1, k_in + 2, k_in + 3))
+    out = {nm: [] for nm in TANGENT_OUTPUTS}
+    for j in range(dP.shape[0]):
+        r = fw(theta[None, :], omega, 0.0, p[:, None], *nom, 0.0, domega[j], 0.0, dP[j][:, None])
+        one = _split(names, r, N, TANGENT_OUTPUTS)
+        for nm in TANGENT_OUTPUTS:
+            out[nm].append(one[nm])
+    return {nm: np.array(v) for nm, v in out.items()}
+
+
+def housing_check_samples(kern, p, n):
+    args, res, run = _MAPS.buffered(kern, "housing_curve", n, (1,), ("point", "curvature"))
+    alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    args[0][:] = alpha
+    args[1][:] = p
+    run()
+    return alpha, res["point"].reshape(n, 2).T.copy(), res["curvature"].copy()
+
+
+class Prepared:
+    """One design: its validated config and parameter vector, or why it has none."""
+
+    __slots__ = ("cfg", "p", "status", "values")
+
+    def __init__(self, cfg=None, p=None, status="ok", values=None):
+        self.cfg, self.p, self.status, self.values = cfg, p, status, values
+
+
+def prepare(study, values: dict) -> Prepared:
+    try:
+        cfg = config_from_dict(study.design_dict(values))
+        pv = cfg.parameters("constrained")
+        return Prepared(cfg, as_array(pv), "ok", pv.values)
+    except ConfigError as e:
+        return Prepared(status=f"config: {e}")
+
+
+def design_speeds(study, cfg) -> list:
+    return list(study.speeds) if study.speeds else [float(cfg.speed)]
+
+
+def _status(out):
+    """A design the model evaluated but whose constrained solution is not physical."""
+    msgs = []
+    if out["lift_off"]:
+        msgs.append(f"lift_off: min housing reaction {out['min_normal_force']:.4g} N < 0 (Model 2 holds "
+                    "the vane on the housing; the real vane would lift off)")
+    if out["paradox"]:
+        msgs.append("paradox: no or several consistent slot contact-side sets")
+    return "; ".join(msgs) or "ok"
+
+
+def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int, timer=None) -> list[dict]:
+    """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys)."""
+    keys = study.keys
+    nrev = study.revolution_samples
+    prepared = [prepare(study, dict(zip(keys, x))) for x in X]
+    rows = []
+    groups: dict = {}
+    for j, pr in enumerate(prepared):
+        if pr.status == "ok":
+            groups.setdefault(pr.cfg.structure_for("constrained"), []).append(j)
+    results: dict = {}
+    for structure, members in groups.items():
+        kern = load_kernels(structure)
+        for j in members:
+            pr = prepared[j]
+            theta = revolution(pr.cfg.angle, nrev)
+            speeds = design_speeds(study, pr.cfg)
+            try:
+                ev = evaluate_designs(kern, np.repeat(pr.p[None, :], len(speeds), axis=0), theta,
+                                      np.asarray(speeds))
+                alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
+                verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, ev["s"][0],
+                                           ev["position_residual"][0])
+            except PumpsimError as e:  # pragma: no cover - the kernels report, not raise
+                results[j] = (f"numerical: {e}", None)
+                continue
+            if verdict:
+                results[j] = (f"geometry: {verdict}", None)
+                continue
+            res = ev["position_residual"]
+            if not np.all(np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
+                results[j] = ("numerical: position problem did not converge", None)
+                continue
+            v = pr.values
+            lm = mouth_depth(v)
+            per_speed = []
+            for k, w in enumerate(speeds):
+                a = {nm: arr[k] for nm, arr in ev.items()}
+                out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
+                if not all(np.isfinite(x) for x in out.values() if not isinstance(x, bool)):
+                    out = None
+                per_speed.append((w, out))
+            results[j] = ("ok", per_speed)
+    for j, pr in enumerate(prepared):
+        base = {"design": int(ids[j])}
+        keyvals = {k: float(x) for k, x in zip(keys, X[j])}
+        status, per_speed = results.get(j, (pr.status, None))
+        if per_speed is None:
+            speeds = design_speeds(study, pr.cfg) if pr.cfg is not None else (study.speeds or [
+                keyvals.get("operation.speed", study.base_speed)])
+            for w in speeds:
+                rows.append({**base, "speed": float(w), **keyvals, "status": status})
+            continue
+        for w, out in per_speed:
+            if out is None:
+                rows.append({**base, "speed": float(w), **keyvals,
+                             "status": "numerical: non-finite output (check the design's values)"})
+                continue
+            rows.append({**base, "speed": float(w), **keyvals, **out, "status": _status(out)})
+    return rows
+
+
+def evaluate_rows(study, X, ids, n_vanes_max: int) -> list[dict]:
+    if study.function is not None:
+        from .analytic import FUNCTIONS
+
+        fn = FUNCTIONS[study.function]
+        Y = fn(X)
+        return [{"design": int(i), **{k: float(x) for k, x in zip(study.keys, xs)},
+                 **{o: float(y) for o, y in zip(fn.outputs, ys)}, "status": "ok"}
+                for i, xs, ys in zip(ids, X, Y)]
+    return evaluate_pump_rows(study, X, ids, n_vanes_max)
+
+
+def time_per_design(study, X, n_vanes_max) -> float:
+    """Wall time of one design on this process (a pilot run, for sizing batches)."""
+    t0 = time.perf_counter()
+    evaluate_rows(study, X, np.arange(len(X)), n_vanes_max)
+    return (time.perf_counter() - t0) / max(1, len(X))
+
+
+__all__ = ["evaluate_designs", "kernel_tangents", "evaluate_rows", "revolution", "per_vane_name"]

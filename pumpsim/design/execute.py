@@ -1,0 +1,379 @@
+"""Run a study's designs on dask.distributed and keep the results as Parquet parts.
+
+- Default: a LocalCluster with one single-threaded worker process per core; `scheduler` (the
+  `--scheduler ADDRESS` option or `study.scheduler`) runs the same study on an existing cluster.
+- Tasks are batches of designs sized to >= TASK_SECONDS of work from a pilot run. A task carries
+  the study (plain data) and its designs' key values; the worker loads or builds the compiled
+  variant from the hashed cache itself. Compiled functions never travel.
+- Every design's values are fixed on the client before any task runs (sampling.py), and each
+  design is evaluated on its own, so the table is the same for 1 or 64 workers and any batching.
+- Each finished batch is written by the client as `part-NNNNN.parquet` (temporary file + rename);
+  `manifest.json` holds the study hash, kernel keys, package versions, seed and batch layout. A
+  rerun with the same study skips the parts already there (resume).
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import logging
+import math
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..io import atomic_path, write_text
+from .outputs import BOOL_OUTPUTS, per_vane_name
+from .sampling import design_matrix
+
+TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
+PILOT_DESIGNS = 6
+CONNECT_TIMEOUT = 5.0  # s: an unreachable scheduler fails this fast
+PART = "part-{:05d}.parquet"
+MANIFEST = "manifest.json"
+PACKAGES = ("pumpsim", "casadi", "numpy", "scipy", "dask", "distributed", "pyarrow", "SALib", "pymoo")
+
+
+def package_versions() -> dict:
+    out = {"python": platform.python_version()}
+    for name in PACKAGES:
+        try:
+            out[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def max_vanes(study) -> int:
+    if study.function is not None:
+        return 0
+    base = int(study.base["rotor"]["vanes"])
+    for v in study.variables:
+        if v.key == "rotor.vanes":
+            return int(max(v.values))
+    return base
+
+
+def structures(study) -> list:
+    """The compiled variants a study needs."""
+    if study.function is not None:
+        return []
+    from ..config import config_from_dict
+
+    counts = {int(study.base["rotor"]["vanes"])}
+    for v in study.variables:
+        if v.key == "rotor.vanes":
+            counts = {int(x) for x in v.values}
+    out = []
+    for n in sorted(counts):
+        try:
+            cfg = config_from_dict(study.design_dict({"rotor.vanes": n}))
+        except ConfigError:
+            continue
+        out.append(cfg.structure_for("constrained"))
+    return out
+
+
+def kernel_keys(study) -> dict:
+    from codegen.build import cache_key
+
+    return {st.variant: cache_key(st) for st in structures(study)}
+
+
+def columns(study) -> list[tuple[str, str]]:
+    """(name, type) of the result table in order: design, speed, keys, outputs, status."""
+    cols = [("design", "int")]
+    if study.function is None:
+        cols.append(("speed", "float"))
+    cols += [(k, "float") for k in study.keys]
+    for o in study.outputs:
+        cols.append((o, "bool" if o in BOOL_OUTPUTS else "float"))
+        if o == "friction_power":
+            cols += [(per_vane_name(i), "float") for i in range(max_vanes(study))]
+    cols.append(("status", "str"))
+    return cols
+
+
+def rows_to_table(study, rows):
+    import pyarrow as pa
+
+    types = {"int": pa.int64(), "float": pa.float64(), "bool": pa.bool_(), "str": pa.string()}
+    data, fields = {}, []
+    for name, typ in columns(study):
+        vals = [r.get(name) for r in rows]
+        if typ == "float":
+            vals = [math.nan if v is None else float(v) for v in vals]
+        data[name] = pa.array(vals, type=types[typ])
+        fields.append(pa.field(name, types[typ]))
+    return pa.table(data, schema=pa.schema(fields))
+
+
+@dataclass
+class Plan:
+    study: object
+    X: np.ndarray  # (designs, keys)
+    batch_size: int
+    ids: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        if self.ids is None:
+            self.ids = np.arange(len(self.X))
+
+    @property
+    def n_batches(self) -> int:
+        return math.ceil(len(self.X) / self.batch_size)
+
+    def batch(self, b: int):
+        lo, hi = b * self.batch_size, min(len(self.X), (b + 1) * self.batch_size)
+        return self.ids[lo:hi], self.X[lo:hi]
+
+
+def study_designs(study) -> np.ndarray:
+    import warnings
+
+    with warnings.catch_warnings():  # Sobol' balance needs 2^m points; any n is still a valid design
+        warnings.simplefilter("ignore", UserWarning)
+        return design_matrix(study.variables, study.sampler, study.samples, study.seed)
+
+
+def run_batch(study, ids, X):
+    """The task: evaluate designs on whichever process runs it. Returns (ids, Arrow table, seconds)."""
+    from .evaluate import evaluate_rows
+
+    t0 = time.perf_counter()
+    rows = evaluate_rows(study, X, ids, max_vanes(study))
+    return ids[0], rows_to_table(study, rows), time.perf_counter() - t0
+
+
+def pilot_batch_size(study, X) -> int:
+    """Designs per task so that a task is >= TASK_SECONDS of work (timed on this process, which
+    also builds any missing variant into the cache before the workers look for it)."""
+    from .evaluate import evaluate_rows
+
+    n = min(len(X), PILOT_DESIGNS)
+    evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
+    t0 = time.perf_counter()
+    evaluate_rows(study, X[:n], np.arange(n), max_vanes(study))
+    per = max((time.perf_counter() - t0) / n, 1e-6)
+    return max(1, math.ceil(TASK_SECONDS / per))
+
+
+def check_out_dir(out, study_hash) -> dict | None:
+    """Before any work: the folder is new, or holds this same study (resume). Returns its manifest."""
+    if out is None:
+        return None
+    d = Path(out)
+    if not d.parent.is_dir():
+        raise ConfigError(f"--out: folder '{d.parent}' does not exist")
+    if not d.exists():
+        return None
+    if not d.is_dir():
+        raise ConfigError(f"--out '{d}' exists and is not a folder")
+    mpath = d / MANIFEST
+    if not mpath.exists():
+        if any(d.iterdir()):
+            raise ConfigError(f"--out '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
+        return None
+    try:
+        man = json.loads(mpath.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ConfigError(f"--out '{d}': unreadable {MANIFEST} ({e})") from None
+    if man.get("study_hash") != study_hash:
+        raise ConfigError(f"--out '{d}' holds results of a different study (hash {man.get('study_hash')}, "
+                          f"this study {study_hash}); choose another folder or remove it")
+    return man
+
+
+def connect(scheduler=None, workers=None, processes=True):
+    """A dask.distributed Client: on an existing scheduler (fails within CONNECT_TIMEOUT with a
+    ConfigError), or on a new LocalCluster (one single-threaded worker per core)."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s"), None
+        except (OSError, TimeoutError, ValueError) as e:
+            raise ConfigError(f"cannot reach the Dask scheduler at '{scheduler}' within "
+                              f"{CONNECT_TIMEOUT:g} s ({type(e).__name__}: {e})") from None
+    n = workers or os.cpu_count() or 1
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+@dataclass
+class RunStats:
+    designs: int = 0
+    batches: int = 0
+    batches_skipped: int = 0
+    batch_size: int = 0
+    workers: int = 0
+    wall: float = 0.0  # evaluation phase
+    compute: float = 0.0  # sum of in-task times
+    setup: float = 0.0  # cluster start + pilot
+
+    @property
+    def overhead_share(self) -> float:
+        """Share of the workers' time (workers x wall) not spent evaluating designs."""
+        if self.wall <= 0 or self.workers <= 0:
+            return 0.0
+        return max(0.0, 1.0 - self.compute / (self.workers * self.wall))
+
+    def as_dict(self):
+        d = dict(self.__dict__)
+        d["overhead_share"] = self.overhead_share
+        return d
+
+
+def run_study(study, out=None, scheduler=None, workers=None, processes=True, batch_size=None,
+              progress=None, on_batch=None, client=None, X=None):
+    """Evaluate every design of `study` (or the rows of X) and return (DataFrame, RunStats).
+    out: results folder (Parquet parts + manifest; resumes). workers=0: in this process, no Dask.
+    on_batch(done, total): called after each batch is written (a test may interrupt here)."""
+    import pandas as pd
+
+    scheduler = scheduler or study.scheduler
+    workers = study.workers if workers is None else workers
+    X = study_designs(study) if X is None else np.asarray(X, dtype=float)
+    shash = study.study_hash()
+    man = check_out_dir(out, shash)
+    stats = RunStats(designs=len(X))
+    t0 = time.perf_counter()
+    if study.function is None and not scheduler:
+        from ..kernels import load_kernels
+
+        for st in structures(study):  # build missing variants once, before local workers look
+            load_kernels(st)
+    bs = batch_size or study.batch_size or (man or {}).get("batch_size")
+    if not bs:
+        bs = pilot_batch_size(study, X) if len(X) > 1 else 1
+    plan = Plan(study, X, int(bs))
+    stats.batch_size, stats.batches = plan.batch_size, plan.n_batches
+    folder = Path(out) if out else None
+    done = set()
+    if folder is not None:
+        folder.mkdir(exist_ok=True)
+        done = {b for b in range(plan.n_batches) if (folder / PART.format(b)).exists()}
+        write_manifest(folder, study, plan, "running")
+    stats.batches_skipped = len(done)
+    todo = [b for b in range(plan.n_batches) if b not in done]
+    tables = {}
+    bar = _bar(progress, len(todo))
+    written = [0]
+
+    def finish(b, table, seconds):
+        stats.compute += seconds
+        if folder is not None:
+            import pyarrow.parquet as pq
+
+            with atomic_path(folder / PART.format(b)) as tmp:
+                pq.write_table(table, tmp)
+        tables[b] = table
+        written[0] += 1
+        if bar is not None:
+            bar.update(1)
+        if on_batch is not None:
+            on_batch(written[0], len(todo))
+
+    own = None
+    try:
+        if workers == 0 or not todo:
+            stats.workers = 1
+            stats.setup = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            for b in todo:
+                ids, Xb = plan.batch(b)
+                _, table, sec = run_batch(study, ids, Xb)
+                finish(b, table, sec)
+        else:
+            if client is None:
+                client, own = connect(scheduler, workers, processes)
+            from dask.distributed import as_completed
+
+            stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+            stats.setup = time.perf_counter() - t0
+            t1 = time.perf_counter()
+            sfut = client.scatter(study, broadcast=True)
+            futs = {}
+            for b in todo:
+                ids, Xb = plan.batch(b)
+                futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
+            for fut in as_completed(futs):
+                _, table, sec = fut.result()
+                finish(futs[fut], table, sec)
+        stats.wall = time.perf_counter() - t1
+    finally:
+        if bar is not None:
+            bar.close()
+        if own is not None:
+            client.close()
+            own.close()
+    if folder is not None:
+        write_manifest(folder, study, plan, "complete", stats)
+        return read_results(folder), stats
+    parts = [tables[b].to_pandas() for b in sorted(tables)]
+    df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c for c, _ in columns(study)])
+    return _ordered(df), stats
+
+
+def _bar(progress, total):
+    if progress is False or (progress is None and not sys.stderr.isatty()):
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="batch", file=sys.stderr, leave=False, desc="designs")
+
+
+def write_manifest(folder, study, plan, status, stats=None):
+    man = {
+        "study_hash": study.study_hash(), "study": study.path, "config": study.config_path,
+        "function": study.function, "sampler": study.sampler, "seed": study.seed,
+        "samples": study.samples, "designs": int(len(plan.X)), "batch_size": plan.batch_size,
+        "batches": plan.n_batches, "part_pattern": PART, "keys": study.keys,
+        "speeds": study.speeds, "outputs": study.outputs, "model": study.model,
+        "revolution_samples": study.revolution_samples,
+        "limits": {k: list(v) for k, v in study.limits.items()},
+        "kernel_keys": kernel_keys(study), "versions": package_versions(),
+        "columns": [c for c, _ in columns(study)], "status": status,
+    }
+    if stats is not None:
+        man["run"] = stats.as_dict()
+    write_text(folder / MANIFEST, json.dumps(man, indent=1))
+
+
+def _ordered(df):
+    keys = [c for c in ("design", "speed") if c in df.columns]
+    return df.sort_values(keys, kind="stable").reset_index(drop=True)
+
+
+def read_manifest(folder) -> dict:
+    mpath = Path(folder) / MANIFEST
+    try:
+        return json.loads(mpath.read_text())
+    except OSError:
+        raise ConfigError(f"'{folder}' holds no study results ({MANIFEST} missing)") from None
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"'{mpath}' is not valid JSON: {e}") from None
+
+
+def read_results(folder, arrays: bool = False):
+    """The result table of a study folder as a pandas DataFrame (design, speed order), or with
+    arrays=True a dict of NumPy arrays by column."""
+    import pandas as pd
+    import pyarrow.parquet as pq
+
+    man = read_manifest(folder)
+    parts = sorted(Path(folder).glob("part-*.parquet"))
+    if parts:
+        df = pd.concat([pq.read_table(p).to_pandas() for p in parts], ignore_index=True)
+    else:
+        df = pd.DataFrame(columns=man.get("columns", []))
+    df = _ordered(df)
+    if arrays:
+        return {c: df[c].to_numpy() for c in df.columns}
+    return df

@@ -1,0 +1,111 @@
+"""Per-design outputs (spec §9) from one revolution of the constrained model at constant speed.
+
+At constant speed Model 2 is exactly periodic in the rotor angle, so one revolution sampled
+uniformly in angle *is* the periodic steady state, and a mean over it is a mean over time.
+
+Definitions (i: vane, k: sample of the revolution):
+- tip friction power  mean_k sum_i (mu_h(v_t) N v_t + c v_t^2)   (mu_h is odd: mu_h v_t >= 0)
+- slot friction power mean_k sum_i mu_r(sdot) sdot (|F1| + |F2|)
+  (spec §4: their sum equals the mean drive power tau * omega; tested)
+- max_tip_pv          max N |v_t| [W]: the tip's line load times slip speed, times the vane
+                      width (the mechanical model is planar and has no width); the wear proxy
+- extension           s + L - l_m, the vane length standing out of the rotor
+- lift_off            some housing reaction N < 0 (Model 2 holds the vane on the housing)
+- paradox             some sample without exactly one consistent slot contact-side set
+Each reduction also carries its derivative along given parameter directions (forward mode),
+which the optimiser uses; a max/min takes the derivative at its arg-max (a subgradient).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+OUTPUTS = ("mean_torque", "rms_torque", "ptp_torque", "friction_power", "tip_friction_power",
+           "slot_friction_power", "max_normal_force", "min_normal_force", "max_slot_force",
+           "max_tip_pv", "min_extension", "max_extension", "lift_off", "paradox")
+BOOL_OUTPUTS = ("lift_off", "paradox")
+UNITS = {"mean_torque": "N·m", "rms_torque": "N·m", "ptp_torque": "N·m", "friction_power": "W",
+         "tip_friction_power": "W", "slot_friction_power": "W", "max_normal_force": "N",
+         "min_normal_force": "N", "max_slot_force": "N", "max_tip_pv": "W", "min_extension": "m",
+         "max_extension": "m"}
+PARADOX_TOL = 1e-6  # as pumpsim.simulate: relative spread between consistent sets
+# kernel outputs the reductions read
+KERNEL_OUTPUTS = ("torque", "s", "sdot", "normal", "slot1", "slot2", "tip_slip", "mu_housing",
+                  "mu_slot", "n_consistent", "ambiguity", "position_residual")
+TANGENT_OUTPUTS = ("torque", "s", "sdot", "normal", "slot1", "slot2", "tip_slip", "mu_housing", "mu_slot")
+
+
+def per_vane_name(i: int) -> str:
+    return f"friction_power_{i}"
+
+
+def _at(x, dx, idx):
+    """Value of x at flat index idx and the tangents there (dx has a leading direction axis)."""
+    v = x.ravel()[idx]
+    return v, (None if dx is None else dx.reshape(dx.shape[0], -1)[:, idx])
+
+
+def reduce_revolution(a: dict, c_visc: float, L: float, lm: float, da: dict | None = None,
+                      dpar: dict | None = None) -> tuple[dict, dict]:
+    """Outputs of one design from its revolution `a` (kernel outputs: torque (n,), per vane (N, n)).
+    da: the same arrays' tangents with a leading axis of directions; dpar: tangents of c_visc, L
+    and l_m along those directions. Returns (values, derivatives); derivatives is {} without da."""
+    out, der = {}, {}
+    t = a["torque"]
+    g = (lambda k: da[k]) if da is not None else (lambda k: None)
+    out["mean_torque"] = t.mean()
+    out["rms_torque"] = np.sqrt(np.mean(t * t))
+    hi, lo = int(np.argmax(t)), int(np.argmin(t))
+    out["ptp_torque"] = t[hi] - t[lo]
+    N, v, mh = a["normal"], a["tip_slip"], a["mu_housing"]
+    sd, F1, F2, mr = a["sdot"], a["slot1"], a["slot2"], a["mu_slot"]
+    tip = mh * N * v + c_visc * v * v
+    slot = mr * sd * (np.abs(F1) + np.abs(F2))
+    tip_v, slot_v = tip.mean(axis=1), slot.mean(axis=1)
+    out["tip_friction_power"] = tip_v.sum()
+    out["slot_friction_power"] = slot_v.sum()
+    out["friction_power"] = out["tip_friction_power"] + out["slot_friction_power"]
+    per_vane = tip_v + slot_v
+    for i, x in enumerate(per_vane):
+        out[per_vane_name(i)] = x
+    iN_hi, iN_lo = int(np.argmax(N)), int(np.argmin(N))
+    out["max_normal_force"] = N.ravel()[iN_hi]
+    out["min_normal_force"] = N.ravel()[iN_lo]
+    F = np.maximum(np.abs(F1), np.abs(F2))
+    iF = int(np.argmax(F))
+    out["max_slot_force"] = F.ravel()[iF]
+    pv = N * np.abs(v)
+    ipv = int(np.argmax(pv))
+    out["max_tip_pv"] = pv.ravel()[ipv]
+    ext = a["s"] + L - lm
+    ie_lo, ie_hi = int(np.argmin(ext)), int(np.argmax(ext))
+    out["min_extension"] = ext.ravel()[ie_lo]
+    out["max_extension"] = ext.ravel()[ie_hi]
+    out["lift_off"] = bool(out["min_normal_force"] < 0)
+    out["paradox"] = bool(np.any(a["n_consistent"] != 1.0) or np.any(a["ambiguity"] > PARADOX_TOL))
+    if da is None:
+        return out, der
+    dt = g("torque")
+    der["mean_torque"] = dt.mean(axis=1)
+    der["rms_torque"] = (dt * t).mean(axis=1) / out["rms_torque"]
+    der["ptp_torque"] = dt[:, hi] - dt[:, lo]
+    dN, dv, dmh = g("normal"), g("tip_slip"), g("mu_housing")
+    dsd, dF1, dF2, dmr = g("sdot"), g("slot1"), g("slot2"), g("mu_slot")
+    dc = dpar["c_visc"][:, None, None]
+    dtip = dmh * N * v + mh * dN * v + mh * N * dv + dc * v * v + 2 * c_visc * v * dv
+    dslot = (dmr * sd * (np.abs(F1) + np.abs(F2)) + mr * dsd * (np.abs(F1) + np.abs(F2))
+             + mr * sd * (np.sign(F1) * dF1 + np.sign(F2) * dF2))
+    dtip_v, dslot_v = dtip.mean(axis=2), dslot.mean(axis=2)
+    der["tip_friction_power"] = dtip_v.sum(axis=1)
+    der["slot_friction_power"] = dslot_v.sum(axis=1)
+    der["friction_power"] = der["tip_friction_power"] + der["slot_friction_power"]
+    for i in range(per_vane.size):
+        der[per_vane_name(i)] = dtip_v[:, i] + dslot_v[:, i]
+    der["max_normal_force"] = _at(N, dN, iN_hi)[1]
+    der["min_normal_force"] = _at(N, dN, iN_lo)[1]
+    dF = np.where(np.abs(F1) >= np.abs(F2), np.sign(F1) * dF1, np.sign(F2) * dF2)
+    der["max_slot_force"] = _at(F, dF, iF)[1]
+    der["max_tip_pv"] = _at(pv, dN * np.abs(v) + N * np.sign(v) * dv, ipv)[1]
+    dext = g("s") + (dpar["L"] - dpar["lm"])[:, None, None]
+    der["min_extension"] = _at(ext, dext, ie_lo)[1]
+    der["max_extension"] = _at(ext, dext, ie_hi)[1]
+    return out, der

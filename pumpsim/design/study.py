@@ -1,0 +1,341 @@
+"""Study file (spec §9): a base config, the varied config keys and how, operating points, outputs,
+spec limits and, for optimisation, an objective and constraints.
+
+Everything is checked before any work starts; every rejection names the study key and the limit.
+A design is the base config's TOML table with the varied keys replaced, validated again by
+`config_from_dict`, so a derived default (vane.inertia = m (L² + h²)/12 when the config does not
+give it) follows its inputs, and an impossible value is a per-design status, not a crash.
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..config import _SCHEMA, config_from_dict
+from ..errors import ConfigError
+from .outputs import BOOL_OUTPUTS, OUTPUTS
+from .sampling import DISTRIBUTIONS, SAMPLERS, Variable, parse_variable
+
+MODELS = ("constrained",)  # the contact model's periodic steady state is not offered yet
+SPEED_KEY = "operation.speed"
+_STUDY_KEYS = {"config", "function", "sampler", "samples", "seed", "speeds", "outputs", "model",
+               "samples_per_revolution", "scheduler", "workers", "batch_size", "revolution_samples"}
+_TOP_KEYS = {"study", "vary", "limits", "objective", "constraints", "optimize", "sensitivity"}
+
+
+@dataclass
+class Study:
+    path: str
+    base: dict  # the base config's TOML table (empty for an analytic function)
+    config_path: str | None
+    variables: list  # [Variable]
+    sampler: str = "sobol"
+    samples: int = 64
+    seed: int = 0
+    speeds: list | None = None  # rad/s; None: the config's (or the varied operation.speed)
+    outputs: list = field(default_factory=lambda: list(OUTPUTS))
+    model: str = "constrained"
+    revolution_samples: int = 360
+    limits: dict = field(default_factory=dict)  # output -> (lower or None, upper or None)
+    objective: list = field(default_factory=list)  # outputs to minimise (2+: Pareto front)
+    constraints: dict = field(default_factory=dict)  # output -> (lower, upper)
+    optimize: dict = field(default_factory=dict)  # method, iterations, population, ...
+    sensitivity: dict = field(default_factory=dict)  # method, samples, ...
+    scheduler: str | None = None
+    workers: int | None = None
+    batch_size: int | None = None
+    function: str | None = None  # analytic verification function instead of the pump
+    raw: dict = field(default_factory=dict)  # the study file's table (for the hash)
+
+    @property
+    def base_speed(self) -> float:
+        """The base config's speed [rad/s] (NaN for an analytic function)."""
+        return base_value(self.base, SPEED_KEY) if self.base else math.nan
+
+    @property
+    def keys(self) -> list[str]:
+        return [v.key for v in self.variables]
+
+    def study_hash(self) -> str:
+        """Hash of everything that decides the result table: the study and the base config."""
+        payload = json.dumps({"study": self.raw, "base": self.base, "function": self.function},
+                             sort_keys=True, default=str)
+        return hashlib.sha256(payload.encode()).hexdigest()[:20]
+
+    def design_dict(self, values: dict) -> dict:
+        """The base config's table with `values` (key path -> number) applied."""
+        return apply_values(self.base, values)
+
+
+def _num(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def schema_leaf(key: str):
+    """The schema entry of a config key path ('num', 'int' or a list index), or None."""
+    node = _SCHEMA
+    parts = key.split(".")
+    for i, part in enumerate(parts):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+        if isinstance(node, tuple):
+            typ = node[0]
+            rest = parts[i + 1:]
+            if typ in ("num", "int") and not rest:
+                return typ
+            if typ == "list" and rest and all(r.isdigit() for r in rest):
+                return "num"
+            return None
+    return None
+
+
+def config_key_ok(key: str) -> bool:
+    return key == SPEED_KEY or schema_leaf(key) is not None
+
+
+def get_value(table: dict, key: str):
+    node = table
+    for part in key.split("."):
+        if isinstance(node, list):
+            i = int(part)
+            if i >= len(node):
+                return None
+            node = node[i]
+        elif isinstance(node, dict):
+            if part not in node:
+                return None
+            node = node[part]
+        else:
+            return None
+    return node
+
+
+def apply_values(base: dict, values: dict) -> dict:
+    d = copy.deepcopy(base)
+    for key, val in values.items():
+        parts = key.split(".")
+        node = d
+        for j, part in enumerate(parts[:-1]):
+            nxt = parts[j + 1]
+            if isinstance(node, list):
+                node = node[int(part)]
+            else:
+                if part not in node:
+                    node[part] = [0.0, 0.0] if key.startswith("housing.center") else ({} if not nxt.isdigit() else [])
+                node = node[part]
+        last = parts[-1]
+        if isinstance(node, list):
+            i = int(last)
+            while len(node) <= i:
+                node.append(0.0)
+            node[i] = val
+        else:
+            node[last] = val
+        if key == SPEED_KEY:  # the varied speed replaces a speed given in rpm
+            d.get("operation", {}).pop("speed_rpm", None)
+        if key == "operation.speed_rpm":
+            d.get("operation", {}).pop("speed", None)
+    return d
+
+
+def base_value(base: dict, key: str):
+    """The base config's value of a key (a derived or default value from the validated config)."""
+    v = get_value(base, key)
+    if _num(v):
+        return float(v)
+    cfg = config_from_dict(base)
+    if key == SPEED_KEY:
+        return float(cfg.speed)
+    if key == "housing.radius" and cfg.shape == "circle":
+        return cfg.values["housing.a"]
+    if key in cfg.values:
+        return float(cfg.values[key])
+    return None
+
+
+def _limits_table(raw, where) -> dict:
+    out = {}
+    if not isinstance(raw, dict):
+        raise ConfigError(f"[{where}] must be a table of OUTPUT = {{lower, upper}}")
+    for name, lim in raw.items():
+        if not isinstance(lim, dict):
+            raise ConfigError(f"{where}.{name} must be a table with lower and/or upper")
+        bad = set(lim) - {"lower", "upper"}
+        if bad:
+            raise ConfigError(f"unknown key '{where}.{name}.{sorted(bad)[0]}' (lower, upper)")
+        lo, hi = lim.get("lower"), lim.get("upper")
+        for k, v in (("lower", lo), ("upper", hi)):
+            if v is not None and not (_num(v) and math.isfinite(v)):
+                raise ConfigError(f"{where}.{name}.{k} must be a finite number, got {v!r}")
+        if lo is None and hi is None:
+            raise ConfigError(f"{where}.{name} needs lower and/or upper")
+        if lo is not None and hi is not None and not lo < hi:
+            raise ConfigError(f"{where}.{name}.lower ({lo:g}) must be < upper ({hi:g})")
+        out[name] = (None if lo is None else float(lo), None if hi is None else float(hi))
+    return out
+
+
+def load_study(path) -> Study:
+    p = Path(path)
+    try:
+        raw = tomllib.loads(p.read_text())
+    except OSError as e:
+        raise ConfigError(f"cannot read study '{path}': {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"study '{path}' is not valid TOML: {e}") from None
+    return study_from_dict(raw, base_dir=p.parent, path=str(p))
+
+
+def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
+    from .analytic import FUNCTIONS
+
+    for k in raw:
+        if k not in _TOP_KEYS:
+            raise ConfigError(f"unknown study table '{k}' (one of {', '.join(sorted(_TOP_KEYS))})")
+    st = raw.get("study", {})
+    if not isinstance(st, dict):
+        raise ConfigError("[study] must be a table")
+    for k in st:
+        if k not in _STUDY_KEYS:
+            raise ConfigError(f"unknown key 'study.{k}'")
+    function = st.get("function")
+    base, cfg_path = {}, None
+    if function is not None:
+        if function not in FUNCTIONS:
+            raise ConfigError(f"study.function must be one of {', '.join(FUNCTIONS)}, got {function!r}")
+        if "config" in st:
+            raise ConfigError("give study.config or study.function, not both")
+    else:
+        if "config" not in st:
+            raise ConfigError("missing required key 'study.config' (the base pump config)")
+        cfg_path = Path(base_dir) / st["config"]
+        try:
+            base = tomllib.loads(cfg_path.read_text())
+        except OSError as e:
+            raise ConfigError(f"study.config: cannot read '{cfg_path}': {e.strerror}") from None
+        except tomllib.TOMLDecodeError as e:
+            raise ConfigError(f"study.config '{cfg_path}' is not valid TOML: {e}") from None
+        try:
+            base_cfg = config_from_dict(base, name_default=cfg_path.stem)
+        except ConfigError as e:
+            raise ConfigError(f"study.config '{cfg_path}': {e}") from None
+        from ..geometry import check_geometry
+
+        try:
+            check_geometry(base_cfg)
+        except ConfigError as e:
+            raise ConfigError(f"study.config '{cfg_path}': {e}") from None
+
+    sampler = st.get("sampler", "sobol")
+    if sampler not in SAMPLERS:
+        raise ConfigError(f"study.sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
+    samples = st.get("samples", 64)
+    if not isinstance(samples, int) or isinstance(samples, bool) or samples < 1:
+        raise ConfigError(f"study.samples must be an integer >= 1, got {samples!r}")
+    if samples > 10_000_000:
+        raise ConfigError(f"study.samples must be <= 10,000,000, got {samples}")
+    seed = st.get("seed", 0)
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        raise ConfigError(f"study.seed must be an integer >= 0, got {seed!r}")
+    model = st.get("model", "constrained")
+    if model not in MODELS:
+        raise ConfigError(f"study.model must be 'constrained', got {model!r} (the contact model's "
+                          "periodic steady state is not offered for studies)")
+    nrev = st.get("revolution_samples", st.get("samples_per_revolution", 360))
+    if not isinstance(nrev, int) or isinstance(nrev, bool) or not 8 <= nrev <= 100_000:
+        raise ConfigError(f"study.revolution_samples must be an integer in [8, 100000], got {nrev!r}")
+
+    vary = raw.get("vary", {})
+    if not isinstance(vary, dict) or not vary:
+        raise ConfigError("the study needs at least one [vary.\"KEY\"] table")
+    variables = []
+    for key, spec in vary.items():
+        if function is not None:
+            if key not in FUNCTIONS[function].inputs:
+                raise ConfigError(f"vary.\"{key}\": {function} takes {', '.join(FUNCTIONS[function].inputs)}")
+            default = None
+        else:
+            if not config_key_ok(key):
+                raise ConfigError(f"vary.\"{key}\" is not a numeric config key path (e.g. housing.radius, "
+                                  "vane.mass, friction.housing.dynamic, housing.center.0)")
+            default = base_value(base, key)
+        variables.append(parse_variable(key, spec, default, sampler))
+    if sampler == "grid":
+        grid_bad = [v.key for v in variables if v.values is None]
+        if grid_bad:
+            raise ConfigError(f"study.sampler = \"grid\" needs values or range for every key; "
+                              f"vary.\"{grid_bad[0]}\" has a distribution")
+    integer_keys = [v.key for v in variables if schema_leaf(v.key) == "int"]
+    for k in integer_keys:
+        v = next(x for x in variables if x.key == k)
+        if v.values is None or any(x != int(x) for x in v.values):
+            raise ConfigError(f"vary.\"{k}\" is an integer key: give integer values")
+
+    speeds = st.get("speeds")
+    if speeds is not None:
+        if function is not None:
+            raise ConfigError("study.speeds is for a pump study")
+        if not isinstance(speeds, list) or not speeds or not all(_num(x) and x > 0 for x in speeds):
+            raise ConfigError(f"study.speeds must be a list of speeds > 0 [rad/s], got {speeds!r}")
+        if SPEED_KEY in [v.key for v in variables]:
+            raise ConfigError(f"give study.speeds or vary.\"{SPEED_KEY}\", not both")
+        speeds = [float(x) for x in speeds]
+    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS)
+    outputs = st.get("outputs", names)
+    if not isinstance(outputs, list) or not outputs:
+        raise ConfigError("study.outputs must be a non-empty list of output names")
+    for o in outputs:
+        if o not in names:
+            raise ConfigError(f"study.outputs: unknown output {o!r} (one of {', '.join(names)})")
+
+    def known(o, where):
+        if o not in names and not (o.startswith("friction_power_") and o[15:].isdigit()):
+            raise ConfigError(f"{where}: unknown output {o!r} (one of {', '.join(names)})")
+        if o in BOOL_OUTPUTS:
+            raise ConfigError(f"{where}: {o} is a flag; limits and objectives take numeric outputs")
+
+    limits = _limits_table(raw.get("limits", {}), "limits")
+    for o in limits:
+        known(o, f"limits.{o}")
+    constraints = _limits_table(raw.get("constraints", {}), "constraints")
+    for o in constraints:
+        known(o, f"constraints.{o}")
+    obj = raw.get("objective", {})
+    objective = []
+    if obj:
+        if not isinstance(obj, dict) or set(obj) - {"minimize"}:
+            raise ConfigError("[objective] takes minimize = OUTPUT (or a list of outputs for a Pareto front)")
+        objective = obj.get("minimize")
+        objective = [objective] if isinstance(objective, str) else objective
+        if not isinstance(objective, list) or not objective or not all(isinstance(o, str) for o in objective):
+            raise ConfigError("objective.minimize must be an output name or a list of them")
+        for o in objective:
+            known(o, "objective.minimize")
+    opt = raw.get("optimize", {})
+    sens = raw.get("sensitivity", {})
+    for tbl, where in ((opt, "optimize"), (sens, "sensitivity")):
+        if not isinstance(tbl, dict):
+            raise ConfigError(f"[{where}] must be a table")
+    scheduler = st.get("scheduler")
+    if scheduler is not None and not isinstance(scheduler, str):
+        raise ConfigError(f"study.scheduler must be an address string, got {scheduler!r}")
+    workers = st.get("workers")
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise ConfigError(f"study.workers must be an integer >= 1, got {workers!r}")
+    batch = st.get("batch_size")
+    if batch is not None and (not isinstance(batch, int) or batch < 1):
+        raise ConfigError(f"study.batch_size must be an integer >= 1, got {batch!r}")
+    return Study(path=path, base=base, config_path=None if cfg_path is None else str(cfg_path),
+                 variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
+                 outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
+                 objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
+                 scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw)
+
+
+__all__ = ["Study", "load_study", "study_from_dict", "apply_values", "DISTRIBUTIONS", "Variable"]
