@@ -241,6 +241,9 @@ def build_parser():
     st.add_argument("--speed", type=float, help="constant speed [rad/s] (default: the config's)")
     st.add_argument("--json", help="write the table as JSON")
     st.set_defaults(func=cmd_study)
+    from .design.cli import add_design_commands  # sweep, sensitivity, optimize (spec §9)
+
+    add_design_commands(sub)
     return ap
 
 

@@ -189,17 +189,41 @@ def check_out_dir(out, study_hash) -> dict | None:
     return man
 
 
+def _probe(address):
+    """A refused or unroutable TCP address fails at once instead of after Dask's retries."""
+    import socket
+    from urllib.parse import urlsplit
+
+    if "://" not in address:
+        address = "tcp://" + address
+    u = urlsplit(address)
+    if u.scheme not in ("tcp", "tls"):
+        return  # other transports (inproc, ucx): leave it to Dask
+    try:
+        host, port = u.hostname, u.port
+    except ValueError:
+        host = port = None
+    if not host or not port:
+        raise ConfigError(f"--scheduler: '{address}' is not a scheduler address (tcp://HOST:PORT)")
+    try:
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as e:
+        raise ConfigError(f"cannot reach the Dask scheduler at '{address}' ({e.strerror or e}); "
+                          "is it running, and is the address right?") from None
+
+
 def connect(scheduler=None, workers=None, processes=True):
     """A dask.distributed Client: on an existing scheduler (fails within CONNECT_TIMEOUT with a
     ConfigError), or on a new LocalCluster (one single-threaded worker per core)."""
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
+        _probe(scheduler)
         try:
             return Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s"), None
-        except (OSError, TimeoutError, ValueError) as e:
-            raise ConfigError(f"cannot reach the Dask scheduler at '{scheduler}' within "
-                              f"{CONNECT_TIMEOUT:g} s ({type(e).__name__}: {e})") from None
+        except Exception as e:  # timeouts, refused handshakes, something else on that port
+            raise ConfigError(f"no Dask scheduler answers at '{scheduler}' within {CONNECT_TIMEOUT:g} s "
+                              f"({type(e).__name__}: {str(e)[:200]})") from None
     n = workers or os.cpu_count() or 1
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
                            dashboard_address=None, silence_logs=logging.ERROR)
@@ -235,15 +259,27 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     """Evaluate every design of `study` (or the rows of X) and return (DataFrame, RunStats).
     out: results folder (Parquet parts + manifest; resumes). workers=0: in this process, no Dask.
     on_batch(done, total): called after each batch is written (a test may interrupt here)."""
-    import pandas as pd
-
     scheduler = scheduler or study.scheduler
     workers = study.workers if workers is None else workers
     X = study_designs(study) if X is None else np.asarray(X, dtype=float)
-    shash = study.study_hash()
-    man = check_out_dir(out, shash)
-    stats = RunStats(designs=len(X))
+    man = check_out_dir(out, study.study_hash())
     t0 = time.perf_counter()
+    own = None
+    if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
+        client, own = connect(scheduler, workers, processes)
+    try:
+        return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
+                    client, t0)
+    finally:
+        if own is not None:
+            client.close()
+            own.close()
+
+
+def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
+    import pandas as pd
+
+    stats = RunStats(designs=len(X))
     if study.function is None and not scheduler:
         from ..kernels import load_kernels
 
@@ -280,24 +316,19 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
         if on_batch is not None:
             on_batch(written[0], len(todo))
 
-    own = None
     try:
+        stats.setup = time.perf_counter() - t0
+        t1 = time.perf_counter()
         if workers == 0 or not todo:
             stats.workers = 1
-            stats.setup = time.perf_counter() - t0
-            t1 = time.perf_counter()
             for b in todo:
                 ids, Xb = plan.batch(b)
                 _, table, sec = run_batch(study, ids, Xb)
                 finish(b, table, sec)
         else:
-            if client is None:
-                client, own = connect(scheduler, workers, processes)
             from dask.distributed import as_completed
 
             stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
-            stats.setup = time.perf_counter() - t0
-            t1 = time.perf_counter()
             sfut = client.scatter(study, broadcast=True)
             futs = {}
             for b in todo:
@@ -310,9 +341,6 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     finally:
         if bar is not None:
             bar.close()
-        if own is not None:
-            client.close()
-            own.close()
     if folder is not None:
         write_manifest(folder, study, plan, "complete", stats)
         return read_results(folder), stats

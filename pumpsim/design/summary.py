@@ -46,7 +46,7 @@ def cpk(values, lim) -> float:
 def yield_share(df, limits) -> float:
     if len(df) == 0:
         return math.nan
-    ok = (df["status"] == "ok").to_numpy()
+    ok = (df["status"] == "ok").to_numpy().copy()
     for out, lim in limits.items():
         if out in df.columns:
             ok &= within(df[out].to_numpy(dtype=float), lim)

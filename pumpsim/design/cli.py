@@ -1,0 +1,175 @@
+"""`pumpsim sweep | sensitivity | optimize STUDY` (spec §9). Registered by pumpsim.cli."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import ConfigError
+
+
+def _check_paths(**paths):
+    """Every output path's folder exists before any work starts."""
+    for option, path in paths.items():
+        if path:
+            folder = Path(path).parent if str(Path(path).parent) else Path(".")
+            if not folder.is_dir():
+                raise ConfigError(f"--{option}: folder '{folder}' does not exist")
+
+
+def _workers(n):
+    if n is not None and n < 1:
+        raise ConfigError(f"--workers must be >= 1, got {n}")
+    return n
+
+
+def _json_safe(obj):
+    return {k: v for k, v in obj.items() if not k.startswith("_")}
+
+
+def cmd_sweep(a) -> int:
+    from ..io import write_text
+    from .execute import check_out_dir, read_manifest, read_results, run_study
+    from .report import sweep_report
+    from .study import load_study
+    from .summary import summary_text
+
+    study = load_study(a.study)
+    if a.summary:
+        if not a.out:
+            raise ConfigError("--summary reads the results folder given by --out DIR")
+        check_out_dir(a.out, study.study_hash())
+        man = read_manifest(a.out)
+        df = read_results(a.out)
+        print(summary_text(df, study.outputs, study.limits, man))
+        parts = len(list(Path(a.out).glob("part-*.parquet")))
+        if parts < man.get("batches", 0):
+            print(f"{parts} of {man['batches']} batches written: rerun without --summary to resume")
+        return 0
+    _check_paths(csv=a.csv, report=a.report)
+    check_out_dir(a.out, study.study_hash())
+    df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
+                          batch_size=a.batch_size)
+    man = read_manifest(a.out) if a.out else None
+    print(summary_text(df, study.outputs, study.limits, man))
+    print(f"{stats.designs} designs in {stats.batches} batches of {stats.batch_size} on {stats.workers} "
+          f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed)")
+    if a.csv:
+        from ..io import atomic_path
+
+        with atomic_path(a.csv) as tmp:
+            df.to_csv(tmp, index=False, float_format="%.10g")
+    if a.report:
+        sweep_report(df, study, a.report)
+    return 0
+
+
+def cmd_sensitivity(a) -> int:
+    from ..io import write_text
+    from .indices import sensitivity
+    from .report import sensitivity_report
+    from .study import load_study
+
+    study = load_study(a.study)
+    _check_paths(json=a.json, report=a.report)
+    res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
+                      workers=_workers(a.workers))
+    print(sensitivity_text(res))
+    if a.json:
+        write_text(a.json, json.dumps(_json_safe(res), indent=1))
+    if a.report:
+        sensitivity_report(res, study, a.report)
+    return 0
+
+
+def sensitivity_text(res) -> str:
+    lines = [f"{res['method']} indices from {res['designs']} designs (seed {res['seed']})"]
+    if res["method"] == "sobol":
+        lines.append(f"{'output':26s} {'key':28s} {'S1':>8s} {'±95%':>7s} {'ST':>8s} {'±95%':>7s}")
+        for o, per in res["indices"].items():
+            for k, r in per.items():
+                lines.append(f"{o:26s} {k:28s} {r['S1']:8.4f} {r['S1_conf']:7.4f} {r['ST']:8.4f} {r['ST_conf']:7.4f}")
+    else:
+        lines.append(f"{'output':26s} {'key':28s} {'mu*':>11s} {'±95%':>10s} {'sigma':>11s}")
+        for o, per in res["indices"].items():
+            for k, r in per.items():
+                lines.append(f"{o:26s} {k:28s} {r['mu_star']:11.4g} {r['mu_star_conf']:10.3g} {r['sigma']:11.4g}")
+    for s in res["skipped"]:
+        lines.append(f"not computed: {s['output']} ({s['reason']})")
+    return "\n".join(lines)
+
+
+def cmd_optimize(a) -> int:
+    from ..io import write_text
+    from .optimiser import optimize
+    from .report import optimize_report
+    from .study import load_study
+
+    study = load_study(a.study)
+    _check_paths(json=a.json, report=a.report)
+    res = optimize(study, method=a.method, max_iter=a.max_iter)
+    print(optimize_text(res))
+    if a.json:
+        write_text(a.json, json.dumps(res, indent=1))
+    if a.report:
+        optimize_report(res, study, a.report)
+    return 0 if res["success"] else 1
+
+
+def optimize_text(res) -> str:
+    if res["method"] == "nsga2":
+        lines = [f"NSGA-II Pareto front of {', '.join(res['objectives'])}: {len(res['front'])} designs, "
+                 f"{res['evaluations']} evaluations, {res['seconds']:.1f} s"]
+        for f in res["front"]:
+            lines.append("  " + ", ".join(f"{k} = {v:.6g}" for k, v in f["design"].items()) + "  ->  "
+                         + ", ".join(f"{k} = {v:.6g}" for k, v in f["objectives"].items()))
+        return "\n".join(lines)
+    o = res["objective"]
+    lines = [f"{res['method']}: {res['message']} after {len(res['iterations']) - 1} iterations, "
+             f"{res['evaluations']} evaluations, {res['seconds']:.2f} s",
+             f"minimize {o['minimize']}: {o['start']:.6g} (start) -> {o['value']:.6g}"]
+    for k, v in res["design"].items():
+        lines.append(f"  {k:28s} {res['start'][k]:.6g} -> {v:.6g}   bounds {res['bounds'][k]}")
+    for k, c in res["constraints"].items():
+        lines.append(f"  constraint {k}: {c['value']:.6g} (lower {c['lower']}, upper {c['upper']}) "
+                     f"{'ok' if c['satisfied'] else 'VIOLATED'}")
+    if not res["success"]:
+        lines.append("the optimiser did not reach a feasible optimum")
+    return "\n".join(lines)
+
+
+def add_design_commands(sub) -> None:
+    """Register sweep, sensitivity and optimize on the pumpsim sub-command parser."""
+    def cluster(p):
+        g = p.add_argument_group("execution (dask.distributed)")
+        g.add_argument("--scheduler", metavar="ADDRESS",
+                       help="existing Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)")
+        g.add_argument("--workers", type=int, help="local workers (default: one per core)")
+
+    sw = sub.add_parser("sweep", help="evaluate a study's designs (grid, Monte Carlo)")
+    sw.add_argument("study", help="study file (TOML, spec §9)")
+    sw.add_argument("--out", metavar="DIR", help="results folder: Parquet parts + manifest.json (resumes)")
+    sw.add_argument("--csv", help="the result table as CSV")
+    sw.add_argument("--report", help="self-contained HTML report")
+    sw.add_argument("--summary", action="store_true", help="print the summary of --out DIR, run nothing")
+    sw.add_argument("--batch-size", type=int, dest="batch_size",
+                    help="designs per task (default: >= 0.5 s of work from a pilot run)")
+    cluster(sw)
+    sw.set_defaults(func=cmd_sweep)
+    se = sub.add_parser("sensitivity", help="Sobol' indices or Morris screening of a study (SALib)")
+    se.add_argument("study")
+    se.add_argument("--json")
+    se.add_argument("--report", help="self-contained HTML report")
+    se.add_argument("--method", choices=["sobol", "morris"])
+    se.add_argument("--samples", type=int, help="base sample count N (Sobol: N (D + 2) designs)")
+    cluster(se)
+    se.set_defaults(func=cmd_sensitivity)
+    op = sub.add_parser("optimize", help="minimise an output subject to constraints")
+    op.add_argument("study")
+    op.add_argument("--json")
+    op.add_argument("--report", help="self-contained HTML report")
+    op.add_argument("--method", choices=["slsqp", "trust-constr", "nsga2"])
+    op.add_argument("--max-iter", type=int, dest="max_iter")
+    op.set_defaults(func=cmd_optimize)
+
+
+__all__ = ["add_design_commands"]
