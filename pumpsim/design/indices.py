@@ -71,7 +71,8 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
             X[:, c] = v.ppf(U[:, j])
             j += 1
     df, stats = run_study(study, X=X, **run_kw)
-    speeds = sorted(df["speed"].unique()) if "speed" in df.columns else [None]
+    # operating points are separate analyses; a varied operation.speed is an input like any other
+    speeds = sorted(df["speed"].unique()) if study.speeds and len(study.speeds) > 1 else [None]
     indices, skipped = {}, []
     for o in study.outputs:
         if o not in df.columns or df[o].dtype == bool or str(df[o].dtype) == "bool":
