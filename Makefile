@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install codegen demo test test-all bench clean
+.PHONY: install codegen demo demo-design test test-all bench bench-design clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml
@@ -25,6 +25,18 @@ demo: codegen
 		--json out/test_rig_fit.json --report out/test_rig_fit.html
 	$(BIN)/pumpsim diagnose examples/ellipse_4vanes.toml examples/data/ellipse_hidden_effects.csv \
 		--json out/ellipse_diagnosis.json --report out/ellipse_diagnosis.html
+	$(MAKE) --no-print-directory demo-design
+
+# design studies at reduced size (full size: drop --samples)
+demo-design: codegen
+	mkdir -p out
+	$(BIN)/pumpsim sweep examples/studies/test_rig_tolerances.toml --samples 1024 --out out/rig_tolerances \
+		--csv out/rig_tolerances.csv --report out/rig_tolerances.html
+	$(BIN)/pumpsim sensitivity examples/studies/test_rig_tolerances.toml --samples 128 \
+		--json out/rig_sensitivity.json --report out/rig_sensitivity.html
+	$(BIN)/pumpsim sweep examples/studies/ellipse_grid.toml --out out/ellipse_grid --report out/ellipse_grid.html
+	$(BIN)/pumpsim optimize examples/studies/ellipse_optimize.toml --json out/ellipse_optimize.json \
+		--report out/ellipse_optimize.html
 
 test: codegen
 	$(BIN)/python -m pytest -q
@@ -35,6 +47,11 @@ test-all: codegen
 bench: codegen
 	mkdir -p out
 	$(BIN)/python bench/run.py --json out/bench.json
+	$(BIN)/python bench/design.py --json out/bench.json
+
+bench-design: codegen
+	mkdir -p out
+	$(BIN)/python bench/design.py --json out/bench.json
 
 clean:
 	rm -rf generated/*/ out .pytest_cache

@@ -34,6 +34,8 @@ def cmd_sweep(a) -> int:
     from .summary import summary_text
 
     study = load_study(a.study)
+    if a.samples is not None:
+        override_samples(study, a.samples)
     if a.summary:
         if not a.out:
             raise ConfigError("--summary reads the results folder given by --out DIR")
@@ -61,6 +63,16 @@ def cmd_sweep(a) -> int:
     if a.report:
         sweep_report(df, study, a.report)
     return 0
+
+
+def override_samples(study, n):
+    """--samples N: a reduced (or larger) study; it is a different study (hash) from the file's."""
+    if n < 1:
+        raise ConfigError(f"--samples must be >= 1, got {n}")
+    if study.sampler == "grid":
+        raise ConfigError("--samples does not apply to a grid (its size is the product of the value lists)")
+    study.samples = n
+    study.raw = {**study.raw, "study": {**study.raw.get("study", {}), "samples": n}}
 
 
 def cmd_sensitivity(a) -> int:
@@ -151,6 +163,7 @@ def add_design_commands(sub) -> None:
     sw.add_argument("--csv", help="the result table as CSV")
     sw.add_argument("--report", help="self-contained HTML report")
     sw.add_argument("--summary", action="store_true", help="print the summary of --out DIR, run nothing")
+    sw.add_argument("--samples", type=int, help="sample count instead of study.samples (not for a grid)")
     sw.add_argument("--batch-size", type=int, dest="batch_size",
                     help="designs per task (default: >= 0.5 s of work from a pilot run)")
     cluster(sw)

@@ -80,9 +80,10 @@ def structures(study) -> list:
 
 
 def kernel_keys(study) -> dict:
-    from codegen.build import cache_key
+    """Variant -> content key of the compiled library this process loads (or builds)."""
+    from ..kernels import load_kernels
 
-    return {st.variant: cache_key(st) for st in structures(study)}
+    return {st.variant: load_kernels(st).key for st in structures(study)}
 
 
 def columns(study) -> list[tuple[str, str]]:

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .execute import run_study
+from .summary import is_constant
 
 METHODS = ("sobol", "morris")
 
@@ -84,6 +85,9 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
             if Y.size != U.shape[0] or not np.all(np.isfinite(Y)):
                 skipped.append({"output": name, "reason": f"{int(np.sum(~np.isfinite(Y)))} of "
                                 f"{U.shape[0]} designs have no value"})
+                continue
+            if is_constant(Y, o):
+                skipped.append({"output": name, "reason": f"constant ({np.median(Y):.6g}): no variance to share"})
                 continue
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

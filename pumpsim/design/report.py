@@ -17,12 +17,15 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from ..report import figure_html, table, write_page  # noqa: E402
 from .outputs import BOOL_OUTPUTS, UNITS  # noqa: E402
-from .summary import cpk, flag_counts, output_table, status_counts, within, yield_share  # noqa: E402
+from .summary import (cpk, flag_counts, is_constant, output_table, status_counts, within,  # noqa: E402
+                      yield_share)
 
 MAX_SCATTER = 2000  # points per scatter panel
+CSS_EXTRA = "<style>td.text,th.text{text-align:left}</style>"
 MAX_PANELS = 16
 
 
@@ -55,12 +58,16 @@ def histograms(df, study) -> str:
         v = df[o].to_numpy(dtype=float)
         v = v[np.isfinite(v)]
         lim = study.limits.get(o)
-        span = np.ptp(v) if v.size else 0
-        if span > 1e-12 * max(1e-300, np.abs(v).max()):
-            ax.hist(v, bins=min(50, max(10, int(np.sqrt(v.size)))), color="#4a7fb5", alpha=0.85)
-        else:  # one value: a bar at it
-            ax.axvline(v[0] if v.size else 0, color="#4a7fb5", lw=4)
         title = o
+        if is_constant(v, o):
+            # no spread beyond rounding: say so instead of a histogram of round-off
+            ax.text(0.5, 0.5, "constant\n" + (f"{np.median(v):.6g}" if v.size else "no value"),
+                    ha="center", va="center", transform=ax.transAxes, fontsize=10)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(title, fontsize=9)
+            continue
+        ax.hist(v, bins=min(50, max(10, int(np.sqrt(v.size)))), color="#4a7fb5", alpha=0.85)
         if lim:
             for b, name in zip(lim, ("LSL", "USL")):
                 if b is not None:
@@ -151,6 +158,7 @@ def scatter_matrix(df, study) -> str:
                 ax.set_ylabel(o, fontsize=8)
             ax.tick_params(labelsize=6)
             ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+            ax.xaxis.set_major_locator(MaxNLocator(3))
     fig.tight_layout()
     return figure_html(fig)
 
@@ -167,7 +175,13 @@ def grid_plots(df, study) -> str:
     fig, axes = plt.subplots(rows, cols, figsize=(13, 2.9 * rows), squeeze=False)
     k1 = keys[0]
     k2 = keys[1] if len(keys) > 1 else None
-    contour = k2 is not None and len(keys) == 2 and d[k1].nunique() >= 3 and d[k2].nunique() >= 3
+    from .study import schema_leaf
+
+    discrete = [k for k in keys if schema_leaf(k) == "int"]
+    if discrete and k2 is not None and k1 in discrete:  # lines over the continuous key, one per count
+        k1, k2 = k2, k1
+    contour = (k2 is not None and len(keys) == 2 and not discrete and d[k1].nunique() >= 3
+               and d[k2].nunique() >= 3)
     for ax, o in zip(axes.ravel(), outs):
         if contour:
             pv = d.groupby([k2, k1])[o].mean().unstack()
@@ -192,6 +206,7 @@ def grid_plots(df, study) -> str:
                     ax.axhline(b, color="#c0392b", ls="--", lw=1)
         ax.set_title(_label(o), fontsize=9)
         ax.tick_params(labelsize=7)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
         ax.grid(alpha=0.3)
     for ax in axes.ravel()[len(outs):]:
         ax.axis("off")
@@ -203,9 +218,11 @@ def _status_section(df) -> str:
     bad = df[df["status"] != "ok"]
     if bad.empty:
         return "<p>Every design was evaluated (status ok).</p>"
-    rows = [(int(r.design), r.status) for r in bad.head(25).itertuples()]
+    rows = "".join(f"<tr><td>{int(r.design)}</td><td class=text>{html.escape(str(r.status))}</td></tr>"
+                   for r in bad.head(25).itertuples())
     more = f"<p>… and {len(bad) - 25} more.</p>" if len(bad) > 25 else ""
-    return "<h3>Designs not ok (first 25)</h3>" + table(["design", "status"], rows) + more
+    return (f"<h3>Designs not ok (first 25)</h3>{CSS_EXTRA}<table><tr><th>design</th>"
+            f"<th class=text>status</th></tr>{rows}</table>" + more)
 
 
 def _sweep_parts(df, study):
@@ -231,8 +248,9 @@ def _sweep_parts(df, study):
         parts.append("<h2>Largest influences (tornado)</h2><p>Bars: change of the output for a ±1 sd "
                      "change of each key, from a linear fit over all designs (R² says how much of the "
                      "spread the fit explains).</p>" + tornado(df, study))
-    parts.append("<h2>Keys vs outputs</h2><p>Blue: evaluated designs; red crosses: designs with a "
-                 "status other than ok (lift-off, paradox).</p>" + scatter_matrix(df, study))
+    if study.sampler != "grid":
+        parts.append("<h2>Keys vs outputs</h2><p>Blue: evaluated designs; red crosses: designs with a "
+                     "status other than ok (lift-off, paradox).</p>" + scatter_matrix(df, study))
     parts.append(_status_section(df))
     return parts
 

@@ -119,6 +119,8 @@ def get_value(table: dict, key: str):
 def apply_values(base: dict, values: dict) -> dict:
     d = copy.deepcopy(base)
     for key, val in values.items():
+        if schema_leaf(key) == "int":
+            val = int(round(val))  # the design matrix holds floats
         parts = key.split(".")
         node = d
         for j, part in enumerate(parts[:-1]):
@@ -157,6 +159,27 @@ def base_value(base: dict, key: str):
     if key in cfg.values:
         return float(cfg.values[key])
     return None
+
+
+def key_targets(base: dict, key: str, value) -> list[str]:
+    """What a key moves in the model: the parameter-registry entries (model_spec.parameters) whose
+    value changes when the key does (housing.radius: housing.a and housing.b; vane.mass: vane.mass
+    and, when the config does not give it, the derived vane.inertia), 'speed' or 'structure'.
+    An empty list: the key does not reach the constrained model (e.g. contact.*)."""
+    v0 = float(value) if value is not None else 0.0
+    v1 = v0 + 1 if schema_leaf(key) == "int" else (v0 * (1 + 1e-3) if v0 else 1e-6)
+    try:
+        a = config_from_dict(apply_values(base, {key: v0}))
+        b = config_from_dict(apply_values(base, {key: v1}))
+    except ConfigError as e:
+        raise ConfigError(f"vary.\"{key}\": {e}") from None
+    if a.structure_for("constrained") != b.structure_for("constrained"):
+        return ["structure"]
+    pa, pb = a.parameters("constrained").values, b.parameters("constrained").values
+    out = [n for n in pa if pa[n] != pb.get(n)]
+    if a.speed != b.speed:
+        out.append("speed")
+    return out
 
 
 def _limits_table(raw, where) -> dict:
@@ -265,17 +288,20 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
                 raise ConfigError(f"vary.\"{key}\" is not a numeric config key path (e.g. housing.radius, "
                                   "vane.mass, friction.housing.dynamic, housing.center.0)")
             default = base_value(base, key)
-        variables.append(parse_variable(key, spec, default, sampler))
+        var = parse_variable(key, spec, default, sampler)
+        if schema_leaf(key) == "int" and (var.values is None or any(x != int(x) for x in var.values)):
+            raise ConfigError(f"vary.\"{key}\" is an integer key: give integer values")
+        if function is None:
+            at = var.values[0] if var.values else (default if default is not None else var.bounds[0])
+            if not key_targets(base, key, at):
+                raise ConfigError(f"vary.\"{key}\" does not enter the constrained model's parameters "
+                                  "(model_spec registry) or its speed; it cannot change an output")
+        variables.append(var)
     if sampler == "grid":
         grid_bad = [v.key for v in variables if v.values is None]
         if grid_bad:
             raise ConfigError(f"study.sampler = \"grid\" needs values or range for every key; "
                               f"vary.\"{grid_bad[0]}\" has a distribution")
-    integer_keys = [v.key for v in variables if schema_leaf(v.key) == "int"]
-    for k in integer_keys:
-        v = next(x for x in variables if x.key == k)
-        if v.values is None or any(x != int(x) for x in v.values):
-            raise ConfigError(f"vary.\"{k}\" is an integer key: give integer values")
 
     speeds = st.get("speeds")
     if speeds is not None:

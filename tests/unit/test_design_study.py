@@ -30,6 +30,8 @@ def study(vary, **st):
     ({"study": {"config": "nope.toml"}, "vary": {"vane.mass": {"values": [1e-3]}}}, "study.config: cannot read"),
     ({"study": {"config": RIG, "speeds": [100.0]}, "vary": {"operation.speed": {"values": [1.0]}}}, "not both"),
     ({"study": {"config": RIG}, "vary": {"rotor.vanes": {"values": [2.5]}}}, "integer key"),
+    ({"study": {"config": RIG}, "vary": {"contact.housing.stiffness": {"values": [1e5]}}}, "does not enter the constrained model"),
+    ({"study": {"config": RIG}, "vary": {"housing.a": {"values": [0.0225]}}}, 'vary."housing.a": housing.a is for shape = "ellipse"'),
     ({"study": {"config": RIG, "colour": 1}, "vary": {"vane.mass": {"values": [1e-3]}}}, "unknown key 'study.colour'"),
 ])
 def test_bad_study_is_rejected_with_the_key(raw, message):
@@ -84,3 +86,14 @@ def test_study_hash_follows_the_study_and_the_config():
     b = study({"vane.mass": {"values": [1e-3]}})
     c = study({"vane.mass": {"values": [1.1e-3]}})
     assert a.study_hash() == b.study_hash() != c.study_hash()
+
+
+def test_keys_reach_registry_entries_and_derived_defaults_follow():
+    from pumpsim.design.study import key_targets
+    from tests.conftest import example_dict
+
+    base = example_dict("test_rig")
+    assert sorted(key_targets(base, "housing.radius", 0.0225)) == ["housing.a", "housing.b"]
+    assert sorted(key_targets(base, "vane.mass", 0.0012)) == ["vane.inertia", "vane.mass"]
+    assert key_targets(base, "operation.speed", 600.0) == ["speed"]
+    assert key_targets(base, "rotor.vanes", 4) == ["structure"]

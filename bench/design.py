@@ -1,0 +1,106 @@
+"""Design-study benchmarks (issue 14), run by `make bench` after bench/run.py (or `make bench-design`):
+designs per second for one-revolution (360-sample) evaluations on one core, the speed-up with 2
+Dask workers, the Dask overhead share, and a 10,000-design tolerance Monte Carlo of the test rig end
+to end (sampling, evaluation, Parquet, report). Merges a "design" section into the JSON file."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pumpsim.design import load_study  # noqa: E402
+from pumpsim.design.cli import override_samples  # noqa: E402
+from pumpsim.design.execute import connect, run_study  # noqa: E402
+from pumpsim.design.report import sweep_report  # noqa: E402
+
+STUDY = ROOT / "examples" / "studies" / "test_rig_tolerances.toml"
+
+
+def rig(samples):
+    s = load_study(STUDY)
+    override_samples(s, samples)
+    return s
+
+
+def one_core(n=2000):
+    s = rig(n)
+    run_study(rig(16), workers=0, progress=False)  # warm: kernels, maps
+    t0 = time.perf_counter()
+    _, st = run_study(s, workers=0, progress=False)
+    wall = time.perf_counter() - t0
+    return {"designs": n, "wall_s": wall, "designs_per_s": n / st.wall, "batch_size": st.batch_size}
+
+
+def workers_scaling(n=6000):
+    """The same study on a LocalCluster of 1 and of 2 worker processes (clusters started before
+    the clock: the evaluation phase is timed). Same batch size for both."""
+    s = rig(n)
+    out = {}
+    bs = None
+    for w in (1, 2):
+        client, cluster = connect(None, w, True)
+        try:
+            run_study(rig(64), client=client, workers=w, progress=False)  # warm the workers
+            df, st = run_study(s, client=client, workers=w, batch_size=bs, progress=False)
+            bs = st.batch_size
+            out[w] = st
+        finally:
+            client.close()
+            cluster.close()
+    return {"designs": n, "batch_size": bs, "wall_1_s": out[1].wall, "wall_2_s": out[2].wall,
+            "speedup_2_workers": out[1].wall / out[2].wall,
+            "overhead_share_1": out[1].overhead_share, "overhead_share_2": out[2].overhead_share,
+            "tasks": out[2].batches}
+
+
+def end_to_end(n=10_000):
+    s = rig(n)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        df, st = run_study(s, out=Path(tmp) / "mc", progress=False)
+        t_eval = time.perf_counter() - t0
+        sweep_report(df, s, Path(tmp) / "mc.html")
+        total = time.perf_counter() - t0
+        ok = int((df["status"] == "ok").sum())
+    return {"designs": n, "ok": ok, "total_s": total, "evaluation_and_parquet_s": t_eval,
+            "report_s": total - t_eval, "workers": st.workers, "setup_s": st.setup,
+            "overhead_share": st.overhead_share}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
+    a = ap.parse_args()
+    res = {"cores": os.cpu_count()}
+    print("design studies (test rig tolerance MC, 360 samples per revolution, Model 2)")
+    r = one_core()
+    res["one_core"] = r
+    print(f"  one core, in process: {r['designs_per_s']:.0f} designs/s ({r['designs']} designs)")
+    r = workers_scaling()
+    res["workers"] = r
+    print(f"  LocalCluster 1 -> 2 workers: {r['wall_1_s']:.2f} s -> {r['wall_2_s']:.2f} s, speed-up "
+          f"{r['speedup_2_workers']:.2f}x (target >= 1.7), Dask overhead share {100 * r['overhead_share_2']:.1f} % "
+          f"(target <= 5 %), {r['tasks']} tasks of {r['batch_size']} designs")
+    r = end_to_end()
+    res["end_to_end_10k"] = r
+    print(f"  10,000-design MC end to end (cluster start, sampling, evaluation, Parquet, report): "
+          f"{r['total_s']:.1f} s (target <= 60 s; report {r['report_s']:.1f} s, {r['workers']} workers)")
+    path = Path(a.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = json.loads(path.read_text()) if path.exists() else {}
+    data["design"] = res
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1))
+    os.replace(tmp, path)
+    print(f"wrote {path} (design)")
+
+
+if __name__ == "__main__":
+    main()
