@@ -8,6 +8,7 @@ builds its own from the hashed cache; compiled functions never travel between pr
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 
@@ -72,17 +73,45 @@ def _split(names, res, N, keep):
     return out
 
 
+def _fast(structure):
+    """The SIMD inverse dynamics (pumpsim.fastkernel) of a variant, or None where it cannot be
+    built (then the scalar CasADi kernel runs). PUMPSIM_DESIGN_KERNEL=scalar forces the latter."""
+    if os.environ.get("PUMPSIM_DESIGN_KERNEL", "") == "scalar":
+        return None
+    key = ("fast", structure)
+    if key not in _MAPS.cache:
+        from ..fastkernel import load_fast_kernel
+
+        try:
+            fk = load_fast_kernel(structure, fallback=True)
+        except PumpsimError:
+            fk = None
+        _MAPS.cache[key] = fk if fk is not None and fk.simd else None
+    return _MAPS.cache[key]
+
+
 def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
     """Inverse dynamics at constant speed for a batch of designs of one compiled variant.
     P: (designs, len(p)); theta: (n,) rotor angles shared by all designs; omega: (designs,).
-    Returns name -> (designs, n) for the torque and (designs, N, n) per vane."""
+    Returns name -> (designs, n) for the torque and (designs, N, n) per vane.
+
+    One kernel call per design (the SIMD library when it exists, else the scalar one on NumPy
+    buffers), so a design's numbers never depend on which designs share its batch."""
     P = np.atleast_2d(np.asarray(P, dtype=float))
-    theta = np.asarray(theta, dtype=float)
+    theta = np.ascontiguousarray(theta, dtype=float)
     D, n, N = P.shape[0], theta.size, kern.structure.vanes
+    out = {nm: np.empty((D, n) if nm in SAMPLE_OUTPUTS else (D, N, n)) for nm in outputs}
+    fast = _fast(kern.structure)
+    if fast is not None:
+        buf = _MAPS.cache.setdefault(("fast-out", kern.structure, n), fast.output_array(n))
+        for d in range(D):
+            res = fast(theta, omega[d], 0.0, P[d], out=buf)
+            for nm in outputs:
+                out[nm][d] = res[nm]
+        return out
     args, res, run = _MAPS.buffered(kern, "inverse_dynamics", n, (1, 2, 3), outputs)
     args[0][:] = theta
     args[2][0] = 0.0
-    out = {nm: np.empty((D, n) if nm in SAMPLE_OUTPUTS else (D, N, n)) for nm in outputs}
     for d in range(D):
         args[1][0] = omega[d]
         args[3][:] = P[d]

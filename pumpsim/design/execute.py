@@ -82,8 +82,15 @@ def structures(study) -> list:
 def kernel_keys(study) -> dict:
     """Variant -> content key of the compiled library this process loads (or builds)."""
     from ..kernels import load_kernels
+    from .evaluate import _fast
 
-    return {st.variant: load_kernels(st).key for st in structures(study)}
+    out = {}
+    for st in structures(study):
+        out[st.variant] = load_kernels(st).key
+        fast = _fast(st)
+        if fast is not None:
+            out[f"{st.variant} (SIMD)"] = fast.key
+    return out
 
 
 def columns(study) -> list[tuple[str, str]]:
@@ -284,8 +291,11 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     if study.function is None and not scheduler:
         from ..kernels import load_kernels
 
+        from .evaluate import _fast
+
         for st in structures(study):  # build missing variants once, before local workers look
             load_kernels(st)
+            _fast(st)
     bs = batch_size or study.batch_size or (man or {}).get("batch_size")
     if not bs:
         bs = pilot_batch_size(study, X) if len(X) > 1 else 1

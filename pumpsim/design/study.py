@@ -117,7 +117,7 @@ def get_value(table: dict, key: str):
 
 
 def apply_values(base: dict, values: dict) -> dict:
-    d = copy.deepcopy(base)
+    d = dict(base)  # copy only the tables and lists on the changed paths (a design is built per row)
     for key, val in values.items():
         if schema_leaf(key) == "int":
             val = int(round(val))  # the design matrix holds floats
@@ -126,10 +126,12 @@ def apply_values(base: dict, values: dict) -> dict:
         for j, part in enumerate(parts[:-1]):
             nxt = parts[j + 1]
             if isinstance(node, list):
+                node[int(part)] = copy.copy(node[int(part)])
                 node = node[int(part)]
             else:
                 if part not in node:
                     node[part] = [0.0, 0.0] if key.startswith("housing.center") else ({} if not nxt.isdigit() else [])
+                node[part] = copy.copy(node[part])
                 node = node[part]
         last = parts[-1]
         if isinstance(node, list):
@@ -140,9 +142,11 @@ def apply_values(base: dict, values: dict) -> dict:
         else:
             node[last] = val
         if key == SPEED_KEY:  # the varied speed replaces a speed given in rpm
-            d.get("operation", {}).pop("speed_rpm", None)
+            d["operation"] = {k: v for k, v in d.get("operation", {}).items() if k != "speed_rpm"}
+            d["operation"][key.split(".")[1]] = val
         if key == "operation.speed_rpm":
-            d.get("operation", {}).pop("speed", None)
+            d["operation"] = {k: v for k, v in d.get("operation", {}).items() if k != "speed"}
+            d["operation"]["speed_rpm"] = val
     return d
 
 
