@@ -12,8 +12,8 @@ Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key ove
 options, library hash, this tree's source fingerprint) plus this CPU's instruction-set flags and C
 library (pumpsim.model_spec.simd); a missing or mismatched library is built through
 codegen.simd.build_simd, imported only then (PUMPSIM_NO_BUILD=1: refused). On a machine where no
-SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel(...,
-fallback=True)` returns the same interface over the scalar CasADi kernel.
+SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel` returns
+the same interface over the scalar CasADi kernel (`.simd` False; fallback=False raises instead).
 
 `python -m pumpsim.fastkernel CONFIG ...` loads (building when needed) the SIMD libraries of
 configuration files' constrained variants; `make codegen` runs it on the bundled examples.
@@ -179,11 +179,11 @@ def _log_if_terminal(msg):
         print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
 
 
-def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: bool = False, log=None):
+def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: bool = True, log=None):
     """The SIMD inverse dynamics of `structure` (constrained model), built if missing or stale
-    (unless build=False or PUMPSIM_NO_BUILD=1: then refused). fallback=True: if no SIMD library
-    can be built on this machine, the scalar kernel behind the same interface (`.simd` False,
-    `.reason` says why)."""
+    (unless build=False or PUMPSIM_NO_BUILD=1: then refused). If no SIMD library can be built on
+    this machine (gcc leaves the loops scalar, no vector math, no compiler), the scalar kernel
+    behind the same interface (`.simd` False, `.reason` says why, logged); fallback=False raises."""
     if structure.model != "constrained":
         raise ConfigError("the fast inverse dynamics exist for the constrained model only")
     fingerprint = mf.source_fingerprint()
@@ -200,11 +200,13 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
                 f"(source {fingerprint}, in {mf.generated_dir()}); run `make codegen` or unset PUMPSIM_NO_BUILD")
         from codegen.simd import build_simd  # codegen only when building
 
+        log = log or _log_if_terminal
         try:
-            build_simd(structure, log=log or _log_if_terminal)
+            build_simd(structure, log=log)
         except CodegenError as exc:
             if not fallback:
                 raise
+            log(f"no SIMD library for {structure.variant}, using the scalar kernel: {exc}")
             _LOADED[memo] = ScalarInverseDynamics(structure, str(exc))
             return _LOADED[memo]
         folder, manifest = find_simd(structure, ca.__version__, fingerprint)
@@ -228,7 +230,7 @@ def main(argv=None) -> int:
             continue
         seen.add(st)
         try:
-            k = load_fast_kernel(st, log=lambda m: print(m, flush=True))
+            k = load_fast_kernel(st, fallback=False, log=lambda m: print(m, flush=True))
         except CodegenError as exc:  # the scalar kernels still work: say so, do not fail make
             print(f"{st.variant}: no SIMD library on this machine: {exc}", flush=True)
             continue

@@ -1,5 +1,7 @@
 """SIMD inverse dynamics (codegen.simd, pumpsim.fastkernel) against the scalar library; p per
 design, per block and per sample; the cache refuses stale libraries."""
+import subprocess
+
 import numpy as np
 import pytest
 
@@ -21,7 +23,7 @@ def case(request):
     cfg = make_config("ellipse_4vanes", **{"rotor.slot_tilt": 0.1, "vane.tip_radius": 0.001},
                       **CASES[request.param])
     kern, p, pv = kernel_and_p(cfg)
-    return kern, fastkernel.load_fast_kernel(pv.structure), p, pv
+    return kern, fastkernel.load_fast_kernel(pv.structure, fallback=False), p, pv
 
 
 def random_motion(rng, n):
@@ -113,7 +115,7 @@ def private_cache(tmp_path, monkeypatch):
 
 def test_stale_foreign_or_tampered_simd_library_is_refused(private_cache, monkeypatch):
     st = Structure(vanes=2, harmonics=0)
-    k = fastkernel.load_fast_kernel(st)
+    k = fastkernel.load_fast_kernel(st, fallback=False)
     assert k.manifest["options"]["cpu"] == simd_contract.cpu_signature()
 
     def refused():
@@ -136,15 +138,14 @@ def test_stale_foreign_or_tampered_simd_library_is_refused(private_cache, monkey
 
 def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch):
     """Without -fno-math-errno libm calls set errno, so gcc keeps the loops scalar: no library
-    (a scalar loop is refused by name); fallback=True gives the scalar kernel behind the same
-    interface."""
+    (a scalar loop is refused by name); by default the scalar kernel behind the same interface."""
     cfg = make_config("ellipse_4vanes", **{"rotor.vanes": 2})
     kern, p, pv = kernel_and_p(cfg)
     monkeypatch.setattr(simd, "SIMD_CFLAGS", [f for f in simd.SIMD_CFLAGS if f != "-fno-math-errno"])
     with pytest.raises(CodegenError, match="left loop_vane_shared, loop_vane_samples scalar"):
-        fastkernel.load_fast_kernel(pv.structure)
+        fastkernel.load_fast_kernel(pv.structure, fallback=False)
     monkeypatch.setattr(fastkernel, "_LOADED", {})
-    fb = fastkernel.load_fast_kernel(pv.structure, fallback=True)
+    fb = fastkernel.load_fast_kernel(pv.structure)
     assert not fb.simd and "scalar" in fb.reason
     theta, omega, omegadot = random_motion(np.random.default_rng(1), 50)
     P = designs(pv, np.random.default_rng(2), 2)
@@ -152,3 +153,17 @@ def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch
     ref = inverse_dynamics(kern, P[1], theta[25:], omega[25:], omegadot[25:])
     for name, r in ref.items():
         np.testing.assert_array_equal(got[name][..., 25:], r)
+
+
+def test_vane_loops_vectorise_on_avx2_too(case, tmp_path):
+    """A worker without AVX-512 builds its own library: the same source must vectorise with AVX2
+    alone (selects as bit blends; with C conditionals gcc 12 left these loops scalar there)."""
+    _, fk, _, _ = case
+    if "-mavx2" not in simd.native_target():
+        pytest.skip("this CPU has no AVX2")
+    flags = [f for f in simd.SIMD_CFLAGS if f != "-shared"]
+    proc = subprocess.run([simd.build.CC, *flags, "-mno-avx512f", "-fopt-info-vec-optimized", "-c",
+                           str(fk.folder / fk.manifest["c_source"]), "-o", str(tmp_path / "avx2.o")],
+                          capture_output=True, text=True, check=True)
+    assert simd.unvectorised_loops(fk.manifest["loop_lines"], proc.stderr) == []
+    assert "using 32 byte vectors" in proc.stderr
