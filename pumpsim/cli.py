@@ -39,6 +39,10 @@ def cmd_simulate(a) -> int:
     from . import SimulationResult, SolverError, load_config, simulate
 
     cfg = load_config(a.config)
+    if a.plot:  # an unsupported figure format is bad input: refused before any work
+        from .plotting import figure_format
+
+        figure_format(a.plot)
     opts = {}
     if a.model == "contact" and a.initial:
         opts["initial"] = a.initial

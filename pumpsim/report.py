@@ -20,6 +20,7 @@ import base64
 import html
 import io
 import math
+import re
 
 import matplotlib
 
@@ -379,8 +380,21 @@ def bic_chain(history) -> list | None:
     return out, rho
 
 
+_NUMBER_WITH_ERROR = re.compile(r"[-+]?[0-9][0-9.]*(?:e[-+]?[0-9]+)? ± [0-9.]+(?:e[-+]?[0-9]+)?"
+                                r"(?: (?:rad|µm|mm|m|N·m|N·s/m|rad/s|s|kg|% of ω0))?(?: \([^)]*\))?")
+
+
 def _nb_list(items) -> str:
-    return "; ".join(nb(x) for x in items)
+    """Items separated by '; ', each free to wrap between words but never inside 'value ± s.e. unit'."""
+    out = []
+    for x in items:
+        text, pos, parts = str(x), 0, []
+        for m in _NUMBER_WITH_ERROR.finditer(text):
+            parts.append(html.escape(text[pos:m.start()]) + nb(m.group(0)))
+            pos = m.end()
+        parts.append(html.escape(text[pos:]))
+        out.append("".join(parts))
+    return "; ".join(out)
 
 
 def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, provenance_rows=None) -> None:

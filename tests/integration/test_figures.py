@@ -124,11 +124,11 @@ def test_cli_figure_title_and_refused_format(tmp_path):
     assert r.returncode == 0, r.stderr
     text = svg.read_text()
     assert "test-rig" in text and "5800 rpm" in text  # SVG text stays text
-    bad = tmp_path / "f.foo"
-    r = subprocess.run([sys.executable, "-m", "pumpsim", "simulate", "examples/test_rig.toml", "--plot", str(bad)],
-                       capture_output=True, text=True, cwd=ROOT)
+    bad, csv = tmp_path / "f.foo", tmp_path / "o.csv"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "simulate", "examples/test_rig.toml", "--plot", str(bad),
+                        "--out", str(csv)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "'.foo' is not supported" in r.stderr and "Traceback" not in r.stderr
-    assert not bad.exists()
+    assert not bad.exists() and not csv.exists()  # refused before the run: nothing written
 
 
 @pytest.mark.parametrize("warp", [0.0, 0.3])
