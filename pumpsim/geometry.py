@@ -65,7 +65,7 @@ def geometry_verdict(v, alpha, pts, curv, theta, s, res) -> str | None:
     if np.any(~np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
         j = np.unravel_index(np.nanargmax(np.where(np.isfinite(res), res, np.inf)), res.shape)
         return f"vane {j[0]} does not reach the housing at rotor angle {theta[j[1]]:.3f} rad"
-    if s.min() < 0:
+    if s.min() < -POSITION_TOL:  # s = 0 (on the slot bottom) is allowed; its rounding is not a verdict
         j = np.unravel_index(np.argmin(s), s.shape)
         return (f"vane.length {L:.4f} m is too long: at rotor angle {theta[j[1]]:.3f} rad "
                 f"vane {j[0]} would need s = {s[j]:.5f} m < 0 (below the slot bottom) "

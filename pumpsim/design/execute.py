@@ -228,7 +228,8 @@ def connect(scheduler=None, workers=None, processes=True):
     if scheduler:
         _probe(scheduler)
         try:
-            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s"), None
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
+            return client, client  # ours to close; the cluster is not
         except Exception as e:  # timeouts, refused handshakes, something else on that port
             raise ConfigError(f"no Dask scheduler answers at '{scheduler}' within {CONNECT_TIMEOUT:g} s "
                               f"({type(e).__name__}: {str(e)[:200]})") from None
@@ -281,7 +282,8 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     finally:
         if own is not None:
             client.close()
-            own.close()
+            if own is not client:
+                own.close()
 
 
 def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):

@@ -8,7 +8,8 @@ effects are per unit of the key's quantile (mu* ranks the keys; compare keys, no
 
 - sobol: Saltelli/Sobol' sampling (N (D + 2) designs without second order), first-order S1 and
   total ST with bootstrap confidence intervals (95 %, `resamples`), SALib's estimators.
-- morris: r trajectories on a p-level grid (N (D + 1) designs); mu*, its bootstrap interval, sigma.
+- morris: r trajectories on a p-level grid (N (D + 1) designs) at the quantiles (k + 1/2)/p;
+  mu*, its bootstrap interval, sigma.
 A design the model could not evaluate has no output: the indices of that output are not
 computed (named in `skipped`), since neither estimator can drop a design of a matrix block.
 """
@@ -63,13 +64,16 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
             U = sobol_sample.sample(problem, n, calc_second_order=False, scramble=True, seed=seed)
         else:
             U = morris_sample.sample(problem, n, num_levels=levels, seed=seed)
+    # Morris levels include the cube's faces, where a normal key's inverse CDF is infinite:
+    # its p levels are placed at the quantiles (k + 1/2)/p instead (same grid, scaled by (p-1)/p)
+    Q = (U * (levels - 1) + 0.5) / levels if method == "morris" else U
     X = np.empty((U.shape[0], len(study.variables)))
     j = 0
     for c, v in enumerate(study.variables):
         if v.spread_zero:
             X[:, c] = v.values[0]
         else:
-            X[:, c] = v.ppf(U[:, j])
+            X[:, c] = v.ppf(Q[:, j])
             j += 1
     df, stats = run_study(study, X=X, **run_kw)
     # operating points are separate analyses; a varied operation.speed is an input like any other

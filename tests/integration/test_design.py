@@ -243,3 +243,62 @@ def test_cli_sweep_summary_csv_report_and_optimize(tmp_path, capsys):
     w = 5800 * 2 * math.pi / 60
     assert res["design"]["vane.mass"] == pytest.approx(5.0 / (w**2 * 0.0165), rel=1e-8)
     assert res["iterations"] and res["constraints"]["min_normal_force"]["satisfied"]
+
+
+def test_simd_and_scalar_design_kernels_agree(monkeypatch):
+    from tests.tolerances import SIMD_REL
+
+    s = study(ELLIPSE, {"vane.mass": {"values": [0.001, 0.0014]}, "housing.b": {"values": [0.021, 0.022]}},
+              sampler="grid")
+    fast, _ = design.sweep(s, workers=0)
+    monkeypatch.setenv("PUMPSIM_DESIGN_KERNEL", "scalar")
+    scalar, _ = design.sweep(s, workers=0)
+    for c in fast.columns:
+        if fast[c].dtype.kind == "f":
+            scale = np.abs(scalar[c]).max()
+            assert np.abs(fast[c] - scalar[c]).max() <= SIMD_REL * max(scale, 1e-300), c
+        else:
+            assert fast[c].equals(scalar[c]), c
+
+
+def test_study_on_an_existing_scheduler():
+    from dask.distributed import LocalCluster
+
+    s = study(RIG, {"vane.mass": {"values": [0.001, 0.0012, 0.0014]}}, sampler="grid", batch_size=1)
+    ref, _ = design.sweep(s, workers=0)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
+        df, st = design.sweep(s, scheduler=cl.scheduler_address)
+    assert df.equals(ref) and st.batches == 3
+
+
+def test_morris_screening_gives_an_inert_key_zero():
+    """With radial slots in a concentric housing the slot radius only shifts s: the torque cannot
+    depend on it (mu* = 0 exactly), while mu and m both act."""
+    s = study(RIG, {"rotor.slot_radius": {"distribution": "uniform", "low": 0.0085, "high": 0.0095},
+                    "vane.mass": {"distribution": "normal", "sd": 0.05, "relative": True},
+                    "friction.housing.dynamic": {"distribution": "uniform", "low": 0.15, "high": 0.25}},
+              outputs=["mean_torque"], seed=2, sensitivity={"method": "morris", "samples": 12, "resamples": 200})
+    r = design.sensitivity(s, workers=0)
+    mt = r["indices"]["mean_torque"]
+    assert r["designs"] == 12 * 4
+    assert mt["rotor.slot_radius"]["mu_star"] <= 1e-12 * mt["vane.mass"]["mu_star"]
+    assert mt["friction.housing.dynamic"]["mu_star"] > mt["vane.mass"]["mu_star"] > 0
+
+
+def test_nsga2_pareto_front_of_friction_power_and_torque_ripple():
+    """Ellipse, one key b: the friction power grows with b (a larger tip radius) while the torque
+    ripple shrinks towards the circle, so the front spans the range; it must be non-dominated and
+    each point the model's own values at its b."""
+    s = study(ELLIPSE, {"housing.b": {"bounds": [0.0212, 0.0240]}},
+              objective={"minimize": ["friction_power", "ptp_torque"]},
+              optimize={"population": 12, "generations": 8, "seed": 1})
+    r = design.optimize(s)
+    front = r["front"]
+    assert r["method"] == "nsga2" and len(front) >= 6
+    F = np.array([[f["objectives"]["friction_power"], f["objectives"]["ptp_torque"]] for f in front])
+    for i in range(len(F)):
+        assert not np.any(np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1))
+    bs = [f["design"]["housing.b"] for f in front]
+    df, _ = design.sweep(study(ELLIPSE, {"housing.b": {"values": bs}}, sampler="grid"), workers=0)
+    assert np.allclose(df["friction_power"], F[:, 0], rtol=1e-12)
+    assert np.allclose(df["ptp_torque"], F[:, 1], rtol=1e-12)
