@@ -167,6 +167,8 @@ def prepare(study, values: dict) -> Prepared:
         return Prepared(cfg, as_array(pv), "ok", pv.values)
     except ConfigError as e:
         return Prepared(status=f"config: {e}")
+    except (TypeError, ValueError, OverflowError) as e:  # e.g. a non-finite sampled value
+        return Prepared(status=f"config: {type(e).__name__}: {e}")
 
 
 def design_speeds(study, cfg) -> list:
@@ -184,7 +186,83 @@ def _status(out):
     return "; ".join(msgs) or "ok"
 
 
-def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int, timer=None) -> list[dict]:
+def _evaluate_one(study, kern, pr, nrev):
+    """(status, [(speed, outputs or None)] or None) of one prepared design."""
+    theta = revolution(pr.cfg.angle, nrev)
+    speeds = design_speeds(study, pr.cfg)
+    try:
+        ev = evaluate_designs(kern, np.repeat(pr.p[None, :], len(speeds), axis=0), theta, np.asarray(speeds))
+        alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
+    except PumpsimError as e:
+        return f"numerical: {e}", None
+    verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, ev["s"][0], ev["position_residual"][0])
+    if verdict:
+        return f"geometry: {verdict}", None
+    res = ev["position_residual"]
+    if not np.all(np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
+        return "numerical: position problem did not converge", None
+    v = pr.values
+    lm = mouth_depth(v)
+    per_speed = []
+    for k, w in enumerate(speeds):
+        a = {nm: arr[k] for nm, arr in ev.items()}
+        out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
+        if not all(np.isfinite(x) for x in out.values() if not isinstance(x, bool)):
+            out = None
+        per_speed.append((w, out))
+    return "ok", per_speed
+
+
+CONTACT_REVOLUTIONS = 30  # simulated from an in-contact start; the last one is reported
+PERIODIC_REL = 1e-3  # contact model: the last two revolutions' torque may differ by this share of its peak
+
+
+def _evaluate_contact(study, pr, nrev):
+    """Model 1 (penalty contact) at constant speed: simulated for study.revolutions from the
+    in-contact start, the last revolution sampled at the same angles as Model 2 is reported if it
+    repeats the one before (periodic steady state within PERIODIC_REL)."""
+    import dataclasses
+
+    from ..contact import simulate_contact
+    from ..errors import SolverError
+    from ..geometry import vane_positions
+
+    kern2 = load_kernels(pr.cfg.structure_for("constrained"))
+    theta = revolution(pr.cfg.angle, nrev)
+    s, _, res = vane_positions(kern2, pr.p, theta)
+    alpha, pts, curv = housing_check_samples(kern2, pr.p, nrev)
+    verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, s, res)
+    if verdict:
+        return f"geometry: {verdict}", None
+    v = pr.values
+    lm = mouth_depth(v)
+    revs = study.revolutions or CONTACT_REVOLUTIONS
+    per_speed = []
+    for w in design_speeds(study, pr.cfg):
+        cfg = dataclasses.replace(pr.cfg, mode="speed", speed=float(w), speed_ripple=None)
+        rate = nrev * w / (2 * math.pi)
+        try:
+            r = simulate_contact(cfg, duration=(revs * nrev - 0.5) / rate, rate=rate, initial="housing")
+        except SolverError as e:
+            return f"numerical: {e}", None
+        last, prev = slice(-nrev, None), slice(-2 * nrev, -nrev)
+        tq = r.torque
+        drift = np.abs(tq[last] - tq[prev]).max() / max(np.abs(tq[last]).max(), 1e-300)
+        if drift > PERIODIC_REL:
+            return (f"not_periodic: the contact model's torque still changes by {100 * drift:.2g} % of its "
+                    f"range between revolutions {revs - 1} and {revs} (raise study.revolutions)"), None
+        a = {"torque": tq[last], **{k: r.vanes[k][:, last] for k in ("s", "sdot", "normal", "slot1", "slot2")},
+             **{k: r.extra[k][:, last] for k in ("tip_slip", "mu_housing", "mu_slot")}}
+        a["n_consistent"] = np.ones_like(a["s"])
+        a["ambiguity"] = np.zeros_like(a["s"])
+        out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
+        out["lift_off"] = bool(out["min_normal_force"] <= 0)  # the penalty force never pulls: 0 is no contact
+        out["paradox"] = any("friction paradox" in msg for msg in r.warnings)
+        per_speed.append((w, out))
+    return "ok", per_speed
+
+
+def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict]:
     """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys)."""
     keys = study.keys
     nrev = study.revolution_samples
@@ -196,37 +274,20 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int, timer=None) 
             groups.setdefault(pr.cfg.structure_for("constrained"), []).append(j)
     results: dict = {}
     for structure, members in groups.items():
-        kern = load_kernels(structure)
+        try:
+            kern = load_kernels(structure)
+        except PumpsimError as e:  # a worker that cannot build the variant: every design says so
+            for j in members:
+                results[j] = (f"kernel: {e}", None)
+            continue
         for j in members:
-            pr = prepared[j]
-            theta = revolution(pr.cfg.angle, nrev)
-            speeds = design_speeds(study, pr.cfg)
             try:
-                ev = evaluate_designs(kern, np.repeat(pr.p[None, :], len(speeds), axis=0), theta,
-                                      np.asarray(speeds))
-                alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
-                verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, ev["s"][0],
-                                           ev["position_residual"][0])
-            except PumpsimError as e:  # pragma: no cover - the kernels report, not raise
-                results[j] = (f"numerical: {e}", None)
-                continue
-            if verdict:
-                results[j] = (f"geometry: {verdict}", None)
-                continue
-            res = ev["position_residual"]
-            if not np.all(np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
-                results[j] = ("numerical: position problem did not converge", None)
-                continue
-            v = pr.values
-            lm = mouth_depth(v)
-            per_speed = []
-            for k, w in enumerate(speeds):
-                a = {nm: arr[k] for nm, arr in ev.items()}
-                out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
-                if not all(np.isfinite(x) for x in out.values() if not isinstance(x, bool)):
-                    out = None
-                per_speed.append((w, out))
-            results[j] = ("ok", per_speed)
+                if study.model == "contact":
+                    results[j] = _evaluate_contact(study, prepared[j], nrev)
+                else:
+                    results[j] = _evaluate_one(study, kern, prepared[j], nrev)
+            except Exception as e:  # noqa: BLE001 - one design's failure never stops the study
+                results[j] = (f"error: {type(e).__name__}: {e}", None)
     for j, pr in enumerate(prepared):
         base = {"design": int(ids[j])}
         keyvals = {k: float(x) for k, x in zip(keys, X[j])}

@@ -76,6 +76,8 @@ def structures(study) -> list:
         except ConfigError:
             continue
         out.append(cfg.structure_for("constrained"))
+        if study.model == "contact":
+            out.append(cfg.structure_for("contact"))
     return out
 
 
@@ -87,7 +89,7 @@ def kernel_keys(study) -> dict:
     out = {}
     for st in structures(study):
         out[st.variant] = load_kernels(st).key
-        fast = _fast(st)
+        fast = _fast(st) if st.model == "constrained" else None
         if fast is not None:
             out[f"{st.variant} (SIMD)"] = fast.key
     return out
@@ -297,7 +299,12 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
 
         for st in structures(study):  # build missing variants once, before local workers look
             load_kernels(st)
-            _fast(st)
+            if st.model == "constrained":
+                _fast(st)
+    if man and study.function is None and not scheduler and man.get("kernel_keys") != kernel_keys(study):
+        raise ConfigError(f"--out '{out}' was written with other compiled kernels "
+                          f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
+                          "choose another folder or remove it")
     bs = batch_size or study.batch_size or (man or {}).get("batch_size")
     if not bs:
         bs = pilot_batch_size(study, X) if len(X) > 1 else 1

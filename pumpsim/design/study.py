@@ -21,10 +21,11 @@ from ..errors import ConfigError
 from .outputs import BOOL_OUTPUTS, OUTPUTS
 from .sampling import DISTRIBUTIONS, SAMPLERS, Variable, parse_variable
 
-MODELS = ("constrained",)  # the contact model's periodic steady state is not offered yet
+MODELS = ("constrained", "contact")
 SPEED_KEY = "operation.speed"
 _STUDY_KEYS = {"config", "function", "sampler", "samples", "seed", "speeds", "outputs", "model",
-               "samples_per_revolution", "scheduler", "workers", "batch_size", "revolution_samples"}
+               "samples_per_revolution", "scheduler", "workers", "batch_size", "revolution_samples",
+               "revolutions"}
 _TOP_KEYS = {"study", "vary", "limits", "objective", "constraints", "optimize", "sensitivity"}
 
 
@@ -50,6 +51,7 @@ class Study:
     workers: int | None = None
     batch_size: int | None = None
     function: str | None = None  # analytic verification function instead of the pump
+    revolutions: int | None = None  # contact model: revolutions simulated (the last is reported)
     raw: dict = field(default_factory=dict)  # the study file's table (for the hash)
 
     @property
@@ -272,8 +274,13 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         raise ConfigError(f"study.seed must be an integer >= 0, got {seed!r}")
     model = st.get("model", "constrained")
     if model not in MODELS:
-        raise ConfigError(f"study.model must be 'constrained', got {model!r} (the contact model's "
-                          "periodic steady state is not offered for studies)")
+        raise ConfigError(f"study.model must be 'constrained' or 'contact', got {model!r}")
+    if model == "contact" and function is None and not base_cfg.contact_given:
+        raise ConfigError("study.model = \"contact\" needs [contact.housing] with a stiffness in the config")
+    revolutions = st.get("revolutions")
+    if revolutions is not None and (not isinstance(revolutions, int) or isinstance(revolutions, bool)
+                                    or not 2 <= revolutions <= 1000):
+        raise ConfigError(f"study.revolutions must be an integer in [2, 1000], got {revolutions!r}")
     nrev = st.get("revolution_samples", st.get("samples_per_revolution", 360))
     if not isinstance(nrev, int) or isinstance(nrev, bool) or not 8 <= nrev <= 100_000:
         raise ConfigError(f"study.revolution_samples must be an integer in [8, 100000], got {nrev!r}")
@@ -365,7 +372,8 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
                  variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
                  outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
                  objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
-                 scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw)
+                 scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
+                 revolutions=revolutions)
 
 
 __all__ = ["Study", "load_study", "study_from_dict", "apply_values", "DISTRIBUTIONS", "Variable"]
