@@ -30,6 +30,7 @@ demo: codegen
 # design studies at reduced size (full size: drop --samples)
 demo-design: codegen
 	mkdir -p out
+	rm -rf out/rig_tolerances out/ellipse_grid  # fresh results (a rerun into a folder resumes it)
 	$(BIN)/pumpsim sweep examples/studies/test_rig_tolerances.toml --samples 1024 --out out/rig_tolerances \
 		--csv out/rig_tolerances.csv --report out/rig_tolerances.html
 	$(BIN)/pumpsim sensitivity examples/studies/test_rig_tolerances.toml --samples 128 \
