@@ -79,7 +79,7 @@ def histograms(df, study) -> str:
         ax.set_title(title, fontsize=9)
         ax.set_xlabel(_label(o), fontsize=8)
         ax.tick_params(labelsize=7)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4), useOffset=False)
     for ax in axes.ravel()[len(outs):]:
         ax.axis("off")
     fig.tight_layout()
@@ -128,7 +128,7 @@ def tornado(df, study) -> str:
         ax.set_title(f"{o}\n(linear fit R² = {r2:.3f})", fontsize=9)
         ax.set_xlabel(f"change of {_label(o)}\nfor ±1 sd of the key", fontsize=8)
         ax.tick_params(axis="x", labelsize=7)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4), useOffset=False)
     fig.tight_layout()
     return figure_html(fig)
 
@@ -157,7 +157,7 @@ def scatter_matrix(df, study) -> str:
             if j == 0:
                 ax.set_ylabel(o, fontsize=8)
             ax.tick_params(labelsize=6)
-            ax.ticklabel_format(style="sci", scilimits=(-3, 4))
+            ax.ticklabel_format(style="sci", scilimits=(-3, 4), useOffset=False)
             ax.xaxis.set_major_locator(MaxNLocator(3))
     fig.tight_layout()
     return figure_html(fig)
