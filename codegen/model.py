@@ -206,6 +206,10 @@ class _Builder:
 
     def kinematics_constrained(self, theta, omega, omegadot, phi):
         s, alpha, res = self.solve_position(theta, phi)
+        return self.kinematics_at(theta, omega, omegadot, phi, s, alpha, res)
+
+    def kinematics_at(self, theta, omega, omegadot, phi, s, alpha, res=0.0):
+        """Velocities and accelerations at a solved position (s, alpha)."""
         # velocity and acceleration from the constraint (exact derivatives of Phi)
         th, ys, ya = ca.SX.sym("th"), ca.SX.sym("s"), ca.SX.sym("a")
         q = ca.vertcat(th, ys, ya)
@@ -250,7 +254,7 @@ class _Builder:
                            ["theta", "omega", "omegadot", "phi", "factor", "p"], list(VANE_OUTPUTS),
                            {"cse": True})
 
-    def solve_contact_sides(self, unknowns, common):
+    def solve_contact_sides(self, unknowns, common, extra=None):
         """Solve the three vane equations (slide, lateral, tilt) for `unknowns` -- (N, F1, F2) in
         Model 2, (sddot, F1, F2) in Model 1 -- for every contact-side set (sigma1, sigma2); keep the
         consistent one (sign F_j = sigma_j). Returns (solution, number of consistent sets,
@@ -259,6 +263,8 @@ class _Builder:
         sig = ca.SX.sym("sig", 2)
         m = self.mech(sigma1=sig[0], sigma2=sig[1], **dict(zip(unknowns, [x[0], x[1], x[2]])), **common)
         eqs = ca.vertcat(m["eq_slide"], m["eq_lateral"], m["eq_tilt"])
+        if extra is not None:  # generalised forces of further loads (gas pressure, spec §8)
+            eqs = eqs + ca.vertcat(*extra)
         A = ca.jacobian(eqs, x)  # the equations are linear in x for a fixed sign set
         b = -ca.substitute(eqs, x, ca.DM.zeros(3))
         cands, errs, scales = [], [], []
@@ -393,6 +399,10 @@ class _Builder:
 
 def build_model(structure: Structure) -> BuiltModel:
     """Build every exported CasADi function of one variant (no compilation here)."""
+    if structure.model == "pneumatic":  # spec §8: gas cells, valves, booster, motor
+        from .pneumatic_model import build_pneumatic_model
+
+        return build_pneumatic_model(structure)
     if structure.model != "constrained":
         from .contact_model import build_contact_functions  # Model 1
 

@@ -14,6 +14,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .model_spec.parameters import CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, ParameterVector, Structure
+from .pneumatics import config as _pneumatic_config
 
 RPM = 2 * math.pi / 60
 
@@ -55,6 +56,10 @@ _SCHEMA = {
         "speed_ripple": ("list", False, None),
     },
 }
+# spec §8: gas, ports, valve, leak, booster, motor tables and their keys in [rotor] / [vane]
+_SCHEMA.update(_pneumatic_config.SCHEMA)
+for _table, _keys in _pneumatic_config.EXTRA_KEYS.items():
+    _SCHEMA[_table].update(_keys)
 
 
 def _is_num(v):
@@ -129,6 +134,7 @@ class PumpConfig:
     path: str | None = None
     # speed mode: omega = speed (1 + amplitude cos(order theta_n + phase)), theta_n the nominal angle
     speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
+    pneumatic: object = None  # spec §8 settings (pneumatics.config.PneumaticSettings) or None
 
     def with_harmonics(self, harmonics) -> "PumpConfig":
         """This config with the housing harmonics [[k, A, gamma], ...] (replacing the old ones)."""
@@ -295,8 +301,9 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
                 values[f"contact.{side}.{k}"] = src[k]
     # operation
     mode = op["mode"]
-    if mode not in ("speed", "torque"):
-        raise ConfigError(f"operation.mode must be \"speed\" or \"torque\", got {mode!r}")
+    if mode not in ("speed", "torque", "motor"):
+        raise ConfigError(f"operation.mode must be \"speed\" or \"torque\" (or \"motor\" with the gas "
+                          f"tables, spec §8), got {mode!r}")
     if op["speed"] is not None and op["speed_rpm"] is not None:
         raise ConfigError("give operation.speed (rad/s) or operation.speed_rpm, not both")
     speed = op["speed"] if op["speed_rpm"] is None else op["speed_rpm"] * RPM
@@ -305,6 +312,10 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
             raise ConfigError("missing required key 'operation.speed' (or operation.speed_rpm) for mode = \"speed\"")
         if speed <= 0:
             raise ConfigError(f"operation.speed must be > 0, got {speed:g}")
+    elif mode == "motor":
+        speed = 0.0 if speed is None else speed  # the motor starts the pump (from rest by default)
+        if speed < 0:
+            raise ConfigError(f"operation.speed (initial speed) must be >= 0, got {speed:g}")
     else:
         if op["torque"] is None:
             raise ConfigError("missing required key 'operation.torque' for mode = \"torque\"")
@@ -337,6 +348,9 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         if mode != "speed":
             raise ConfigError("effects.speed_ripple needs operation.mode = \"speed\" (a prescribed speed)")
         ripple = (int(ripple[0]), float(ripple[1]), float(ripple[2]))
+    pneumatic = _pneumatic_config.parse(c, raw, mode)
+    if pneumatic is not None:
+        _pneumatic_config.check_tip(values)
 
     return PumpConfig(
         name=c["name"] or name_default, shape=shape, vanes=r["vanes"],
@@ -344,6 +358,7 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         angle=op["angle"], torque=op["torque"], contact_laws=laws,
         initial_vane_state=op["initial_vane_state"],
         contact_given=ct["housing"]["stiffness"] is not None, speed_ripple=ripple,
+        pneumatic=pneumatic,
     )
 
 

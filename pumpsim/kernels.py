@@ -118,6 +118,13 @@ def main(argv=None) -> int:
                 seen.add(st)
                 k = load_kernels(st, log=lambda m: print(m, flush=True))
                 print(f"{st.variant}: {k.folder}")
+        if cfg.pneumatic is not None:  # spec §8 configs also get their gas-cell variant
+            from .pneumatics.kernel import structure_of
+
+            st = structure_of(cfg)
+            if st not in seen:
+                seen.add(st)
+                print(f"{st.variant}: {load_kernels(st, log=lambda m: print(m, flush=True)).folder}")
     return 0
 
 

@@ -131,6 +131,8 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
              **options) -> SimulationResult:
     """Simulate `cfg`. Speed drive: inverse dynamics at the prescribed speed (no integration).
     Torque drive: theta and omega integrated; vane positions follow from theta exactly."""
+    if cfg.mode == "motor":
+        raise ConfigError("operation.mode = \"motor\" drives the pneumatic model: use `pumpsim pumpdown`")
     if model == "contact":
         from .contact import simulate_contact
 

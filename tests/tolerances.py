@@ -42,3 +42,9 @@ DESIGN_GRADIENT_REL = 1e-8
 # with six intervals checked at once one would fail 26 % of the time, so each may use 1.5 of its
 # half-width (99.7 % per interval, ~2 % for the family).
 SOBOL_INTERVAL_FACTOR = 1.5
+# Pneumatic model (spec §8). Cell volumes: Gauss-Legendre on the housing arc against adaptive
+# quadrature of the housing area and of the vane outline: both at rounding, 1e-11 relative.
+CELL_IDENTITY_REL = 1e-11
+# dV/dtheta (exact, by forward AD through the kinematics) against a central difference with step
+# 1e-5 rad: truncation ~ h^2 V''' / 6 ~ 1e-10 of the volume scale, rounding ~ 1e-16 / h.
+CELL_DERIVATIVE_REL = 1e-7

@@ -4,7 +4,7 @@ codegen builds each exported function with exactly these input and output names 
 on a function or output not declared here); the runtime reshapes a mapped kernel's outputs by the
 shape declared here -- a new output gets its shape here, not by a guess in the runtime.
 
-Shapes: "sample" -- one value per sample; "vane" -- one value per vane and sample (the runtime
+Shapes: "sample" -- one value per sample; "vane" (or "cell") -- one value per vane (cell) and sample (the runtime
 returns an (n_vanes, n_samples) array); "other" -- vectors and matrices the runtime reads directly
 (states, Jacobians, the report form), never through the per-sample evaluator.
 """
@@ -63,6 +63,35 @@ OUTPUTS = _declare(
     ("normal_vector", "-", "other", "housing outward normal"),
     ("radius", "m", "other", "housing polar radius"),
     ("curvature", "-", "other", "housing curvature sign"),
+    # spec §8 (pneumatic model): "sample" one per sample, "cell" one per cell and sample
+    ("current", "A", "sample", "motor current"),
+    ("pressure", "Pa", "cell", "cell pressure"),
+    ("volume", "m^3", "cell", "cell volume"),
+    ("temperature", "K", "cell", "cell gas temperature"),
+    ("dvolume", "m^3/rad", "cell", "d volume / d theta"),
+    ("inlet_pressure", "Pa", "sample", "inlet manifold pressure"),
+    ("exhaust_pressure", "Pa", "sample", "exhaust port pressure (under the valve)"),
+    ("booster_pressure", "Pa", "sample", "booster pressure"),
+    ("slot_pressure", "Pa", "sample", "pressure under the vanes"),
+    ("gas_torque", "N m", "sample", "-(sum p_i dV_i/dtheta + p_slot dV_slot/dtheta): shaft torque into gas"),
+    ("friction_power", "W", "sample", "vane-tip, slot and bearing friction power"),
+    ("gas_power", "W", "sample", "power into the gas (-sum p dV/dt)"),
+    ("load_power", "W", "sample", "virtual power of the gas loads on vanes and rotor"),
+    ("inlet_flow", "kg/s", "cell", "manifold -> cell through the inlet window"),
+    ("exhaust_flow", "kg/s", "cell", "cell -> exhaust port through the exhaust window"),
+    ("leak_flow", "kg/s", "cell", "leak across vane j from cell j-1 to cell j"),
+    ("hose_flow", "kg/s", "sample", "booster -> manifold through hose and check valve"),
+    ("booster_leak", "kg/s", "sample", "atmosphere -> booster"),
+    ("valve_flow", "kg/s", "sample", "exhaust port -> atmosphere through the valve"),
+    ("reed_force", "N", "sample", "net opening force on the reed"),
+    ("mass_total", "kg", "sample", "gas in cells, manifold, exhaust port and booster"),
+    ("inlet_length", "m", "cell", "arc length of the inlet window a cell covers"),
+    ("exhaust_length", "m", "cell", "arc length of the exhaust window a cell covers"),
+    ("vane_volume", "m^3", "cell", "vane volume outside the rotor (one per vane)"),
+    ("motor_residual", "N m", "sample", "motor-drive torque residual after the omegadot Newton"),
+    ("mdot", "kg/s", "sample", "orifice mass flow, side 1 -> 2"),
+    ("qdot", "-", "other", "rates of the energy and mass budgets"),
+    ("jac_qdot_x", "-", "other", "d qdot / d x"),
 )
 
 # one vane's outputs, in the order the vane functions return them
@@ -107,10 +136,29 @@ _CONTACT = {
     "constrained_state": Signature(("theta", "omega", "p"), ("s", "sdot", "normal")),
 }
 _BOTH = {"housing_curve": Signature(("alpha", "p"), ("point", "normal_vector", "radius", "curvature"))}
+# spec §8: cells, gas, booster, motor (pump_outputs: per sample, or (n, N) per cell / vane)
+PUMP_OUTPUTS = (
+    "torque", "omegadot", "current", "pressure", "volume", "temperature", "dvolume",
+    "inlet_pressure", "exhaust_pressure", "booster_pressure", "slot_pressure", "gas_torque",
+    "friction_power", "gas_power", "load_power", "kinetic_energy", "normal", "slot1", "slot2",
+    "n_consistent", "s", "position_residual", "inlet_flow", "exhaust_flow", "leak_flow",
+    "hose_flow", "booster_leak", "valve_flow", "reed_force", "mass_total", "inlet_length",
+    "exhaust_length", "vane_volume", "motor_residual",
+)
+_PNEUMATIC = {
+    "cell_geometry": Signature(("theta", "p"), ("volume", "dvolume", "vane_volume", "inlet_length",
+                                                "exhaust_length", "s", "alpha", "position_residual")),
+    "orifice_flow": Signature(("p1", "T1", "p2", "T2", "area", "p"), ("mdot",)),
+    "pump_rhs": Signature(("x", "p"), ("xdot", "qdot")),
+    "pump_rhs_jac": Signature(("x", "p"), ("jac_xdot_x", "jac_qdot_x")),
+    "pump_outputs": Signature(("x", "p"), PUMP_OUTPUTS),
+}
 
 
 def signatures(model: str) -> dict:
     """Exported function name -> Signature for one model ("constrained" | "contact")."""
+    if model == "pneumatic":
+        return dict(_PNEUMATIC)
     return {**(_CONTACT if model == "contact" else _CONSTRAINED), **_BOTH}
 
 

@@ -133,3 +133,90 @@ class ParameterVector:
 
     def copy(self) -> "ParameterVector":
         return ParameterVector(self.structure, dict(self.values))
+
+
+# -- spec §8: the pneumatic model ---------------------------------------------------------------
+# A pneumatic variant compiles Model 2 (constrained) with N gas cells; the valve type, the drive
+# (speed or motor), the slot-pressure source and the reed's contact mode are runtime values, so
+# switching any of them never recompiles.
+SLOT_SOURCES = ("value", "inlet", "exhaust", "atmosphere")
+VALVE_TYPES = ("check", "reed")
+REED_MODES = {"free": 0.0, "seated": 1.0, "stop": 2.0}
+
+
+@dataclass(frozen=True)
+class PneumaticStructure:
+    """A pneumatic variant: Model 2 mechanics with N gas cells."""
+
+    vanes: int = 4
+    harmonics: int = 0
+    model: str = "pneumatic"
+
+    @property
+    def variant(self) -> str:
+        return f"pneumatic-n{self.vanes}-h{self.harmonics}"
+
+    @property
+    def mechanical(self) -> Structure:
+        return Structure("constrained", self.vanes, self.harmonics)
+
+    def as_dict(self) -> dict:
+        return {"model": self.model, "vanes": self.vanes, "harmonics": self.harmonics}
+
+
+def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):
+    return Parameter(name, unit, lower, upper, positive, doc)
+
+
+GAS_PARAMETERS = (
+    _p("rotor.width", "m", positive=True, doc="axial width of rotor, vanes and housing"),
+    _p("gas.gas_constant", "J/(kg K)", positive=True),
+    _p("gas.gamma", "-", 1.0, 2.0, doc="ratio of specific heats"),
+    _p("gas.temperature", "K", positive=True, doc="atmosphere, booster and plenum temperature"),
+    _p("gas.wall_temperature", "K", positive=True),
+    _p("gas.heat_transfer", "W/(m^2 K)", 0.0, doc="cell-wall film coefficient, 0 = adiabatic"),
+    _p("gas.atmosphere", "Pa", positive=True, doc="atmospheric pressure"),
+    _p("ports.inlet.start", "rad", doc="inlet window start, housing polar angle (housing frame)"),
+    _p("ports.inlet.end", "rad"),
+    _p("ports.inlet.width", "m", 0.0, doc="axial width of the inlet window"),
+    _p("ports.exhaust.start", "rad"),
+    _p("ports.exhaust.end", "rad"),
+    _p("ports.exhaust.width", "m", 0.0),
+    _p("ports.discharge_coefficient", "-", 0.0, 1.0),
+    _p("ports.inlet_volume", "m^3", positive=True, doc="inlet manifold between hose and window"),
+    _p("ports.exhaust_volume", "m^3", positive=True, doc="exhaust port volume under the valve"),
+    _p("ports.hose_area", "m^2", 0.0, doc="booster hose orifice area"),
+    _p("ports.check_cracking", "Pa", 0.0, doc="inlet check valve cracking pressure difference"),
+    _p("ports.check_full_open", "Pa", positive=True, doc="inlet check valve: excess for full area"),
+    _p("valve.reed", "-", 0.0, 1.0, doc="exhaust valve: 0 check, 1 reed"),
+    _p("valve.area", "m^2", 0.0, doc="check: full flow area; reed: port area (flow area cap)"),
+    _p("valve.cracking", "Pa", 0.0, doc="check: cracking pressure difference"),
+    _p("valve.full_open", "Pa", positive=True, doc="check: excess over cracking for full area"),
+    _p("valve.mass", "kg", positive=True, doc="reed: effective mass"),
+    _p("valve.stiffness", "N/m", 0.0),
+    _p("valve.damping", "N s/m", 0.0),
+    _p("valve.preload", "N", 0.0),
+    _p("valve.lift_max", "m", positive=True, doc="reed: stop"),
+    _p("valve.diameter", "m", positive=True, doc="reed: port diameter d (curtain area pi d x)"),
+    _p("valve.force_area", "m^2", positive=True, doc="reed: area the pressure difference acts on"),
+    _p("valve.mode", "-", 0.0, 2.0, doc="reed contact mode (runtime): 0 free, 1 seated, 2 on the stop"),
+    _p("leak.tip_gap", "m", 0.0),
+    _p("leak.end_gap", "m", 0.0),
+    _p("leak.discharge_coefficient", "-", 0.0, 1.0),
+    _p("booster.volume", "m^3", positive=True),
+    _p("booster.leak", "kg/s", 0.0, doc="booster leak mass flow at full atmospheric difference"),
+    _p("vane.slot_pressure.source", "-", 0.0, 3.0, doc="0 value, 1 inlet, 2 exhaust, 3 atmosphere"),
+    _p("vane.slot_pressure.value", "Pa", 0.0),
+    _p("operation.motor", "-", 0.0, 1.0, doc="drive: 0 constant speed, 1 DC motor"),
+    _p("motor.voltage", "V"),
+    _p("motor.resistance", "ohm", positive=True),
+    _p("motor.inductance", "H", positive=True),
+    _p("motor.constant", "N m/A", positive=True, doc="torque and back-EMF constant k"),
+    _p("motor.friction", "N m", 0.0, doc="motor friction torque"),
+    _p("motor.inertia", "kg m^2", 0.0, doc="armature inertia"),
+)
+
+
+def pneumatic_layout(structure: PneumaticStructure) -> tuple[Parameter, ...]:
+    """Model 2's layout followed by the gas entries (spec §8)."""
+    return layout(structure.mechanical) + GAS_PARAMETERS

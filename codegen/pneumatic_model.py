@@ -1,0 +1,321 @@
+"""The pneumatic pump (spec §8) in CasADi: Model 2 mechanics with gas cells, ports, valves, leaks,
+booster and DC motor, for `codegen.build`.
+
+State x (STATE_NAMES): theta, omega, current, cell masses m_i, cell internal energies U_i, inlet
+manifold mass, exhaust-port mass, booster mass, reed lift and lift rate. Cells carry (m, U): mass
+and energy balances are then sums of flows, so mass is conserved to rounding by construction and
+to the integrator's tolerance in time. Manifold, exhaust port and booster are isothermal at
+gas.temperature. Quadratures (QUAD_NAMES) accumulate the energy and mass budgets.
+
+Drive (operation.motor): 0 constant speed (omega is a state with zero rate, the torque is the
+inverse dynamics), 1 brushed DC motor: V = R i + L di/dt + k omega and
+k i - tau_friction - I_m omegadot = tau_shaft(omegadot), solved for omegadot by Newton steps on the
+piecewise-affine required torque (as Model 2's forward dynamics).
+
+Exported: cell_geometry, orifice_flow, pump_rhs (xdot, qdot), pump_rhs_jac (d xdot/dx, the exact
+Jacobian CVODES is given), pump_outputs.
+"""
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+
+from pumpsim.model_spec.parameters import pneumatic_layout
+
+from . import gas
+from .cells import CellGeometry
+from .model import BuiltModel, _Builder
+
+MOTOR_FRICTION_SPEED = 0.5  # rad/s: motor friction torque = friction * tanh(omega / this)
+# Newton steps on omegadot: the required torque is affine in omegadot on a contact-side branch, so
+# the first step from 0 is exact unless the branch changes; the second corrects that case. The
+# residual is returned (motor_residual) and checked by the runtime.
+MOTOR_NEWTON_ITERATIONS = 2
+
+
+def state_names(N):
+    return (["theta", "omega", "current"] + [f"mass_{i}" for i in range(N)]
+            + [f"energy_{i}" for i in range(N)]
+            + ["inlet_mass", "exhaust_mass", "booster_mass", "reed_lift", "reed_rate"])
+
+
+QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "copper_loss",
+              "motor_friction_work", "valve_damping_work", "atmosphere_mass")
+
+VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", "n_consistent",
+                    "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip")
+
+
+class _GasBuilder(_Builder):
+    def __init__(self, structure):
+        self.st = structure
+        self.params = pneumatic_layout(structure)
+        self.p = ca.SX.sym("p", len(self.params))
+        self.P = {q.name: self.p[i] for i, q in enumerate(self.params)}
+        self._mechanics()
+        self._housing()
+        self.geo = CellGeometry(self)
+
+    def factors(self, p):
+        idx = {q.name: i for i, q in enumerate(self.params)}
+        return ca.horzcat(*[p[idx[f"effects.vane_friction_factor.{i}"]] for i in range(self.st.vanes)])
+
+    # -- per vane ------------------------------------------------------------------------------
+    def vane_kinematics(self):
+        """Position (s, alpha) and their theta-derivatives (kinematics at omega = 1)."""
+        theta, phi = ca.SX.sym("theta"), ca.SX.sym("phi")
+        s, alpha, res = self.solve_position(theta, phi)
+        k = self.kinematics_at(theta, 1.0, 0.0, phi, s, alpha, res)
+        return ca.Function("vane_kinematics", [theta, phi, self.p],
+                           [s, alpha, k["sdot"], k["alphadot"], res],
+                           ["theta", "phi", "p"], ["s", "alpha", "ds", "dalpha", "residual"],
+                           {"cse": True})
+
+    def vane_dynamics(self):
+        """Model 2 vane at a solved position with gas loads: p_lead acts on the +w side (cell i),
+        p_trail on the -w side (cell i-1), p_slot under the vane."""
+        names = ("theta", "omega", "omegadot", "phi", "factor", "s", "alpha", "p_lead", "p_trail",
+                 "p_slot")
+        theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot = (
+            ca.SX.sym(n) for n in names)
+        P = self.P
+        W = P["rotor.width"]
+        k = self.kinematics_at(theta, omega, omegadot, phi, s, alpha)
+        hs = self.housing(alpha)
+        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
+        g = self.geometry()
+        common = dict(theta=theta, omega=omega, omegadot=omegadot, phi=phi, s=s,
+                      sdot=k["sdot"], sddot=k["sddot"], Cx=C[0], Cy=C[1], nx=n[0], ny=n[1],
+                      c_visc=P["effects.viscous_tip_friction"], **g)
+        v_t = self.mech(**common)["tip_slip"]
+        mu_h = factor * self.friction(v_t, "housing")
+        mu_r = self.friction(k["sdot"], "slot")
+        common.update(mu_h=mu_h, mu_r=mu_r)
+        # gas loads and their generalised forces (rotor-frame components, see cells.py)
+        o = self.geo.outline(theta, phi, s, alpha)
+        lead, trail, _, _, _ = self.geo.vane_pieces(o)
+        loads = [(p_lead * W * f, X) for f, X in lead] + [(p_trail * W * f, X) for f, X in trail]
+        loads.append((p_slot * g["h"] * W * o["u"], o["A"]))
+        u, w, G = o["u"], o["w"], o["G"]
+        gf_slide = sum(ca.dot(F, u) for F, _ in loads)
+        gf_lat = sum(ca.dot(F, w) for F, _ in loads)
+        gf_tilt = sum((X[0] - G[0]) * F[1] - (X[1] - G[1]) * F[0] for F, X in loads)
+        gf_rotor = sum(X[0] * F[1] - X[1] * F[0] for F, X in loads)
+        F_b, Ob = -p_slot * g["h"] * W * u, o["Ob"]  # slot-bottom gas on the rotor
+        gf_rotor += Ob[0] * F_b[1] - Ob[1] * F_b[0]
+        best, n_cons, _, final = self.solve_contact_sides(("N", "F1", "F2"), common,
+                                                          extra=(gf_slide, gf_lat, gf_tilt))
+        share = final["torque_share"] - gf_rotor
+        fric = (best[0] * mu_h * v_t + P["effects.viscous_tip_friction"] * v_t * v_t
+                + mu_r * k["sdot"] * (ca.fabs(best[1]) + ca.fabs(best[2])))
+        outs = dict(torque_share=share, torque_slope=ca.jacobian(share, omegadot), normal=best[0],
+                    slot1=best[1], slot2=best[2], n_consistent=n_cons, friction_power=fric,
+                    load_power=omega * gf_rotor + k["sdot"] * gf_slide, sdot=k["sdot"],
+                    kinetic_energy=final["kinetic_energy"], tip_slip=v_t)
+        return ca.Function("vane_dynamics", [theta, omega, omegadot, phi, factor, s, alpha, p_lead,
+                                             p_trail, p_slot, self.p],
+                           [outs[nm] for nm in VANE_DYN_OUTPUTS], [*names, "p"],
+                           list(VANE_DYN_OUTPUTS), {"cse": True})
+
+    def cell_function(self):
+        """Cell volumes and d/dtheta, port overlaps, wall areas, from (theta, s, alpha, s', alpha')."""
+        N = self.st.vanes
+        P = self.P
+        theta = ca.SX.sym("theta")
+        s, al, ds, dal = (ca.SX.sym(n, N) for n in ("s", "alpha", "ds", "dalpha"))
+        c = self.geo.cells(theta, [s[i] for i in range(N)], [al[i] for i in range(N)])
+        W = P["rotor.width"]
+        V = ca.vertcat(*c["area"]) * W
+        q = ca.vertcat(theta, s, al)
+        dV = ca.jtimes(V, q, ca.vertcat(1.0, ds, dal))
+        psi = P["housing.angle"]
+
+        def port(name):
+            lo, hi = P[f"ports.{name}.start"] + psi, P[f"ports.{name}.end"] + psi
+            return ca.vertcat(*[self.geo.overlap_length(c["a0"][i], c["span"][i], lo, hi)
+                                for i in range(N)])
+
+        flanks = []
+        for i in range(N):
+            o_i, o_j = c["outlines"][i], c["outlines"][(i + 1) % N]
+            flanks.append(ca.norm_2(o_i["Jp"] - o_i["Rp"]) + ca.norm_2(o_j["Jm"] - o_j["Rm"]))
+        wall = (2 * ca.vertcat(*c["area"])
+                + W * (ca.vertcat(*c["arc"]) + ca.vertcat(*c["rotor_arc"]) + ca.vertcat(*flanks)))
+        # exposed length of vane i (mean of its flanks), for the end-face leak across it
+        exposed = ca.vertcat(*[0.5 * (ca.norm_2(o["Jp"] - o["Rp"]) + ca.norm_2(o["Jm"] - o["Rm"]))
+                               for o in c["outlines"]])
+        vane_area = ca.vertcat(*c["vane_area"]) * W
+        return ca.Function("cells", [theta, s, al, ds, dal, self.p],
+                           [V, dV, port("inlet"), port("exhaust"), wall, exposed, vane_area],
+                           ["theta", "s", "alpha", "ds", "dalpha", "p"],
+                           ["volume", "dvolume", "inlet_length", "exhaust_length", "wall_area",
+                            "exposed", "vane_volume"], {"cse": True})
+
+
+def build_pneumatic_model(structure) -> BuiltModel:
+    b = _GasBuilder(structure)
+    N = structure.vanes
+    kin_fn = b.vane_kinematics()
+    dyn_fn = b.vane_dynamics()
+    cell_fn = b.cell_function()
+    kin_map = kin_fn.map(N)
+    dyn_map = dyn_fn.map(N)
+    names = [q.name for q in b.params]
+    p = ca.MX.sym("p", len(names))
+
+    def P(name):
+        return p[names.index(name)]
+
+    phis = b.slot_angles(p)
+    facs = b.factors(p)
+
+    def geometry(theta):
+        s, al, ds, dal, res = kin_map(theta, phis, p)
+        V, dV, lin, lex, wall, exposed, vvol = cell_fn(theta, s.T, al.T, ds.T, dal.T, p)
+        return dict(s=s, alpha=al, ds=ds, dalpha=dal, residual=res, V=V, dV=dV, lin=lin, lex=lex,
+                    wall=wall, exposed=exposed, vane_volume=vvol)
+
+    R, g = P("gas.gas_constant"), P("gas.gamma")
+    cv, cp = R / (g - 1), g * R / (g - 1)
+    T0, p_atm, W = P("gas.temperature"), P("gas.atmosphere"), P("rotor.width")
+
+    def flow(p1, T1, p2, T2, area):
+        return gas.orifice_flow(p1, T1, p2, T2, area, R, g)
+
+    nx = 3 + 2 * N + 5
+    x = ca.MX.sym("x", nx)
+    theta, omega, cur = x[0], x[1], x[2]
+    m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
+    m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
+    geo = geometry(theta)
+    V, dV = geo["V"], geo["dV"]
+    pc = (g - 1) * U / V
+    Tc = U / (m * cv)
+    p_in = m_in * R * T0 / P("ports.inlet_volume")
+    p_ex = m_ex * R * T0 / P("ports.exhaust_volume")
+    p_b = m_b * R * T0 / P("booster.volume")
+    src = P("vane.slot_pressure.source")
+    p_slot = ca.if_else(src < 0.5, P("vane.slot_pressure.value"),
+                        ca.if_else(src < 1.5, p_in, ca.if_else(src < 2.5, p_ex, p_atm)))
+    # flows: ports (into cell from the manifold, out of the cell into the exhaust port)
+    Cd = P("ports.discharge_coefficient")
+    A_in = Cd * geo["lin"] * P("ports.inlet.width")
+    A_ex = Cd * geo["lex"] * P("ports.exhaust.width")
+    f_in = ca.vertcat(*[flow(p_in, T0, pc[i], Tc[i], A_in[i]) for i in range(N)])
+    f_ex = ca.vertcat(*[flow(pc[i], Tc[i], p_ex, T0, A_ex[i]) for i in range(N)])
+    # leak across vane j from cell j-1 (its trailing side) to cell j: tip gap and both end faces
+    A_leak = P("leak.discharge_coefficient") * (P("leak.tip_gap") * W
+                                                + 2 * P("leak.end_gap") * geo["exposed"])
+    prev = [(j - 1) % N for j in range(N)]
+    f_lk = ca.vertcat(*[flow(pc[prev[j]], Tc[prev[j]], pc[j], Tc[j], A_leak[j]) for j in range(N)])
+    if N == 1:
+        f_lk = 0 * f_lk  # one cell: the leak across the only vane returns to the same cell
+    # booster -> hose and inlet check valve -> manifold; atmosphere -> booster leak
+    A_hose = P("ports.hose_area") * gas.ramp(p_b - p_in, P("ports.check_cracking"),
+                                             P("ports.check_full_open"))
+    f_hose = flow(p_b, T0, p_in, T0, A_hose)
+    A_bleak = P("booster.leak") / gas.choked_flux(p_atm, T0, R, g)
+    f_bleak = flow(p_atm, T0, p_b, T0, A_bleak)
+    # exhaust valve to the atmosphere
+    reed = P("valve.reed") > 0.5
+    A_check = P("valve.area") * gas.ramp(p_ex - p_atm, P("valve.cracking"), P("valve.full_open"))
+    A_reed = ca.fmin(math.pi * P("valve.diameter") * ca.fmax(xr, 0.0), P("valve.area"))
+    f_valve = flow(p_ex, T0, p_atm, T0, ca.if_else(reed, A_reed, A_check))
+    F_reed = (p_ex - p_atm) * P("valve.force_area") - P("valve.preload") - P("valve.stiffness") * xr
+    free = ca.logic_and(reed, P("valve.mode") < 0.5)
+    xr_dot = ca.if_else(free, vr, 0.0)
+    vr_dot = ca.if_else(free, (F_reed - P("valve.damping") * vr) / P("valve.mass"), 0.0)
+    # cell balances
+    Q = P("gas.heat_transfer") * geo["wall"] * (P("gas.wall_temperature") - Tc)
+    nxt = [(i + 1) % N for i in range(N)]
+    dm = ca.vertcat(*[f_in[i] - f_ex[i] + f_lk[i] - f_lk[nxt[i]] for i in range(N)])
+    dU = ca.vertcat(*[
+        gas.enthalpy_flow(f_in[i], T0, Tc[i], cp) - gas.enthalpy_flow(f_ex[i], Tc[i], T0, cp)
+        + gas.enthalpy_flow(f_lk[i], Tc[prev[i]], Tc[i], cp)
+        - gas.enthalpy_flow(f_lk[nxt[i]], Tc[i], Tc[nxt[i]], cp)
+        - pc[i] * omega * dV[i] + Q[i] for i in range(N)])
+    dm_in = f_hose - ca.sum1(f_in)
+    dm_ex = ca.sum1(f_ex) - f_valve
+    dm_b = f_bleak - f_hose
+    # mechanics: required shaft torque at omegadot, gas loads included
+    p_trail = ca.vertcat(*[pc[prev[i]] for i in range(N)])
+    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
+
+    def required(wd):
+        o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], pc.T, p_trail.T,
+                    p_slot, p)
+        od = dict(zip(VANE_DYN_OUTPUTS, o))
+        return Ir * wd + tb + ca.sum2(od["torque_share"]), od
+
+    motor = P("operation.motor") > 0.5
+    k_m, Im = P("motor.constant"), P("motor.inertia")
+    tau_mf = P("motor.friction") * ca.tanh(omega / MOTOR_FRICTION_SPEED)
+    tau_motor = k_m * cur - tau_mf
+
+    def residual(wd):
+        """Motor drive: shaft torque required at wd minus what the motor delivers."""
+        rt, od = required(wd)
+        return rt + Im * wd - tau_motor, od
+
+    # the rates as functions of (x, omegadot): the gas rows never see the mechanics
+    wd_s = ca.MX.sym("omegadot")
+    wd_use = ca.if_else(motor, wd_s, 0.0)
+    tau, od = required(wd_use)
+    di = ca.if_else(motor, (P("motor.voltage") - P("motor.resistance") * cur - k_m * omega)
+                    / P("motor.inductance"), 0.0)
+    xdot = ca.vertcat(omega, wd_use, di, dm, dU, dm_in, dm_ex, dm_b, xr_dot, vr_dot)
+    # budgets
+    slot_rate = P("vane.thickness") * W * ca.sum2(od["sdot"])
+    gas_power = -ca.dot(pc, dV) * omega - p_slot * slot_rate
+    fric_power = ca.sum2(od["friction_power"]) + tb * omega
+    volt = ca.if_else(motor, P("motor.voltage"), 0.0)
+    qdot = ca.vertcat(volt * cur, tau * omega, gas_power, fric_power,
+                      P("motor.resistance") * cur * cur, tau_mf * omega,
+                      ca.if_else(free, P("valve.damping") * vr * vr, 0.0), f_bleak - f_valve)
+    # omegadot: Newton on the piecewise-affine residual (each vane returns its slope); its
+    # derivative by the implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from one
+    # reverse sweep, so the Jacobian never differentiates through the iterations
+    wd = ca.MX(0.0)
+    for _ in range(MOTOR_NEWTON_ITERATIONS):
+        r, o = residual(wd)
+        wd = wd - r / (Ir + Im + ca.sum2(o["torque_slope"]))
+    r_s, o_s = residual(wd_s)
+    slope = Ir + Im + ca.sum2(o_s["torque_slope"])
+    J = ca.jacobian(xdot, x) - ca.mtimes(ca.jacobian(xdot, wd_s), ca.gradient(r_s, x).T) / slope
+    rates = ca.Function("rates", [x, wd_s, p], [xdot, qdot])
+    xdot_v, qdot_v = rates(x, wd, p)
+    J_v = ca.Function("rates_jac", [x, wd_s, p], [J])(x, wd, p)
+    rhs = ca.Function("pump_rhs", [x, p], [xdot_v, qdot_v], ["x", "p"], ["xdot", "qdot"])
+    # the quadratures do not feed back: their Jacobian rows are left to CVODES' Newton iteration
+    # (which then converges on them in one extra step at most) -- zero rows here
+    jac = ca.Function("pump_rhs_jac", [x, p], [J_v, ca.MX(qdot.size1(), nx)],
+                      ["x", "p"], ["jac_xdot_x", "jac_qdot_x"])
+    mass_total = ca.sum1(m) + m_in + m_ex + m_b
+    outs = dict(
+        torque=tau, omegadot=wd_use, current=cur, pressure=pc, volume=V, temperature=Tc, dvolume=dV,
+        inlet_pressure=p_in, exhaust_pressure=p_ex, booster_pressure=p_b, slot_pressure=p_slot,
+        gas_torque=-ca.dot(pc, dV) - p_slot * P("vane.thickness") * W * ca.sum2(geo["ds"]),
+        friction_power=fric_power, gas_power=gas_power,
+        load_power=ca.sum2(od["load_power"]), kinetic_energy=ca.sum2(od["kinetic_energy"]),
+        normal=od["normal"].T, slot1=od["slot1"].T, slot2=od["slot2"].T,
+        n_consistent=od["n_consistent"].T, s=geo["s"].T, position_residual=geo["residual"].T,
+        inlet_flow=f_in, exhaust_flow=f_ex, leak_flow=f_lk, hose_flow=f_hose,
+        booster_leak=f_bleak, valve_flow=f_valve, reed_force=F_reed, mass_total=mass_total,
+        inlet_length=geo["lin"], exhaust_length=geo["lex"], vane_volume=geo["vane_volume"],
+    )
+    outs["motor_residual"] = ca.if_else(motor, r_s, 0.0)
+    out_s = ca.Function("outputs_at", [x, wd_s, p], list(outs.values()))
+    out_fn = ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs))
+    th = ca.MX.sym("theta")
+    gg = geometry(th)
+    cells = ca.Function("cell_geometry", [th, p],
+                        [gg["V"], gg["dV"], gg["vane_volume"], gg["lin"], gg["lex"], gg["s"].T,
+                         gg["alpha"].T, gg["residual"].T],
+                        ["theta", "p"], ["volume", "dvolume", "vane_volume", "inlet_length",
+                                         "exhaust_length", "s", "alpha", "position_residual"])
+    a = [ca.MX.sym(n) for n in ("p1", "T1", "p2", "T2", "area")]
+    ori = ca.Function("orifice_flow", [*a, p], [flow(*a)], ["p1", "T1", "p2", "T2", "area", "p"],
+                      ["mdot"])
+    fns = {f.name(): f for f in (cells, ori, rhs, jac, out_fn)}
+    return BuiltModel(structure, b.params, fns)

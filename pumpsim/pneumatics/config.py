@@ -1,0 +1,223 @@
+"""Configuration of the pneumatic model (spec §8): the [gas], [ports], [valve], [leak], [booster]
+and [motor] tables, rotor.width and vane.slot_pressure. Validated like the rest: every rejection
+names the key path and the limit, before any work starts.
+
+Defaults are those of a small automotive vane pump (see examples/evp_booster.toml for the reasons).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from ..errors import ConfigError
+from ..model_spec.parameters import SLOT_SOURCES, VALVE_TYPES
+
+TABLES = ("gas", "ports", "valve", "leak", "booster", "motor")
+
+
+def _num(default=None, required=False):
+    return ("num", required, default)
+
+
+SCHEMA = {
+    "gas": {"gas_constant": _num(287.05), "gamma": _num(1.4), "temperature": _num(293.15),
+            "wall_temperature": _num(None), "heat_transfer": _num(0.0), "atmosphere": _num(101325.0)},
+    "ports": {"inlet": ("list", False, None), "exhaust": ("list", False, None),
+              "width": _num(None), "inlet_width": _num(None), "exhaust_width": _num(None),
+              "discharge_coefficient": _num(0.7), "inlet_volume": _num(2.0e-6),
+              "exhaust_volume": _num(2.0e-7), "hose_diameter": _num(4.0e-3),
+              "check_cracking": _num(0.0), "check_full_open": _num(500.0)},
+    "valve": {"type": ("str", False, "check"), "area": _num(None), "cracking": _num(0.0),
+              "full_open": _num(2000.0), "mass": _num(None), "stiffness": _num(None),
+              "damping": _num(0.0), "preload": _num(0.0), "lift_max": _num(None),
+              "diameter": _num(None), "force_area": _num(None), "port_area": _num(None)},
+    "leak": {"tip_gap": _num(0.0), "end_gap": _num(0.0), "discharge_coefficient": _num(0.7)},
+    "booster": {"volume": _num(None), "pressure": _num(None), "target": _num(None),
+                "leak": _num(0.0)},
+    "motor": {"voltage": _num(None), "resistance": _num(None),
+              "inductance": _num(None), "constant": _num(None),
+              "friction": _num(0.0), "inertia": _num(0.0)},
+}
+EXTRA_KEYS = {"rotor": {"width": _num(None)}, "vane": {"slot_pressure": ("any", False, "exhaust")}}
+
+
+@dataclass
+class PneumaticSettings:
+    values: dict  # registry name -> value (gas entries)
+    booster_start: float
+    booster_target: float | None
+    valve_type: str
+    motor: bool
+    present: tuple = field(default_factory=tuple)
+
+
+def _pos(path, v):
+    if v is None or not v > 0:
+        raise ConfigError(f"{path} must be > 0, got {v}")
+
+
+def _nonneg(path, v):
+    if v < 0:
+        raise ConfigError(f"{path} must be >= 0, got {v:g}")
+
+
+def _window(path, v):
+    if (not isinstance(v, list) or len(v) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+        raise ConfigError(f"{path} must be [start, end] in rad (housing polar angle), got {v!r}")
+    a, b = float(v[0]), float(v[1])
+    if not 0 < b - a < 2 * math.pi:
+        raise ConfigError(f"{path} must have 0 < end - start < 2 pi, got [{a:g}, {b:g}]")
+    start = (a + math.pi) % (2 * math.pi) - math.pi  # start in [-pi, pi)
+    return start, start + (b - a)
+
+
+def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
+    """c: the walked config (defaults filled), raw: the TOML dict. None without any gas table."""
+    present = tuple(t for t in TABLES if t in raw)
+    if not present:
+        if mode == "motor":
+            raise ConfigError("operation.mode = \"motor\" needs the [motor] table and the gas tables "
+                              "([ports], [booster]; spec §8)")
+        if c["rotor"]["width"] is not None:
+            _pos("rotor.width", c["rotor"]["width"])
+        return None
+    for t in ("ports", "booster"):
+        if t not in raw:
+            raise ConfigError(f"the gas model needs the [{t}] table (found [{'], ['.join(present)}])")
+    W = c["rotor"]["width"]
+    if W is None:
+        raise ConfigError("missing required key 'rotor.width' (the gas model needs the axial width)")
+    _pos("rotor.width", W)
+    gs, pt, vl, lk, bo = (c[t] for t in ("gas", "ports", "valve", "leak", "booster"))
+    v = {"rotor.width": W}
+    _pos("gas.gas_constant", gs["gas_constant"])
+    if not 1.0 < gs["gamma"] <= 2.0:
+        raise ConfigError(f"gas.gamma must be in (1, 2], got {gs['gamma']:g}")
+    for k in ("temperature", "atmosphere"):
+        _pos(f"gas.{k}", gs[k])
+    wall_t = gs["temperature"] if gs["wall_temperature"] is None else gs["wall_temperature"]
+    _pos("gas.wall_temperature", wall_t)
+    _nonneg("gas.heat_transfer", gs["heat_transfer"])
+    v.update({"gas.gas_constant": gs["gas_constant"], "gas.gamma": gs["gamma"],
+              "gas.temperature": gs["temperature"], "gas.wall_temperature": wall_t,
+              "gas.heat_transfer": gs["heat_transfer"], "gas.atmosphere": gs["atmosphere"]})
+    for name in ("inlet", "exhaust"):
+        if pt[name] is None:
+            raise ConfigError(f"missing required key 'ports.{name}' ([start, end] in rad)")
+        a, b = _window(f"ports.{name}", pt[name])
+        width = pt[f"{name}_width"] if pt[f"{name}_width"] is not None else pt["width"]
+        if width is None:
+            raise ConfigError(f"missing required key 'ports.{name}_width' (or ports.width)")
+        _pos(f"ports.{name}_width", width)
+        if width > W:
+            raise ConfigError(f"ports.{name}_width must be <= rotor.width ({W:g} m), got {width:g}")
+        v.update({f"ports.{name}.start": a, f"ports.{name}.end": b, f"ports.{name}.width": width})
+    if not 0 < pt["discharge_coefficient"] <= 1:
+        raise ConfigError(f"ports.discharge_coefficient must be in (0, 1], got {pt['discharge_coefficient']:g}")
+    for k in ("inlet_volume", "exhaust_volume", "hose_diameter", "check_full_open"):
+        _pos(f"ports.{k}", pt[k])
+    _nonneg("ports.check_cracking", pt["check_cracking"])
+    v.update({"ports.discharge_coefficient": pt["discharge_coefficient"],
+              "ports.inlet_volume": pt["inlet_volume"], "ports.exhaust_volume": pt["exhaust_volume"],
+              "ports.hose_area": math.pi * pt["hose_diameter"] ** 2 / 4,
+              "ports.check_cracking": pt["check_cracking"],
+              "ports.check_full_open": pt["check_full_open"]})
+    # exhaust valve
+    vt = vl["type"]
+    if vt not in VALVE_TYPES:
+        raise ConfigError(f"valve.type must be \"check\" or \"reed\", got {vt!r}")
+    reed_defaults = {"valve.mass": 1.0, "valve.stiffness": 0.0, "valve.damping": 0.0,
+                     "valve.preload": 0.0, "valve.lift_max": 1.0, "valve.diameter": 1.0,
+                     "valve.force_area": 1.0, "valve.mode": 1.0}
+    v.update(reed_defaults)
+    if vt == "check":
+        for k in ("mass", "stiffness", "lift_max", "diameter", "force_area", "port_area"):
+            if vl[k] is not None:
+                raise ConfigError(f"valve.{k} is for type = \"reed\"")
+        area = vl["area"] if vl["area"] is not None else math.pi * 0.004 ** 2 / 4
+        _pos("valve.area", area)
+        _nonneg("valve.cracking", vl["cracking"])
+        _pos("valve.full_open", vl["full_open"])
+        v.update({"valve.reed": 0.0, "valve.area": area, "valve.cracking": vl["cracking"],
+                  "valve.full_open": vl["full_open"]})
+    else:
+        for k in ("mass", "stiffness", "lift_max", "diameter"):
+            if vl[k] is None:
+                raise ConfigError(f"missing required key 'valve.{k}' (type = \"reed\")")
+        for k in ("mass", "lift_max", "diameter"):
+            _pos(f"valve.{k}", vl[k])
+        for k in ("stiffness", "damping", "preload"):
+            _nonneg(f"valve.{k}", vl[k])
+        d = vl["diameter"]
+        port = vl["port_area"] if vl["port_area"] is not None else math.pi * d * d / 4
+        force = vl["force_area"] if vl["force_area"] is not None else math.pi * d * d / 4
+        _pos("valve.port_area", port)
+        _pos("valve.force_area", force)
+        v.update({"valve.reed": 1.0, "valve.area": port, "valve.cracking": 0.0, "valve.full_open": 1.0,
+                  "valve.mass": vl["mass"], "valve.stiffness": vl["stiffness"],
+                  "valve.damping": vl["damping"], "valve.preload": vl["preload"],
+                  "valve.lift_max": vl["lift_max"], "valve.diameter": d, "valve.force_area": force,
+                  "valve.mode": 1.0})
+    # leaks
+    for k in ("tip_gap", "end_gap"):
+        _nonneg(f"leak.{k}", lk[k])
+        if lk[k] > 1e-3:
+            raise ConfigError(f"leak.{k} must be <= 1 mm, got {lk[k]:g} m")
+    if not 0 < lk["discharge_coefficient"] <= 1:
+        raise ConfigError(f"leak.discharge_coefficient must be in (0, 1], got {lk['discharge_coefficient']:g}")
+    v.update({f"leak.{k}": lk[k] for k in ("tip_gap", "end_gap", "discharge_coefficient")})
+    # booster
+    if bo["volume"] is None:
+        raise ConfigError("missing required key 'booster.volume' (m^3)")
+    _pos("booster.volume", bo["volume"])
+    _nonneg("booster.leak", bo["leak"])
+    start = gs["atmosphere"] if bo["pressure"] is None else bo["pressure"]
+    _pos("booster.pressure", start)
+    if start > gs["atmosphere"]:
+        raise ConfigError(f"booster.pressure must be <= gas.atmosphere ({gs['atmosphere']:g} Pa), got {start:g}")
+    target = bo["target"]
+    if target is not None and not 0 < target < start:
+        raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}")
+    v.update({"booster.volume": bo["volume"], "booster.leak": bo["leak"]})
+    # slot pressure
+    sp = c["vane"]["slot_pressure"]
+    if isinstance(sp, str):
+        if sp not in SLOT_SOURCES[1:]:
+            raise ConfigError("vane.slot_pressure must be \"inlet\", \"exhaust\", \"atmosphere\" or a "
+                              f"pressure in Pa, got {sp!r}")
+        v.update({"vane.slot_pressure.source": float(SLOT_SOURCES.index(sp)),
+                  "vane.slot_pressure.value": 0.0})
+    elif isinstance(sp, (int, float)) and not isinstance(sp, bool):
+        _nonneg("vane.slot_pressure", sp)
+        v.update({"vane.slot_pressure.source": 0.0, "vane.slot_pressure.value": float(sp)})
+    else:
+        raise ConfigError(f"vane.slot_pressure must be a source name or a number, got {sp!r}")
+    # motor
+    mo = c["motor"]
+    motor = mode == "motor"
+    if motor and "motor" not in raw:
+        raise ConfigError("operation.mode = \"motor\" needs the [motor] table")
+    if "motor" in raw:
+        for k in ("voltage", "resistance", "inductance", "constant"):
+            if mo[k] is None:
+                raise ConfigError(f"missing required key 'motor.{k}'")
+        for k in ("resistance", "inductance", "constant"):
+            _pos(f"motor.{k}", mo[k])
+        for k in ("friction", "inertia"):
+            _nonneg(f"motor.{k}", mo[k])
+        v.update({f"motor.{k}": mo[k] for k in ("voltage", "resistance", "inductance", "constant",
+                                                 "friction", "inertia")})
+    else:
+        v.update({"motor.voltage": 0.0, "motor.resistance": 1.0, "motor.inductance": 1.0,
+                  "motor.constant": 1.0, "motor.friction": 0.0, "motor.inertia": 0.0})
+    v["operation.motor"] = 1.0 if motor else 0.0
+    return PneumaticSettings(v, start, target, vt, motor, present)
+
+
+def check_tip(values: dict) -> None:
+    """The gas model's vane outline needs a flat tip (rho = 0) or a tip arc reaching both flanks."""
+    rho, h = values["vane.tip_radius"], values["vane.thickness"]
+    if 0 < rho < h / 2:
+        raise ConfigError(f"vane.tip_radius must be 0 or >= vane.thickness/2 ({h / 2:g} m) for the gas "
+                          f"model (the tip arc must reach both flanks), got {rho:g}")

@@ -1,0 +1,299 @@
+"""Time integration of the pneumatic pump (spec §8): CVODES on the compiled right-hand side with
+its compiled exact Jacobian, energy and mass budgets as CVODES quadratures, and the reed valve's
+seat and stop as located events.
+
+The reed is a hybrid system: free (m x'' + c x' + k x = dp A - preload), seated (x = 0) or on its
+stop (x = x_max). Its mode is a runtime parameter of the kernel. Switching functions: free -> lift x
+(reaching the seat) and x_max - x (reaching the stop); seated -> the net opening force; on the stop
+-> the net force. A crossing is located by Illinois root finding on re-integrations from the last
+output time (to EVENT_TIME_TOL), the mode changes there with the lift rate set to zero (the reed
+stops dead on seat and stop), and the integration restarts: the lift never steps past x_max.
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..errors import SolverError
+from ..integrate import _illinois
+from .kernel import kernels, parameter_index, parameter_vector, structure_of
+from ..model_spec.parameters import REED_MODES
+
+EVENT_TIME_TOL = 1e-10  # s
+CHUNK = 50  # output intervals per integrator call
+STAT_KEYS = {"nsteps": "nsteps", "nfevals": "nfevals", "njevals": "n_call_jacF",
+             "nlinsetups": "nlinsetups", "netfails": "netfails", "nniters": "nniters",
+             "nncfails": "nncfails"}
+QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "copper_loss",
+              "motor_friction_work", "valve_damping_work", "atmosphere_mass")
+
+
+def state_names(N):
+    return (["theta", "omega", "current"] + [f"mass_{i}" for i in range(N)]
+            + [f"energy_{i}" for i in range(N)]
+            + ["inlet_mass", "exhaust_mass", "booster_mass", "reed_lift", "reed_rate"])
+
+
+@dataclass
+class PumpdownRun:
+    time: np.ndarray
+    states: np.ndarray  # (n, nx)
+    quad: np.ndarray  # (n, nq), cumulative from t = 0
+    outputs: dict  # name -> array (per sample, or (n, N) per cell / vane)
+    stats: dict
+    events: list = field(default_factory=list)
+    time_to_target: float | None = None
+    p: np.ndarray | None = None
+
+
+class PumpIntegrator:
+    """x(t) of the pneumatic kernel with CVODES; `valve mode` is the one integrator parameter."""
+
+    def __init__(self, kern, p, rtol=1e-7, atol=1e-9, scale=None, max_steps=2_000_000):
+        self.kern, self.p = kern, np.asarray(p, dtype=float)
+        nx = kern["pump_rhs"].size1_in(0)
+        self.nx = nx
+        self.scale = np.ones(nx) if scale is None else np.asarray(scale, float)
+        self.mode_index = parameter_index(kern.structure, "valve.mode")
+        e = np.zeros(self.p.size)
+        e[self.mode_index] = 1.0
+        p0 = self.p.copy()
+        p0[self.mode_index] = 0.0
+        f, fj = kern["pump_rhs"], kern["pump_rhs_jac"]
+        # the quadratures ride along as states (one kernel call gives both rates); their
+        # columns of the Jacobian are zero
+        nq = f.size1_out(1)
+        self.nq = nq
+        y, mode = ca.MX.sym("y", nx + nq), ca.MX.sym("mode")
+        S = ca.DM(np.concatenate([self.scale, np.ones(nq)]))
+        P = ca.DM(p0) + ca.DM(e) * mode
+        xs = y[:nx] * S[:nx]
+        xdot, qdot = f(xs, P)
+        Jx, Jq = fj(xs, P)
+        J = ca.vertcat(ca.horzcat(Jx, ca.MX(nx, nq)), ca.horzcat(Jq, ca.MX(nq, nq)))
+        out = ca.MX.sym("out", nx + nq)
+        jac = ca.Function("jac_ydot", [y, mode, out],
+                          [ca.mtimes(ca.diag(1 / S), ca.mtimes(J, ca.diag(S))), ca.MX(nx + nq, 1)],
+                          ["y", "mode", "out_ydot"], ["jac_ydot_y", "jac_ydot_mode"])
+        ydot = ca.Function("ydot", [y, mode], [ca.vertcat(xdot, qdot) / S], ["y", "mode"], ["ydot"],
+                           {"custom_jacobian": jac, "jac_penalty": 0, "never_inline": True})
+        self.S = np.asarray(S).ravel()
+        tt = ca.MX.sym("T")  # normalised time, duration as a parameter
+        pp = ca.vertcat(mode, tt)
+        self._dae = {"x": y, "p": pp, "ode": ydot(y, mode)}
+        self._dae_T = {"x": y, "p": pp, "ode": tt * ydot(y, mode)}
+        self.opts = {"abstol": atol, "reltol": rtol, "max_num_steps": max_steps}
+        self._grids = {}
+        self._step = ca.integrator("step", "cvodes", self._dae_T, 0.0, [1.0], self.opts)
+        self.stats = {k: 0 for k in STAT_KEYS}
+        self.calls = 0
+
+    def _run(self, integ, x, mode, T=0.0):
+        self.calls += 1
+        y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)]) / self.S
+        try:
+            r = integ(x0=y0, p=[mode, T])
+        except RuntimeError as e:
+            raise SolverError(f"integrator failed: {str(e).strip().splitlines()[-1]}") from None
+        st = integ.stats()
+        for k, nm in STAT_KEYS.items():
+            v = st.get(nm)
+            if isinstance(v, (int, float)):
+                self.stats[k] += int(v)
+        Y = np.asarray(r["xf"]) * self.S[:, None]
+        return Y[:self.nx], Y[self.nx:]
+
+    def grid(self, x, mode, dt, m):
+        key = (dt, m)
+        if key not in self._grids:
+            self._grids[key] = ca.integrator(f"g{m}", "cvodes", self._dae, 0.0,
+                                             list(dt * np.arange(1, m + 1)), self.opts)
+        X, Q = self._run(self._grids[key], x, mode)
+        return X.T, Q.T
+
+    def step(self, x, mode, d):
+        X, Q = self._run(self._step, x, mode, d)
+        return X[:, 0], Q[:, 0]
+
+
+def initial_state(cfg, kern, p, theta0=None, omega0=None):
+    """Everything at rest pressure: cells and exhaust port at the atmosphere, inlet manifold and
+    booster at the booster's start pressure, reed seated."""
+    st = structure_of(cfg)
+    v = dict(zip([q for q in _names(st)], p))
+    th = cfg.angle if theta0 is None else theta0
+    om = cfg.speed if omega0 is None else omega0
+    V = np.asarray(kern["cell_geometry"](th, p)[0]).ravel()
+    R, g, T0 = v["gas.gas_constant"], v["gas.gamma"], v["gas.temperature"]
+    pa, pb = v["gas.atmosphere"], cfg.pneumatic.booster_start
+    m = pa * V / (R * T0)
+    U = pa * V / (g - 1)
+    return np.concatenate([[th, om, 0.0], m, U,
+                           [pb * v["ports.inlet_volume"] / (R * T0),
+                            pa * v["ports.exhaust_volume"] / (R * T0),
+                            pb * v["booster.volume"] / (R * T0), 0.0, 0.0]])
+
+
+def _names(st):
+    from ..model_spec.parameters import pneumatic_layout
+
+    return [q.name for q in pneumatic_layout(st)]
+
+
+def state_scale(x0, p, st):
+    """Nominal sizes for the absolute tolerance: masses and energies at their start values, the
+    rotor angle 1 rad, speed 100 rad/s, current 1 A, reed lift its stop and rate stop x 1 kHz."""
+    v = dict(zip(_names(st), p))
+    sc = np.abs(np.asarray(x0, float)).copy()
+    N = st.vanes
+    sc[0], sc[1], sc[2] = 1.0, 100.0, 1.0
+    sc[3:3 + 2 * N] = np.maximum(sc[3:3 + 2 * N], 1e-12)
+    sc[3 + 2 * N:3 + 2 * N + 3] = np.maximum(sc[3 + 2 * N:3 + 2 * N + 3], 1e-12)
+    lift = v["valve.lift_max"] if v["valve.reed"] > 0.5 else 1e-3
+    sc[-2], sc[-1] = lift, lift * 1e3
+    return sc
+
+
+def evaluate_outputs(kern, X, p, names=None):
+    """pump_outputs over the rows of X (n, nx)."""
+    f = kern["pump_outputs"]
+    n = X.shape[0]
+    res = kern.mapped("pump_outputs", n)(X.T, np.asarray(p).reshape(-1, 1))
+    out = {}
+    for nm, r in zip(f.name_out(), res):
+        if names is not None and nm not in names:
+            continue
+        a = np.asarray(r)
+        out[nm] = a.ravel() if a.shape[0] == 1 else a.T  # per cell/vane: (n, N)
+    return out
+
+
+def _reed_switch(kern, p, X, mode):
+    """Switching functions of the reed in its current mode, per row of X."""
+    o = evaluate_outputs(kern, X, p, ["reed_force"])
+    lift = X[:, -2]
+    if mode == REED_MODES["free"]:
+        x_max = p[parameter_index(kern.structure, "valve.lift_max")]
+        return np.stack([lift, x_max - lift], axis=1)
+    return o["reed_force"][:, None]
+
+
+def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=1e-7, atol=1e-9,
+              progress=None, max_steps=2_000_000) -> PumpdownRun:
+    """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
+    booster pressure falls to `until` (located to EVENT_TIME_TOL)."""
+    kern = kernels(cfg)
+    p = parameter_vector(cfg) if p is None else np.asarray(p, float)
+    st = structure_of(cfg)
+    N = st.vanes
+    x0 = initial_state(cfg, kern, p) if x0 is None else np.asarray(x0, float)
+    reed = p[parameter_index(st, "valve.reed")] > 0.5
+    mode = float(p[parameter_index(st, "valve.mode")]) if reed else 0.0
+    integ = PumpIntegrator(kern, p, rtol, atol, state_scale(x0, p, st), max_steps)
+    dt = 1.0 / rate
+    n_total = int(math.floor(duration * rate + 1e-9))
+    times, xs, qs = [0.0], [x0], [np.zeros(integ.nq)]
+    events = []
+    t, x, q = 0.0, x0.copy(), np.zeros(integ.nq)
+    ib = 3 + 2 * N + 2
+    v_b = p[parameter_index(st, "booster.volume")]
+    RT = p[parameter_index(st, "gas.gas_constant")] * p[parameter_index(st, "gas.temperature")]
+    p_booster = lambda X: X[..., ib] * RT / v_b  # noqa: E731
+    t_target = None
+    wall0 = _time.perf_counter()
+    k = 0
+    while k < n_total:
+        m = min(CHUNK, n_total - k)
+        try:
+            X, Q = integ.grid(x, mode, dt, m)
+        except SolverError as e:
+            raise SolverError(f"pump-down failed between t = {t:.6g} s and {t + m * dt:.6g} s "
+                              f"(theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
+                              f"{p_booster(x):.6g} Pa): {e}") from None
+        cut = m
+        if reed:
+            g0 = _reed_switch(kern, p, x[None, :], mode)[0]
+            G = _reed_switch(kern, p, X, mode)
+            prev = np.vstack([g0[None, :], G[:-1]])
+            changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
+            rows = np.nonzero(changed.any(axis=1))[0]
+            if rows.size:
+                cut = int(rows[0])
+        stop_row = None
+        if until is not None:
+            below = np.nonzero(p_booster(X[:cut]) <= until)[0]
+            if below.size:
+                stop_row = int(below[0])
+                cut = stop_row
+        for r in range(cut):
+            times.append(t + (r + 1) * dt)
+            xs.append(X[r])
+            qs.append(q + Q[r])
+        if cut:
+            t, x, q = t + cut * dt, X[cut - 1].copy(), q + Q[cut - 1]
+            k += cut
+        if stop_row is not None:  # locate the target crossing inside the next interval
+            pa = p_booster(x) - until
+            d = _illinois(lambda d: p_booster(integ.step(x, mode, d)[0]) - until, 0.0, dt, pa,
+                          p_booster(X[stop_row]) - until, EVENT_TIME_TOL)
+            xe, qe = integ.step(x, mode, d)
+            t_target = t + d
+            times.append(t_target)
+            xs.append(xe)
+            qs.append(q + qe)
+            break
+        if cut < m:  # a reed event inside [t, t + dt]
+            x, q, mode = _reed_interval(integ, kern, p, x, q, mode, t, dt, events)
+            t = t + dt
+            k += 1
+            times.append(t)
+            xs.append(x.copy())
+            qs.append(q.copy())
+        if progress:
+            progress(t, p_booster(x))
+    X = np.array(xs)
+    stats = dict(integ.stats)
+    stats.update(integrator_calls=integ.calls, events=len(events),
+                 wall_time=_time.perf_counter() - wall0)
+    outs = evaluate_outputs(kern, X, p)
+    return PumpdownRun(np.array(times), X, np.array(qs), outs, stats, events, t_target, p)
+
+
+def _reed_interval(integ, kern, p, x, q, mode, t, dt, events):
+    """Integrate over [t, t + dt], which holds at least one reed switch: locate each switch in
+    turn, change the mode there (the lift rate stops dead on seat and stop) and go on; returns
+    (state, quadratures, mode) at t + dt."""
+    lift_max = p[parameter_index(kern.structure, "valve.lift_max")]
+    t_end = t + dt
+    for _ in range(100):
+        g0 = _reed_switch(kern, p, x[None, :], mode)[0]
+        x1, q1 = integ.step(x, mode, t_end - t)
+        g1 = _reed_switch(kern, p, x1[None, :], mode)[0]
+        crossed = [i for i in range(g0.size) if np.sign(g1[i]) != np.sign(g0[i]) and g0[i] != 0.0]
+        if not crossed:
+            return x1, q + q1, mode
+        roots = {i: _illinois(lambda d, i=i: _reed_switch(kern, p, integ.step(x, mode, d)[0][None, :],
+                                                             mode)[0][i],
+                              0.0, t_end - t, g0[i], g1[i], EVENT_TIME_TOL) for i in crossed}
+        i, d = min(roots.items(), key=lambda kv: kv[1])
+        xe, qe = integ.step(x, mode, d)
+        q = q + qe
+        t = t + d
+        x = xe.copy()
+        if mode == REED_MODES["free"]:
+            if i == 0:  # on the seat
+                x[-2], x[-1], mode, kind = 0.0, 0.0, REED_MODES["seated"], "reed_closes"
+            else:  # on the stop
+                x[-2], x[-1], mode, kind = lift_max, 0.0, REED_MODES["stop"], "reed_stop"
+        else:
+            kind = "reed_opens" if mode == REED_MODES["seated"] else "reed_leaves_stop"
+            mode = REED_MODES["free"]
+            x[-1] = 0.0
+        events.append({"time": float(t), "kind": kind})
+        if t_end - t <= EVENT_TIME_TOL:
+            return x, q, mode
+    raise SolverError(f"reed valve chatters: 100 switches within {dt:.3g} s at t = {t:.6g} s")

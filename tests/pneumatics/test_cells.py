@@ -1,0 +1,111 @@
+"""Cell geometry (spec §8): the volume identity, the concentric closed form, dV/dtheta and the
+port overlaps, for ellipse, eccentric and harmonic housings with tilted slots."""
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+
+from pumpsim.pneumatics.kernel import kernels, parameter_vector
+from tests.pneumatics.helpers import ellipse_radius, gas_config
+from tests.tolerances import CELL_DERIVATIVE_REL, CELL_IDENTITY_REL
+
+HOUSINGS = {
+    "ellipse": {},
+    "eccentric_tilted": {"housing.center": [0.0011, -0.0004], "housing.angle": 0.4,
+                         "rotor.slot_tilt": 0.2, "rotor.first_slot_angle": 0.3},
+    "harmonic_tilted_round_tip": {"housing.harmonics": [[3, 3e-5, 0.2], [7, 1e-5, 1.0]],
+                                  "housing.center": [0.0006, 0.0003], "rotor.slot_tilt": -0.15,
+                                  "vane.tip_radius": 0.002},
+}
+
+
+def _geometry(cfg, theta, **over):
+    k = kernels(cfg)
+    p = parameter_vector(cfg, **over)
+    out = k["cell_geometry"](theta, p)
+    return [np.asarray(o).ravel() for o in out], p
+
+
+def _vane_area_outside_rotor(s, phi, v):
+    """Area of vane rectangle (flat or rounded end) outside the rotor circle: 1-D integral across
+    the thickness of (tip end - rotor circle) along the slot direction."""
+    rb, beta, Rr = v["rotor.slot_radius"], v["rotor.slot_tilt"], v["rotor.radius"]
+    L, h, rho = v["vane.length"], v["vane.thickness"], v["vane.tip_radius"]
+    ob = rb * np.array([math.cos(phi), math.sin(phi)])
+    u = np.array([math.cos(phi + beta), math.sin(phi + beta)])
+    w = np.array([-u[1], u[0]])
+
+    def length(c):
+        q = ob + c * w
+        qu = q @ u
+        a_rotor = -qu + math.sqrt(qu * qu - q @ q + Rr * Rr)
+        top = s + L if rho == 0 else s + L - rho + math.sqrt(rho * rho - c * c)
+        return top - a_rotor
+
+    return quad(length, -h / 2, h / 2, epsabs=0, epsrel=1e-13, limit=200)[0]
+
+
+@pytest.mark.parametrize("name", list(HOUSINGS))
+def test_volume_identity_every_angle(name):
+    cfg = gas_config(**HOUSINGS[name])
+    v = {**cfg.values}
+    W = 0.02
+    a, b, psi = v["housing.a"], v["housing.b"], v["housing.angle"]
+    harm = cfg.harmonics
+    housing_area = quad(lambda al: 0.5 * ellipse_radius(al, a, b, psi, harm) ** 2, 0, 2 * math.pi,
+                        epsabs=0, epsrel=1e-13, limit=400)[0]
+    annulus = (housing_area - math.pi * v["rotor.radius"] ** 2) * W
+    N = cfg.vanes
+    for theta in np.linspace(0, 2 * math.pi, 17):
+        (V, dV, vv, lin, lex, s, al, res), _ = _geometry(cfg, theta)
+        assert np.all(V > 0)
+        assert V.sum() + vv.sum() == pytest.approx(annulus, rel=CELL_IDENTITY_REL)
+        for i in range(N):
+            phi = v["rotor.first_slot_angle"] + 2 * math.pi * i / N
+            assert vv[i] == pytest.approx(_vane_area_outside_rotor(s[i], phi, v) * W,
+                                          rel=CELL_IDENTITY_REL)
+
+
+@pytest.mark.parametrize("vanes", [1, 4])
+def test_concentric_thin_radial_vanes_constant_volume(vanes):
+    R, Rr, W = 0.0225, 0.020, 0.02
+    cfg = gas_config("test_rig", **{"rotor.vanes": vanes, "effects": {}})
+    exact = math.pi * (R**2 - Rr**2) * W / vanes
+    for theta in np.linspace(0, 2 * math.pi, 9):
+        (V, dV, *_), _ = _geometry(cfg, theta, vane__thickness=0.0)
+        np.testing.assert_allclose(V, exact, rtol=CELL_IDENTITY_REL)
+        assert np.max(np.abs(dV)) < CELL_IDENTITY_REL * exact
+
+
+@pytest.mark.parametrize("name", list(HOUSINGS))
+def test_volume_derivative_matches_finite_difference(name):
+    cfg = gas_config(**HOUSINGS[name])
+    h = 1e-5
+    for theta in np.linspace(0.1, 2 * math.pi, 7):
+        (V, dV, *_), _ = _geometry(cfg, theta)
+        Vp = _geometry(cfg, theta + h)[0][0]
+        Vm = _geometry(cfg, theta - h)[0][0]
+        np.testing.assert_allclose(dV, (Vp - Vm) / (2 * h), atol=CELL_DERIVATIVE_REL * V.max())
+
+
+def test_port_overlaps_tile_the_window():
+    """The cells' housing arcs tile the housing, so their overlaps with a window add up to the
+    window's arc length (vane tips touch at points)."""
+    cfg = gas_config(**HOUSINGS["harmonic_tilted_round_tip"])
+    v = cfg.values
+    a, b, psi = v["housing.a"], v["housing.b"], v["housing.angle"]
+
+    def speed(al):
+        r = ellipse_radius(al, a, b, psi, cfg.harmonics)
+        e = 1e-6
+        dr = (ellipse_radius(al + e, a, b, psi, cfg.harmonics)
+              - ellipse_radius(al - e, a, b, psi, cfg.harmonics)) / (2 * e)
+        return math.hypot(r, dr)
+
+    for name, (lo, hi) in (("inlet", (0.3, 2.0)), ("exhaust", (3.5, 5.5))):
+        arc = quad(speed, lo + psi, hi + psi, epsrel=1e-12, limit=200)[0]
+        for theta in np.linspace(0, 2 * math.pi, 5):
+            (V, dV, vv, lin, lex, *_), _ = _geometry(cfg, theta)
+            total = (lin if name == "inlet" else lex).sum()
+            assert total == pytest.approx(arc, rel=1e-4)
