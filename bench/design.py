@@ -38,26 +38,30 @@ def one_core(n=2000):
     return {"designs": n, "wall_s": wall, "designs_per_s": n / st.wall, "batch_size": st.batch_size}
 
 
-def workers_scaling(n=6000):
+def workers_scaling(n=6000, repeats=3):
     """The same study on a LocalCluster of 1 and of 2 worker processes (clusters started before
-    the clock: the evaluation phase is timed). Same batch size for both."""
+    the clock: the evaluation phase is timed), alternating, best of `repeats` each: the machine is
+    shared, and the best run is the one least disturbed. Same batch size for both."""
     s = rig(n)
-    out = {}
-    bs = None
-    for w in (1, 2):
-        client, cluster = connect(None, w, True)
-        try:
+    clusters = {w: connect(None, w, True) for w in (1, 2)}
+    best, bs = {}, None
+    try:
+        for w, (client, _) in clusters.items():
             run_study(rig(64), client=client, workers=w, progress=False)  # warm the workers
-            df, st = run_study(s, client=client, workers=w, batch_size=bs, progress=False)
-            bs = st.batch_size
-            out[w] = st
-        finally:
+        for _ in range(repeats):
+            for w, (client, _) in clusters.items():
+                _, st = run_study(s, client=client, workers=w, batch_size=bs, progress=False)
+                bs = st.batch_size
+                if w not in best or st.wall < best[w].wall:
+                    best[w] = st
+    finally:
+        for client, cluster in clusters.values():
             client.close()
             cluster.close()
-    return {"designs": n, "batch_size": bs, "wall_1_s": out[1].wall, "wall_2_s": out[2].wall,
-            "speedup_2_workers": out[1].wall / out[2].wall,
-            "overhead_share_1": out[1].overhead_share, "overhead_share_2": out[2].overhead_share,
-            "tasks": out[2].batches}
+    return {"designs": n, "batch_size": bs, "wall_1_s": best[1].wall, "wall_2_s": best[2].wall,
+            "speedup_2_workers": best[1].wall / best[2].wall,
+            "overhead_share_1": best[1].overhead_share, "overhead_share_2": best[2].overhead_share,
+            "tasks": best[2].batches, "repeats": repeats}
 
 
 def end_to_end(n=10_000):
@@ -78,7 +82,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
     a = ap.parse_args()
-    res = {"cores": os.cpu_count()}
+    res = {"cores": os.cpu_count(), "load_average_before": os.getloadavg()}
     print("design studies (test rig tolerance MC, 360 samples per revolution, Model 2)")
     r = one_core()
     res["one_core"] = r
@@ -95,6 +99,9 @@ def main():
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}
+    res["load_average_after"] = os.getloadavg()
+    print(f"  load average before/after: {res['load_average_before'][0]:.1f} / {res['load_average_after'][0]:.1f} "
+          f"on {os.cpu_count()} cores (the machine is shared)")
     data["design"] = res
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(data, indent=1))

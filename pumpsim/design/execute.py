@@ -236,6 +236,7 @@ def connect(scheduler=None, workers=None, processes=True):
             raise ConfigError(f"no Dask scheduler answers at '{scheduler}' within {CONNECT_TIMEOUT:g} s "
                               f"({type(e).__name__}: {str(e)[:200]})") from None
     n = workers or os.cpu_count() or 1
+    logging.getLogger("distributed").setLevel(logging.ERROR)  # start/stop chatter is not ours to print
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
                            dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
@@ -308,6 +309,10 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     bs = batch_size or study.batch_size or (man or {}).get("batch_size")
     if not bs:
         bs = pilot_batch_size(study, X) if len(X) > 1 else 1
+        n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
+        if n_workers > 1:  # a multiple of the workers in equal tasks: no lone task at the end
+            nb = math.ceil(math.ceil(len(X) / bs) / n_workers) * n_workers
+            bs = max(1, math.ceil(len(X) / nb))
     plan = Plan(study, X, int(bs))
     stats.batch_size, stats.batches = plan.batch_size, plan.n_batches
     folder = Path(out) if out else None
