@@ -9,6 +9,8 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
+
 # "±" means the same on the terminal, in JSON ("stderr") and in the HTML reports.
 PLUS_MINUS = "± = one standard error (1σ, from σ²(JᵀJ)⁻¹); 95 % intervals use the t distribution"
 
@@ -148,6 +150,16 @@ def sha256(path) -> str | None:
         return None
 
 
+def samples_sha256(d) -> str:
+    """SHA-256 of a Dataset's time, torque, speed and angle samples (float64, in that order)."""
+    h = hashlib.sha256()
+    for name in ("time", "torque", "speed", "angle"):
+        a = getattr(d, name, None)
+        if a is not None:
+            h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    return h.hexdigest()
+
+
 def provenance(cfg=None, data=None, kernel_key=None) -> list[tuple[str, str]]:
     """What a reader needs to reproduce a result: data file(s) and their SHA-256, the config (name,
     path, SHA-256), the date (UTC), the pumpsim version and the compiled kernel's cache key.
@@ -159,16 +171,16 @@ def provenance(cfg=None, data=None, kernel_key=None) -> list[tuple[str, str]]:
     for i, d in enumerate(items):
         src = getattr(d, "source", d)
         tag = "data file" if len(items) == 1 else f"data file {i + 1}"
-        if src:
-            p = Path(str(src))
-            digest = sha256(p)
-            rows.append((tag, str(p.resolve()) if p.exists() else str(src)))
-            rows.append((f"{tag} SHA-256", digest or "(not a file: arrays passed in memory)"))
-            n = getattr(d, "n", None)
-            if n is not None:
-                rows.append((f"{tag} samples", str(n)))
-        else:
-            rows.append((tag, "(arrays passed in memory)"))
+        p = Path(str(src)) if src else None
+        if p is not None and p.is_file():
+            rows.append((tag, str(p.resolve())))
+            rows.append((f"{tag} SHA-256", sha256(p)))
+        else:  # arrays made in memory: the hash of the samples identifies them
+            rows.append((tag, "(arrays passed in memory)" + (f", source '{src}'" if src else "")))
+            rows.append((f"{tag} SHA-256", f"{samples_sha256(d)} (of the samples)"))
+        n = getattr(d, "n", None)
+        if n is not None:
+            rows.append((f"{tag} samples", str(n)))
     if cfg is not None:
         rows.append(("config", f"{cfg.name}" + (f" ({Path(cfg.path).resolve()})" if cfg.path else "")))
         if cfg.path and sha256(cfg.path):

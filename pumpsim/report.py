@@ -89,6 +89,20 @@ def provenance_html(rows) -> str:
     return "<h2>Provenance</h2>" + table(["item", "value"], [(k, Cell(v, False)) for k, v in rows], cls="prov")
 
 
+def provenance_of(res, cfg=None, data=None) -> list:
+    """Provenance rows from the config and data given, else from a result's own `provenance`
+    dict ({config, data: [{name, sha256}], kernel_key}) when it carries one."""
+    own = getattr(res, "provenance", None)
+    if cfg is not None or data is not None or not isinstance(own, dict) or not own:
+        return provenance(cfg, data)
+    rows = []
+    for i, d in enumerate(own.get("data", [])):
+        tag = "data file" if len(own["data"]) == 1 else f"data file {i + 1}"
+        rows += [(tag, str(d.get("name"))), (f"{tag} SHA-256", str(d.get("sha256")))]
+    rows.append(("config", str(own.get("config"))))
+    return rows + [r for r in provenance(kernel_key=own.get("kernel_key")) if r[0] != "config"]
+
+
 def provenance_line(rows) -> str:
     """One line under the title: what was fitted, when, with which version (details at the end)."""
     d = dict(rows)
@@ -288,7 +302,7 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
     data: the Dataset(s) or file path(s) fitted (file name and SHA-256); provenance_rows replaces
     the computed provenance."""
     harmonics = getattr(cfg, "harmonics", None)
-    rows_p = provenance_rows if provenance_rows is not None else provenance(cfg, data)
+    rows_p = provenance_rows if provenance_rows is not None else provenance_of(res, cfg, data)
     parts = [f"<h1>{html.escape(title)}</h1>", provenance_line(rows_p), _status(res)]
     if res.unidentifiable:
         parts.append(f"<p class=warn>Not identifiable from this data (no number given): "

@@ -105,7 +105,11 @@ def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_d
         assert c["candidate"] in text
     # numbers never wrap: every numeric cell is nowrap, parameter lists are nowrap spans
     assert "td.n{text-align:right;white-space:nowrap" in page and "<span class=nb>" in page
-    assert "(arrays passed in memory)" in text  # a Dataset made in memory says so, no fake hash
+    # a Dataset made in memory says so and is identified by the hash of its samples
+    assert "(arrays passed in memory)" in text
+    h = hashlib.sha256(np.ascontiguousarray(ds.time, dtype=float).tobytes()
+                       + np.ascontiguousarray(ds.torque, dtype=float).tobytes()).hexdigest()
+    assert f"{h} (of the samples)" in text
 
 
 def test_diagnosis_report_reads_a_result_object_with_a_flat_ranking(tmp_path, out_of_round_diagnosis):
@@ -181,3 +185,14 @@ def test_estimates_are_rounded_to_their_standard_error(value, stderr):
     assert abs(float(v) - value) <= 0.1 * stderr and abs(float(e) / stderr - 1) < 0.05
     lo, hi = fmt_interval(value - 2 * stderr, value + 2 * stderr, stderr).split(" … ")
     assert abs(float(lo) - (value - 2 * stderr)) <= 0.1 * stderr and abs(float(hi) - (value + 2 * stderr)) <= 0.1 * stderr
+
+
+def test_provenance_falls_back_on_the_results_own_record():
+    from pumpsim.report import provenance_of
+
+    own = {"config": "examples/test_rig.toml", "data": [{"name": "a.csv", "sha256": "ab" * 32}],
+           "kernel_key": "constrained-n4-h0-123"}
+    rows = dict(provenance_of(SimpleNamespace(provenance=own)))
+    assert rows["data file"] == "a.csv" and rows["data file SHA-256"] == "ab" * 32
+    assert rows["compiled kernel"] == "constrained-n4-h0-123" and rows["config"] == "examples/test_rig.toml"
+    assert rows["pumpsim version"] == pumpsim.__version__
