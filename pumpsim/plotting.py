@@ -220,7 +220,8 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
             first = ax
         axes[key] = ax
         ax.grid(alpha=0.3)
-    colors = [f"C{i % 10}" for i in range(n)]
+    # one colour per vane, the same in every panel (beyond ten vanes from a colour map)
+    colors = [f"C{i}" for i in range(n)] if n <= 10 else [plt.cm.turbo(i / (n - 1)) for i in range(n)]
 
     def vane_panel(ax, col, label, scale):
         curves = np.array([_column(res, f"{col}_{i}") * scale for i in range(n)])
@@ -316,8 +317,10 @@ def _summary(fig, cell, res, orders):
              if orders["mean"] else ""]
     if orders["orders"] is not None and not flat:
         top = np.argsort(orders["amplitudes"][1:])[::-1][:3] + 1
+        k = 1e3 if orders["amplitudes"][top[0]] < 0.1 else 1.0  # the unit of the bar chart
         lines.append("largest orders          " + ", ".join(
-            f"{int(orders['orders'][i])}: {orders['amplitudes'][i]:.3g}" for i in top) + " N·m")
+            f"{int(orders['orders'][i])}: {orders['amplitudes'][i] * k:.3g}" for i in top)
+            + (" mN·m" if k > 1 else " N·m"))
     if getattr(res, "mode", "speed") != "speed":
         lines.append(f"speed ripple p-p        {np.ptp(speed) * RPM:.4g} rpm")
     normal = np.array([_column(res, f"normal_{i}") for i in range(n)])

@@ -114,7 +114,7 @@ def fmt_estimate(value, stderr, digits: int = 2) -> str:
     dec = _decimals(value, stderr, digits)
     if dec is None:
         return f"{value:#.{_sig(value, stderr, digits)}g} ± {stderr:#.{digits}g}"
-    return f"{value:.{dec}f} ± {stderr:#.{digits}g}"
+    return f"{value:.{dec}f} ± {stderr:.{dec}f}"
 
 
 def fmt_interval(lower, upper, stderr, digits: int = 2) -> str:
