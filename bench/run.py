@@ -77,6 +77,9 @@ def bench_inverse_dynamics(n=100_000):
             "max_rel_difference_vs_numpy": agree, "simd": simd}
 
 
+COMPILE_TARGET_S = 60.0  # one variant, model build + C compile
+
+
 def bench_compile():
     """Fresh compile of each bundled variant into a temporary cache."""
     from codegen.build import build_variant
@@ -100,7 +103,11 @@ def bench_compile():
     print(f"{'variant':<28}{'model [s]':>10}{'C compile [s]':>15}{'total [s]':>11}")
     for v, r in res.items():
         print(f"{v:<28}{r['model']:>10.2f}{r['compile']:>15.2f}{r['total_seconds']:>11.2f}")
-    return res
+    # the compile-time target (was a test assertion; a shared machine's timing is a benchmark's job)
+    worst = max(r["total_seconds"] for r in res.values())
+    print(f"slowest variant {worst:.1f} s (target <= {COMPILE_TARGET_S:g} s: "
+          f"{'met' if worst <= COMPILE_TARGET_S else 'MISSED'})")
+    return {**res, "target_seconds": COMPILE_TARGET_S, "target_met": worst <= COMPILE_TARGET_S}
 
 
 def bench_contact(duration=0.5, scipy_span=0.1):

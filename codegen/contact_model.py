@@ -10,12 +10,14 @@ contact-side set, exactly as in Model 2 with N replaced by sddot as the unknown.
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import casadi as ca
 
 from pumpsim.model_spec import laws
 from pumpsim.model_spec.outputs import CONTACT_VANE_OUTPUTS, VANE_OUTPUTS
 
-from .model import CASADI_OPS, FORWARD_ITERATIONS
+from .model import CASADI_OPS, newton_omegadot, rotor_torque
 
 RATE_COLUMNS = ("theta", "omega", "omegadot", "s", "sdot")  # what one vane's rates depend on
 
@@ -121,42 +123,47 @@ def build_contact_functions(b) -> dict:
     def vanes(name, th_, w_, wd_, s_, sd_):  # one row per output, one column per vane
         return vf[name].map(N)(th_, w_, wd_, s_.T, sd_.T, phis, facs, p)
 
-    def rotor_torque(wd_, share):  # the drive torque the rotor equation needs at omegadot wd_
-        return Ir * wd_ + tb + ca.sum2(share)
+    def forward_omegadot(th_, w_, s_, sd_):
+        def required(wdk):
+            _, share, slope = vanes("vane_rates", th_, w_, wdk, s_, sd_)
+            return rotor_torque(Ir, tb, wdk, share), slope
+
+        return newton_omegadot(required, Ir, tau)
 
     o = vanes("vane_contact", th, w, wd, s, sd)
-    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [rotor_torque(wd, o[i_share]), *o],
+    dyn = ca.Function("contact_dynamics", [th, w, wd, s, sd, p], [rotor_torque(Ir, tb, wd, o[i_share]), *o],
                       ["theta", "omega", "omegadot", "s", "sdot", "p"], ["torque", *CONTACT_VANE_OUTPUTS])
-
-    def forward_omegadot(th_, w_, s_, sd_):
-        """Torque drive: Newton on omegadot (the torque is piecewise affine in it, slope from the
-        vanes)."""
-        wdk = ca.MX(0.0)
-        for _ in range(FORWARD_ITERATIONS):
-            _, share, slope = vanes("vane_rates", th_, w_, wdk, s_, sd_)
-            wdk = wdk - (rotor_torque(wdk, share) - tau) / (Ir + ca.sum2(slope))
-        return wdk
-
     wd_f = forward_omegadot(th, w, s, sd)
     of = vanes("vane_contact", th, w, wd_f, s, sd)
     fwd = ca.Function("contact_forward", [th, w, tau, s, sd, p],
-                      [wd_f, rotor_torque(wd_f, of[i_share]) - tau, *of],
+                      [wd_f, rotor_torque(Ir, tb, wd_f, of[i_share]) - tau, *of],
                       ["theta", "omega", "torque", "s", "sdot", "p"],
                       ["omegadot", "torque_residual", *CONTACT_VANE_OUTPUTS])
+    ctx = SimpleNamespace(N=N, p=p, wd=wd, tau=tau, Ir=Ir, vanes=vanes, forward_omegadot=forward_omegadot)
+    # Model 2 state, for starting on the housing
+    oc = b.vane_constrained().map(N)(th, w, 0.0, phis, facs, p)
+    cstate = ca.Function("constrained_state", [th, w, p],
+                         [oc[VANE_OUTPUTS.index("s")].T, oc[VANE_OUTPUTS.index("sdot")].T,
+                          oc[VANE_OUTPUTS.index("normal")].T],
+                         ["theta", "omega", "p"], ["s", "sdot", "normal"])
+    return {f.name(): f for f in (dyn, fwd, *_odes(ctx), cstate)}
 
-    # ODEs for the integrator, x = (theta, omega, s_0.., sdot_0..), and their Jacobians in x and
-    # in the drive (omegadot or torque), assembled from the per-vane derivatives: vane i's
-    # acceleration depends on (theta, omega, omegadot, s_i, sdot_i) only (RATE_COLUMNS)
+
+def _odes(c):
+    """ODEs for the integrator, x = (theta, omega, s_0.., sdot_0..), and their Jacobians in x and
+    in the drive (omegadot or torque), assembled from the per-vane derivatives: vane i's
+    acceleration depends on (theta, omega, omegadot, s_i, sdot_i) only (RATE_COLUMNS)."""
+    N, p, wd, tau, Ir, vanes = c.N, c.p, c.wd, c.tau, c.Ir, c.vanes
     nx = 2 + 2 * N
     x = ca.MX.sym("x", nx)
     xs, xsd = x[2:2 + N], x[2 + N:]
     nr = len(RATE_COLUMNS)
 
-    def state_column(c, i):  # the state behind vane i's RATE_COLUMNS entry c
-        return {"theta": 0, "omega": 1, "s": 2 + i, "sdot": 2 + N + i}[c]
+    def state_column(col, i):  # the state behind vane i's RATE_COLUMNS entry col
+        return {"theta": 0, "omega": 1, "s": 2 + i, "sdot": 2 + N + i}[col]
 
     def partials(D, row, i):  # vane i's derivatives of output `row` by column name
-        return {c: D[row, nr * i + k] for k, c in enumerate(RATE_COLUMNS)}
+        return {col: D[row, nr * i + k] for k, col in enumerate(RATE_COLUMNS)}
 
     kinematic = {(0, 1): 1.0, **{(2 + i, 2 + N + i): 1.0 for i in range(N)}}  # theta' = omega, s' = sdot
 
@@ -168,11 +175,11 @@ def build_contact_functions(b) -> dict:
     for i in range(N):
         d = partials(D, 0, i)
         jd[2 + N + i] = d.pop("omegadot")
-        jx.update({(2 + N + i, state_column(c, i)): v for c, v in d.items()})
+        jx.update({(2 + N + i, state_column(col, i)): v for col, v in d.items()})
     ode_speed_jac = ca.Function("ode_speed_jac", [x, wd, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
                                 ["x", "omegadot", "p"], ["jac_xdot_x", "jac_xdot_omegadot"])
 
-    wd_t = forward_omegadot(x[0], x[1], xs, xsd)
+    wd_t = c.forward_omegadot(x[0], x[1], xs, xsd)
     sdd_t = vanes("vane_rates", x[0], x[1], wd_t, xs, xsd)[0]
     ode_torque = ca.Function("ode_torque", [x, tau, p], [ca.vertcat(x[1], wd_t, xsd, sdd_t.T)],
                              ["x", "torque", "p"], ["xdot"])
@@ -184,9 +191,9 @@ def build_contact_functions(b) -> dict:
     R_wd = Ir + sum(sh["omegadot"] for sh in share)
     dW = {}  # d omegadot / d x_j
     for i, sh in enumerate(share):
-        for c, v in sh.items():
-            if c != "omegadot":
-                j = state_column(c, i)
+        for col, v in sh.items():
+            if col != "omegadot":
+                j = state_column(col, i)
                 dW[j] = dW.get(j, 0.0) - v / R_wd
     jx, jd = dict(kinematic), {1: 1.0 / R_wd}
     jx.update({(1, j): v for j, v in dW.items()})
@@ -194,19 +201,12 @@ def build_contact_functions(b) -> dict:
         r = 2 + N + i
         jd[r] = a["omegadot"] / R_wd
         jx.update({(r, j): a["omegadot"] * v for j, v in dW.items()})
-        for c, v in a.items():
-            if c != "omegadot":
-                jx[(r, state_column(c, i))] += v
+        for col, v in a.items():
+            if col != "omegadot":
+                jx[(r, state_column(col, i))] += v
     ode_torque_jac = ca.Function("ode_torque_jac", [x, tau, p], [_sparse(nx, nx, jx), _sparse(nx, 1, jd)],
                                  ["x", "torque", "p"], ["jac_xdot_x", "jac_xdot_torque"])
-    # Model 2 state, for starting on the housing
-    vc = b.vane_constrained().map(N)
-    oc = vc(th, w, 0.0, phis, facs, p)
-    cstate = ca.Function("constrained_state", [th, w, p],
-                         [oc[VANE_OUTPUTS.index("s")].T, oc[VANE_OUTPUTS.index("sdot")].T,
-                          oc[VANE_OUTPUTS.index("normal")].T],
-                         ["theta", "omega", "p"], ["s", "sdot", "normal"])
-    return {f.name(): f for f in (dyn, fwd, ode_speed, ode_speed_jac, ode_torque, ode_torque_jac, cstate)}
+    return ode_speed, ode_speed_jac, ode_torque, ode_torque_jac
 
 
 def _sparse(nrow, ncol, entries):

@@ -10,6 +10,7 @@ by evaluating the same expressions at phi_i.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import sympy as sp
 from sympy.physics.vector import Point, ReferenceFrame, dynamicsymbols
@@ -53,11 +54,8 @@ def _tidy(expr):
     return e
 
 
-def derive_vane() -> VaneMechanics:
-    S = {n: sp.Symbol(n, real=True) for n in SYMBOL_NAMES}
-    t = sp.Symbol("t")
-    th, sv = dynamicsymbols("theta_t s_t")
-
+def _frames_and_points(S, th, sv) -> SimpleNamespace:
+    """Rotor and slot frames and the vane's points (report Figure 2), positions from O."""
     Nf = ReferenceFrame("N")  # inertial
     Rf = Nf.orientnew("R", "Axis", [th, Nf.z])  # rotor
     Sf = Rf.orientnew("S", "Axis", [S["phi"] + S["slot_tilt"], Rf.z])  # slot (= vane: no tilt)
@@ -81,9 +79,48 @@ def derive_vane() -> VaneMechanics:
     # expressions stay short (no products of sin(theta) with slot-angle terms).
     C = O.locatenew("C", S["Cx"] * Rf.x + S["Cy"] * Rf.y)
     n_hat = S["nx"] * Rf.x + S["ny"] * Rf.y
-    t_hat = z.cross(n_hat)
     Q1 = A.locatenew("Q1", -S["sigma1"] * h / 2 * w)
     Q2 = Mo.locatenew("Q2", -S["sigma2"] * h / 2 * w)
+    return SimpleNamespace(Nf=Nf, Rf=Rf, u=u, w=w, z=z, O=O, Ob=Ob, A=A, G=G, B=B, P=P, Mo=Mo, C=C,
+                           n_hat=n_hat, t_hat=z.cross(n_hat), Q1=Q1, Q2=Q2, l_m=l_m)
+
+
+def _generalized_forces(S, g, plain, aG_vec, v_t, vane_velocity, speeds, vw, wt) -> dict:
+    """Virtual power of every force along each speed (Kane): rotor, slide, lateral, tilt."""
+    mu_h, mu_r = S["mu_h"], S["mu_r"]
+    s1, s2 = S["sigma1"], S["sigma2"]
+    F_housing = S["N"] * g.n_hat - (mu_h * S["N"] + S["c_visc"] * v_t) * g.t_hat
+    F_slot1 = S["F1"] * g.w - mu_r * s1 * S["F1"] * g.u  # |F1| = sigma1 F1
+    F_slot2 = S["F2"] * g.w - mu_r * s2 * S["F2"] * g.u
+    F_bottom = S["Fb"] * g.u
+
+    def rotor_velocity(X):
+        return S["omega"] * g.z.cross(X.pos_from(g.O))
+
+    # (point, force) pairs; reactions act on the rotor with opposite sign, same point
+    on_vane = [(g.C, F_housing), (g.Q1, F_slot1), (g.Q2, F_slot2), (g.A, F_bottom), (g.G, -S["m"] * aG_vec)]
+    on_rotor = [(g.Q1, -F_slot1), (g.Q2, -F_slot2), (g.A, -F_bottom)]
+    vane_inertia_torque = -S["J"] * S["omegadot"] * g.z
+    vane_angvel = (S["omega"] + wt) * g.z
+
+    def generalized_force(speed):
+        total = 0
+        for X, F in on_vane:
+            total += F.dot(vane_velocity(X).diff(speed, g.Nf))
+        for X, F in on_rotor:
+            total += F.dot(rotor_velocity(X).diff(speed, g.Nf))
+        total += vane_inertia_torque.dot(vane_angvel.diff(speed, g.Nf))
+        return _tidy((plain(total).subs({vw: 0, wt: 0})))
+
+    return {name: generalized_force(sp_) for name, sp_ in zip(("rotor", "slide", "lateral", "tilt"), speeds)}
+
+
+def derive_vane() -> VaneMechanics:
+    S = {n: sp.Symbol(n, real=True) for n in SYMBOL_NAMES}
+    t = sp.Symbol("t")
+    th, sv = dynamicsymbols("theta_t s_t")
+    g = _frames_and_points(S, th, sv)
+    Rf, O, G = g.Rf, g.O, g.G
 
     # derivatives of the coordinates -> plain symbols
     to_plain = {
@@ -101,17 +138,12 @@ def derive_vane() -> VaneMechanics:
 
     def vane_velocity(X):
         rX = X.pos_from(O)
-        return S["omega"] * z.cross(rX) + S["sdot"] * u + vw * w + wt * z.cross(X.pos_from(G))
-
-    def rotor_velocity(X):
-        return S["omega"] * z.cross(X.pos_from(O))
-
-    vane_angvel = (S["omega"] + wt) * z
+        return S["omega"] * g.z.cross(rX) + S["sdot"] * g.u + vw * g.w + wt * g.z.cross(X.pos_from(G))
 
     # acceleration of G by differentiation of its position (true kinematics)
     rG = G.pos_from(O)
-    vG_true = rG.dt(Nf)
-    aG = vG_true.dt(Nf)
+    vG_true = rG.dt(g.Nf)
+    aG = vG_true.dt(g.Nf)
 
     def comps(vec):
         return tuple(_tidy((plain(vec.express(Rf).dot(e)))) for e in (Rf.x, Rf.y))
@@ -122,42 +154,20 @@ def derive_vane() -> VaneMechanics:
     vcheck = comps(vG_true - vG_field)
     velocity_check = vcheck[0] ** 2 + vcheck[1] ** 2
 
-    v_at_C = vane_velocity(C).subs({vw: 0, wt: 0})
-    v_t = _tidy((plain(v_at_C.express(Rf).dot(t_hat))))
-
-    mu_h, mu_r = S["mu_h"], S["mu_r"]
-    s1, s2 = S["sigma1"], S["sigma2"]
-    F_housing = S["N"] * n_hat - (mu_h * S["N"] + S["c_visc"] * v_t) * t_hat
-    F_slot1 = S["F1"] * w - mu_r * s1 * S["F1"] * u  # |F1| = sigma1 F1
-    F_slot2 = S["F2"] * w - mu_r * s2 * S["F2"] * u
-    F_bottom = S["Fb"] * u
-
-    # (point, force, body) triples; reactions act on the rotor with opposite sign, same point
-    on_vane = [(C, F_housing), (Q1, F_slot1), (Q2, F_slot2), (A, F_bottom), (G, -S["m"] * aG_vec)]
-    on_rotor = [(Q1, -F_slot1), (Q2, -F_slot2), (A, -F_bottom)]
-    vane_inertia_torque = -S["J"] * S["omegadot"] * z
-
-    def generalized_force(speed):
-        total = 0
-        for X, F in on_vane:
-            total += F.dot(vane_velocity(X).diff(speed, Nf))
-        for X, F in on_rotor:
-            total += F.dot(rotor_velocity(X).diff(speed, Nf))
-        total += vane_inertia_torque.dot(vane_angvel.diff(speed, Nf))
-        return _tidy((plain(total).subs({vw: 0, wt: 0})))
-
-    gf = {name: generalized_force(sp_) for name, sp_ in zip(("rotor", "slide", "lateral", "tilt"), speeds)}
+    v_at_C = vane_velocity(g.C).subs({vw: 0, wt: 0})
+    v_t = _tidy((plain(v_at_C.express(Rf).dot(g.t_hat))))
+    gf = _generalized_forces(S, g, plain, aG_vec, v_t, vane_velocity, speeds, vw, wt)
 
     ke = _tidy((plain(sp.Rational(1, 2) * S["m"] * vG_true.dot(vG_true)
                                      + sp.Rational(1, 2) * S["J"] * S["omega"] ** 2)))
 
-    pts = {"Ob": Ob, "A": A, "G": G, "B": B, "P": P, "M": Mo, "Q1": Q1, "Q2": Q2}
+    pts = {"Ob": g.Ob, "A": g.A, "G": G, "B": g.B, "P": g.P, "M": g.Mo, "Q1": g.Q1, "Q2": g.Q2}
     return VaneMechanics(
         sym=S,
         points={k: comps(X.pos_from(O)) for k, X in pts.items()},
-        slot_u=comps(u),
-        slot_w=comps(w),
-        mouth_depth=l_m,
+        slot_u=comps(g.u),
+        slot_w=comps(g.w),
+        mouth_depth=g.l_m,
         tip_slip=v_t,
         equations={k: gf[k] for k in ("slide", "lateral", "tilt")},
         # rotor virtual power: tau - tau_b - I_r omegadot + sum_i gf_rotor_i = 0

@@ -22,7 +22,7 @@ import casadi as ca
 
 from pumpsim.model_spec import laws
 from pumpsim.model_spec.outputs import VANE_OUTPUTS, check_signature
-from pumpsim.model_spec.parameters import Parameter, Structure, layout
+from pumpsim.model_spec.parameters import Parameter, Structure, friction_args, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
@@ -36,6 +36,23 @@ NEWTON_ITERATIONS = {"plain": 2, "harmonics": 4}
 FORWARD_ITERATIONS = 4  # Newton on omegadot; the torque is piecewise affine in omegadot
 SIGN_SETS = ((1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0))
 CONSISTENCY_TOL = 1e-9  # relative: a contact-side set is consistent if sign errors < tol * |forces|
+
+def rotor_torque(Ir, tb, omegadot, shares):
+    """The drive torque the rotor equation needs at omegadot: I_r omegadot + bearing torque + the
+    vanes' shares (both models)."""
+    return Ir * omegadot + tb + ca.sum2(shares)
+
+
+def newton_omegadot(required, Ir, tau):
+    """Torque drive: omegadot with required(omegadot) = tau by Newton (both models). required(w)
+    -> (drive torque, the vanes' slopes d share / d omegadot): the torque is piecewise affine in
+    omegadot and each vane returns its slope on the selected branch, so no nested AD is needed."""
+    w = ca.MX(0.0)
+    for _ in range(FORWARD_ITERATIONS):
+        rt, slopes = required(w)
+        w = w - (rt - tau) / (Ir + ca.sum2(slopes))
+    return w
+
 
 def _solve3(A, b):
     """3x3 linear solve by Cramer's rule (fewer instructions than a symbolic QR; the systems here
@@ -136,10 +153,7 @@ class _Builder:
         return dict(C=o[0:2], n=o[2:4], r=o[4], curvature=o[5])
 
     def friction(self, v, which):
-        P = self.P
-        pre = f"friction.{which}"
-        return laws.friction_coefficient(v, P[f"{pre}.static"], P[f"{pre}.dynamic"],
-                                         P[f"{pre}.v_static"], P[f"{pre}.v_dynamic"], CASADI_OPS)
+        return laws.friction_coefficient(v, *friction_args(self.P, which), CASADI_OPS)
 
     # -- constrained model (Model 2) ------------------------------------------------------------
     @staticmethod
@@ -316,18 +330,18 @@ class _Builder:
 
         def required_torque(wd):
             outs = vmap(theta, omega, wd, phis, facs, p)
-            return Ir * wd + tb + ca.sum2(outs[VANE_OUTPUTS.index("torque_share")]), outs
+            return rotor_torque(Ir, tb, wd, outs[VANE_OUTPUTS.index("torque_share")]), outs
 
         tq, outs = required_torque(omegadot)
         inv = ca.Function("inverse_dynamics", [theta, omega, omegadot, p], [tq, *outs],
                           ["theta", "omega", "omegadot", "p"], ["torque", *VANE_OUTPUTS])
-        # forward dynamics: Newton on omegadot; the required torque is piecewise affine in it and
-        # each vane returns its slope on the selected branch, so no nested AD is needed
         slope_i = VANE_OUTPUTS.index("torque_slope")
-        w = ca.MX(0.0)
-        for _ in range(FORWARD_ITERATIONS):
-            rt, o = required_torque(w)
-            w = w - (rt - tau) / (Ir + ca.sum2(o[slope_i]))
+
+        def required(wd):
+            rt, o = required_torque(wd)
+            return rt, o[slope_i]
+
+        w = newton_omegadot(required, Ir, tau)
         rt, outs_f = required_torque(w)
         r_fin = rt - tau
         fwd = ca.Function("forward_dynamics", [theta, omega, tau, p], [w, r_fin, *outs_f],

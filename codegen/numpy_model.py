@@ -10,7 +10,7 @@ import numpy as np
 import sympy as sp
 
 from pumpsim.model_spec import laws
-from pumpsim.model_spec.parameters import Structure, layout
+from pumpsim.model_spec.parameters import Structure, friction_args, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
@@ -134,9 +134,7 @@ def _unpack(v, harmonics, rho=None):
     g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
              rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
              m=v["vane.mass"], J=v["vane.inertia"], rho=v["vane.tip_radius"] if rho is None else rho)
-    friction = [[v[f"friction.{side}.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
-                for side in ("housing", "slot")]
-    return hp, g, [g[k] for k in GEOMETRY_ORDER], friction[0], friction[1]
+    return hp, g, [g[k] for k in GEOMETRY_ORDER], friction_args(v, "housing"), friction_args(v, "slot")
 
 
 def _lambdify_matrices(args, matrices):

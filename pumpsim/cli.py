@@ -5,6 +5,7 @@ import argparse
 import sys
 
 from .errors import PumpsimError
+from .tolerances import ATOL, RTOL
 
 
 class _Parser(argparse.ArgumentParser):
@@ -208,8 +209,8 @@ def build_parser():
                         "(default: %(default)s)")
     s.add_argument("--method", choices=["cvodes", "idas", "rk"], default="cvodes",
                    help="integrator for torque drive / the contact model")
-    s.add_argument("--rtol", type=float, default=1e-8)
-    s.add_argument("--atol", type=float, default=1e-10,
+    s.add_argument("--rtol", type=float, default=RTOL)
+    s.add_argument("--atol", type=float, default=ATOL,
                    help="absolute tolerance of positions [rad, m]; the contact model allows "
                         "atol x starting speed for speeds and vane velocities [rad/s, m/s]")
     s.add_argument("--max-step", type=float, dest="max_step", help="largest integrator step [s]")

@@ -13,49 +13,51 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
-from .model_spec.parameters import CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, ParameterVector, Structure
+from .model_spec.parameters import (CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, REQUIRED,
+                                    DERIVED, SECTION_FALLBACK, ParameterVector, Structure, derive, layout,
+                                    section)
 from .pneumatics import config as _pneumatic_config
 
 RPM = 2 * math.pi / 60
 
-# key -> (type, required, default). Types: "num", "int", "str", "list".
-_SCHEMA = {
-    "name": ("str", False, None),
-    "housing": {
-        "shape": ("str", True, None), "radius": ("num", False, None), "a": ("num", False, None),
-        "b": ("num", False, None), "harmonics": ("list", False, []),
-        "center": ("list", False, [0.0, 0.0]), "angle": ("num", False, 0.0),
-    },
-    "rotor": {
-        "radius": ("num", True, None), "inertia": ("num", True, None), "vanes": ("int", True, None),
-        "slot_radius": ("num", True, None), "slot_tilt": ("num", False, 0.0),
-        "first_slot_angle": ("num", False, 0.0),
-    },
-    "vane": {
-        "length": ("num", True, None), "thickness": ("num", True, None), "mass": ("num", True, None),
-        "inertia": ("num", False, None), "tip_radius": ("num", False, 0.0),
-    },
-    "friction": {
-        "housing": {k: ("num", True, None) for k in ("static", "dynamic", "v_static", "v_dynamic")},
-        "slot": {k: ("num", False, None) for k in ("static", "dynamic", "v_static", "v_dynamic")},
-    },
-    "contact": {
-        side: {"law": ("str", False, "impact"), "stiffness": ("num", False, None),
-               "exponent": ("num", False, 1.0), "damping": ("num", False, 0.0),
-               "depth": ("num", False, 1e-5)}
-        for side in ("housing", "bottom")
-    },
-    "operation": {
-        "mode": ("str", False, "speed"), "speed": ("num", False, None),
-        "speed_rpm": ("num", False, None), "angle": ("num", False, 0.0),
-        "torque": ("num", False, None), "bearing_torque": ("num", False, 0.0),
-        "initial_vane_state": ("str", False, None),
-    },
-    "effects": {
-        "viscous_tip_friction": ("num", False, 0.0), "vane_friction_factors": ("list", False, None),
-        "speed_ripple": ("list", False, None),
-    },
+# Config keys that are not registry numbers: structure, shapes, lists, the operating point.
+# Types: "num", "int", "str", "list"; (type, required, default).
+_OTHER_KEYS = {
+    "": {"name": ("str", False, None)},
+    "housing": {"shape": ("str", True, None), "radius": ("num", False, None),
+                "harmonics": ("list", False, []), "center": ("list", False, [0.0, 0.0])},
+    "rotor": {"vanes": ("int", True, None)},
+    "contact.housing": {"law": ("str", False, "impact")},
+    "contact.bottom": {"law": ("str", False, "impact")},
+    "operation": {"mode": ("str", False, "speed"), "speed": ("num", False, None),
+                  "speed_rpm": ("num", False, None), "angle": ("num", False, 0.0),
+                  "torque": ("num", False, None), "initial_vane_state": ("str", False, None)},
+    "effects": {"vane_friction_factors": ("list", False, None), "speed_ripple": ("list", False, None)},
 }
+SECTIONS = ("housing", "rotor", "vane", "friction.housing", "friction.slot", "contact.housing",
+            "contact.bottom", "operation", "effects")
+# sections the config may leave out (contact: the constrained model needs none)
+OPTIONAL_SECTIONS = (*SECTION_FALLBACK, "contact.housing")
+_LIST_VALUED = ("housing.center.0", "housing.center.1")  # given as housing.center = [x, y]
+
+
+def _schema() -> dict:
+    """The config schema: every registry number of a section, plus the other keys."""
+    schema = dict(_OTHER_KEYS[""])
+    for sec in SECTIONS:
+        node = schema
+        for part in sec.split("."):
+            node = node.setdefault(part, {})
+        for q in section(sec):
+            if q.name not in _LIST_VALUED:
+                required = (q.default is REQUIRED and not q.derived and not q.aliases
+                            and sec not in OPTIONAL_SECTIONS)
+                node[q.name.rsplit(".", 1)[1]] = ("num", required, q.default)
+        node.update(_OTHER_KEYS.get(sec, {}))
+    return schema
+
+
+_SCHEMA = _schema()
 # spec §8: gas, ports, valve, leak, booster, motor tables and their keys in [rotor] / [vane]
 _SCHEMA.update(_pneumatic_config.SCHEMA)
 for _table, _keys in _pneumatic_config.EXTRA_KEYS.items():
@@ -85,6 +87,7 @@ def _walk(raw: dict, schema: dict, prefix: str) -> dict:
                 raise ConfigError(f"'{path}' must be a table")
             out[key] = _walk(sub, spec, path + ".")
             out[key]["__present__"] = key in raw
+            out[key]["__given__"] = set(sub)
             continue
         typ, required, default = spec
         if key not in raw:
@@ -107,16 +110,6 @@ def _walk(raw: dict, schema: dict, prefix: str) -> dict:
     return out
 
 
-def _positive(path, v):
-    if v is None or v <= 0:
-        raise ConfigError(f"{path} must be > 0, got {v}")
-
-
-def _range(path, v, lo, hi):
-    if not lo <= v <= hi:
-        raise ConfigError(f"{path} must be in [{lo:g}, {hi:g}], got {v:g}")
-
-
 @dataclass
 class PumpConfig:
     name: str
@@ -135,6 +128,14 @@ class PumpConfig:
     # speed mode: omega = speed (1 + amplitude cos(order theta_n + phase)), theta_n the nominal angle
     speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
     pneumatic: object = None  # spec §8 settings (pneumatics.config.PneumaticSettings) or None
+    given: frozenset = frozenset()  # parameter names the file set (the others are defaults)
+
+    def with_values(self, updates: dict) -> "PumpConfig":
+        """This config with parameter values replaced; a derived default (vane.inertia from the
+        mass) the file did not set follows its inputs."""
+        values = {**self.values, **updates}
+        fill_derived(values, self.given | set(updates))
+        return dataclasses.replace(self, values=values)
 
     def with_harmonics(self, harmonics) -> "PumpConfig":
         """This config with the housing harmonics [[k, A, gamma], ...] (replacing the old ones)."""
@@ -156,14 +157,15 @@ class PumpConfig:
     def parameters(self, model: str = "constrained") -> ParameterVector:
         st = self.structure_for(model)
         pv = ParameterVector(st, {})
-        for name in pv.names:
+        for q in layout(st):
+            name = q.name
             if name in self.values:
                 pv.values[name] = self.values[name]
-            elif name.startswith("housing.harmonics."):
-                pv.values[name] = 0.0  # unused harmonic slot: zero amplitude
             elif name.startswith("contact."):
                 raise ConfigError(f"the contact model needs '{name.rsplit('.', 1)[0]}' "
                                   f"with '{name.rsplit('.', 1)[1]}' in the config")
+            elif q.default is not REQUIRED:
+                pv.values[name] = q.default  # e.g. an unused harmonic slot: zero amplitude
         return pv
 
 
@@ -192,39 +194,37 @@ def load_config(path, check_geometry: bool = True) -> PumpConfig:
     return cfg
 
 
-def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
-    c = _walk(raw, _SCHEMA, "")
-    h, r, v, op = c["housing"], c["rotor"], c["vane"], c["operation"]
-    values: dict = {}
+def fill_derived(values: dict, given) -> None:
+    """Derived defaults (registry `derived`) of the entries not in `given`, in place."""
+    for q in DERIVED:
+        if q.name not in given:
+            values[q.name] = float(derive(q.derived, values))
 
-    # rotor
-    _positive("rotor.radius", r["radius"])
-    _positive("rotor.inertia", r["inertia"])
-    if r["vanes"] < 1:
-        raise ConfigError(f"rotor.vanes must be >= 1, got {r['vanes']}")
-    if r["vanes"] > 16:
-        raise ConfigError(f"rotor.vanes must be <= 16, got {r['vanes']}")
-    if not 0 <= r["slot_radius"] < r["radius"]:
-        raise ConfigError(f"rotor.slot_radius must be in [0, rotor.radius ({r['radius']:.4f} m)), "
-                          f"got {r['slot_radius']:.4f}")
-    if not abs(r["slot_tilt"]) < math.pi / 2:
-        raise ConfigError(f"rotor.slot_tilt must be in (-pi/2, pi/2), got {r['slot_tilt']:g}")
-    values.update({"rotor.radius": r["radius"], "rotor.inertia": r["inertia"],
-                   "rotor.slot_radius": r["slot_radius"], "rotor.slot_tilt": r["slot_tilt"],
-                   "rotor.first_slot_angle": r["first_slot_angle"]})
-    # vane
-    for k in ("length", "thickness", "mass"):
-        _positive(f"vane.{k}", v[k])
-    if v["inertia"] is None:
-        v["inertia"] = v["mass"] * (v["length"] ** 2 + v["thickness"] ** 2) / 12
-    _positive("vane.inertia", v["inertia"])
-    if not 0 <= v["tip_radius"] < v["length"] / 2:
-        raise ConfigError(f"vane.tip_radius must be in [0, vane.length/2 ({v['length'] / 2:.4f} m)), "
-                          f"got {v['tip_radius']:.4f}")
-    values.update({"vane.length": v["length"], "vane.thickness": v["thickness"],
-                   "vane.mass": v["mass"], "vane.inertia": v["inertia"],
-                   "vane.tip_radius": v["tip_radius"]})
-    # housing
+
+def _take(c: dict, sec: str, values: dict, given: set, source: str | None = None) -> None:
+    """The registry numbers of config section `sec` (read from section `source`, default sec)."""
+    node = c
+    for part in (source or sec).split("."):
+        node = node[part]
+    for q in section(sec):
+        key = q.name.rsplit(".", 1)[1]
+        if q.name in _LIST_VALUED or node.get(key) is None:
+            continue
+        values[q.name] = node[key]
+        if (source or sec) == sec and key in node["__given__"]:
+            given.add(q.name)
+
+
+def _validate(values: dict, shape: str) -> None:
+    """Every registry entry with a value within its bounds (the message names key and limit)."""
+    for q in layout(Structure("contact", 1, 0)):
+        if q.name not in values or (shape == "circle" and q.name == "housing.b"):
+            continue
+        q.check(values, "housing.radius" if shape == "circle" and q.name == "housing.a" else None)
+
+
+def _housing(h: dict, values: dict, given: set) -> str:
+    """housing.shape with its size: radius (a circle, both semi-axes) or a and b."""
     shape = h["shape"]
     if shape == "circle":
         for k in ("a", "b"):
@@ -232,30 +232,25 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
                 raise ConfigError(f"housing.{k} is for shape = \"ellipse\"; a circle takes housing.radius")
         if h["radius"] is None:
             raise ConfigError("missing required key 'housing.radius' (shape = \"circle\")")
-        _positive("housing.radius", h["radius"])
-        if h["radius"] <= r["radius"]:
-            raise ConfigError(f"housing.radius must be > rotor.radius ({r['radius']:.4f} m), "
-                              f"got {h['radius']:.4f}")
-        a = b = h["radius"]
+        values["housing.a"] = values["housing.b"] = h["radius"]
+        given.update(("housing.a", "housing.b"))
     elif shape == "ellipse":
         if h["radius"] is not None:
             raise ConfigError("housing.radius is for shape = \"circle\"; an ellipse takes housing.a and housing.b")
         for k in ("a", "b"):
             if h[k] is None:
                 raise ConfigError(f"missing required key 'housing.{k}' (shape = \"ellipse\")")
-            _positive(f"housing.{k}", h[k])
-            if h[k] <= r["radius"]:
-                raise ConfigError(f"housing.{k} must be > rotor.radius ({r['radius']:.4f} m), "
-                                  f"got {h[k]:.4f}")
-        a, b = h["a"], h["b"]
     else:
         raise ConfigError(f"housing.shape must be \"circle\" or \"ellipse\", got {shape!r}")
     center = h["center"]
     if len(center) != 2 or not all(_is_num(x) for x in center):
         raise ConfigError(f"housing.center must be a list of two numbers, got {center!r}")
-    values.update({"housing.a": a, "housing.b": b, "housing.center.0": float(center[0]),
-                   "housing.center.1": float(center[1]), "housing.angle": h["angle"]})
-    harm = h["harmonics"]
+    values.update({"housing.center.0": float(center[0]), "housing.center.1": float(center[1])})
+    return shape
+
+
+def _harmonics(harm: list, a: float, b: float) -> dict:
+    values = {}
     for j, item in enumerate(harm):
         path = f"housing.harmonics[{j}]"
         if not (isinstance(item, list) and len(item) == 3 and all(_is_num(x) for x in item)):
@@ -267,39 +262,33 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
             raise ConfigError(f"{path}: amplitude must be < 10% of the housing size "
                               f"({0.1 * min(a, b):.4g} m), got {A:g}")
         values.update(harmonic_values(j, k, A, g))
-    # friction
-    fr = c["friction"]
-    for side in ("housing", "slot"):
-        src = fr[side] if side == "housing" or fr["slot"]["__present__"] else fr["housing"]
-        for k in ("static", "dynamic", "v_static", "v_dynamic"):
-            if src[k] is None:
-                raise ConfigError(f"missing required key 'friction.{side}.{k}'")
-        for k in ("static", "dynamic"):
-            _range(f"friction.{side}.{k}", src[k], 0.0, 2.0)
-        _positive(f"friction.{side}.v_static", src["v_static"])
-        if src["v_static"] >= src["v_dynamic"]:
-            raise ConfigError(f"friction.{side}.v_static must be < friction.{side}.v_dynamic "
-                              f"({src['v_dynamic']:g} m/s), got {src['v_static']:g}")
-        for k in ("static", "dynamic", "v_static", "v_dynamic"):
-            values[f"friction.{side}.{k}"] = src[k]
-    # contact (Model 1)
-    ct = c["contact"]
+    return values
+
+
+def _sections_with_fallback(c: dict, values: dict, given: set) -> dict:
+    """friction.slot / contact.bottom: their own table when present (complete), else the other's;
+    returns the contact laws."""
+    for sec in ("friction.housing", "friction.slot"):
+        present = sec == "friction.housing" or c["friction"]["slot"]["__present__"]
+        src = sec if present else SECTION_FALLBACK[sec]
+        for q in section(sec):
+            if c["friction"][src.split(".")[1]][q.name.rsplit(".", 1)[1]] is None:
+                raise ConfigError(f"missing required key '{q.name}'")
+        _take(c, sec, values, given, src)
     laws = {}
     for side in ("housing", "bottom"):
-        src = ct[side] if side == "housing" or ct["bottom"]["__present__"] else ct["housing"]
+        src = c["contact"][side] if side == "housing" or c["contact"]["bottom"]["__present__"] else c["contact"]["housing"]
         if src["law"] not in CONTACT_LAWS:
             raise ConfigError(f"contact.{side}.law must be one of {', '.join(CONTACT_LAWS)}, "
                               f"got {src['law']!r}")
         laws[side] = src["law"]
-        if src["stiffness"] is not None:
-            _positive(f"contact.{side}.stiffness", src["stiffness"])
-            _positive(f"contact.{side}.exponent", src["exponent"])
-            _positive(f"contact.{side}.depth", src["depth"])
-            if src["damping"] < 0:
-                raise ConfigError(f"contact.{side}.damping must be >= 0, got {src['damping']:g}")
-            for k in ("stiffness", "exponent", "damping", "depth"):
-                values[f"contact.{side}.{k}"] = src[k]
-    # operation
+        if src["stiffness"] is not None:  # the contact model's numbers: all or none
+            _take(c, f"contact.{side}", values, given,
+                  f"contact.{side}" if src is c["contact"][side] else "contact.housing")
+    return laws
+
+
+def _operation(op: dict) -> tuple[str, float]:
     mode = op["mode"]
     if mode not in ("speed", "torque", "motor"):
         raise ConfigError(f"operation.mode must be \"speed\" or \"torque\" (or \"motor\" with the gas "
@@ -322,21 +311,19 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         speed = 0.0 if speed is None else speed
         if speed < 0:
             raise ConfigError(f"operation.speed (initial speed) must be >= 0, got {speed:g}")
-    values["operation.bearing_torque"] = op["bearing_torque"]
     if op["initial_vane_state"] not in (None, "bottom", "rotor", "housing"):
         raise ConfigError("operation.initial_vane_state must be \"bottom\", \"rotor\" or \"housing\", "
                           f"got {op['initial_vane_state']!r}")
-    # effects (absent = zero / factor one)
-    ef = c["effects"]
-    if ef["viscous_tip_friction"] < 0:
-        raise ConfigError(f"effects.viscous_tip_friction must be >= 0, got {ef['viscous_tip_friction']:g}")
-    values["effects.viscous_tip_friction"] = ef["viscous_tip_friction"]
-    facs = ef["vane_friction_factors"] or [1.0] * r["vanes"]
-    if len(facs) != r["vanes"] or not all(_is_num(x) and x >= 0 for x in facs):
-        raise ConfigError(f"effects.vane_friction_factors must be {r['vanes']} numbers >= 0 "
+    return mode, speed
+
+
+def _effects(ef: dict, vanes: int, mode: str):
+    """Per-vane COF factors (absent: one) and the speed ripple."""
+    facs = ef["vane_friction_factors"] or [1.0] * vanes
+    if len(facs) != vanes or not all(_is_num(x) and x >= 0 for x in facs):
+        raise ConfigError(f"effects.vane_friction_factors must be {vanes} numbers >= 0 "
                           f"(one per vane), got {facs!r}")
-    for i, x in enumerate(facs):
-        values[f"effects.vane_friction_factor.{i}"] = float(x)
+    values = {f"effects.vane_friction_factor.{i}": float(x) for i, x in enumerate(facs)}
     ripple = ef["speed_ripple"]
     if ripple is not None:
         if (len(ripple) != 3 or not all(_is_num(x) for x in ripple) or ripple[0] != int(ripple[0])
@@ -348,17 +335,39 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         if mode != "speed":
             raise ConfigError("effects.speed_ripple needs operation.mode = \"speed\" (a prescribed speed)")
         ripple = (int(ripple[0]), float(ripple[1]), float(ripple[2]))
+    return values, ripple
+
+
+def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
+    """Validate a parsed config: registry numbers by loops over the registry (bounds, defaults,
+    derived defaults), then the keys that are not numbers."""
+    c = _walk(raw, _SCHEMA, "")
+    vanes = c["rotor"]["vanes"]
+    if not 1 <= vanes <= 16:
+        raise ConfigError(f"rotor.vanes must be {'>= 1' if vanes < 1 else '<= 16'}, got {vanes}")
+    values, given = {}, set()
+    for sec in ("rotor", "vane", "housing", "operation", "effects"):
+        _take(c, sec, values, given)
+    shape = _housing(c["housing"], values, given)
+    laws = _sections_with_fallback(c, values, given)
+    fill_derived(values, given)
+    _validate(values, shape)
+    harm = c["housing"]["harmonics"]
+    values.update(_harmonics(harm, values["housing.a"], values["housing.b"]))
+    op = c["operation"]
+    mode, speed = _operation(op)
+    factors, ripple = _effects(c["effects"], vanes, mode)
+    values.update(factors)
     pneumatic = _pneumatic_config.parse(c, raw, mode)
     if pneumatic is not None:
         _pneumatic_config.check_tip(values)
-
     return PumpConfig(
-        name=c["name"] or name_default, shape=shape, vanes=r["vanes"],
+        name=c["name"] or name_default, shape=shape, vanes=vanes,
         harmonics=[list(map(float, x)) for x in harm], values=values, mode=mode, speed=speed,
         angle=op["angle"], torque=op["torque"], contact_laws=laws,
         initial_vane_state=op["initial_vane_state"],
-        contact_given=ct["housing"]["stiffness"] is not None, speed_ripple=ripple,
-        pneumatic=pneumatic,
+        contact_given=c["contact"]["housing"]["stiffness"] is not None, speed_ripple=ripple,
+        given=frozenset(given), pneumatic=pneumatic,
     )
 
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -11,12 +12,15 @@ from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
 from .kernels import load_kernels
-from .result import SimulationResult
+from .result import LazyOutputs, SimulationResult, contact_warnings
+from .tolerances import ATOL, RK_MAX_STEP, RTOL
 
 INITIAL_STATES = ("bottom", "rotor", "housing")
 # a penetration or slot position this small [m] is a rounding zero (lengths ~1e-2 m carry ~1e-18 m):
 # a vane started on the housing at Model 2's position is touching, not crossing (|delta| ~ 1e-50)
 TOUCHING = 1e-15
+# what a contact simulation evaluates up front: the spec columns and what the warnings read
+CONTACT_REPORTED = ("torque", "normal", "slot1", "slot2", "penetration", "n_consistent", "ambiguity")
 
 
 def initial_state(kern, p, cfg, initial):
@@ -63,8 +67,8 @@ def contact_states(penetration, s) -> list[str]:
             for d, si in zip(penetration, s)]
 
 
-def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvodes", rtol=1e-8,
-                     atol=1e-10, max_step=None, progress=None, initial=None, max_steps=500000,
+def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvodes", rtol=RTOL,
+                     atol=ATOL, max_step=None, progress=None, initial=None, max_steps=500000,
                      **unknown) -> SimulationResult:
     if unknown:
         raise ConfigError(f"unknown simulate option(s): {', '.join(unknown)}")
@@ -76,7 +80,6 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     pv = cfg.parameters("contact")
     kern = load_kernels(pv.structure)
     p = as_array(pv)
-    N = cfg.vanes
     if duration is None:
         duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" and cfg.speed > 0 else 0.5
     t = sample_times(duration, rate)
@@ -85,21 +88,26 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         ode, dyn, drive = "ode_speed", "contact_dynamics", 0.0
     else:
         ode, dyn, drive = "ode_torque", "contact_forward", float(cfg.torque)
-    xdot = ode_with_jacobian(kern, ode, p)
-
-    def rhs(x, pp):
-        return xdot(x, pp[0])
-
     dt = t[1] - t[0]
-    if method == "rk":  # explicit: fixed substeps no longer than max_step (default 1 us)
-        max_step = max_step or 1e-6
-        rk_steps = max(1, int(math.ceil(dt / max_step)))
-    else:
-        rk_steps = 1
-    integ = Integrator(rhs, 2 + 2 * N, [drive], dt, method=method, rtol=rtol, atol=atol,
-                       max_step=max_step, rk_steps=rk_steps, max_steps=max_steps,
-                       scale=state_scale(cfg))
-    v = pv.values
+    if method == "rk":  # explicit: fixed substeps no longer than max_step
+        max_step = max_step or RK_MAX_STEP
+    rk_steps = max(1, int(math.ceil(dt / max_step))) if method == "rk" else 1
+    xdot = ode_with_jacobian(kern, ode, p)
+    integ = Integrator(lambda x, pp: xdot(x, pp[0]), 2 + 2 * cfg.vanes, [drive], dt, method=method,
+                       rtol=rtol, atol=atol, max_step=max_step, rk_steps=rk_steps,
+                       max_steps=max_steps, scale=state_scale(cfg))
+    run = _integrate(integ, kern, dyn, drive, p, x0, t, cfg.vanes, progress)
+    run.stats["method"] = method
+    res = _result(cfg, kern, dyn, drive, p, pv.values, run)
+    if run.failure is not None:
+        run.failure.partial = res
+        raise run.failure
+    return res
+
+
+def _integrate(integ, kern, dyn, drive, p, x0, t, N, progress) -> SimpleNamespace:
+    """Integrate over the sample grid, locating contact-state changes; on an integrator failure
+    keep what was computed and a message naming every vane's contact state."""
 
     def switches(X):
         """Contact-state changes (report Table 1): housing penetration and slot-bottom contact.
@@ -107,6 +115,7 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         g = np.hstack([_grid(kern, dyn, X, drive, p, ["penetration"])["penetration"].T, X[:, 2:2 + N]])
         return np.where(np.abs(g) < TOUCHING, 0.0, g)
 
+    dt = t[1] - t[0]
     step_log = []
 
     def on_chunk(t_end, intervals, steps):
@@ -116,8 +125,7 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     try:
         xs, ev, stats = integrate_segmented(integ, x0, t, switch_fn=switches, on_chunk=on_chunk,
                                             progress=progress)
-        termination = "completed"
-        failure = None
+        termination, failure = "completed", None
     except SolverError as e:
         tt, xx = e.partial
         o = _grid(kern, dyn, xx[-1:], drive, p)
@@ -128,30 +136,27 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         stats = dict(integ.stats)
         termination = f"failed after t = {t[-1]:.9g} s"
     stats["wall_time"] = _time.perf_counter() - wall0
-    stats["method"] = method
-    out = _grid(kern, dyn, xs, drive, p)
+    return SimpleNamespace(t=t, xs=xs, ev=ev, stats=stats, termination=termination, failure=failure,
+                           step_log=step_log)
+
+
+def _result(cfg, kern, dyn, drive, p, values, run) -> SimulationResult:
+    t, xs, N = run.t, run.xs, cfg.vanes
+    out = _grid(kern, dyn, xs, drive, p, CONTACT_REPORTED)
     names = ["housing_contact", "bottom_contact"]
     events = [{"time": float(te), "kind": names[i // N], "vane": int(i % N),
-               "message": f"{names[i // N]} of vane {i % N} changes"} for te, i in ev]
+               "message": f"{names[i // N]} of vane {i % N} changes"} for te, i in run.ev]
     warnings = []
-    bad = (out["n_consistent"] < 0.5) | (out["ambiguity"] > 1e-6)
-    for i in range(N):
-        if bad[i].any():
-            k = int(np.argmax(bad[i]))
-            warnings.append(f"friction paradox at vane {i}, t = {t[k]:.6g} s ({int(bad[i].sum())} samples)")
+    contact_warnings(out, t, warnings)
     vanes = {"s": xs[:, 2:2 + N].T, "sdot": xs[:, 2 + N:].T, "normal": out["normal"],
              "slot1": out["slot1"], "slot2": out["slot2"], "penetration": out["penetration"]}
     torque = out["torque"] if cfg.mode == "speed" else np.full_like(t, drive)
-    extra = {k: out[k] for k in ("bottom", "tip_slip", "kinetic_energy", "potential_energy", "sddot",
-                                 "penetration_rate", "mu_housing", "mu_slot")}
-    extra["step_time"] = np.array([s[0] for s in step_log])
-    extra["step"] = np.array([s[1] for s in step_log])  # mean integrator step per chunk
-    res = SimulationResult("contact", cfg.mode, t, xs[:, 0], xs[:, 1], torque, vanes, dict(v), stats,
-                           events, warnings, termination, extra)
-    if failure is not None:
-        failure.partial = res
-        raise failure
-    return res
+    # every other output on first use; the integrator's mean step per output chunk now
+    extra = LazyOutputs(out, lambda names: _grid(kern, dyn, xs, drive, p, names), kern[dyn].name_out())
+    extra["step_time"] = np.array([s[0] for s in run.step_log])
+    extra["step"] = np.array([s[1] for s in run.step_log])
+    return SimulationResult("contact", cfg.mode, t, xs[:, 0], xs[:, 1], torque, vanes, dict(values),
+                            run.stats, events, warnings, run.termination, extra, kernel_key=kern.key)
 
 
 def _grid(kern, name, xs, drive, p, outputs=None):

@@ -9,10 +9,10 @@ import numpy as np
 from .config import PumpConfig, as_array
 from .errors import ConfigError
 from .kernels import load_kernels
+from .tolerances import POSITION_TOL
 
 HOUSING_SAMPLES = 2048
 ANGLE_SAMPLES = 720
-POSITION_TOL = 1e-10  # m: the Newton solve must close the contact to this
 
 
 def housing_samples(kern, p, n=HOUSING_SAMPLES):

@@ -22,20 +22,17 @@ from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError
 from .kernels import load_kernels, map_samples
-from .model_spec.parameters import layout
+from .model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
+                                    MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from .presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe
 from .sensor import first_order_lag
 from .simulate import ripple_motion
 
-SPECIAL = ("mu", "mu_slot", "theta0", "speed", "torque_offset", "delay", "ripple_cos", "ripple_sin",
-           "lag")
-# ripple_cos, ripple_sin: relative speed ripple at shaft order `ripple_order`,
-#   omega = omega0 (1 + ripple_cos cos(k theta_n) - ripple_sin sin(k theta_n)); lag: first-order
-#   torque-sensor time constant [s] (0 = absent)
+# fit names beyond the parameter paths: the COF aliases and the measurement parameters (registry)
+SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if not m.transient or m.in_kernel_graph)
 METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
 SINGULAR_COND = 1e7  # condition number of the column-scaled Jacobian beyond which J'J is singular
-Z_SPECIAL = ("theta0", "speed", "delay", "torque_offset", "ripple_cos", "ripple_sin")  # in the kernel graph
-ANGLE_ACTING = ("theta0", "speed", "delay", "ripple_cos", "ripple_sin")  # act through the rotor angle
+Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
 
 
 @dataclass
@@ -145,11 +142,8 @@ class Problem:
                       "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0}
         self.ripple_order = int(ripple_order)
         self.fixed.update(extra or {})
-        self.x0 = np.array([self._initial(n, initial or {}) for n in self.names], dtype=float)
-        nonneg = self._nonneg()
-        self.lower = np.array([0.0 if n in ("mu", "mu_slot", "lag") or n in nonneg else -np.inf
-                               for n in self.names])
-        self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
+        self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, self.fixed, initial)
+        self._follow = following(cfg)
         self.t = data.time - data.time[0]
         self.y = data.torque
         self._ratios = np.array([self._ratio("housing"), self._ratio("slot")])
@@ -157,26 +151,12 @@ class Problem:
         self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
         self.n_eval = 0
 
-    def _nonneg(self):
-        """Names whose physics demands >= 0 (masses, lengths, COFs): bounds for the fit."""
-        names = {q.name for q in layout(self.pv.structure) if q.positive or q.lower >= 0}
-        return names | ({"housing.radius"} if "housing.a" in names else set())
-
     def _check_name(self, n):
-        if n in SPECIAL or n in self._index or n == "housing.radius":
+        if n in SPECIAL or n in self._index or alias_targets(n):
             return
         close = difflib.get_close_matches(n, list(SPECIAL) + list(self._index), n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         raise ConfigError(f"--params: unknown parameter '{n}'{hint}")
-
-    def _initial(self, n, initial):
-        if n in initial:
-            return float(initial[n])
-        if n in self.fixed:
-            return float(self.fixed[n])
-        if n == "housing.radius":
-            return float(self.pv.values["housing.a"])
-        return float(self.pv.values[n])
 
     def _ratio(self, side):
         v = self.pv.values
@@ -191,18 +171,20 @@ class Problem:
     def z(self, x):
         """The kernel-graph input z at the fitted values x."""
         d = self._values(x)
-        p = parameter_map(self._index, self.p0, dict(zip(self.names, x)), d["mu_slot"], self._ratios)
+        p = parameter_map(self._index, self.p0, dict(zip(self.names, x)), d["mu_slot"], self._ratios,
+                          self._follow)
         return np.concatenate([np.asarray(p, dtype=float).ravel(), [d[s] for s in Z_SPECIAL]])
 
     def _seed_matrix(self):
-        """S = dz/dx: the map from fitted values to z is affine, so each column is the image of
-        a unit fitted value with everything else zero ('lag' acts after the kernel: a zero column)."""
+        """S = dz/dx at the start: the map from fitted values to z is affine (a derived default that
+        follows a fitted input, vane inertia from the mass, is linear in it), so each column is the
+        central difference of the map by a unit step ('lag' acts after the kernel: a zero column)."""
         S = np.zeros((self.p0.size + len(Z_SPECIAL), len(self.names)))
-        zeros = np.zeros(self.p0.size)
         for j, nm in enumerate(self.names):
-            unit = {n: float(n == nm) for n in self.names}
-            S[:self.p0.size, j] = np.asarray(parameter_map(self._index, zeros, unit, 0.0, self._ratios),
-                                             dtype=float).ravel()
+            at = [{n: v + (n == nm) * sgn for n, v in zip(self.names, self.x0)} for sgn in (0.5, -0.5)]
+            hi, lo = (np.asarray(parameter_map(self._index, self.p0, a, 0.0, self._ratios, self._follow),
+                                 dtype=float).ravel() for a in at)
+            S[:self.p0.size, j] = hi - lo
             if nm in Z_SPECIAL:
                 S[self.p0.size + Z_SPECIAL.index(nm), j] = 1.0
         return S
@@ -333,10 +315,33 @@ def sample_torque(kern, directions: int, samples: int) -> ca.Function:
     return _SAMPLE_FNS[mkey]
 
 
-def parameter_map(index, p0, val, mu_slot_fixed, ratios):
+def start_and_bounds(names, pv, starts, initial=None):
+    """Start values and bounds of the fit names (constant-speed and transient problems): a start
+    given by the caller, else the measurement's (theta0, speed, ...), else the config value (an
+    alias: its first target's -- mu is the housing's dynamic COF); bounds from the registries."""
+    initial = initial or {}
+
+    def start(n):
+        if n in initial:
+            return float(initial[n])
+        if n in starts:
+            return float(starts[n])
+        return float(pv.values[n if n in pv.values else alias_targets(n)[0]])
+
+    lower, upper = zip(*[fit_bounds(n, pv.structure) for n in names]) if names else ((), ())
+    return np.array([start(n) for n in names], dtype=float), np.array(lower), np.array(upper)
+
+
+def following(cfg):
+    """The derived defaults the config did not set: they follow their inputs when those are fitted."""
+    return tuple(q for q in DERIVED if q.name not in cfg.given)
+
+
+def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
     """The runtime parameter vector with the fitted values `val` (name -> expression) put in:
     mu sets the housing COF (static scaled by the configured ratio) and, unless mu_slot is fitted,
-    the slot COF; housing.radius sets both semi-axes; any other name is a parameter path."""
+    the slot COF; an alias sets its targets (housing.radius: both semi-axes); any other name is a
+    parameter path; a derived default in `follow` is recomputed from its fitted inputs."""
     p = [p0[i] for i in range(p0.shape[0])]
 
     def setp(name, expr):
@@ -354,11 +359,11 @@ def parameter_map(index, p0, val, mu_slot_fixed, ratios):
         setp("friction.slot.dynamic", mu_slot)
         setp("friction.slot.static", mu_slot * ratios[1])
     for nm, e in val.items():
-        if nm == "housing.radius":
-            setp("housing.a", e)
-            setp("housing.b", e)
-        elif nm in index:
-            setp(nm, e)
+        for target in alias_targets(nm) or ((nm,) if nm in index else ()):
+            setp(target, e)
+    for q in follow:
+        if any(n in val for n in q.inputs):
+            setp(q.name, derive(q.derived, {n: p[index[n]] for n in q.inputs}))
     return ca.vertcat(*p)
 
 

@@ -23,6 +23,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import SolverError
+from .tolerances import ATOL, RTOL
 
 # CVODES/IDAS statistics summed over calls (report Table 13), ours -> CasADi's name
 STAT_KEYS = {"nsteps": "nsteps", "nfevals": "nfevals", "njevals": "n_call_jacF", "nlinsetups": "nlinsetups",
@@ -33,7 +34,7 @@ CHUNK = 64  # output intervals per integrator call
 class Integrator:
     """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
-    def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=1e-8, atol=1e-10,
+    def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=RTOL, atol=ATOL,
                  max_step=None, rk_steps=10, max_steps=500000, scale=None):
         """scale: a nominal size per state; the integrator works on x / scale, so the absolute
         tolerance of state i is atol * scale[i] (the relative one is unchanged)."""

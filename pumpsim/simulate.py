@@ -10,11 +10,11 @@ from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
 from .kernels import load_kernels
 from .model_spec import outputs as kernel_outputs
-from .result import SimulationResult
+from .model_spec.parameters import FRICTION_KEYS
+from .result import PER_VANE_COLUMNS, REPORTED, LazyOutputs, SimulationResult, contact_warnings
+from .tolerances import ATOL, POSITION_TOL, RTOL
 
 CHUNK = 20000  # samples per kernel call
-PARADOX_TOL = 1e-6  # relative spread between consistent contact-side sets that counts as a paradox
-POSITION_TOL = 1e-10  # m
 
 
 def _per_vane(arr, n_vanes):
@@ -55,12 +55,12 @@ def evaluate(kern, name, samples, p, n, outputs=None):
     return {names[i]: _shaped(names[i], o, N) for i, o in zip(keep, outs)}
 
 
-def inverse_dynamics(kern, p, theta, omega, omegadot):
+def inverse_dynamics(kern, p, theta, omega, omegadot, outputs=None):
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
     n = theta.size
     omega = np.broadcast_to(np.asarray(omega, dtype=float), (n,)).copy()
     omegadot = np.broadcast_to(np.asarray(omegadot, dtype=float), (n,)).copy()
-    return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot], p, n)
+    return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot], p, n, outputs)
 
 
 def sample_times(duration, rate):
@@ -97,36 +97,17 @@ def speed_profile(theta0, speed, t, ripple=None):
     return ripple_motion(theta_n, theta0, speed, A * math.cos(phase), A * math.sin(phase), k)
 
 
-def _diagnose(out, time, n_vanes, warnings, events):
-    """Report lift-off (negative housing reaction) and friction paradoxes; never hide them."""
+def _check_positions(out, time):
+    """The position solve must have closed the contact (Model 2): a numerical failure otherwise."""
     res = out["position_residual"]
     if np.nanmax(res) > POSITION_TOL or not np.all(np.isfinite(res)):
         k = int(np.nanargmax(np.where(np.isfinite(res), res, np.inf).max(axis=0)))
         raise SolverError(f"position problem did not converge at t = {time[k]:.6g} s "
                           f"(residual {np.nanmax(res):.3g} m)")
-    neg = out["normal"] < 0
-    for i in range(n_vanes):
-        if neg[i].any():
-            k = int(np.argmax(neg[i]))
-            msg = (f"vane {i} would lift off: housing reaction {out['normal'][i, k]:.4g} N < 0 at "
-                   f"t = {time[k]:.6g} s ({int(neg[i].sum())} samples); Model 2 assumes contact, use "
-                   "--model contact")
-            warnings.append(msg)
-            events.append({"time": float(time[k]), "kind": "lift_off", "vane": i, "message": msg})
-    bad = (out["n_consistent"] < 0.5) | (out["ambiguity"] > PARADOX_TOL)
-    for i in range(n_vanes):
-        if bad[i].any():
-            k = int(np.argmax(bad[i]))
-            what = ("no consistent contact-side set" if out["n_consistent"][i, k] < 0.5 else
-                    f"{int(out['n_consistent'][i, k])} consistent contact-side sets")
-            msg = (f"friction paradox at vane {i}, t = {time[k]:.6g} s: {what} for the slot-wall "
-                   f"forces ({int(bad[i].sum())} samples); the least inconsistent set is reported")
-            warnings.append(msg)
-            events.append({"time": float(time[k]), "kind": "friction_paradox", "vane": i, "message": msg})
 
 
 def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None = None,
-             rate: float = 10000.0, method: str = "cvodes", rtol: float = 1e-8, atol: float = 1e-10,
+             rate: float = 10000.0, method: str = "cvodes", rtol: float = RTOL, atol: float = ATOL,
              max_step: float | None = None, progress=None, max_steps: int = 500000,
              **options) -> SimulationResult:
     """Simulate `cfg`. Speed drive: inverse dynamics at the prescribed speed (no integration).
@@ -158,17 +139,22 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
     N = cfg.vanes
     if cfg.mode == "speed":
         theta, omega, omegadot = speed_profile(cfg.angle, cfg.speed, t, cfg.speed_ripple)
-        out = inverse_dynamics(kern, p, theta, omega, omegadot)
+        out = inverse_dynamics(kern, p, theta, omega, omegadot, ("torque", *REPORTED))
         torque = out["torque"]
+
+        def more(names):  # every other output, on first use
+            return inverse_dynamics(kern, p, theta, omega, omegadot, names)
     else:
         theta, omega, torque, out, stats, ev = _torque_drive(kern, p, cfg, t, method, rtol, atol,
                                                              max_step, progress, max_steps)
         events.extend(ev)
-    _diagnose(out, t, N, warnings, events)
-    vanes = {c: out[c] for c in ("s", "sdot", "normal", "slot1", "slot2")}
-    extra = {k: out[k] for k in ("tip_slip", "sddot", "kinetic_energy", "mu_housing", "mu_slot")}
-    return SimulationResult("constrained", cfg.mode, t, theta, omega, torque, vanes,
-                            dict(pv.values), stats, events, warnings, extra=extra)
+        more = None  # forward dynamics evaluated every output already
+    _check_positions(out, t)
+    contact_warnings(out, t, warnings, events, lift_off=True)
+    vanes = {c: out[c] for c in PER_VANE_COLUMNS}
+    extra = LazyOutputs(out, more, kern["inverse_dynamics"].name_out())
+    return SimulationResult("constrained", cfg.mode, t, theta, omega, torque, vanes, dict(pv.values),
+                            stats, events, warnings, extra=extra, kernel_key=kern.key)
 
 
 def switching_functions(kern, p, torque, friction_on):
@@ -197,7 +183,7 @@ def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress, max_s
     integ = Integrator(rhs, 2, np.concatenate([p, [torque]]), t[1] - t[0], method=method, rtol=rtol,
                        atol=atol, max_step=max_step, max_steps=max_steps)
     v = dict(zip(cfg.parameters().names, p))
-    friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in ("static", "dynamic"))
+    friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in FRICTION_KEYS[:2])
     gfun = switching_functions(kern, p, torque, friction_on)
     x0 = np.array([cfg.angle, cfg.speed])
     xs, ev, stats = integrate_segmented(integ, x0, t, switch_fn=gfun, progress=progress)

@@ -19,11 +19,12 @@ from .config import PumpConfig, as_array
 from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError, DataError
-from .identify import IdentificationResult, fit_estimates, gauss_newton, parameter_map
+from .identify import (IdentificationResult, fit_estimates, following, gauss_newton, parameter_map,
+                       start_and_bounds)
 from .kernels import load_kernels
-from .model_spec.parameters import layout
+from .model_spec.parameters import MEASUREMENT, alias_targets, layout
 
-TRANSIENT_SPECIAL = ("mu", "mu_slot", "speed0", "theta0")
+TRANSIENT_SPECIAL = ("mu", "mu_slot", *(m.name for m in MEASUREMENT if m.transient))
 
 
 class TransientProblem:
@@ -41,18 +42,12 @@ class TransientProblem:
         index = {q.name: i for i, q in enumerate(layout(self.pv.structure))}
         self.names = list(names)
         for n in self.names:
-            if n not in TRANSIENT_SPECIAL and n not in index and n != "housing.radius":
+            if n not in TRANSIENT_SPECIAL and n not in index and not alias_targets(n):
                 raise ConfigError(f"unknown parameter '{n}' for transient identification")
         v = self.pv.values
-        initial = initial or {}
-        start = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"],
-                 "speed0": float(data.speed[0]),
+        start = {"speed0": float(data.speed[0]),
                  "theta0": float(data.angle[0]) if data.angle is not None else cfg.angle}
-        self.x0 = np.array([float(initial.get(n, start[n] if n in start else
-                                               (v["housing.a"] if n == "housing.radius" else v[n])))
-                            for n in self.names])
-        self.lower = np.array([0.0 if n in ("mu", "mu_slot") else -np.inf for n in self.names])
-        self.upper = np.array([2.0 if n in ("mu", "mu_slot") else np.inf for n in self.names])
+        self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, start, initial)
         self.y = data.speed
         self.t = data.time - data.time[0]
         n = data.n
@@ -60,7 +55,7 @@ class TransientProblem:
         val = {nm: phi[i] for i, nm in enumerate(self.names)}
         ratios = [v["friction.housing.static"] / max(v["friction.housing.dynamic"], 1e-300),
                   v["friction.slot.static"] / max(v["friction.slot.dynamic"], 1e-300)]
-        pvec = parameter_map(index, ca.DM(self.p0), val, v["friction.slot.dynamic"], ratios)
+        pvec = parameter_map(index, ca.DM(self.p0), val, v["friction.slot.dynamic"], ratios, following(cfg))
         # one sample interval under a constant (measured) torque
         x = ca.MX.sym("x", 2)
         pp = ca.MX.sym("pp", self.p0.size + 1)

@@ -20,26 +20,37 @@ EXAMPLES = ROOT / "examples"
 
 def pytest_configure(config):
     """Tests never write into the repository's generated/: every variant a test needs is loaded
-    from, or built into, a temporary cache that starts as a copy of the libraries `make codegen`
-    built (set here, before collection, so a module-level config load cannot miss it)."""
+    from, or built into, a temporary cache (set here, before collection, so a module-level config
+    load cannot miss it). It starts as a copy of the libraries `make codegen` built and of those
+    earlier test sessions built (kept in pytest's cache folder, .pytest_cache, between sessions)."""
     from pumpsim.model_spec import manifest as mf
 
     cache = Path(tempfile.mkdtemp(prefix="pumpsim-generated-"))
-    for folder in (ROOT / "generated").glob("*-*"):
-        if folder.is_dir() and mf.read_manifest(folder) is not None:
-            shutil.copytree(folder, cache / folder.name)
-    config._pumpsim_cache = (cache, os.environ.get("PUMPSIM_GENERATED"))
+    kept = config.cache.mkdir("pumpsim-generated") if config.cache else None
+    for origin in (ROOT / "generated", kept):
+        for folder in (origin.glob("*-*") if origin else ()):
+            if folder.is_dir() and mf.read_manifest(folder) is not None and not (cache / folder.name).exists():
+                shutil.copytree(folder, cache / folder.name)
+    config._pumpsim_cache = (cache, kept, os.environ.get("PUMPSIM_GENERATED"))
     os.environ["PUMPSIM_GENERATED"] = str(cache)
 
 
 def pytest_unconfigure(config):
-    cache, before = getattr(config, "_pumpsim_cache", (None, None))
+    cache, kept, before = getattr(config, "_pumpsim_cache", (None, None, None))
     if cache is None:
         return
     if before is None:
         os.environ.pop("PUMPSIM_GENERATED", None)
     else:
         os.environ["PUMPSIM_GENERATED"] = before
+    if kept is not None:  # keep this session's builds for the next one (never in generated/)
+        for folder in cache.glob("*-*"):
+            if not folder.is_dir() or (ROOT / "generated" / folder.name).exists():
+                continue
+            if (kept / folder.name).exists():  # the fingerprints it now lists
+                shutil.copy2(folder / "manifest.json", kept / folder.name / "manifest.json")
+            else:
+                shutil.copytree(folder, kept / folder.name)
     shutil.rmtree(cache, ignore_errors=True)
 
 

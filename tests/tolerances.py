@@ -48,3 +48,7 @@ CELL_IDENTITY_REL = 1e-11
 # dV/dtheta (exact, by forward AD through the kinematics) against a central difference with step
 # 1e-5 rad: truncation ~ h^2 V''' / 6 ~ 1e-10 of the volume scale, rounding ~ 1e-16 / h.
 CELL_DERIVATIVE_REL = 1e-7
+# The friction law's cubic STEP evaluated in double precision: values <= 2 carry a few ulps
+# (~1e-16); 1e-12 absolute leaves four digits of room and still fails on any formula difference
+# (the smallest hand-evaluated digit tested is 1e-6).
+LAW_ABS = 1e-12

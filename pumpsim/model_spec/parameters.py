@@ -1,5 +1,12 @@
 """The parameter registry: every number the compiled model uses, declared once.
 
+Each `Parameter` is a config key path with its unit, default (or derived default with its formula),
+bounds (numbers or other entries), whether it may be fitted, its aliases and a physical
+plausibility range. Config validation, identification bounds and the runtime vector's layout are
+loops over `REGISTRY`; the measurement parameters a fit adds (theta0, speed, delay, offset, lag,
+...) are in `MEASUREMENT`. A new config section is a block of entries here (and, if its numbers
+reach the kernel, a use in codegen).
+
 The stacked runtime vector `p` follows declaration order. Only *structure* (model type, vane count,
 number of housing-harmonic slots, contact laws) changes the compiled kernel; every value here is an
 entry of `p`, so changing it never recompiles.
@@ -8,21 +15,187 @@ from __future__ import annotations
 
 import difflib
 import math
+import re
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError
 
 INF = math.inf
+REQUIRED = None  # default of an entry the config must give
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A limit: a number, or another entry's value times `factor` (named in messages by path)."""
+
+    value: float | str
+    open: bool = False
+    factor: float = 1.0
+    label: str = ""  # how a message names a numeric bound, e.g. "pi/2"
+
+    def at(self, values) -> float:
+        return values[self.value] * self.factor if isinstance(self.value, str) else self.value
+
+    def text(self, values, unit) -> str:
+        if not isinstance(self.value, str):
+            return self.label or f"{self.value:g}"
+        ref = self.value if self.factor == 1 else f"{self.value}/{1 / self.factor:g}"
+        return f"{ref} ({_fmt(self.at(values), unit)} {unit})"
+
+
+def _fmt(v, unit) -> str:
+    return f"{v:.4f}" if unit == "m" else f"{v:g}"
+
+
+NONE_LOW, NONE_HIGH = Bound(-INF), Bound(INF)
+POSITIVE = Bound(0.0, open=True)
+NONNEGATIVE = Bound(0.0)
 
 
 @dataclass(frozen=True)
 class Parameter:
-    name: str  # config key path, e.g. "vane.mass"
+    name: str  # config key path and name in the runtime vector, e.g. "vane.mass"
     unit: str
-    lower: float = -INF
-    upper: float = INF
-    positive: bool = False  # strictly > 0 (masses, lengths)
+    default: float | None = REQUIRED
+    lower: Bound = NONE_LOW
+    upper: Bound = NONE_HIGH
+    derived: str = ""  # formula of a derived default in other entries' names (evaluated below)
+    below: str = ""  # another entry this one must stay below (v_static < v_dynamic)
+    identifiable: bool = True  # may be fitted (--params)
+    aliases: tuple = ()  # other names that set this entry (housing.radius sets a and b; mu)
+    plausible: tuple | None = None  # physical plausibility range [SI]: diagnose, sweeps
     doc: str = ""
+
+    @property
+    def inputs(self) -> list[str]:
+        """The entries a derived default is computed from."""
+        return derived_inputs(self.derived)
+
+    @property
+    def positive(self) -> bool:
+        return self.lower.value == 0.0 and self.lower.open
+
+    def check(self, values, name=None) -> None:
+        """ConfigError naming the key and the limit unless values[self.name] is within bounds."""
+        name = name or self.name
+        v = values[self.name]
+        lo, hi = self.lower.at(values), self.upper.at(values)
+        low_ok = v > lo if self.lower.open else v >= lo
+        high_ok = v < hi if self.upper.open else v <= hi
+        if not (low_ok and high_ok):
+            raise ConfigError(f"{name} must be {self.limit_text(values)}, got {_fmt(v, self.unit)}")
+        if self.below and not v < values[self.below]:
+            raise ConfigError(f"{name} must be < {self.below} ({values[self.below]:g} {self.unit}), "
+                              f"got {v:g}")
+
+    def limit_text(self, values) -> str:
+        lo, hi = self.lower, self.upper
+        if math.isinf(hi.at(values)):
+            return f"{'>' if lo.open else '>='} {lo.text(values, self.unit)}"
+        if math.isinf(lo.at(values)):
+            return f"{'<' if hi.open else '<='} {hi.text(values, self.unit)}"
+        return (f"in {'(' if lo.open else '['}{lo.text(values, self.unit)}, "
+                f"{hi.text(values, self.unit)}{')' if hi.open else ']'}")
+
+    def fit_bounds(self) -> tuple[float, float]:
+        """Bounds for a fit: the numeric limits (a limit by another entry: >= 0 below, none above,
+        every such entry here is a length or speed)."""
+        lo = self.lower.value if not isinstance(self.lower.value, str) else 0.0
+        hi = self.upper.value if not isinstance(self.upper.value, str) else INF
+        return float(lo), float(hi)
+
+
+def derive(formula: str, values: dict):
+    """Evaluate a derived default's formula with the entries' values (names with dots; numbers
+    or CasADi expressions, so a fit's graph carries the dependence)."""
+    env = {n.replace(".", "__"): values[n] for n in derived_inputs(formula)}
+    code = re.sub(_NAME, lambda m: m.group(0).replace(".", "__"), formula)
+    return eval(code, {"__builtins__": {}}, env)  # noqa: S307 (the registry's own formulas)
+
+
+_NAME = r"[a-z_]+(?:\.[a-z_0-9]+)+"  # an entry's dotted name in a formula
+
+
+def derived_inputs(formula: str) -> list[str]:
+    return re.findall(_NAME, formula)
+
+
+FRICTION_KEYS = ("static", "dynamic", "v_static", "v_dynamic")  # the friction law's argument order
+
+
+def friction_args(values, side: str) -> list:
+    """(mu_s, mu_d, v_s, v_d) of friction side "housing" | "slot" from values by name."""
+    return [values[f"friction.{side}.{k}"] for k in FRICTION_KEYS]
+
+
+COF = dict(lower=NONNEGATIVE, upper=Bound(2.0), plausible=(0.0, 1.0))  # the COF range, once
+
+
+def _friction(side: str, default_from: str | None = None) -> list[Parameter]:
+    pre = f"friction.{side}"
+    alias = {"housing": ("mu",), "slot": ("mu_slot",)}[side]
+    return [
+        Parameter(f"{pre}.static", "-", **COF, doc="static COF"),
+        Parameter(f"{pre}.dynamic", "-", **COF, aliases=alias, doc="dynamic COF"),
+        Parameter(f"{pre}.v_static", "m/s", lower=POSITIVE, below=f"{pre}.v_dynamic",
+                  plausible=(1e-6, 0.1), doc="static transition speed"),
+        Parameter(f"{pre}.v_dynamic", "m/s", lower=POSITIVE, plausible=(1e-5, 1.0),
+                  doc="dynamic transition speed"),
+    ]
+
+
+def _contact(side: str) -> list[Parameter]:
+    pre = f"contact.{side}"
+    return [
+        Parameter(f"{pre}.stiffness", "N/m^e", lower=POSITIVE),
+        Parameter(f"{pre}.exponent", "-", 1.0, lower=POSITIVE),
+        Parameter(f"{pre}.damping", "N s/m", 0.0, lower=NONNEGATIVE),
+        Parameter(f"{pre}.depth", "m", 1e-5, lower=POSITIVE, doc="IMPACT damping ramp depth"),
+    ]
+
+
+def _harmonic(j: int) -> list[Parameter]:
+    pre = f"housing.harmonics.{j}"
+    return [Parameter(f"{pre}.order", "-", 0.0, lower=NONNEGATIVE, identifiable=False),
+            Parameter(f"{pre}.amplitude", "m", 0.0), Parameter(f"{pre}.phase", "rad", 0.0)]
+
+
+HOUSING_SIZE = dict(lower=Bound("rotor.radius", open=True), aliases=("housing.radius",),
+                    plausible=(5e-3, 0.1))
+ROTOR = [
+    Parameter("rotor.radius", "m", lower=POSITIVE, plausible=(5e-3, 0.1)),
+    Parameter("rotor.inertia", "kg m^2", lower=POSITIVE, plausible=(1e-8, 1e-2)),
+    Parameter("rotor.slot_radius", "m", lower=NONNEGATIVE, upper=Bound("rotor.radius", open=True)),
+    Parameter("rotor.slot_tilt", "rad", 0.0, lower=Bound(-math.pi / 2, True, label="-pi/2"),
+              upper=Bound(math.pi / 2, True, label="pi/2")),
+    Parameter("rotor.first_slot_angle", "rad", 0.0),
+]
+VANE = [
+    Parameter("vane.length", "m", lower=POSITIVE, plausible=(1e-3, 0.05)),
+    Parameter("vane.thickness", "m", lower=POSITIVE, plausible=(5e-4, 0.01)),
+    Parameter("vane.mass", "kg", lower=POSITIVE, plausible=(1e-4, 0.05)),
+    Parameter("vane.inertia", "kg m^2", lower=POSITIVE,
+              derived="vane.mass * (vane.length ** 2 + vane.thickness ** 2) / 12",
+              doc="about the centre of mass; default: a uniform rectangular plate"),
+    Parameter("vane.tip_radius", "m", 0.0, lower=NONNEGATIVE,
+              upper=Bound("vane.length", open=True, factor=0.5)),
+]
+HOUSING = [
+    Parameter("housing.a", "m", **HOUSING_SIZE, doc="semi-axis along housing x (circle: radius)"),
+    Parameter("housing.b", "m", **HOUSING_SIZE, doc="semi-axis along housing y (circle: radius)"),
+    Parameter("housing.center.0", "m", 0.0),
+    Parameter("housing.center.1", "m", 0.0),
+    Parameter("housing.angle", "rad", 0.0),
+]
+OPERATION = [Parameter("operation.bearing_torque", "N m", 0.0)]
+# Effect parameters: zero (or one, for factors) means "absent".
+EFFECTS = [Parameter("effects.viscous_tip_friction", "N s/m", 0.0, lower=NONNEGATIVE,
+                     plausible=(0.0, 10.0), doc="tip force per slip speed")]
+
+
+def _factor(i: int) -> Parameter:
+    return Parameter(f"effects.vane_friction_factor.{i}", "-", 1.0, lower=NONNEGATIVE,
+                     plausible=(0.5, 1.5), doc="per-vane housing-COF factor")
 
 
 @dataclass(frozen=True)
@@ -50,60 +223,104 @@ class Structure:
 MODELS = ("constrained", "contact")
 CONTACT_LAWS = ("linear", "hunt-crossley", "impact", "report-nonlinear")
 DEFAULT_HARMONIC_SLOTS = 0  # a variant compiles exactly the configured harmonics
-
-
-def _friction(prefix: str) -> list[Parameter]:
-    return [
-        Parameter(f"{prefix}.static", "-", 0.0, 2.0, doc="static COF"),
-        Parameter(f"{prefix}.dynamic", "-", 0.0, 2.0, doc="dynamic COF"),
-        Parameter(f"{prefix}.v_static", "m/s", positive=True, doc="static transition speed"),
-        Parameter(f"{prefix}.v_dynamic", "m/s", positive=True, doc="dynamic transition speed"),
-    ]
-
-
-def _contact(prefix: str) -> list[Parameter]:
-    return [
-        Parameter(f"{prefix}.stiffness", "N/m^e", positive=True),
-        Parameter(f"{prefix}.exponent", "-", positive=True),
-        Parameter(f"{prefix}.damping", "N s/m", 0.0),
-        Parameter(f"{prefix}.depth", "m", positive=True, doc="IMPACT damping ramp depth"),
-    ]
+# a section the config may leave out: it then takes the other section's values
+SECTION_FALLBACK = {"friction.slot": "friction.housing", "contact.bottom": "contact.housing"}
 
 
 def layout(structure: Structure) -> tuple[Parameter, ...]:
     """Ordered parameter declarations for one compiled variant."""
-    ps = [
-        Parameter("rotor.radius", "m", positive=True),
-        Parameter("rotor.inertia", "kg m^2", positive=True),
-        Parameter("rotor.slot_radius", "m", 0.0),
-        Parameter("rotor.slot_tilt", "rad", -math.pi / 2, math.pi / 2),
-        Parameter("rotor.first_slot_angle", "rad"),
-        Parameter("vane.length", "m", positive=True),
-        Parameter("vane.thickness", "m", positive=True),
-        Parameter("vane.mass", "kg", positive=True),
-        Parameter("vane.inertia", "kg m^2", positive=True),
-        Parameter("vane.tip_radius", "m", 0.0),
-        Parameter("housing.a", "m", positive=True, doc="semi-axis along housing x (circle: radius)"),
-        Parameter("housing.b", "m", positive=True, doc="semi-axis along housing y (circle: radius)"),
-        Parameter("housing.center.0", "m"),
-        Parameter("housing.center.1", "m"),
-        Parameter("housing.angle", "rad"),
-    ]
+    ps = ROTOR + VANE + HOUSING
     for j in range(structure.harmonics):
-        ps += [
-            Parameter(f"housing.harmonics.{j}.order", "-", 0.0),
-            Parameter(f"housing.harmonics.{j}.amplitude", "m"),
-            Parameter(f"housing.harmonics.{j}.phase", "rad"),
-        ]
-    ps += _friction("friction.housing") + _friction("friction.slot")
-    ps += [Parameter("operation.bearing_torque", "N m")]
-    # Effect parameters: zero (or one, for factors) means "absent".
-    ps += [Parameter("effects.viscous_tip_friction", "N s/m", 0.0, doc="tip force per slip speed")]
-    ps += [Parameter(f"effects.vane_friction_factor.{i}", "-", 0.0, doc="per-vane housing-COF factor")
-           for i in range(structure.vanes)]
+        ps = ps + _harmonic(j)
+    ps = ps + _friction("housing") + _friction("slot") + OPERATION + EFFECTS
+    ps = ps + [_factor(i) for i in range(structure.vanes)]
     if structure.model == "contact":
-        ps += _contact("contact.housing") + _contact("contact.bottom")
+        ps = ps + _contact("housing") + _contact("bottom")
     return tuple(ps)
+
+
+def registry(structure: Structure | None = None) -> dict:
+    """name -> Parameter of every model parameter (of `structure`, default: the contact model's
+    full set with 16 vanes' factors and no harmonics)."""
+    st = structure or Structure("contact", 16, 0)
+    return {q.name: q for q in layout(st)}
+
+
+def section(prefix: str) -> list[Parameter]:
+    """The static entries of one config section, e.g. "vane" or "friction.slot"."""
+    pool = ROTOR + VANE + HOUSING + OPERATION + EFFECTS + _friction("housing") + _friction("slot") \
+        + _contact("housing") + _contact("bottom")
+    return [q for q in pool if q.name.rsplit(".", 1)[0] == prefix]
+
+
+def _aliases() -> dict:
+    out: dict = {}
+    for q in ROTOR + VANE + HOUSING + _friction("housing") + _friction("slot"):
+        for a in q.aliases:
+            out.setdefault(a, []).append(q.name)
+    return {a: tuple(t) for a, t in out.items()}
+
+
+ALIASES = _aliases()  # alias -> the entries it sets (housing.radius -> a, b; mu -> the dynamic COF)
+
+
+def alias_targets(name: str) -> tuple:
+    return ALIASES.get(name, ())
+
+
+# entries whose default is derived from others (config: when the file does not set them;
+# fits and sweeps: they follow their inputs)
+DERIVED = tuple(q for q in ROTOR + VANE + HOUSING if q.derived)
+
+
+# -- measurement parameters: what a fit adds to the model's (not in the config, not in p) --------
+@dataclass(frozen=True)
+class MeasurementParameter:
+    name: str
+    unit: str
+    lower: float = -INF
+    upper: float = INF
+    in_kernel_graph: bool = False  # an input z of the compiled fit graph (after p)
+    through_angle: bool = False  # acts through the rotor angle (sample-averaged Jacobian column)
+    period: float | None = None  # periodic (theta0: 2 pi; the start is scanned over it)
+    band: float | None = None  # relative band around the nominal value the start search keeps to
+    transient: bool = False  # a transient (run-up) fit's parameter
+    doc: str = ""
+
+
+MEASUREMENT = (
+    MeasurementParameter("theta0", "rad", in_kernel_graph=True, through_angle=True,
+                         period=2 * math.pi, transient=True, doc="rotor angle at the first sample"),
+    MeasurementParameter("speed", "rad/s", in_kernel_graph=True, through_angle=True, band=0.5,
+                         doc="constant speed; its start from the torque spectrum within +-50 %"),
+    MeasurementParameter("delay", "s", in_kernel_graph=True, through_angle=True,
+                         doc="time shift between torque and angle"),
+    MeasurementParameter("torque_offset", "N m", in_kernel_graph=True, doc="sensor zero offset"),
+    MeasurementParameter("ripple_cos", "-", in_kernel_graph=True, through_angle=True,
+                         doc="relative speed ripple A cos(phase) at shaft order ripple_order"),
+    MeasurementParameter("ripple_sin", "-", in_kernel_graph=True, through_angle=True,
+                         doc="relative speed ripple A sin(phase)"),
+    MeasurementParameter("lag", "s", lower=0.0, doc="first-order torque-sensor time constant"),
+    MeasurementParameter("speed0", "rad/s", transient=True, doc="speed at the first sample (transient)"),
+)
+MEASUREMENT_BY_NAME = {m.name: m for m in MEASUREMENT}
+KERNEL_GRAPH_INPUTS = tuple(m.name for m in MEASUREMENT if m.in_kernel_graph)
+ANGLE_ACTING = tuple(m.name for m in MEASUREMENT if m.through_angle)
+COF_ALIASES = ("mu", "mu_slot")  # fit names of the dynamic COFs (see _friction)
+
+
+def fit_bounds(name: str, structure: Structure) -> tuple[float, float]:
+    """Bounds of any fit name: measurement parameter, alias or parameter path."""
+    if name in MEASUREMENT_BY_NAME:
+        m = MEASUREMENT_BY_NAME[name]
+        return m.lower, m.upper
+    reg = registry(structure)
+    if name in reg:
+        return reg[name].fit_bounds()
+    targets = alias_targets(name)
+    if targets:
+        return reg[targets[0]].fit_bounds()
+    return -INF, INF
 
 
 @dataclass
@@ -165,7 +382,8 @@ class PneumaticStructure:
 
 
 def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):
-    return Parameter(name, unit, lower, upper, positive, doc)
+    return Parameter(name, unit, lower=POSITIVE if positive else Bound(lower), upper=Bound(upper),
+                     doc=doc)
 
 
 GAS_PARAMETERS = (

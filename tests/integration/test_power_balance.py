@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from pumpsim.model_spec import laws
+from pumpsim.model_spec.parameters import friction_args
 from pumpsim.simulate import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL
@@ -19,8 +20,7 @@ CASES = {
 
 def friction_power(out, v):
     """sum_i mu_h N |v_t| + c v_t^2 + mu_r (|F1| + |F2|) |sdot|, with mu from the spec's law."""
-    fh = [v[f"friction.housing.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
-    fs = [v[f"friction.slot.{k}"] for k in ("static", "dynamic", "v_static", "v_dynamic")]
+    fh, fs = friction_args(v, "housing"), friction_args(v, "slot")
     mu_h = laws.friction_coefficient(out["tip_slip"], *fh)
     mu_r = laws.friction_coefficient(out["sdot"], *fs)
     return (np.abs(mu_h) * out["normal"] * np.abs(out["tip_slip"])

@@ -178,4 +178,4 @@ def test_manifest_records_key_orders_and_units(private_cache):
     assert m["key"] == k.key and m["casadi"] == ca.__version__
     assert m["parameters"][0] == {"name": "rotor.radius", "unit": "m"}
     assert m["functions"]["inverse_dynamics"]["inputs"] == ["theta", "omega", "omegadot", "p"]
-    assert m["seconds"]["compile"] < 60
+    # (the compile-time target, < 60 s, is checked by `make bench`, not by a test)
