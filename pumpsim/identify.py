@@ -9,9 +9,12 @@ residual diagnostics).
 from __future__ import annotations
 
 import difflib
+import hashlib
 import math
 import time as _time
 from dataclasses import dataclass, field
+from typing import NamedTuple
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -46,7 +49,25 @@ class Estimate:
     identifiable: bool = True
 
 
-@dataclass
+def provenance(cfg, data, kern) -> dict:
+    """What a result was computed from: the config, the data files (name and SHA-256 of the file,
+    or of the samples when there is no file) and the compiled kernel's key."""
+    files = []
+    for d in (data if isinstance(data, (list, tuple)) else [data]):
+        path = Path(d.source) if d.source else None
+        if path is not None and path.is_file():
+            digest = hashlib.sha256(path.read_bytes()).hexdigest()
+        else:
+            h = hashlib.sha256()
+            for a in (d.time, d.torque, d.speed, d.angle):
+                if a is not None:
+                    h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+            digest = h.hexdigest()
+        files.append({"name": path.name if path else "(in memory)", "sha256": digest})
+    return {"config": cfg.path or cfg.name, "data": files, "kernel_key": kern.key}
+
+
+@dataclass(kw_only=True)
 class IdentificationResult:
     estimates: dict
     iterations: list  # [{"params": {...}, "rms": ...}]
@@ -65,6 +86,7 @@ class IdentificationResult:
     speed: float = 0.0
     angle: np.ndarray | None = None
     n_evaluations: int = 0
+    provenance: dict = field(default_factory=dict)  # config, data files and hashes, kernel key
 
     @property
     def residual(self):
@@ -83,12 +105,16 @@ class IdentificationResult:
             "message": self.message, "method": self.method, "unidentifiable": self.unidentifiable,
             "correlation": {"names": [n for n in names if self.estimates[n].identifiable],
                             "matrix": None if self.correlation is None else self.correlation.tolist()},
-            "diagnostics": self.diagnostics, "wall_time": self.wall_time,
+            "diagnostics": self.diagnostics, "wall_time": self.wall_time, "provenance": self.provenance,
         }
 
     def __str__(self):
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
                  f"after {len(self.iterations) - 1} iterations, residual RMS {self.rms:.6g} N m"]
+        if self.provenance:
+            pv = self.provenance
+            lines.append(f"  from {pv['config']} and " + ", ".join(
+                f"{d['name']} (sha256 {d['sha256'][:12]})" for d in pv["data"]) + f", kernel {pv['kernel_key']}")
         for e in self.estimates.values():
             if e.identifiable and e.value is not None:
                 unit = UNIT_TEXT.get(describe(e.name)[1], describe(e.name)[1])
@@ -374,6 +400,18 @@ def _scaled_svd(J):
     return scale, U, s, Vt
 
 
+class FitOutcome(NamedTuple):
+    """What every optimiser returns (Gauss-Newton, Levenberg-Marquardt, IPOPT); it unpacks as
+    (x, residual, jacobian, history, converged, message)."""
+
+    x: np.ndarray
+    residual: np.ndarray
+    jacobian: np.ndarray
+    history: list
+    converged: bool
+    message: str
+
+
 def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
                  start=None):
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
@@ -425,7 +463,7 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=Fa
         if history[-2]["rms"] - history[-1]["rms"] <= 1e-6 * history[-1]["rms"]:
             converged, message = True, "residual no longer decreases (relative change < 1e-6)"
             break
-    return x, r, J, history, converged, message
+    return FitOutcome(x, r, J, history, converged, message)
 
 
 def ipopt_fit(prob: Problem, x0, log=None):
@@ -446,7 +484,7 @@ def ipopt_fit(prob: Problem, x0, log=None):
                 "iteration": 0},
                {"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean((prob.y - m) ** 2))),
                 "iteration": int(st.get("iter_count", 0))}]
-    return x, prob.y - m, J, history, bool(st.get("success")), str(st.get("return_status"))
+    return FitOutcome(x, prob.y - m, J, history, bool(st.get("success")), str(st.get("return_status")))
 
 
 def phase_and_speed_start(prob: Problem, x):
@@ -550,12 +588,14 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         r = prob.y - m_start
         est = {n: Estimate(n, None, None, None, None, v, identifiable=False) for n, v in zip(prob.names, x0)}
         w = prob.speed_of(start)
+        rms = float(np.sqrt(np.mean(r**2)))
         return IdentificationResult(
-            est, [{"params": dict(zip(prob.names, map(float, start))), "rms": float(np.sqrt(np.mean(r**2)))}],
-            float(np.sqrt(np.mean(r**2))), False,
-            f"not identifiable from this data: {', '.join(unident)}", None,
-            residual_report(r, prob.dt, w), method, _time.perf_counter() - wall0, unident,
-            prob.time_axis(), prob.y, m_start, initial_model, w, prob.angle(start), prob.n_eval)
+            estimates=est, iterations=[{"params": dict(zip(prob.names, map(float, start))), "rms": rms}],
+            rms=rms, converged=False, message=f"not identifiable from this data: {', '.join(unident)}",
+            correlation=None, diagnostics=residual_report(r, prob.dt, w), method=method,
+            wall_time=_time.perf_counter() - wall0, unidentifiable=unident, time=prob.time_axis(),
+            measured=prob.y, fitted=m_start, initial_model=initial_model, speed=w,
+            angle=prob.angle(start), n_evaluations=prob.n_eval, provenance=provenance(cfg, data, prob.kern))
     else:
         prob_fit, start_fit = prob, start
     # the identifiability check already evaluated the full problem at the start: reuse it
@@ -583,9 +623,11 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
     if unident:
         message += f"; not identifiable from this data: {', '.join(unident)}"
     return IdentificationResult(
-        est, history, float(np.sqrt(np.mean(r**2))), converged, message, corr, diag, method,
-        _time.perf_counter() - wall0, unident, prob.time_axis(), prob.y, fitted, initial_model,
-        w, prob_fit.angle(x), prob.n_eval + prob_fit.n_eval)
+        estimates=est, iterations=history, rms=float(np.sqrt(np.mean(r**2))), converged=converged,
+        message=message, correlation=corr, diagnostics=diag, method=method,
+        wall_time=_time.perf_counter() - wall0, unidentifiable=unident, time=prob.time_axis(),
+        measured=prob.y, fitted=fitted, initial_model=initial_model, speed=w, angle=prob_fit.angle(x),
+        n_evaluations=prob.n_eval + prob_fit.n_eval, provenance=provenance(cfg, data, prob.kern))
 
 
 def fit_estimates(names, x, initial, r, J):

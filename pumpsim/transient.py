@@ -20,7 +20,7 @@ from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError, DataError
 from .identify import (IdentificationResult, fit_estimates, following, gauss_newton, parameter_map,
-                       start_and_bounds)
+                       provenance, start_and_bounds)
 from .kernels import load_kernels
 from .model_spec.parameters import MEASUREMENT, alias_targets, layout
 
@@ -94,7 +94,9 @@ def identify_transient(cfg: PumpConfig, data: Dataset, params=("mu", "speed0"), 
     d = dict(zip(prob.names, x))
     theta0 = d.get("theta0", cfg.angle)
     angle = theta0 + np.concatenate([[0.0], np.cumsum(0.5 * (data.speed[1:] + data.speed[:-1]) * np.diff(data.time))])
-    return IdentificationResult(est, history, float(np.sqrt(np.mean(r**2))), converged,
-                                message + " (transient: speed fitted under the measured torque)", corr, diag,
-                                "gauss-newton/transient", _time.perf_counter() - wall0, [], data.time,
-                                prob.y, prob.y - r, m0, w, angle, prob.n_eval)
+    return IdentificationResult(
+        estimates=est, iterations=history, rms=float(np.sqrt(np.mean(r**2))), converged=converged,
+        message=message + " (transient: speed fitted under the measured torque)", correlation=corr,
+        diagnostics=diag, method="gauss-newton/transient", wall_time=_time.perf_counter() - wall0,
+        time=data.time, measured=prob.y, fitted=prob.y - r, initial_model=m0, speed=w, angle=angle,
+        n_evaluations=prob.n_eval, provenance=provenance(cfg, data, prob.kern))

@@ -52,3 +52,10 @@ CELL_DERIVATIVE_REL = 1e-7
 # (~1e-16); 1e-12 absolute leaves four digits of room and still fails on any formula difference
 # (the smallest hand-evaluated digit tested is 1e-6).
 LAW_ABS = 1e-12
+# One closed formula (the derived vane inertia) evaluated by two code paths in double precision:
+# a few ulps apart; 1e-14 relative.
+ROUNDING_REL = 1e-14
+# A fit's seed-matrix column is the central difference of the (affine) parameter map over a unit
+# step; subtracting parameter values of size ~0.5 to get slopes of size ~1e-5 loses ~5 digits of
+# the 16, so 1e-9 relative.
+SEED_REL = 1e-9

@@ -10,6 +10,7 @@ from pumpsim.errors import ConfigError
 from pumpsim.identify import Problem
 from pumpsim.model_spec import parameters as reg
 from tests.conftest import apply_changes, example_dict, make_config
+from tests.tolerances import ROUNDING_REL, SEED_REL
 
 # config keys whose registry entry has a numeric bound: a value beyond it must be refused, and the
 # message must name the key (entries given in another form -- lists, the housing size -- aside)
@@ -42,7 +43,7 @@ def test_derived_inertia_follows_the_mass_unless_the_file_sets_it():
     cfg = make_config()
     L, h = cfg.values["vane.length"], cfg.values["vane.thickness"]
     heavier = cfg.with_values({"vane.mass": 0.002})
-    assert heavier.values["vane.inertia"] == pytest.approx(0.002 * (L**2 + h**2) / 12, rel=1e-15)
+    assert heavier.values["vane.inertia"] == pytest.approx(0.002 * (L**2 + h**2) / 12, rel=ROUNDING_REL)
     fixed = make_config(**{"vane.inertia": 3e-8}).with_values({"vane.mass": 0.002})
     assert fixed.values["vane.inertia"] == 3e-8
 
@@ -55,10 +56,10 @@ def test_fitted_mass_carries_the_derived_inertia_into_the_kernel():
     names = cfg.parameters().names
     L, h = cfg.values["vane.length"], cfg.values["vane.thickness"]
     assert p[names.index("vane.mass")] == 0.002
-    assert p[names.index("vane.inertia")] == pytest.approx(0.002 * (L**2 + h**2) / 12, rel=1e-14)
+    assert p[names.index("vane.inertia")] == pytest.approx(0.002 * (L**2 + h**2) / 12, rel=ROUNDING_REL)
     # and the seed matrix (dz/dx) carries d inertia / d mass
     col = prob._seeds[:, 0]
-    assert col[names.index("vane.inertia")] == pytest.approx((L**2 + h**2) / 12, rel=1e-9)
+    assert col[names.index("vane.inertia")] == pytest.approx((L**2 + h**2) / 12, rel=SEED_REL)
 
 
 def test_measurement_registry_orders_the_fit_graph_inputs():
