@@ -50,7 +50,8 @@ def _schema() -> dict:
             node = node.setdefault(part, {})
         for q in section(sec):
             if q.name not in _LIST_VALUED:
-                required = (q.default is REQUIRED and not q.derived and not q.aliases
+                config_alias = any("." in a for a in q.aliases)  # housing.radius gives a, b
+                required = (q.default is REQUIRED and not q.derived and not config_alias
                             and sec not in OPTIONAL_SECTIONS)
                 node[q.name.rsplit(".", 1)[1]] = ("num", required, q.default)
         node.update(_OTHER_KEYS.get(sec, {}))
