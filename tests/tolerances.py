@@ -59,3 +59,20 @@ ROUNDING_REL = 1e-14
 # step; subtracting parameter values of size ~0.5 to get slopes of size ~1e-5 loses ~5 digits of
 # the 16, so 1e-9 relative.
 SEED_REL = 1e-9
+# Compiled kernel vs NumPy lambdified from the same SymPy (codegen/numpy_model.py): the same
+# formulas in another operation order and libm, both position solves at rounding; 1e-11 relative.
+NUMPY_CROSS_REL = 1e-11
+# Integrator state scaling: the scaled run and the run with the equivalent absolute tolerance
+# take the same steps (asserted); what differs is rounding in the scaled arithmetic over ~50
+# steps, 1e-9 relative ...
+SCALING_SAME_REL = 1e-9
+# ... and both are right: CVODES at rtol 1e-6 over 2.4 periods of an oscillator has a global
+# error ~1e2 x rtol; 1e-4 of the amplitude.
+OSCILLATOR_REL = 1e-4
+# The report form's drive row is qdd_theta = omegadot exactly: LAPACK returns it to a few ulps.
+DRIVE_ROW_REL = 1e-12
+# sddot from the report form vs the per-vane closed solve, absolutely where sddot passes zero
+# (elsewhere it is 1e2-1e4 m/s^2, so this floor is 1e-13..1e-11 of it).
+SDDOT_FLOOR_ABS = 1e-9  # m/s^2
+# Phi(q) at the solved positions: the position solve closes to ~1e-16 m on ~1e-2 m lengths.
+CONSTRAINT_ABS = 1e-13  # m

@@ -3,6 +3,7 @@ import casadi as ca
 import numpy as np
 
 from pumpsim.integrate import Integrator, integrate_segmented
+from tests.tolerances import OSCILLATOR_REL, SCALING_SAME_REL
 
 
 def _oscillator(w):
@@ -23,7 +24,7 @@ def test_uniform_scale_is_the_same_as_a_scaled_atol():
         runs.append((xs, stats["nsteps"]))
     (xa, na), (xb, nb) = runs
     assert na == nb
-    assert np.max(np.abs(xa - xb)) <= 1e-9 * np.max(np.abs(xb))
+    assert np.max(np.abs(xa - xb)) <= SCALING_SAME_REL * np.max(np.abs(xb))
     exact = np.sin(w * t) / w
-    assert np.max(np.abs(xa[:, 0] - exact)) <= 1e-4 * np.max(np.abs(exact))  # and it is right
+    assert np.max(np.abs(xa[:, 0] - exact)) <= OSCILLATOR_REL * np.max(np.abs(exact))  # and it is right
 
