@@ -76,3 +76,24 @@ DRIVE_ROW_REL = 1e-12
 SDDOT_FLOOR_ABS = 1e-9  # m/s^2
 # Phi(q) at the solved positions: the position solve closes to ~1e-16 m on ~1e-2 m lengths.
 CONSTRAINT_ABS = 1e-13  # m
+# Torque drive with friction and no torque: the energy may only fall; a sample-to-sample rise above
+# 1e-9 of the initial energy is more than CVODES at rtol 1e-9 can produce.
+MONOTONE_ENERGY_REL = 1e-9
+# Forward then inverse dynamics: the forward kernel's Newton on omegadot converges to rounding
+# (the torque is piecewise affine in omegadot), so the inverse returns the applied torque to 1e-10.
+FORWARD_INVERSE_REL = 1e-10
+# omegadot against np.gradient of the integrated speed sampled at 2 kHz: a second-order difference
+# that friction-reversal kinks make first order locally; 2 % relative plus 0.1 % of the largest
+# |omegadot| where it passes zero.
+GRADIENT_REL, GRADIENT_FLOOR = 2e-2, 1e-3
+# Transient fit (40 samples, speed noise 0.01 rad/s): the COF's standard error is ~0.1 %; 0.5 % is
+# ~5 sigma, and the start speed within 0.02 rad/s (2 sigma of one sample's noise).
+TRANSIENT_MU_REL = 5e-3
+TRANSIENT_SPEED0_ABS = 0.02  # rad/s
+# CVODES sensitivities vs central differences (step 1e-4 of the value, integration at rtol 1e-12):
+# truncation ~1e-8, so 1e-5 of the column's scale; theta0 moves the friction kinks in time, where
+# the difference quotient smears a step over 2h: 2e-3.
+SENSITIVITY_REL, SENSITIVITY_THETA0_REL = 1e-5, 2e-3
+# Steady section of a synthetic run-up: the speed reaches its plateau at 0.3 s and leaves it at
+# 0.8 s; a 1 % speed band puts the edges 0.003 s inside; 0.002 s is 10 samples at 5 kHz.
+STEADY_EDGE_ABS = 0.002  # s

@@ -9,6 +9,7 @@ import pytest
 from pumpsim.data import DataOptions, load_data, resample, steady_section
 from pumpsim.errors import DataError
 from tests.conftest import ROOT
+from tests.tolerances import STEADY_EDGE_ABS
 
 W = 471.0
 GOOD_T = np.arange(0, 0.03, 1e-4)
@@ -93,7 +94,7 @@ def test_steady_section_of_a_run_up_and_resampling():
     from pumpsim.data import Dataset
 
     ds = steady_section(Dataset(t, np.ones_like(t), w), tolerance=0.01)
-    assert ds.time[0] == pytest.approx(0.297, abs=0.002) and ds.time[-1] == pytest.approx(0.803, abs=0.002)
+    assert ds.time[0] == pytest.approx(0.297, abs=STEADY_EDGE_ABS) and ds.time[-1] == pytest.approx(0.803, abs=STEADY_EDGE_ABS)
     r = resample(ds, 1000.0)
     assert np.allclose(np.diff(r.time), 1e-3)
     with pytest.raises(DataError, match="needs a speed column"):
