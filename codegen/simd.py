@@ -268,7 +268,7 @@ def generate_source(structure) -> tuple[str, dict]:
     lines = src.splitlines()
     starts = {m.group(1): i + 1 for i, ln in enumerate(lines) for m in [re.match(r"static void (loop_\w+)\(", ln)] if m}
     ends = {name: next(i + 1 for i in range(a, len(lines)) if lines[i] == "}") for name, a in starts.items()}
-    info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]),
+    info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]), "chunk": CHUNK,
             "vane_instructions": vane.n_instructions(),
             "loop_lines": {name: [starts[name], ends[name]] for name in starts}}
     return src, info

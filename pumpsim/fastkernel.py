@@ -101,8 +101,10 @@ class FastInverseDynamics:
                 raise ConfigError(f"p has {rows} rows; {n} samples in blocks of {block} need "
                                   f"{max(1, -(-n // block))}")
             p = np.ascontiguousarray(p)
-        # ranges for threads: whole blocks each
-        unit = 1 if per_sample else block
+        # threads take whole blocks, or whole chunks of one design: the library restarts its
+        # chunks at each block, so any split gives the same bits as one call
+        shared = not per_sample and p.ndim == 1
+        unit = block if not (per_sample or shared) else self.manifest.get("chunk", 512)
         units = -(-n // unit) if n else 0
         cuts = [min(n, unit * (units * t // max(1, threads))) for t in range(max(1, threads) + 1)]
 
@@ -112,6 +114,8 @@ class FastInverseDynamics:
             args = (hi - lo, theta[lo:].ctypes.data, omega[lo:].ctypes.data, omegadot[lo:].ctypes.data)
             if per_sample:
                 return self._samples(*args, pt[:, lo:].ctypes.data, n, out[:, lo:].ctypes.data, n)
+            if shared:
+                return self._blocks(*args, p.ctypes.data, hi - lo, out[:, lo:].ctypes.data, n)
             return self._blocks(*args, p[lo // block:].ctypes.data, block, out[:, lo:].ctypes.data, n)
 
         if threads > 1 and n > 1:

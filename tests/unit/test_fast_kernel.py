@@ -80,15 +80,36 @@ def test_parameters_per_block_and_per_sample(case):
         assert_agree({k: v[..., sl] for k, v in per_sample.items()}, ref, pv.values["housing.a"])
 
 
+def test_a_design_gets_the_same_bits_alone_or_in_a_batch(case):
+    """Blocks are evaluated exactly as separate calls (chunks restart at each block), so a design
+    study's numbers do not depend on how designs are batched over workers."""
+    _, fk, _, pv = case
+    rng = np.random.default_rng(11)
+    P = designs(pv, rng, 4)
+    n = 361  # blocks start at every alignment
+    theta = rng.uniform(0, 7, n)
+    omega = rng.uniform(100, 500, 4)
+    batch = {k: v.copy() for k, v in fk(np.tile(theta, 4), np.repeat(omega, n), 0.0, P, block=n).items()}
+    for d in range(4):
+        alone = fk(theta, omega[d], 0.0, P[d])
+        for k, v in alone.items():
+            np.testing.assert_array_equal(batch[k][..., d * n:(d + 1) * n], v, err_msg=k)
+
+
 def test_threads_and_reused_output_give_the_same_numbers(case):
-    _, fk, p, _ = case
+    _, fk, p, pv = case
     theta, omega, omegadot = random_motion(np.random.default_rng(9), 2000)
     one = {k: v.copy() for k, v in fk(theta, omega, omegadot, p).items()}
     out = fk.output_array(theta.size)
     two = fk(theta, omega, omegadot, p, out=out, threads=2)
     assert two["torque"].base is out or two["torque"] is out[0]
-    for k in one:  # the chunks cut at different samples: lanes may see other libm variants
-        np.testing.assert_allclose(two[k], one[k], rtol=0, atol=SIMD_REL * max(np.abs(one[k]).max(), 1e-9))
+    for k in one:  # threads split at the library's chunk boundaries: the same bits
+        np.testing.assert_array_equal(two[k], one[k], err_msg=k)
+    P = designs(pv, np.random.default_rng(4), 3)
+    a = {k: v.copy() for k, v in fk(theta[:1998], omega[:1998], omegadot[:1998], P, block=666).items()}
+    b = fk(theta[:1998], omega[:1998], omegadot[:1998], P, block=666, threads=2)
+    for k in a:
+        np.testing.assert_array_equal(b[k], a[k], err_msg=k)
 
 
 def test_bad_arguments_are_named(case):
