@@ -39,6 +39,11 @@ _LOADED: dict = {}
 _c_long, _ptr = ctypes.c_long, ctypes.c_void_p
 
 
+def _address(a: np.ndarray) -> int:
+    """Address of a C-contiguous array's first element (cheaper than a.ctypes.data)."""
+    return a.__array_interface__["data"][0]
+
+
 class FastInverseDynamics:
     """Inverse dynamics over samples in SIMD lanes (see the module docstring)."""
 
@@ -60,12 +65,15 @@ class FastInverseDynamics:
     # -- arguments ---------------------------------------------------------------------------------
     def _samples_array(self, name, a, n):
         a = np.asarray(a, dtype=float)
-        if a.ndim > 1 or (a.ndim == 1 and a.size != n):
+        if a.ndim == 0:
+            return np.full(n, a)
+        if a.ndim > 1 or a.size != n:
             raise ConfigError(f"{name} must be a scalar or have {n} samples, got shape {a.shape}")
-        return np.ascontiguousarray(np.broadcast_to(a, (n,)))
+        return np.ascontiguousarray(a)
 
     def output_array(self, n: int) -> np.ndarray:
-        """An output buffer for n samples, to pass as `out=` to repeated calls."""
+        """An output buffer for n samples, to pass as `out=` to repeated calls. `out` may also be
+        a column range of a wider array (rows contiguous, any row stride)."""
         return np.empty((self.rows, n))
 
     def __call__(self, theta, omega, omegadot, p, block: int | None = None, out=None,
@@ -86,8 +94,11 @@ class FastInverseDynamics:
                               f"got shape {p.shape}")
         if out is None:
             out = self.output_array(n)
-        elif out.shape != (self.rows, n) or out.dtype != np.float64 or not out.flags.c_contiguous:
-            raise ConfigError(f"out must be a C-contiguous float64 array of shape {(self.rows, n)}")
+        elif (out.shape != (self.rows, n) or out.dtype != np.float64 or out.strides[1] != 8
+              or out.strides[0] < 8 * n or out.strides[0] % 8):
+            raise ConfigError(f"out must be a float64 array of shape {(self.rows, n)} with contiguous "
+                              "rows (see output_array)")
+        ld = out.strides[0] // 8
         if p.ndim == 2 and block is None:
             if p.shape[0] != n:
                 raise ConfigError(f"p has {p.shape[0]} rows for {n} samples; give block= for one "
@@ -108,15 +119,18 @@ class FastInverseDynamics:
         units = -(-n // unit) if n else 0
         cuts = [min(n, unit * (units * t // max(1, threads))) for t in range(max(1, threads) + 1)]
 
-        def run(lo, hi):
+        a_th, a_om, a_od, a_out = (_address(x) for x in (theta, omega, omegadot, out))
+        a_p = _address(pt if per_sample else p)
+
+        def run(lo, hi):  # byte offsets into the C-contiguous float64 buffers
             if hi <= lo:
                 return 0
-            args = (hi - lo, theta[lo:].ctypes.data, omega[lo:].ctypes.data, omegadot[lo:].ctypes.data)
+            args = (hi - lo, a_th + 8 * lo, a_om + 8 * lo, a_od + 8 * lo)
             if per_sample:
-                return self._samples(*args, pt[:, lo:].ctypes.data, n, out[:, lo:].ctypes.data, n)
+                return self._samples(*args, a_p + 8 * lo, n, a_out + 8 * lo, ld)
             if shared:
-                return self._blocks(*args, p.ctypes.data, hi - lo, out[:, lo:].ctypes.data, n)
-            return self._blocks(*args, p[lo // block:].ctypes.data, block, out[:, lo:].ctypes.data, n)
+                return self._blocks(*args, a_p, hi - lo, a_out + 8 * lo, ld)
+            return self._blocks(*args, a_p + 8 * self.n_params * (lo // block), block, a_out + 8 * lo, ld)
 
         if threads > 1 and n > 1:
             with ThreadPoolExecutor(threads) as ex:
