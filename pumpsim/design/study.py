@@ -210,15 +210,18 @@ def _limits_table(raw, where) -> dict:
     return out
 
 
+def _read_toml(path, what) -> dict:
+    try:
+        return tomllib.loads(Path(path).read_text())
+    except OSError as e:
+        raise ConfigError(f"{what}: cannot read '{path}': {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{what} '{path}' is not valid TOML: {e}") from None
+
+
 def load_study(path) -> Study:
     p = Path(path)
-    try:
-        raw = tomllib.loads(p.read_text())
-    except OSError as e:
-        raise ConfigError(f"cannot read study '{path}': {e.strerror}") from None
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"study '{path}' is not valid TOML: {e}") from None
-    return study_from_dict(raw, base_dir=p.parent, path=str(p))
+    return study_from_dict(_read_toml(p, "study"), base_dir=p.parent, path=str(p))
 
 
 def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
@@ -244,12 +247,7 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         if "config" not in st:
             raise ConfigError("missing required key 'study.config' (the base pump config)")
         cfg_path = Path(base_dir) / st["config"]
-        try:
-            base = tomllib.loads(cfg_path.read_text())
-        except OSError as e:
-            raise ConfigError(f"study.config: cannot read '{cfg_path}': {e.strerror}") from None
-        except tomllib.TOMLDecodeError as e:
-            raise ConfigError(f"study.config '{cfg_path}' is not valid TOML: {e}") from None
+        base = _read_toml(cfg_path, "study.config")
         try:
             base_cfg = config_from_dict(base, name_default=cfg_path.stem)
         except ConfigError as e:
