@@ -293,6 +293,12 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     import pandas as pd
 
     stats = RunStats(designs=len(X))
+    warm = []
+    if client is not None and workers != 0 and len(X):
+        # each worker imports the runtime and loads its kernels while this process times the pilot
+        for addr in client.scheduler_info().get("workers", {}):
+            warm.append(client.submit(run_batch, study, np.arange(1), X[:1], workers=[addr],
+                                      allow_other_workers=False, pure=False))
     if study.function is None and not scheduler:
         from ..kernels import load_kernels
 
