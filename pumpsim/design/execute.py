@@ -237,6 +237,10 @@ def connect(scheduler=None, workers=None, processes=True):
                               f"({type(e).__name__}: {str(e)[:200]})") from None
     n = workers or os.cpu_count() or 1
     logging.getLogger("distributed").setLevel(logging.ERROR)  # start/stop chatter is not ours to print
+    import warnings
+
+    # its HTTP endpoint moves to a free port when another cluster holds the default one
+    warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
                            dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
