@@ -97,3 +97,38 @@ SENSITIVITY_REL, SENSITIVITY_THETA0_REL = 1e-5, 2e-3
 # Steady section of a synthetic run-up: the speed reaches its plateau at 0.3 s and leaves it at
 # 0.8 s; a 1 % speed band puts the edges 0.003 s inside; 0.002 s is 10 samples at 5 kHz.
 STEADY_EDGE_ABS = 0.002  # s
+# Identification on noise-free signals (report signals 1-2, starts 40-70 % off): the estimate is
+# limited by the stopping rule (relative step 1e-6) and the sample-averaged phase columns; 0.5 %
+# leaves room for both and still rejects a wrong minimum; phase within 0.01 rad, speed 0.1 rad/s.
+NOISE_FREE_MU_REL = 5e-3
+FIT_THETA0_ABS, FIT_SPEED_ABS = 0.01, 0.1  # rad, rad/s
+# 5 % noise on 2000 samples: the COF's standard error is ~0.1-0.3 %; 1 % is a few sigma.
+NOISY_MU_REL = 1e-2
+# Levenberg-Marquardt and IPOPT on noise-free data reach Gauss-Newton's minimum to their stopping
+# tolerances.
+METHODS_AGREE_REL = 1e-4
+# AD columns vs central differences with a 1e-6 relative step: truncation ~1e-12, rounding
+# ~1e-10 of the torque scale; 1e-5 relative.
+FD_DIRECT_REL = 1e-5
+# Angle-acting columns (sample-averaged derivative) vs the pointwise derivative on a smooth pump
+# sampled at 100 kHz: they differ by O((k omega dt)^2 / 6) ~ 2e-4 for the 8th order at 471 rad/s.
+FD_ANGLE_REL = 1e-3
+# The closed-form rotor angle vs its central difference (step 1e-6): rounding of ~10 rad angles.
+ANGLE_FD_REL, ANGLE_FD_ABS = 1e-6, 1e-8
+# Requested Jacobian columns vs the full Jacobian: the same graph with fewer seed directions.
+COLUMNS_REL, COLUMNS_ABS_FRAC = 1e-12, 1e-15
+# A vane resting on the slot bottom: the simulated bottom force against the quasi-static analytic
+# one (the penalty spring's transient and the np.gradient speed derivative): 2 % relative plus
+# 0.1 % of the largest force where it passes zero.
+QUASI_STATIC_REL, QUASI_STATIC_FLOOR = 2e-2, 1e-3
+# Rounded tip, no friction or damping: energy drift at rtol 1e-10 below 1e-7 and below 0.2 of the
+# rtol 1e-8 drift (it shrinks with the tolerance: conservative, not a modelling leak).
+CONTACT_ENERGY_DRIFT, CONTACT_DRIFT_SHRINK = 1e-7, 0.2
+# With contact damping: the energy falls by > 1e-4 over 0.05 s, and never rises by more than the
+# integrator error at rtol 1e-10 (1e-9 of the energy) between samples.
+DAMPED_ENERGY_LOSS, DAMPED_ENERGY_RISE = 1e-4, 1e-9
+# The located housing-contact time vs the free-flight closed form: Illinois root finding on the
+# rtol 1e-10 integration locates it to ~1e3 x rtol of the flight time.
+CROSSING_REL = 1e-6
+# The contact laws against the spec formulas in NumPy: the same arithmetic, rounding only.
+CONTACT_LAW_REL = 1e-12
