@@ -31,8 +31,8 @@ FORMATS = ("png", "svg", "pdf")
 VANE_PANELS = [("s", "vane extension s [mm]", 1e3), ("normal", "housing normal force N [N]", 1.0)]
 SLOT_PANEL = ("slot forces F1, F2 [N]", ("slot1", "slot2"))
 SLOT_NAMES = {"slot1": "F1 (bottom end)", "slot2": "F2 (slot mouth)"}
-IDENTICAL_RTOL = 1e-7
-FLAT_RTOL = 1e-9  # a torque ripple below this fraction of the mean is rounding, not physics  # two vanes' curves closer than this (relative to the panel's range) coincide
+IDENTICAL_RTOL = 1e-7  # two vanes' curves closer than this (relative to the panel's range) coincide
+FLAT_RTOL = 1e-9  # a torque ripple below this fraction of the mean is rounding, not physics
 MODEL_TITLE = {"constrained": "constrained model (Model 2)", "contact": "contact model (Model 1)"}
 
 
@@ -292,7 +292,8 @@ def _summary(fig, cell, res, orders):
         show = max(4 * n, 12)
         k, amp = orders["orders"][1:show + 1], orders["amplitudes"][1:show + 1]
         milli = amp.max() < 0.1
-        ax.bar(k, amp * (1e3 if milli else 1.0), width=0.6, color=["C3" if (kk % n == 0 and n > 1) else "0.35" for kk in k])
+        ax.bar(k, amp * (1e3 if milli else 1.0), width=0.6,
+               color=["C3" if (kk % n == 0 and n > 1) else "0.35" for kk in k])
         ax.set_xlabel("shaft order" + (f" (red: multiples of {n}, the vane-passing orders)" if n > 1 else ""),
                       fontsize=8.5)
         ax.set_ylabel(f"torque amplitude [{'mN·m' if milli else 'N·m'}]", fontsize=8.5)

@@ -88,13 +88,13 @@ def display_scale(unit: str, value: float | None) -> tuple[float, str]:
 
 
 def _decimals(value, stderr, digits):
-    """Decimals that show the standard error to `digits` significant digits and the value to at
-    least 4; None when fixed-point notation would need more than 9 (then significant digits)."""
+    """Decimals that show the standard error to `digits` significant digits and a value larger
+    than it to at least 4; None when fixed point would need more than 7 (then significant digits)."""
     e = math.floor(math.log10(stderr)) - (digits - 1)
     dec = max(0, -e)
-    if abs(value) > 0 and math.floor(math.log10(abs(value))) - e < 3:
+    if abs(value) >= stderr and math.floor(math.log10(abs(value))) - e < 3:
         dec = max(dec, 3 - math.floor(math.log10(abs(value))))
-    return None if dec > 9 or abs(value) >= 1e7 or stderr >= 1e7 else dec
+    return None if dec > 7 or abs(value) >= 1e7 or stderr >= 1e7 else dec
 
 
 def _sig(value, stderr, digits):
@@ -215,12 +215,13 @@ def step_parameters(step) -> list[str]:
         items.append(f"order k = {p['order']}")
     if "amplitude" in p:
         A, ph = p["amplitude"], p["phase"]
+        phase = f"{fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)"
         if step["effect"] == "housing_out_of_round":
             items.append(f"radial amplitude {fmt_estimate(A['value'] * 1e6, A['stderr'] * 1e6)} µm")
-            items.append(f"phase γ {fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)")
+            items.append(f"phase γ {phase}")
         else:  # speed ripple: omega = omega0 (1 + A cos(k theta + phase)), A relative
             items.append(f"amplitude {fmt_estimate(A['value'] * 100, A['stderr'] * 100)} % of ω0")
-            items.append(f"phase {fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)")
+            items.append(f"phase {phase}")
         return items
     for name, v in p.items():
         if isinstance(v, dict):

@@ -137,7 +137,8 @@ def interval_warning(white: bool, runs_p: float, lb_p: float, residual=None) -> 
         rho = ar1(residual)
         if rho > 0:
             extra = (f" The residual's lag-1 autocorrelation is {rho:.2f}: for AR(1) errors the standard "
-                     f"errors are too small by about √((1+ρ)/(1−ρ)) = {math.sqrt((1 + rho) / (1 - rho)):.2g}×.")
+                     f"errors are too small by about √((1+ρ)/(1−ρ)) = "
+                     f"{math.sqrt((1 + rho) / (1 - rho)):.2g}×.")
     return (f"<p class=warn><b>Intervals are optimistic.</b> Runs test p = {runs_p:.3g}, Ljung–Box p = "
             f"{lb_p:.3g}: {html.escape(OPTIMISTIC)}; the model misses something systematic.{extra}</p>")
 
@@ -154,7 +155,8 @@ def param_row(name, value, stderr, lower=None, upper=None, start=None, harmonics
     elif unit == "rad/s" and value is not None:
         extra = f" ({value * RPM:.6g} rpm)"
     ci = "—" if value is None else fmt_interval(sc(lower), sc(upper), sc(stderr))
-    return [Cell(name), Cell(label), Cell(shown), Cell(fmt_number(sc(start)) if start is not None else "—", True),
+    return [Cell(name), Cell(label), Cell(shown),
+            Cell(fmt_number(sc(start)) if start is not None else "—", True),
             Cell(nb(est + extra), True, raw=True), Cell(nb(ci), True, raw=True)]
 
 
@@ -181,7 +183,8 @@ def segments(res, data=None) -> list:
 
 def signal_of(res) -> tuple[str, str]:
     """What a result fitted: the drive torque, or the speed for a transient (run-up) fit."""
-    return ("rotor speed ω", "rad/s") if "transient" in str(getattr(res, "method", "")) else ("drive torque τ", "N·m")
+    transient = "transient" in str(getattr(res, "method", ""))
+    return ("rotor speed ω", "rad/s") if transient else ("drive torque τ", "N·m")
 
 
 def residual_figures(res, data=None, title="residual"):
@@ -288,7 +291,8 @@ def _status(res) -> str:
     cls = "ok" if res.converged and d["white_at_5pct"] and not res.unidentifiable else "warn"
     return (f"<p class={cls}>{html.escape(res.method)}: <b>{'converged' if res.converged else 'NOT converged'}</b>"
             f" ({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
-            f"{nb(format(res.rms, '.4g') + ' ' + signal_of(res)[1])}, residual {'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
+            f"{nb(format(res.rms, '.4g') + ' ' + signal_of(res)[1])}, residual "
+            f"{'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
             f"{res.wall_time:.2f} s.</p>")
 
 
@@ -319,7 +323,8 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
     if res.correlation is not None and len(res.correlation) > 1:
         names = [n for n, e in res.estimates.items() if e.identifiable]
         parts.append("<h3>Correlation of the estimates</h3>" + table(
-            [""] + names, [[Cell(n)] + [Cell(f"{v:+.3f}", True) for v in r] for n, r in zip(names, res.correlation)]))
+            [""] + names,
+            [[Cell(n)] + [Cell(f"{v:+.3f}", True) for v in r] for n, r in zip(names, res.correlation)]))
     if signal_of(res)[1] == "N·m":
         parts.append("<h2>Measured and model torque</h2>" + torque_overlay(res, data))
     else:
@@ -465,7 +470,8 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
 def _steps_table(out, history, steps) -> str:
     chain = bic_chain(history) if len(history) == len(steps) + 1 else None
     base = _get(out, "baseline")
-    headers = ["step", "RMS [N·m]", "RMS change", "score-test p", "BIC", "ΔBIC (step's test)", "parameters (± s.e.)"]
+    headers = ["step", "RMS [N·m]", "RMS change", "score-test p", "BIC", "ΔBIC (step's test)",
+               "parameters (± s.e.)"]
     base_items = [parameter_text(n, v["value"], v["stderr"]) for n, v in base["params"].items()]
     rows = [[Cell("baseline"), Cell(f"{base['rms']:.5g}", True), Cell("", True), Cell("", True),
              Cell("—" if chain is None else f"{chain[0][0]:.1f}", True), Cell("", True),
@@ -507,8 +513,14 @@ def _final_table(out, history, steps, cfg) -> str:
         if n in skip:
             continue
         e = last.estimates.get(n) if last is not None else None
-        rows.append(param_row(n, v["value"], v["stderr"], getattr(e, "lower95", None), getattr(e, "upper95", None),
-                              None, harmonics))
+        row = param_row(n, v["value"], v["stderr"], getattr(e, "lower95", None), getattr(e, "upper95", None),
+                        None, harmonics)
+        nd = v.get("not_determined")
+        if v["value"] is None and nd and nd.get("estimate") is not None:  # an estimate smaller than its s.e.
+            f, _ = display_scale(describe(n, harmonics)[1], nd["estimate"])
+            se = None if nd.get("stderr") is None else nd["stderr"] * f
+            row[4] = Cell(nb(f"not determined ({fmt_estimate(nd['estimate'] * f, se)})"), True, raw=True)
+        rows.append(row)
     if last is not None:
         from .diagnose import _polar
 
@@ -521,7 +533,8 @@ def _final_table(out, history, steps, cfg) -> str:
                 rows.append(_polar_row(f"out-of-round k = {k}", "phase γ_k (A cos k(α − γ))",
                                        {"value": ph["value"] / k, "stderr": ph["stderr"] / k}, 1.0, "rad"))
             else:
-                rows.append(_polar_row(f"speed ripple k = {k}", "amplitude (ω = ω0 (1 + A cos(kθ + φ)))", A, 100, "% of ω0"))
+                rows.append(_polar_row(f"speed ripple k = {k}", "amplitude (ω = ω0 (1 + A cos(kθ + φ)))", A,
+                                       100, "% of ω0"))
                 rows.append(_polar_row(f"speed ripple k = {k}", "phase φ", ph, 1.0, "rad"))
     return ("<h2>Final model parameters</h2>" + table(["parameter", "meaning", "unit", "estimate ± s.e."],
                                                       [[r[0], r[1], r[2], r[4]] for r in rows])
@@ -571,7 +584,8 @@ def _ranking_table(i, screen) -> str:
     for k, r in enumerate(cands, 1):
         vals = [Cell("—" if r.get(key) is None else format(r[key], f), True) for _, key, f in cols]
         rows.append([Cell(str(k), True), Cell(r["candidate"])] + vals[:1]
-                    + [Cell("yes" if r.get("significant") else "no")] + vals[1:] + [Cell(r.get("collinear_with") or "")])
+                    + [Cell("yes" if r.get("significant") else "no")] + vals[1:]
+                    + [Cell(r.get("collinear_with") or "")])
         classes.append("chosen" if r["candidate"] == screen.get("chosen") else None)
     chosen = screen.get("chosen")
     shown = RANKING_SHOWN

@@ -184,7 +184,8 @@ def test_estimates_are_rounded_to_their_standard_error(value, stderr):
     v, e = fmt_estimate(value, stderr).split(" ± ")
     assert abs(float(v) - value) <= 0.1 * stderr and abs(float(e) / stderr - 1) < 0.05
     lo, hi = fmt_interval(value - 2 * stderr, value + 2 * stderr, stderr).split(" … ")
-    assert abs(float(lo) - (value - 2 * stderr)) <= 0.1 * stderr and abs(float(hi) - (value + 2 * stderr)) <= 0.1 * stderr
+    assert abs(float(lo) - (value - 2 * stderr)) <= 0.1 * stderr
+    assert abs(float(hi) - (value + 2 * stderr)) <= 0.1 * stderr
 
 
 def test_provenance_falls_back_on_the_results_own_record():
