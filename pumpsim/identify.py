@@ -9,7 +9,6 @@ residual diagnostics).
 from __future__ import annotations
 
 import difflib
-import hashlib
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -27,7 +26,7 @@ from .errors import ConfigError
 from .kernels import load_kernels, map_samples
 from .model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                     MEASUREMENT, alias_targets, derive, fit_bounds, layout)
-from .presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe
+from .presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe, samples_sha256, sha256
 from .sensor import first_order_lag
 from .simulate import ripple_motion
 
@@ -55,14 +54,7 @@ def provenance(cfg, data, kern) -> dict:
     files = []
     for d in (data if isinstance(data, (list, tuple)) else [data]):
         path = Path(d.source) if d.source else None
-        if path is not None and path.is_file():
-            digest = hashlib.sha256(path.read_bytes()).hexdigest()
-        else:
-            h = hashlib.sha256()
-            for a in (d.time, d.torque, d.speed, d.angle):
-                if a is not None:
-                    h.update(np.ascontiguousarray(a, dtype=float).tobytes())
-            digest = h.hexdigest()
+        digest = sha256(path) if path is not None and path.is_file() else samples_sha256(d)
         files.append({"name": path.name if path else "(in memory)", "sha256": digest})
     return {"config": cfg.path or cfg.name, "data": files, "kernel_key": kern.key}
 
