@@ -249,6 +249,9 @@ def build_parser():
     from .design.cli import add_design_commands  # sweep, sensitivity, optimize (spec §9)
 
     add_design_commands(sub)
+    from .pneumatics.cli import add_pumpdown_command  # pumpdown (spec §8)
+
+    add_pumpdown_command(sub)
     return ap
 
 

@@ -1,0 +1,100 @@
+"""`pumpsim pumpdown` (spec §8): registered on pumpsim's parser by pumpsim.cli."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from ..errors import ConfigError
+
+
+def add_pumpdown_command(sub) -> None:
+    pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy (spec §8)")
+    pd.add_argument("config")
+    pd.add_argument("--until", type=float, help="target booster pressure [Pa] (default booster.target)")
+    pd.add_argument("--duration", type=float, help="longest simulated time [s] (default 120)")
+    pd.add_argument("--out", help="CSV file for the spec §8 columns")
+    pd.add_argument("--plot", help="PNG file for the pump-down figures")
+    pd.add_argument("--json", help="JSON file for the summary and the solver statistics")
+    pd.add_argument("--report", help="HTML report (figures and tables)")
+    pd.add_argument("--fast", action="store_true",
+                    help="also run the fast path (cycle-averaged maps) and compare (always with "
+                         "--plot/--report: the maps give the S(p) figure)")
+    pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
+    pd.add_argument("--rtol", type=float, default=1e-6)
+    pd.add_argument("--atol", type=float, default=1e-6,
+                    help="absolute tolerance relative to each state's starting size")
+    pd.set_defaults(func=cmd_pumpdown)
+
+
+def _check_outputs(a) -> None:
+    """Every output path is checked before any work starts."""
+    for opt, ext in (("out", None), ("plot", ".png"), ("json", None), ("report", ".html")):
+        path = getattr(a, opt)
+        if path is None:
+            continue
+        folder = Path(path).parent
+        if not folder.is_dir():
+            raise ConfigError(f"--{opt}: output folder '{folder}' does not exist")
+        if ext and Path(path).suffix.lower() != ext:
+            raise ConfigError(f"--{opt} must be a {ext} file, got '{path}'")
+
+
+def _progress(t, pb):
+    print(f"\r  t = {t:7.3f} s, booster {pb / 1e3:6.2f} kPa", end="", file=sys.stderr, flush=True)
+
+
+def cmd_pumpdown(a) -> int:
+    from ..config import load_config
+    from ..io import write_text
+    from . import pumpdown as pdm
+
+    _check_outputs(a)
+    cfg = load_config(a.config)
+    if cfg.pneumatic is None:
+        raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
+    progress = _progress if sys.stderr.isatty() else None
+    res = pdm.pumpdown(cfg, until=a.until, duration=a.duration, rate=a.rate, rtol=a.rtol, atol=a.atol,
+                       progress=progress)
+    if progress:
+        print(file=sys.stderr)
+    maps = fast = None
+    if a.fast or a.plot or a.report:
+        p_end = min(res.summary["final_pressure"], res.summary["target_pressure"] or math.inf)
+        maps = pdm.pump_maps(cfg, map_pressures(cfg, p_end))
+        fast = pdm.fast_pumpdown(cfg, maps, until=a.until, duration=max(2 * res.summary["duration"], 1.0))
+        res.summary["fast_path"] = {**fast, "map_wall_time": maps.wall_time, "map_steps": maps.steps,
+                                    "maps": maps_dict(maps)}
+    print(res.text())
+    if fast:
+        t_f = fast["time_to_target"]
+        print(f"  fast path: time to target {t_f:.3f} s, mean current {fast['mean_current']:.2f} A "
+              f"({fast['wall_time'] * 1e3:.1f} ms from maps made in {maps.wall_time:.1f} s)"
+              if t_f is not None else "  fast path: target not reached")
+    for w in res.warnings:
+        print(f"pumpsim: warning: {w}", file=sys.stderr)
+    if a.out:
+        res.to_csv(a.out)
+    if a.json:
+        write_text(a.json, json.dumps(res.summary, indent=1, default=float))
+    if a.plot or a.report:
+        from .figures import pumpdown_figure, pumpdown_report
+
+        if a.plot:
+            pumpdown_figure(res, maps, cfg, a.plot)
+        if a.report:
+            pumpdown_report(res, maps, cfg, a.report)
+    return 0
+
+
+def map_pressures(cfg, p_end, n=9):
+    """Map grid from below the lowest pressure reached to the start, geometric."""
+    lo = 0.8 * p_end
+    return list(__import__("numpy").geomspace(lo, cfg.pneumatic.booster_start, n))
+
+
+def maps_dict(m) -> dict:
+    return {k: [float(x) for x in getattr(m, k)] for k in
+            ("pressure", "mass_flow", "pumping_speed", "current", "torque", "speed", "gas_torque",
+             "friction_torque")}

@@ -1,0 +1,72 @@
+"""Pump-down (spec §8): fast path vs full model, and the command's contract."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pumpsim.cli import main
+from pumpsim.pneumatics import pumpdown as pdm
+from tests.conftest import EXAMPLES
+from tests.pneumatics.helpers import evp_config
+
+EVP = str(EXAMPLES / "evp_booster.toml")
+
+
+def test_fast_path_agrees_with_the_full_model():
+    """A 1 L booster from 101.3 to 30 kPa: time to target and mean current within 2 %."""
+    cfg = evp_config(**{"booster.volume": 1.0e-3})
+    full = pdm.pumpdown(cfg)
+    assert full.summary["time_to_target"] is not None
+    maps = pdm.pump_maps(cfg, np.geomspace(25e3, cfg.pneumatic.booster_start, 8))
+    fast = pdm.fast_pumpdown(cfg, maps)
+    assert fast["time_to_target"] == pytest.approx(full.summary["time_to_target"], rel=0.02)
+    assert fast["mean_current"] == pytest.approx(full.summary["mean_current"], rel=0.02)
+    # the maps are physical: less flow and more current as the booster empties
+    assert np.all(np.diff(maps.mass_flow) > 0) and maps.current[0] > maps.current[-1]
+
+
+def test_pumpdown_command_writes_the_spec_columns_and_json(tmp_path):
+    out, js = tmp_path / "pd.csv", tmp_path / "pd.json"
+    assert main(["pumpdown", EVP, "--duration", "0.03", "--out", str(out), "--json", str(js)]) == 0
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[:6] == ["time", "angle", "speed", "torque", "booster_pressure", "current"]
+    for i in range(4):
+        assert {f"pressure_{i}", f"volume_{i}", f"temperature_{i}"} <= set(header)
+    s = json.loads(js.read_text())
+    for k in ("time_to_target", "final_pressure", "energy", "peak_current", "mean_current", "solver"):
+        assert k in s
+    assert s["time_to_target"] is None and s["final_pressure"] < 101300.0
+    data = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert data[-1, 0] == pytest.approx(0.03)
+    assert s["energy"] > 0 and s["peak_current"] > s["mean_current"] > 0
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--until", "2e5"], "--until must be in (0, booster.pressure"),
+    (["--out", "/nonexistent/x.csv"], "output folder '/nonexistent' does not exist"),
+    (["--plot", "x.svg"], "--plot must be a .png file"),
+    (["--duration", "-1"], "--duration must be > 0"),
+])
+def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, message):
+    js = tmp_path / "pd.json"
+    assert main(["pumpdown", EVP, "--json", str(js), *args]) == 2
+    assert message in capsys.readouterr().err
+    assert not js.exists()
+
+
+def test_mechanical_config_is_rejected(capsys):
+    assert main(["pumpdown", str(EXAMPLES / "ellipse_4vanes.toml")]) == 2
+    assert "needs the gas tables" in capsys.readouterr().err
+
+
+def test_motor_mode_is_refused_by_simulate(capsys):
+    assert main(["simulate", EVP]) == 2
+    assert "use `pumpsim pumpdown`" in capsys.readouterr().err
+
+
+def test_time_to_target_is_located_exactly():
+    cfg = evp_config(**{"booster.volume": 2.0e-4, "booster.target": 90000.0})
+    r = pdm.pumpdown(cfg, rate=500.0)
+    assert r.summary["final_pressure"] == pytest.approx(90000.0, rel=1e-8)
+    assert math.isclose(r.time[-1], r.summary["time_to_target"])
