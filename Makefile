@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install codegen demo demo-design test test-all bench bench-design clean
+.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml
@@ -26,6 +26,13 @@ demo: codegen
 	$(BIN)/pumpsim diagnose examples/ellipse_4vanes.toml examples/data/ellipse_hidden_effects.csv \
 		--json out/ellipse_diagnosis.json --report out/ellipse_diagnosis.html
 	$(MAKE) --no-print-directory demo-design
+	$(MAKE) --no-print-directory demo-pumpdown
+
+# the EVP example: 4 L booster, 101.3 -> 30 kPa at 13.5 V (full model, fast path, figures)
+demo-pumpdown: codegen
+	mkdir -p out
+	$(BIN)/pumpsim pumpdown examples/evp_booster.toml --out out/evp_pumpdown.csv --json out/evp_pumpdown.json \
+		--plot out/evp_pumpdown.png --report out/evp_pumpdown.html
 
 # design studies at reduced size (full size: drop --samples)
 demo-design: codegen
@@ -49,6 +56,7 @@ bench: codegen
 	mkdir -p out
 	$(BIN)/python bench/run.py --json out/bench.json
 	$(BIN)/python bench/design.py --json out/bench.json
+	$(BIN)/python bench/pumpdown.py --json out/bench.json
 
 bench-design: codegen
 	mkdir -p out

@@ -88,10 +88,13 @@ def cmd_pumpdown(a) -> int:
     return 0
 
 
-def map_pressures(cfg, p_end, n=9):
-    """Map grid from below the lowest pressure reached to the start, geometric."""
-    lo = 0.8 * p_end
-    return list(__import__("numpy").geomspace(lo, cfg.pneumatic.booster_start, n))
+def map_pressures(cfg, p_end, n=10):
+    """Map grid, geometric, from 5 % of the start pressure (so that S(p) reaches the ultimate
+    pressure of most pumps) or below the lowest pressure reached, to the start."""
+    import numpy as np
+
+    lo = min(0.8 * p_end, 0.05 * cfg.pneumatic.booster_start)
+    return list(np.geomspace(lo, cfg.pneumatic.booster_start, n))
 
 
 def maps_dict(m) -> dict:

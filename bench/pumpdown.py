@@ -1,0 +1,73 @@
+"""Pump-down benchmark (`make bench`, section "pumpdown"): the bundled EVP example evacuated
+101.3 -> 30 kPa at 13.5 V by the full model (all cells, valves, motor; CVODES with the compiled
+Jacobian) and by the fast path (cycle-averaged maps); wall times against simulated time, their
+ratio, step counts and solver statistics. Targets (issue 15): full path <= real time, fast path
+<= 1 s."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from pumpsim.config import load_config  # noqa: E402
+from pumpsim.pneumatics import pumpdown as pdm  # noqa: E402
+from pumpsim.pneumatics.cli import map_pressures  # noqa: E402
+from pumpsim.pneumatics.kernel import kernels  # noqa: E402
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
+    ap.add_argument("--config", default=str(ROOT / "examples" / "evp_booster.toml"))
+    a = ap.parse_args()
+    cfg = load_config(a.config)
+    kernels(cfg)  # build outside the timing
+    print(f"pump-down: {cfg.name}, {cfg.pneumatic.booster_start / 1e3:.1f} -> "
+          f"{cfg.pneumatic.booster_target / 1e3:.1f} kPa, {cfg.pneumatic.values['motor.voltage']:g} V")
+    t0 = time.perf_counter()
+    full = pdm.pumpdown(cfg)
+    wall_full = time.perf_counter() - t0
+    s, st = full.summary, full.summary["solver"]
+    revs = (full.columns["angle"][-1] - full.columns["angle"][0]) / (2 * 3.141592653589793)
+    sim = s["duration"]
+    print(f"  full model : {sim:.3f} s simulated ({revs:.0f} revolutions) in {wall_full:.2f} s wall "
+          f"= {wall_full / sim:.2f} x real time (target <= 1); {st['nsteps']} steps "
+          f"({st['nsteps'] / revs:.0f}/rev), {st['nfevals']} rhs, {st['njevals']} Jacobians, "
+          f"{st['netfails']} error-test and {st['nncfails']} Newton failures")
+    t0 = time.perf_counter()
+    maps = pdm.pump_maps(cfg, map_pressures(cfg, s["final_pressure"]))
+    wall_maps = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    fast = pdm.fast_pumpdown(cfg, maps)
+    wall_fast = time.perf_counter() - t0
+    print(f"  fast path  : {wall_fast * 1e3:.1f} ms from the maps (target <= 1 s; {fast['rhs_evaluations']} "
+          f"rhs), maps {wall_maps:.1f} s ({len(maps.pressure)} pressures, {maps.steps} steps)")
+    print(f"  ratio full / fast: {wall_full / wall_fast:.0f}x (full / (maps + fast): "
+          f"{wall_full / (wall_maps + wall_fast):.1f}x)")
+    print(f"  time to target {s['time_to_target']:.3f} s full, {fast['time_to_target']:.3f} s fast; "
+          f"mean current {s['mean_current']:.2f} / {fast['mean_current']:.2f} A; peak "
+          f"{s['peak_current']:.1f} A; energy {s['energy']:.0f} / {fast['energy']:.0f} J")
+    res = {"simulated_s": sim, "revolutions": revs, "full_wall_s": wall_full,
+           "full_real_time_factor": wall_full / sim, "full_solver": st, "fast_wall_s": wall_fast,
+           "maps_wall_s": wall_maps, "map_steps": maps.steps, "ratio_full_fast": wall_full / wall_fast,
+           "time_to_target": {"full": s["time_to_target"], "fast": fast["time_to_target"]},
+           "mean_current": {"full": s["mean_current"], "fast": fast["mean_current"]},
+           "peak_current": s["peak_current"], "energy": {"full": s["energy"], "fast": fast["energy"]}}
+    path = Path(a.json)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = json.loads(path.read_text()) if path.exists() else {}
+    data["pumpdown"] = res
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=float))
+    os.replace(tmp, path)
+    print(f"wrote {path} (pumpdown)")
+
+
+if __name__ == "__main__":
+    main()
