@@ -22,8 +22,8 @@ def add_pumpdown_command(sub) -> None:
                     help="also run the fast path (cycle-averaged maps) and compare (always with "
                          "--plot/--report: the maps give the S(p) figure)")
     pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
-    pd.add_argument("--rtol", type=float, default=1e-6)
-    pd.add_argument("--atol", type=float, default=1e-6,
+    pd.add_argument("--rtol", type=float, default=1e-5)
+    pd.add_argument("--atol", type=float, default=1e-5,
                     help="absolute tolerance relative to each state's starting size")
     pd.set_defaults(func=cmd_pumpdown)
 

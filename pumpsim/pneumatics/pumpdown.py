@@ -75,7 +75,7 @@ def _target(cfg, until):
     return target
 
 
-def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=1e-6, atol=1e-6,
+def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=1e-5, atol=1e-5,
              progress=None) -> PumpdownResult:
     """Full-model pump-down from booster.pressure to `until` (default booster.target), at most
     `duration` seconds (default 120 s)."""
@@ -165,7 +165,7 @@ def _at(arr, s):
     return arr[j] * (1 - f) + arr[min(j + 1, len(arr) - 1)] * f
 
 
-def pump_maps(cfg, pressures, rtol=1e-6, atol=1e-6) -> PumpMaps:
+def pump_maps(cfg, pressures, rtol=1e-5, atol=1e-5) -> PumpMaps:
     """Cycle-averaged maps at the booster pressures given (any order)."""
     k = kernels(cfg)
     st = structure_of(cfg)
