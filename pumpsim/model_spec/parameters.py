@@ -273,6 +273,19 @@ def alias_targets(name: str) -> tuple:
 DERIVED = tuple(q for q in ROTOR + VANE + HOUSING if q.derived)
 
 
+def implausible(values: dict, structure: Structure | None = None) -> list[str]:
+    """Messages for values outside their entry's physical plausibility range (valid, but worth a
+    second look: a fitted COF of 1.4, a 5 cm vane); for diagnose's and sweeps' checks."""
+    reg = registry(structure)
+    out = []
+    for name, v in values.items():
+        q = reg.get(name)
+        if q is not None and q.plausible is not None and not q.plausible[0] <= v <= q.plausible[1]:
+            out.append(f"{name} = {v:g} {q.unit} is outside the plausible range "
+                       f"[{q.plausible[0]:g}, {q.plausible[1]:g}] {q.unit}")
+    return out
+
+
 # -- measurement parameters: what a fit adds to the model's (not in the config, not in p) --------
 @dataclass(frozen=True)
 class MeasurementParameter:

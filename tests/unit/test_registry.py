@@ -72,3 +72,11 @@ def test_measurement_registry_orders_the_fit_graph_inputs():
 def test_derive_evaluates_formulas_with_dotted_names_and_decimals():
     assert reg.derive("0.5 * vane.mass + vane.length", {"vane.mass": 2.0, "vane.length": 0.25}) == 1.25
     assert reg.derived_inputs(reg.VANE[3].derived) == ["vane.mass", "vane.length", "vane.thickness"]
+
+
+def test_plausibility_ranges_flag_valid_but_unusual_values():
+    cfg = make_config()
+    assert reg.implausible(cfg.values) == []  # the bundled rig is an ordinary pump
+    odd = reg.implausible({**cfg.values, "friction.housing.dynamic": 1.4, "vane.length": 0.08})
+    assert len(odd) == 2 and any("friction.housing.dynamic = 1.4" in m for m in odd)
+    assert any(m.startswith("vane.length = 0.08 m") for m in odd)
