@@ -15,3 +15,14 @@ ATOL = 1e-10
 # Explicit RK4: fixed substep when --max-step is not given [s] (a contact transient at k = 1e5 N/m
 # and a 1 g vane has a period ~0.6 ms; 1 us resolves it with RK4's stability margin).
 RK_MAX_STEP = 1e-6
+# Design studies: an output whose spread over the designs is below CONSTANT_REL of its size plus
+# CONSTANT_ABS (by unit) is the round-off of a constant (the torque ripple of a concentric rig is
+# ~1e-16 N m): the report shows it as a constant and Sobol' analysis skips it.
+DESIGN_CONSTANT_REL = 1e-9
+DESIGN_CONSTANT_ABS = {"N·m": 1e-12, "W": 1e-9, "N": 1e-9, "m": 1e-12}
+# Contact-model study: the last two simulated revolutions' torque may differ by this share of its
+# peak for the last one to count as the periodic steady state. Measured from the in-contact start:
+# the ellipse example is at 2.5e-6 after 6 revolutions; the concentric rig (k = 5e4 N/m) decays
+# slowly (ratio ~0.92 per revolution): 3.5e-3 after 6, 5e-4 after 30 -- a change per revolution
+# bounds the remaining transient only up to 1/(1 - ratio), so on the rig ~0.5 % may remain.
+CONTACT_PERIODIC_REL = 1e-3

@@ -18,6 +18,7 @@ from ..config import as_array, config_from_dict
 from ..errors import ConfigError, PumpsimError
 from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
 from ..kernels import load_kernels
+from ..tolerances import CONTACT_PERIODIC_REL
 from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, per_vane_name, reduce_revolution
 
 SAMPLE_OUTPUTS = ("torque",)
@@ -214,13 +215,12 @@ def _evaluate_one(study, kern, pr, nrev):
 
 
 CONTACT_REVOLUTIONS = 30  # simulated from an in-contact start; the last one is reported
-PERIODIC_REL = 1e-3  # contact model: the last two revolutions' torque may differ by this share of its peak
 
 
 def _evaluate_contact(study, pr, nrev):
     """Model 1 (penalty contact) at constant speed: simulated for study.revolutions from the
     in-contact start, the last revolution sampled at the same angles as Model 2 is reported if it
-    repeats the one before (periodic steady state within PERIODIC_REL)."""
+    repeats the one before (periodic steady state within tolerances.CONTACT_PERIODIC_REL)."""
     import dataclasses
 
     from ..contact import simulate_contact
@@ -248,7 +248,7 @@ def _evaluate_contact(study, pr, nrev):
         last, prev = slice(-nrev, None), slice(-2 * nrev, -nrev)
         tq = r.torque
         drift = np.abs(tq[last] - tq[prev]).max() / max(np.abs(tq[last]).max(), 1e-300)
-        if drift > PERIODIC_REL:
+        if drift > CONTACT_PERIODIC_REL:
             return (f"not_periodic: the contact model's torque still changes by {100 * drift:.2g} % of its "
                     f"range between revolutions {revs - 1} and {revs} (raise study.revolutions)"), None
         a = {"torque": tq[last], **{k: r.vanes[k][:, last] for k in ("s", "sdot", "normal", "slot1", "slot2")},

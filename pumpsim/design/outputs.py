@@ -11,13 +11,16 @@ Definitions (i: vane, k: sample of the revolution):
                       width (the mechanical model is planar and has no width); the wear proxy
 - extension           s + L - l_m, the vane length standing out of the rotor
 - lift_off            some housing reaction N < 0 (Model 2 holds the vane on the housing)
-- paradox             some sample without exactly one consistent slot contact-side set
+- paradox             some sample with no consistent slot contact-side set, or several that
+                      differ (as `pumpsim simulate` reports it)
 Each reduction also carries its derivative along given parameter directions (forward mode),
 which the optimiser uses; a max/min takes the derivative at its arg-max (a subgradient).
 """
 from __future__ import annotations
 
 import numpy as np
+
+from ..tolerances import PARADOX_TOL
 
 OUTPUTS = ("mean_torque", "rms_torque", "ptp_torque", "friction_power", "tip_friction_power",
            "slot_friction_power", "max_normal_force", "min_normal_force", "max_slot_force",
@@ -27,7 +30,6 @@ UNITS = {"mean_torque": "N·m", "rms_torque": "N·m", "ptp_torque": "N·m", "fri
          "tip_friction_power": "W", "slot_friction_power": "W", "max_normal_force": "N",
          "min_normal_force": "N", "max_slot_force": "N", "max_tip_pv": "W", "min_extension": "m",
          "max_extension": "m"}
-PARADOX_TOL = 1e-6  # as pumpsim.simulate: relative spread between consistent sets
 # kernel outputs the reductions read
 KERNEL_OUTPUTS = ("torque", "s", "sdot", "normal", "slot1", "slot2", "tip_slip", "mu_housing",
                   "mu_slot", "n_consistent", "ambiguity", "position_residual")
@@ -81,7 +83,7 @@ def reduce_revolution(a: dict, c_visc: float, L: float, lm: float, da: dict | No
     out["min_extension"] = ext.ravel()[ie_lo]
     out["max_extension"] = ext.ravel()[ie_hi]
     out["lift_off"] = bool(out["min_normal_force"] < 0)
-    out["paradox"] = bool(np.any(a["n_consistent"] != 1.0) or np.any(a["ambiguity"] > PARADOX_TOL))
+    out["paradox"] = bool(np.any(a["n_consistent"] < 0.5) or np.any(a["ambiguity"] > PARADOX_TOL))
     if da is None:
         return out, der
     dt = g("torque")

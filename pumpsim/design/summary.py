@@ -12,19 +12,17 @@ import math
 
 import numpy as np
 
+from ..tolerances import DESIGN_CONSTANT_ABS, DESIGN_CONSTANT_REL
 from .outputs import BOOL_OUTPUTS, UNITS
 
 
-# An output whose spread is below this counts as constant (the round-off of a zero, e.g. the torque
-# ripple of a concentric rig): relative to its size, plus an absolute floor per unit.
-CONSTANT_REL = 1e-9
-CONSTANT_ABS = {"N·m": 1e-12, "W": 1e-9, "N": 1e-9, "m": 1e-12}
 
 
 def is_constant(values, output) -> bool:
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
-    return not v.size or np.ptp(v) <= CONSTANT_REL * np.abs(v).max() + CONSTANT_ABS.get(UNITS.get(output), 0.0)
+    return not v.size or np.ptp(v) <= (DESIGN_CONSTANT_REL * np.abs(v).max()
+                                      + DESIGN_CONSTANT_ABS.get(UNITS.get(output), 0.0))
 
 
 def within(values, lim) -> np.ndarray:
