@@ -229,8 +229,9 @@ def residual_figures(res, data=None, title="residual"):
     for a in ax:
         a.grid(alpha=0.3)
         tidy_axis(a)
-    if len(segs) > 1:
-        ax[2].legend(fontsize=7, frameon=False)
+    if len(segs) > 1:  # below the middle panel's axis label, off the curves
+        ax[1].legend(fontsize=7.5, frameon=False, loc="upper center", bbox_to_anchor=(0.5, -0.28),
+                     ncol=len(segs))
     fig.tight_layout()
     return figure_html(fig)
 
