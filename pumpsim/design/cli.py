@@ -4,6 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import sys
+
 from ..errors import ConfigError
 
 
@@ -22,6 +24,15 @@ def _workers(n):
     return n
 
 
+def _load(path):
+    from .study import load_study
+
+    study = load_study(path)
+    for w in study.warnings:
+        print(f"pumpsim: warning: {w}", file=sys.stderr)
+    return study
+
+
 def _json_safe(obj):
     return {k: v for k, v in obj.items() if not k.startswith("_")}
 
@@ -33,7 +44,7 @@ def cmd_sweep(a) -> int:
     from .study import load_study
     from .summary import summary_text
 
-    study = load_study(a.study)
+    study = _load(a.study)
     if a.samples is not None:
         override_samples(study, a.samples)
     if a.summary:
@@ -81,7 +92,7 @@ def cmd_sensitivity(a) -> int:
     from .report import sensitivity_report
     from .study import load_study
 
-    study = load_study(a.study)
+    study = _load(a.study)
     _check_paths(json=a.json, report=a.report)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
                       workers=_workers(a.workers))
@@ -116,7 +127,7 @@ def cmd_optimize(a) -> int:
     from .report import optimize_report
     from .study import load_study
 
-    study = load_study(a.study)
+    study = _load(a.study)
     _check_paths(json=a.json, report=a.report)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))

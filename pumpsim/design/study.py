@@ -53,6 +53,7 @@ class Study:
     function: str | None = None  # analytic verification function instead of the pump
     revolutions: int | None = None  # contact model: revolutions simulated (the last is reported)
     raw: dict = field(default_factory=dict)  # the study file's table (for the hash)
+    warnings: list = field(default_factory=list)  # e.g. varied values outside plausible ranges
 
     @property
     def base_speed(self) -> float:
@@ -185,6 +186,28 @@ def key_targets(base: dict, key: str, value) -> list[str]:
     out = [n for n in pa if pa[n] != pb.get(n)]
     if a.speed != b.speed:
         out.append("speed")
+    return out
+
+
+def plausibility_warnings(base: dict, var) -> list[str]:
+    """Registry plausibility (model_spec.parameters.implausible) at the ends of a key's range: its
+    smallest and largest value, or its distribution's 0.1 % and 99.9 % quantiles."""
+    from ..model_spec.parameters import implausible
+
+    if var.values is not None:
+        ends = [min(var.values), max(var.values)]
+    elif var.dist is not None:
+        ends = [float(var.dist.ppf(0.001)), float(var.dist.ppf(0.999))]
+    else:
+        ends = list(var.bounds or ())
+    out = []
+    for x in ends:
+        try:
+            cfg = config_from_dict(apply_values(base, {var.key: x}))
+        except ConfigError:
+            continue  # an impossible value is that design's status, reported per design
+        names = [n for n in key_targets(base, var.key, x) if n in cfg.values]
+        out += [f"vary.\"{var.key}\" reaches {m}" for m in implausible({n: cfg.values[n] for n in names})]
     return out
 
 
@@ -366,12 +389,13 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     batch = st.get("batch_size")
     if batch is not None and (not isinstance(batch, int) or batch < 1):
         raise ConfigError(f"study.batch_size must be an integer >= 1, got {batch!r}")
+    warnings = [w for v in variables for w in plausibility_warnings(base, v)] if function is None else []
     return Study(path=path, base=base, config_path=None if cfg_path is None else str(cfg_path),
                  variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
                  outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
                  objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
                  scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
-                 revolutions=revolutions)
+                 revolutions=revolutions, warnings=warnings)
 
 
 __all__ = ["Study", "load_study", "study_from_dict", "apply_values", "DISTRIBUTIONS", "Variable"]

@@ -97,3 +97,13 @@ def test_keys_reach_registry_entries_and_derived_defaults_follow():
     assert sorted(key_targets(base, "vane.mass", 0.0012)) == ["vane.inertia", "vane.mass"]
     assert key_targets(base, "operation.speed", 600.0) == ["speed"]
     assert key_targets(base, "rotor.vanes", 4) == ["structure"]
+
+
+def test_implausible_ranges_are_warned_not_refused():
+    s = study({"friction.housing.dynamic": {"values": [0.2, 1.5]}, "vane.mass": {"values": [0.0012]}},
+              sampler="grid")
+    # the rig has no [friction.slot]: its slot COF follows the housing's, and is named too
+    assert len(s.warnings) == 2 and all("plausible range [0, 1]" in w for w in s.warnings)
+    assert "reaches friction.housing.dynamic = 1.5" in s.warnings[0]
+    assert "reaches friction.slot.dynamic = 1.5" in s.warnings[1]
+    assert study({"vane.mass": {"distribution": "normal", "sd": 0.02, "relative": True}}).warnings == []
