@@ -96,6 +96,9 @@ def build_variant(structure, log=None) -> Path:
     base.mkdir(parents=True, exist_ok=True)
     _sweep_stale_temporaries(base)
     tmp = Path(tempfile.mkdtemp(prefix=f".{structure.variant}.tmp-", dir=base))
+    from pumpsim.io import umask_mode
+
+    os.chmod(tmp, umask_mode(directory=True))  # mkdtemp's 0700 would hide the kernels from colleagues
     try:
         t0 = time.perf_counter()
         spec = build_model(structure)

@@ -1,5 +1,9 @@
 """pumpsim: dynamic model and identification tools for rotary vane vacuum pumps.
 
+    import pumpsim
+    res = pumpsim.identify("examples/test_rig.toml", "examples/data/test_rig_measurement.csv")
+    print(res)
+
 The public names load on first use (PEP 562), so `import pumpsim.model_spec` -- the contract
 codegen imports -- does not load the simulator.
 """
@@ -12,6 +16,9 @@ _EXPORTS = {
     "SimulationResult": ".result", "PumpsimError": ".errors", "ConfigError": ".errors",
     "DataError": ".errors", "CodegenError": ".errors", "SolverError": ".errors",
     "IdentificationError": ".errors",
+    "identify": ".api", "diagnose": ".api", "Diagnosis": ".api",
+    "load_data": ".data", "Dataset": ".data", "DataOptions": ".data",
+    "IdentificationResult": ".identify",
 }
 __all__ = list(_EXPORTS)
 __version__ = "0.1.0"

@@ -1,18 +1,70 @@
-"""Command line (spec §7). Exit status: 0 success, 2 bad input, 1 numerical failure."""
+"""Command line (spec §7).
+
+Exit status: 0 success; 2 bad input (config, data, options, unit mistakes, output paths: the
+message names the key, row, file or option and the limit; nothing is written); 1 a numerical
+failure (the message names the time and state) or a fit whose answer must not be used as is (not
+converged, ended on a parameter bound, or a named parameter not identifiable from the data: the
+outputs are still written, complete, and say so).
+
+One function registers each command (`register_*`) and one runs it (`cmd_*`); a new command adds
+its pair to COMMANDS. Output files are declared with `_outputs` before any work starts and written
+together at the end (`pumpsim.io.Outputs`).
+"""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from .errors import PumpsimError
 from .tolerances import ATOL, RTOL
 
+REPORT_SUFFIXES = (".html", ".htm")
+FIGURE = object()  # an output whose type the figure writer decides (pumpsim.plotting.figure_format)
+
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message):  # bad options are bad input: status 2 with the usage line
+        import re
+
+        message = re.sub(r"^argument (--[\w-]+): must", r"\1 must", message)
         self.print_usage(sys.stderr)
         print(f"pumpsim: error: {message}", file=sys.stderr)
         sys.exit(2)
+
+
+class _Help(argparse.ArgumentDefaultsHelpFormatter):
+    """--help shows every default."""
+
+
+def _positive_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be > 0 (and finite), got {text}")
+    return v
+
+
+def _tolerance(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+    if not 0 < v < 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text}")
+    return v
+
+
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got '{text}'") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
+    return v
 
 
 def _progress_printer(total):
@@ -36,55 +88,64 @@ def _progress_printer(total):
     return update
 
 
-def cmd_simulate(a) -> int:
-    from . import SimulationResult, SolverError, load_config, simulate
+def _fit_log():
+    """One line per fit iteration on a terminal (long fits show they are alive)."""
+    if not sys.stderr.isatty():
+        return None
 
-    cfg = load_config(a.config)
-    if a.plot:  # an unsupported figure format is bad input: refused before any work
-        from .plotting import figure_format
+    def log(entry):
+        print(f"\r\033[Kpumpsim: iteration {entry.get('iteration', '')} residual RMS {entry['rms']:.6g} N m",
+              end="", file=sys.stderr, flush=True)
 
-        figure_format(a.plot)
-    opts = {}
-    if a.model == "contact" and a.initial:
-        opts["initial"] = a.initial
-    duration = a.duration
-    progress = _progress_printer(duration) if duration else None
-    try:
-        res = simulate(cfg, model=a.model, duration=duration, rate=a.rate, method=a.method,
-                       rtol=a.rtol, atol=a.atol, max_step=a.max_step, progress=progress,
-                       max_steps=a.max_steps, **opts)
-    except SolverError as e:
-        if isinstance(e.partial, SimulationResult) and a.out:  # keep what was computed
-            e.partial.to_csv(a.out)
-            print(f"pumpsim: the samples computed before the failure are in {a.out}", file=sys.stderr)
-        raise
-    if a.out:
-        res.to_csv(a.out)
-    if a.plot:
-        res.plot(a.plot, name=cfg.name, x=a.plot_x)
-    print(res.summary())
-    for w in res.warnings:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
-    return 0
+    return log
 
 
-def cmd_study(a) -> int:
-    from . import load_config
-    from .errors import ConfigError
-    from .study import HEADER, solver_study, write_json
+# --- shared option groups -------------------------------------------------------------------
 
-    cfg = load_config(a.config)
-    if not cfg.contact_given:
-        raise ConfigError("the solver study needs [contact.housing] with a stiffness in the config")
-    if not a.revolutions > 0:
-        raise ConfigError(f"--revolutions must be > 0, got {a.revolutions}")
-    print(f"contact model solver study: {cfg.name}, constant speed, {a.revolutions:g} revolutions "
-          "from an in-contact start; deviations from Model 2 over the last revolution")
-    print(HEADER)
-    result = solver_study(cfg, revolutions=a.revolutions, speed=a.speed, log=print)
-    if a.json:
-        write_json(a.json, result)
-    return 0
+def _add_force(p):
+    p.add_argument("--force", action="store_true",
+                   help="proceed although the unit/plausibility checks suspect a unit mistake")
+
+
+def _outputs(a, inputs, **options):
+    """The run's output files: options maps an attribute of `a` to its allowed suffixes (None: any,
+    FIGURE: what the figure writer accepts). Checked now, before any work; written later inside
+    `staged()`."""
+    from .io import Outputs
+
+    outs = Outputs(inputs)
+    for attr, suffixes in options.items():
+        path = getattr(a, attr, None)
+        if suffixes is FIGURE:
+            from .plotting import figure_format
+
+            outs.add("--" + attr.replace("_", "-"), path, kind=figure_format)
+        else:
+            outs.add("--" + attr.replace("_", "-"), path, suffixes)
+    outs.check()
+    return outs
+
+
+def _load_config(a):
+    from .config import load_config
+
+    cfg = load_config(a.config, force=getattr(a, "force", False))
+    _warn(cfg.warnings)
+    return cfg
+
+
+def _add_data_options(p):
+    g = p.add_argument_group("data (units from the header, e.g. 'torque [N*mm]', else SI)")
+    g.add_argument("--time-column", default="time", help="time column / channel / variable")
+    g.add_argument("--torque-column", default="torque", help="torque column")
+    g.add_argument("--speed-column", default="speed", help="speed column (used when present)")
+    g.add_argument("--angle-column", default="angle", help="angle column (used when present)")
+    g.add_argument("--time-unit", help="s, ms or us (default: the header's unit, else s)")
+    g.add_argument("--torque-unit", help="N*m, N*mm, mN*m or N*cm (default: the header's unit, else N*m)")
+    g.add_argument("--speed-unit", help="rad/s, rpm or rev/s (default: the header's unit, else rad/s)")
+    g.add_argument("--resample", type=_positive_float, help="resample to this rate [Hz]")
+    g.add_argument("--steady", action="store_true",
+                   help="fit only the constant-speed section (needs a speed column)")
 
 
 def _data_options(a):
@@ -92,20 +153,28 @@ def _data_options(a):
 
     return DataOptions(time=a.time_column, torque=a.torque_column, speed=a.speed_column,
                        angle=a.angle_column, torque_unit=a.torque_unit, speed_unit=a.speed_unit,
-                       resample=a.resample, steady=a.steady)
+                       time_unit=a.time_unit, resample=a.resample, steady=a.steady)
 
 
-def _add_data_options(p):
-    g = p.add_argument_group("data")
-    g.add_argument("--time-column", default="time")
-    g.add_argument("--torque-column", default="torque")
-    g.add_argument("--speed-column", default="speed")
-    g.add_argument("--angle-column", default="angle")
-    g.add_argument("--torque-unit", default="N*m", help="N*m or N*mm")
-    g.add_argument("--speed-unit", default="rad/s", help="rad/s or rpm")
-    g.add_argument("--resample", type=float, help="resample to this rate [Hz]")
-    g.add_argument("--steady", action="store_true",
-                   help="fit only the constant-speed section (needs a speed column)")
+def _add_fit_outputs(p):
+    """What identify and diagnose share: JSON, HTML report, data options and --force."""
+    p.add_argument("--json", help="write the result as JSON (spec §7)")
+    p.add_argument("--report", help="self-contained HTML report (.html)")
+    _add_force(p)
+    _add_data_options(p)
+
+
+def _write_fit_outputs(outs, a, document: dict, write_report) -> None:
+    """--json (the document) and --report (write_report(path)), renamed into place together."""
+    import json
+
+    from .io import write_text
+
+    with outs.staged() as tmp:
+        if a.json:
+            write_text(tmp["--json"], json.dumps(document, indent=1))
+        if a.report:
+            write_report(tmp["--report"])
 
 
 def _parse_params(text):
@@ -127,137 +196,245 @@ def _parse_initial(items):
             out[name.strip()] = float(val)
         except ValueError:
             raise ConfigError(f"--start takes NAME=VALUE, got '{item}'") from None
-        if not sep:
+        if not sep or not name.strip():
             raise ConfigError(f"--start takes NAME=VALUE, got '{item}'")
+        if out[name.strip()] != out[name.strip()] or abs(out[name.strip()]) == float("inf"):
+            raise ConfigError(f"--start {name.strip()} must be a finite number, got '{val}'")
     return out
 
 
+def _warn(lines):
+    for w in lines:
+        print(f"pumpsim: warning: {w}", file=sys.stderr)
+
+
+# --- simulate -------------------------------------------------------------------------------
+
+def register_simulate(sub):
+    s = sub.add_parser("simulate", help="simulate a pump configuration", formatter_class=_Help,
+                       description="Simulate a configuration (Model 2 constrained or Model 1 contact).")
+    s.add_argument("config", help="TOML configuration (SI units: m, kg, s, rad)")
+    s.add_argument("--model", choices=["constrained", "contact"], default="constrained",
+                   help="constrained: Model 2 (tip on the housing); contact: Model 1 (penalty contacts)")
+    s.add_argument("--duration", type=_positive_float,
+                   help="simulated time [s] (default: two revolutions at the configured speed for a "
+                        "speed drive, 0.5 s for a torque drive)")
+    s.add_argument("--rate", type=_positive_float, default=10000.0, help="output sample rate [Hz]")
+    s.add_argument("--out", help="CSV file for the spec §7 columns")
+    s.add_argument("--plot", help="figure file (.png, .svg or .pdf)")
+    s.add_argument("--plot-x", dest="plot_x", choices=["angle", "time"], default="angle",
+                   help="figure x axis: rotor angle in degrees with revolutions overlaid, or time")
+    s.add_argument("--method", choices=["cvodes", "idas", "rk"], default="cvodes",
+                   help="integrator for a torque drive / the contact model (rk: explicit RK4, fixed step)")
+    s.add_argument("--rtol", type=_tolerance, default=RTOL, help="relative tolerance")
+    s.add_argument("--atol", type=_tolerance, default=ATOL,
+                   help="absolute tolerance of positions [rad, m]; the contact model allows "
+                        "atol x starting speed for speeds and vane velocities [rad/s, m/s]")
+    s.add_argument("--max-step", type=_positive_float, dest="max_step",
+                   help="largest integrator step [s] (rk: the fixed step, default 1e-6 s)")
+    s.add_argument("--max-steps", type=_positive_int, dest="max_steps", default=500000,
+                   help="integrator steps allowed per call before it gives up")
+    s.add_argument("--initial", choices=["bottom", "rotor", "housing"],
+                   help="contact model: initial vane state (default: operation.initial_vane_state, else rotor)")
+    s.add_argument("--keep-partial", action="store_true", dest="keep_partial",
+                   help="on a numerical failure, write the samples computed before it to --out")
+    _add_force(s)
+    s.set_defaults(func=cmd_simulate)
+
+
+def cmd_simulate(a) -> int:
+    from . import SimulationResult, SolverError, simulate
+
+    outs = _outputs(a, [a.config], out=None, plot=FIGURE)
+    cfg = _load_config(a)
+    opts = {}
+    if a.model == "contact" and a.initial:
+        opts["initial"] = a.initial
+    elif a.initial:
+        from .errors import ConfigError
+
+        raise ConfigError("--initial is for the contact model (--model contact)")
+    progress = _progress_printer(a.duration) if a.duration else None
+    try:
+        res = simulate(cfg, model=a.model, duration=a.duration, rate=a.rate, method=a.method,
+                       rtol=a.rtol, atol=a.atol, max_step=a.max_step, progress=progress,
+                       max_steps=a.max_steps, **opts)
+    except SolverError as e:
+        if a.keep_partial and isinstance(e.partial, SimulationResult) and a.out:
+            with outs.staged() as tmp:
+                e.partial.to_csv(tmp["--out"])
+            print(f"pumpsim: the samples computed before the failure are in {a.out}", file=sys.stderr)
+        raise
+    with outs.staged() as tmp:
+        if a.out:
+            res.to_csv(tmp["--out"])
+        if a.plot:
+            res.plot(tmp["--plot"], name=cfg.name, x=a.plot_x)
+    print(res.summary())
+    _warn(res.warnings)
+    return 0
+
+
+# --- identify -------------------------------------------------------------------------------
+
+def register_identify(sub):
+    ip = sub.add_parser("identify", help="fit friction (and phase, speed, offsets) to measured torque",
+                        formatter_class=_Help,
+                        description="Fit model parameters to a measured drive torque at constant speed.")
+    ip.add_argument("config", help="TOML configuration (SI units)")
+    ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
+    ip.add_argument("--params", default="mu,theta0",
+                    help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
+                         "numeric config key path (e.g. housing.center.0)")
+    ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
+                    help="least-squares solver")
+    ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
+    ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
+    ip.add_argument("--max-iter", type=_positive_int, default=50, dest="max_iter", help="iteration limit")
+    ip.add_argument("--transient", action="store_true",
+                    help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
+                         "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
+    _add_fit_outputs(ip)
+    ip.set_defaults(func=cmd_identify)
+
+
 def cmd_identify(a) -> int:
-    import json
-
-    from . import load_config
+    from .api import identify
     from .data import load_data
-    from .identify import identify
-    from .io import write_text
 
-    cfg = load_config(a.config)
+    outs = _outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
+    cfg = _load_config(a)
     params = _parse_params(a.params)
+    initial = _parse_initial(a.start)
     data = load_data(a.data, _data_options(a),
                      nominal_speed=None if ("speed" in params or a.transient) else
                      (cfg.speed if cfg.mode == "speed" else None))
     if a.transient:
         from .transient import identify_transient
 
-        res = identify_transient(cfg, data, params=params, initial=_parse_initial(a.start), max_iter=a.max_iter)
+        res = identify_transient(cfg, data, params=params, initial=initial, max_iter=a.max_iter)
     else:
+        if sys.stderr.isatty():
+            print(f"pumpsim: fitting {', '.join(params)} to {data.n:,} samples of {data.name}", end="",
+                  file=sys.stderr, flush=True)
         res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
-                       initial=_parse_initial(a.start), max_iter=a.max_iter)
+                       initial=initial, max_iter=a.max_iter, force=a.force, log=_fit_log())
+        if sys.stderr.isatty():
+            print(file=sys.stderr)
+        _warn(w for w in res.warnings if w not in cfg.warnings)
     print(res)
-    if a.json:
-        write_text(a.json, json.dumps(res.to_json(), indent=1))
-    if a.report:
-        from .report import identification_report
+    from .report import identification_report
 
-        identification_report(res, a.report, title=f"pumpsim identification: {cfg.name}", cfg=cfg, data=data)
+    _write_fit_outputs(outs, a, res.to_json(), lambda path: identification_report(
+        res, path, title=f"pumpsim identification: {cfg.name}", cfg=cfg, data=data))
+    problems = res.problems()
+    if problems:
+        print("pumpsim: the fit is not a usable estimate: " + "; ".join(problems), file=sys.stderr)
+        return 1
     return 0
 
 
-def cmd_diagnose(a) -> int:
-    import json
+# --- diagnose -------------------------------------------------------------------------------
 
-    from . import load_config
-    from .data import load_data
-    from .diagnose import diagnose, step_table, tty_progress
-    from .io import write_text
-
-    cfg = load_config(a.config)
-    # several files: measurements of one pump at different speeds, fitted together
-    data = [load_data(d, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
-            for d in a.data]
-    out = diagnose(cfg, data, progress=tty_progress())
-    if sys.stderr.isatty():
-        print(file=sys.stderr)
-    print(step_table(out))
-    if a.json:
-        write_text(a.json, json.dumps({k: v for k, v in out.items() if not k.startswith("_")}, indent=1))
-    if a.report:
-        from .report import diagnosis_report
-
-        diagnosis_report(out, a.report, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data)
-    return 0
-
-
-def _add_fit_outputs(p):
-    """What identify and diagnose share: JSON, HTML report and the data-reading options."""
-    p.add_argument("--json")
-    p.add_argument("--report", help="self-contained HTML report")
-    _add_data_options(p)
-
-
-def build_parser():
-    ap = _Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification.")
-    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    s = sub.add_parser("simulate", help="simulate a pump configuration")
-    s.add_argument("config")
-    s.add_argument("--model", choices=["constrained", "contact"], default="constrained")
-    s.add_argument("--duration", type=float, help="simulated time [s] (default: two revolutions)")
-    s.add_argument("--rate", type=float, default=10000.0, help="output sample rate [Hz]")
-    s.add_argument("--out", help="CSV file for the spec §7 columns")
-    s.add_argument("--plot", help="PNG file for the figure set")
-    s.add_argument("--plot-x", dest="plot_x", choices=["angle", "time"], default="angle",
-                   help="figure x axis: rotor angle in degrees with revolutions overlaid, or time "
-                        "(default: %(default)s)")
-    s.add_argument("--method", choices=["cvodes", "idas", "rk"], default="cvodes",
-                   help="integrator for torque drive / the contact model")
-    s.add_argument("--rtol", type=float, default=RTOL)
-    s.add_argument("--atol", type=float, default=ATOL,
-                   help="absolute tolerance of positions [rad, m]; the contact model allows "
-                        "atol x starting speed for speeds and vane velocities [rad/s, m/s]")
-    s.add_argument("--max-step", type=float, dest="max_step", help="largest integrator step [s]")
-    s.add_argument("--max-steps", type=int, dest="max_steps", default=500000,
-                   help="integrator steps allowed per call before it gives up")
-    s.add_argument("--initial", choices=["bottom", "rotor", "housing"],
-                   help="contact model: initial vane state (default rotor)")
-    s.set_defaults(func=cmd_simulate)
-    ip = sub.add_parser("identify", help="fit friction (and phase, speed, offsets) to measured torque")
-    ip.add_argument("config")
-    ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
-    ip.add_argument("--params", default="mu,theta0",
-                    help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
-                         "numeric config key path (e.g. housing.center.0)")
-    ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"])
-    ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
-    ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
-    ip.add_argument("--max-iter", type=int, default=50, dest="max_iter")
-    ip.add_argument("--transient", action="store_true",
-                    help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
-                         "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
-    _add_fit_outputs(ip)
-    ip.set_defaults(func=cmd_identify)
-    dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model")
-    dg.add_argument("config")
+def register_diagnose(sub):
+    dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model",
+                        formatter_class=_Help,
+                        description="Discrepancy workflow: baseline fit, residual tests, effect library.")
+    dg.add_argument("config", help="TOML configuration (SI units)")
     dg.add_argument("data", nargs="+", help="one or more measurements (several speeds separate "
                     "offset, viscous friction and COF)")
     _add_fit_outputs(dg)
     dg.set_defaults(func=cmd_diagnose)
-    st = sub.add_parser("study", help="contact-model solver study (report §7-8)")
-    st.add_argument("config")
-    st.add_argument("--revolutions", type=float, default=10.0)
-    st.add_argument("--speed", type=float, help="constant speed [rad/s] (default: the config's)")
+
+
+def cmd_diagnose(a) -> int:
+    from .api import diagnose
+    from .data import load_data
+    from .diagnose import tty_progress
+
+    outs = _outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
+    cfg = _load_config(a)
+    # several files: measurements of one pump at different speeds, fitted together
+    data = [load_data(d, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
+            for d in a.data]
+    out = diagnose(cfg, data, force=a.force, progress=tty_progress())
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+    print(out)
+    from .report import diagnosis_report
+
+    _write_fit_outputs(outs, a, dict(out), lambda path: diagnosis_report(
+        out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data))
+    return 0
+
+
+# --- study ----------------------------------------------------------------------------------
+
+def register_study(sub):
+    st = sub.add_parser("study", help="contact-model solver study (report §7-8)", formatter_class=_Help)
+    st.add_argument("config", help="TOML configuration with [contact.housing]")
+    st.add_argument("--revolutions", type=_positive_float, default=10.0, help="revolutions simulated per setting")
+    st.add_argument("--speed", type=_positive_float, help="constant speed [rad/s] (default: the config's)")
     st.add_argument("--json", help="write the table as JSON")
+    _add_force(st)
     st.set_defaults(func=cmd_study)
+
+
+def cmd_study(a) -> int:
+    from .errors import ConfigError
+    from .study import HEADER, solver_study, write_json
+
+    outs = _outputs(a, [a.config], json=None)
+    cfg = _load_config(a)
+    if not cfg.contact_given:
+        raise ConfigError("the solver study needs [contact.housing] with a stiffness in the config")
+    print(f"contact model solver study: {cfg.name}, constant speed, {a.revolutions:g} revolutions "
+          "from an in-contact start; deviations from Model 2 over the last revolution")
+    print(HEADER)
+    result = solver_study(cfg, revolutions=a.revolutions, speed=a.speed, log=print)
+    with outs.staged() as tmp:
+        if a.json:
+            write_json(tmp["--json"], result)
+    return 0
+
+
+def register_design(sub):
     from .design.cli import add_design_commands  # sweep, sensitivity, optimize (spec §9)
 
     add_design_commands(sub)
+
+
+def register_pumpdown(sub):
     from .pneumatics.cli import add_pumpdown_command  # pumpdown (spec §8)
 
     add_pumpdown_command(sub)
+
+
+# A command = its parser registration; each registration sets `func`. New commands append here.
+COMMANDS = [register_simulate, register_identify, register_diagnose, register_study, register_design,
+            register_pumpdown]
+
+
+def build_parser():
+    ap = _Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification. "
+                 "Config values are SI (m, kg, s, rad, N); exit status 0 ok, 2 bad input, 1 numerical "
+                 "failure or unusable fit.")
+    from . import __version__
+
+    ap.add_argument("--version", action="version", version=f"pumpsim {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for register in COMMANDS:
+        register(sub)
     return ap
 
 
 def main(argv=None) -> int:
+    """Run the command line with `argv` (default sys.argv[1:]); returns the exit status."""
     ap = build_parser()
-    a = ap.parse_args(argv)
+    try:
+        a = ap.parse_args(argv)
+    except SystemExit as e:  # --help, --version, bad options (status 2, message printed)
+        return e.code if isinstance(e.code, int) else (0 if e.code is None else 2)
     try:
         return a.func(a)
     except PumpsimError as e:
@@ -266,6 +443,16 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("pumpsim: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:
+        print("pumpsim: error: out of memory (shorten the data, --resample, or a shorter --duration)",
+              file=sys.stderr)
+        return 1
+    except Exception as e:  # a bug, not a user error: one line unless debugging
+        if os.environ.get("PUMPSIM_DEBUG"):
+            raise
+        print(f"pumpsim: internal error (please report; PUMPSIM_DEBUG=1 shows the traceback): "
+              f"{type(e).__name__}: {e}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

@@ -137,6 +137,7 @@ class PumpConfig:
         values = {**self.values, **updates}
         fill_derived(values, self.given | set(updates))
         return dataclasses.replace(self, values=values)
+    warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
 
     def with_harmonics(self, harmonics) -> "PumpConfig":
         """This config with the housing harmonics [[k, A, gamma], ...] (replacing the old ones)."""
@@ -176,18 +177,37 @@ def harmonic_values(j, k, A, gamma) -> dict:
             f"housing.harmonics.{j}.phase": gamma}
 
 
-def load_config(path, check_geometry: bool = True) -> PumpConfig:
+def load_config(path, check_geometry: bool = True, force: bool = False) -> PumpConfig:
+    """Read and validate a TOML configuration (spec \u00a75); values are SI (m, kg, s, rad, N).
+
+    path: the .toml file (UTF-8, a BOM allowed). check_geometry: reject vanes that cannot reach or
+    fit the housing. force: accept magnitudes that look like a unit mistake (a length in mm, a mass
+    in g, a speed in rpm under operation.speed) with a warning in `cfg.warnings` instead of a
+    `ConfigError`. Every rejection is a `ConfigError` naming the key path and the limit.
+
+    Example::
+
+        cfg = pumpsim.load_config("examples/test_rig.toml")
+        cfg.speed          # rad/s (operation.speed, or operation.speed_rpm converted)
+    """
+    from .data import decode_text
+    from .plausibility import check_config
+
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"config '{path}' is a folder, not a TOML file")
     try:
-        text = p.read_text()
+        raw_bytes = p.read_bytes()
     except OSError as e:
         raise ConfigError(f"cannot read config '{path}': {e.strerror}") from None
+    text = decode_text(raw_bytes, lambda msg: ConfigError(f"config '{path}' {msg}"))
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"config '{path}' is not valid TOML: {e}") from None
     cfg = config_from_dict(raw, name_default=p.stem)
     cfg.path = str(p)
+    cfg.warnings = check_config(cfg, force)
     if check_geometry:
         from .geometry import check_geometry as _check
 

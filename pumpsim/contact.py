@@ -61,6 +61,28 @@ def state_scale(cfg) -> np.ndarray:
     return np.concatenate([[1.0, w], np.ones(N), np.full(N, w)])
 
 
+# A surface speed no pump reaches (10x the plausibility limit of a vane tip): beyond it a state is
+# a numerical divergence, not physics.
+MAX_SURFACE_SPEED = 1000.0  # m/s
+
+
+def state_bounds(cfg, vanes: bool = True):
+    """Physically possible ranges of (theta, omega[, s_i, sdot_i]): the rotor's surface and a vane
+    slower than MAX_SURFACE_SPEED, a vane no deeper than its length below the slot bottom and no
+    further out than the housing's diameter. Outside them a run has diverged (integrate.py)."""
+    v = cfg.values
+    size = max(v["housing.a"], v["housing.b"])
+    w_max = MAX_SURFACE_SPEED / size
+    lo, hi = [-np.inf, -w_max], [np.inf, w_max]
+    names = ["theta", "omega"]
+    if vanes:
+        N = cfg.vanes
+        lo += [-v["vane.length"]] * N + [-MAX_SURFACE_SPEED] * N
+        hi += [2 * size] * N + [MAX_SURFACE_SPEED] * N
+        names += [f"s_{i}" for i in range(N)] + [f"sdot_{i}" for i in range(N)]
+    return (np.array(lo), np.array(hi)), names
+
+
 def contact_states(penetration, s) -> list[str]:
     """Report Table 1: in contact with the housing, on the slot bottom, or free."""
     return ["on the housing" if d > 0 else ("on the slot bottom" if si < 0 else "free")
@@ -93,9 +115,10 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         max_step = max_step or RK_MAX_STEP
     rk_steps = max(1, int(math.ceil(dt / max_step))) if method == "rk" else 1
     xdot = ode_with_jacobian(kern, ode, p)
+    bounds, state_names = state_bounds(cfg)
     integ = Integrator(lambda x, pp: xdot(x, pp[0]), 2 + 2 * cfg.vanes, [drive], dt, method=method,
                        rtol=rtol, atol=atol, max_step=max_step, rk_steps=rk_steps,
-                       max_steps=max_steps, scale=state_scale(cfg))
+                       max_steps=max_steps, scale=state_scale(cfg), bounds=bounds, names=state_names)
     run = _integrate(integ, kern, dyn, drive, p, x0, t, cfg.vanes, progress)
     run.stats["method"] = method
     res = _result(cfg, kern, dyn, drive, p, pv.values, run)

@@ -8,6 +8,7 @@ uniform rate and cut out the constant-speed section of a run-up. Bad data is rej
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,12 +16,58 @@ import numpy as np
 
 from .errors import DataError
 
-TORQUE_UNITS = {"N*m": 1.0, "Nm": 1.0, "N.m": 1.0, "N*mm": 1e-3, "Nmm": 1e-3, "N.mm": 1e-3}
-SPEED_UNITS = {"rad/s": 1.0, "rpm": 2 * math.pi / 60}
+# Units as the factor to SI. Keys are normalised (see `unit_key`): lower case, without spaces and the
+# separators * . · between unit symbols, so 'N*mm', 'N.mm', 'N·mm' and 'Nmm' are one unit.
+TORQUE_UNITS = {"nm": 1.0, "nmm": 1e-3, "mnm": 1e-3, "ncm": 1e-2}
+SPEED_UNITS = {"rad/s": 1.0, "rpm": 2 * math.pi / 60, "1/min": 2 * math.pi / 60, "min^-1": 2 * math.pi / 60,
+               "min-1": 2 * math.pi / 60, "u/min": 2 * math.pi / 60, "rev/min": 2 * math.pi / 60,
+               "r/min": 2 * math.pi / 60, "rev/s": 2 * math.pi, "hz": 2 * math.pi, "deg/s": math.pi / 180}
+TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "\u00b5s": 1e-6, "\u03bcs": 1e-6}
+ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180, "\u00b0": math.pi / 180}
+UNITS = {"time": TIME_UNITS, "torque": TORQUE_UNITS, "speed": SPEED_UNITS, "angle": ANGLE_UNITS}
+UNIT_NAMES = {"time": "s, ms, us", "torque": "N*m, N*mm, mN*m, N*cm",
+              "speed": "rad/s, rpm (1/min, U/min), rev/s (Hz), deg/s", "angle": "rad, deg"}
+SI_UNIT = {"time": "s", "torque": "N*m", "speed": "rad/s", "angle": "rad"}
+
+
+def unit_key(unit: str) -> str:
+    """'N*mm', 'N.mm', 'N\u00b7mm', ' Nmm ' -> 'nmm'; 'min\u207b\u00b9' -> 'min^-1'."""
+    u = unit.strip().lower().replace("\u207b\u00b9", "^-1").replace("\u00b9", "")
+    return re.sub(r"[\s*.\u00b7\u22c5\u2219]", "", u)
+
+
+def unit_factor(quantity: str, unit: str, where: str = "") -> float:
+    """Factor from `unit` to SI for `quantity` (time, torque, speed, angle); DataError naming the
+    known units otherwise."""
+    f = UNITS[quantity].get(unit_key(unit))
+    if f is None:
+        raise DataError(f"{where}{quantity} unit must be one of {UNIT_NAMES[quantity]}, got '{unit}'")
+    return f
+
+
+_ANNOTATION = re.compile(r"^(?P<name>.*?)\s*(?:\[(?P<u1>[^\]]*)\]|\((?P<u2>[^)]*)\)|/\s*(?P<u3>[^/\s]+))$")
+
+
+def split_header(text: str):
+    """'torque [N*mm]' / 'torque (N*mm)' -> ('torque', 'N*mm'); 'torque' -> ('torque', None)."""
+    m = _ANNOTATION.match(text.strip())
+    if m and m.group("name"):
+        return m.group("name").strip(), next(u for u in (m.group("u1"), m.group("u2"), m.group("u3"))
+                                           if u is not None).strip()
+    return text.strip(), None
 
 
 @dataclass
 class Dataset:
+    """A measurement in SI units: time [s] (strictly increasing), torque [N m], optional speed
+    [rad/s] and angle [rad], one value per sample. `source` names the file (or 'arrays').
+
+    Example::
+
+        ds = Dataset(time=t, torque=tq)              # from arrays already in SI
+        ds = pumpsim.load_data("rig.csv")           # from a file (CSV, .mat, .tdms)
+    """
+
     time: np.ndarray
     torque: np.ndarray
     speed: np.ndarray | None = None
@@ -32,20 +79,35 @@ class Dataset:
     def n(self) -> int:
         return self.time.size
 
+    @property
+    def name(self) -> str:
+        return Path(self.source).name if self.source else "data"
+
     def window(self, lo: int, hi: int) -> "Dataset":
         cut = lambda a: None if a is None else a[lo:hi]  # noqa: E731
         return Dataset(self.time[lo:hi], self.torque[lo:hi], cut(self.speed), cut(self.angle),
                        self.source, list(self.notes))
 
+    def __repr__(self):
+        cols = ", ".join(k for k in ("speed", "angle") if getattr(self, k) is not None)
+        span = f"{self.time[-1] - self.time[0]:.4g} s" if self.n else "empty"
+        return (f"Dataset({self.name!r}: {self.n} samples, {span}, torque"
+                f"{', ' + cols if cols else ''})")
+
 
 @dataclass
 class DataOptions:
+    """How to read a data file: column (or channel/variable) names and units. A unit of None takes
+    the unit from the column header (`torque [N*mm]`), else SI."""
+
     time: str = "time"
     torque: str = "torque"
     speed: str | None = "speed"  # used when present
     angle: str | None = "angle"
-    torque_unit: str = "N*m"
-    speed_unit: str = "rad/s"
+    torque_unit: str | None = None
+    speed_unit: str | None = None
+    time_unit: str | None = None
+    angle_unit: str | None = None
     resample: float | None = None  # Hz
     steady: bool = False  # keep only the constant-speed section
     steady_tolerance: float = 0.01  # relative speed band of the constant-speed section
@@ -53,14 +115,36 @@ class DataOptions:
 
 def load_data(path, options: DataOptions | None = None, min_revolutions: float = 1.0,
               nominal_speed: float | None = None) -> Dataset:
-    o = options or DataOptions()
-    if o.torque_unit not in TORQUE_UNITS:
-        raise DataError(f"torque unit must be one of {', '.join(TORQUE_UNITS)}, got '{o.torque_unit}'")
-    if o.speed_unit not in SPEED_UNITS:
-        raise DataError(f"speed unit must be one of {', '.join(SPEED_UNITS)}, got '{o.speed_unit}'")
+    """Read a measurement (spec \u00a76) into a `Dataset` in SI units.
+
+    path: CSV/text (`,` or `;` or tab separated, `;` files may use decimal commas, UTF-8 with or
+    without BOM, UTF-16, `#` comments, headers with units such as `torque [N*mm]`), MATLAB `.mat`
+    or NI `.tdms`. options: `DataOptions` (column names, units, resampling, steady section).
+    nominal_speed [rad/s]: the data must span `min_revolutions` revolutions at it.
+    Every rejection is a `DataError` naming the file and the row, column or channel.
+
+    Example::
+
+        ds = pumpsim.load_data("examples/data/test_rig_measurement.csv")
+    """
     p = Path(path)
+    try:
+        return _load(p, options or DataOptions(), min_revolutions, nominal_speed)
+    except DataError as e:
+        msg = str(e)
+        if not msg.startswith(f"data '{p}'"):
+            raise DataError(f"data '{p}': {msg}") from None
+        raise
+
+
+def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
+    for q in UNITS:  # option units are checked before the file is read
+        if getattr(o, f"{q}_unit", None) is not None:
+            unit_factor(q, getattr(o, f"{q}_unit"), "")
+    if p.is_dir():
+        raise DataError("is a folder, not a data file")
     if not p.exists():
-        raise DataError(f"cannot read data '{path}': no such file")
+        raise DataError("cannot read data: no such file")
     suffix = p.suffix.lower()
     if suffix == ".mat":
         cols, where = _read_mat(p), "variable"
@@ -69,44 +153,74 @@ def load_data(path, options: DataOptions | None = None, min_revolutions: float =
     else:
         cols, where = _read_csv(p), "column"
     row_of = cols.pop("__rows__", None)
+    header_units = cols.pop("__units__", {})
+    name = {k: _column(getattr(o, k), cols) for k in ("time", "torque", "speed", "angle")}
     for key in ("time", "torque"):
-        name = getattr(o, key)
-        if name not in cols:
-            raise DataError(f"data '{p.name}' has no {where} '{name}' (found: {', '.join(sorted(cols)) or 'none'})")
-    t = cols[o.time]
+        if name[key] not in cols:
+            raise DataError(f"has no {where} '{getattr(o, key)}' (found: {', '.join(sorted(cols)) or 'none'})")
+    t = cols[name["time"]]
     n = t.size
-    for name, arr in cols.items():
+    if n == 0:
+        raise DataError("has a header but no data rows")
+    for col, arr in cols.items():
         if arr.size != n:
-            raise DataError(f"{where} '{name}' has {arr.size} samples, {where} '{o.time}' has {n}")
-    opt = {k: (cols[getattr(o, k)] if getattr(o, k) and getattr(o, k) in cols else None)
-           for k in ("speed", "angle")}
-    used = {"time": t, "torque": cols[o.torque], **{k: v for k, v in opt.items() if v is not None}}
+            raise DataError(f"{where} '{col}' has {arr.size} samples, {where} '{name['time']}' has {n}")
+    used = {k: cols[name[k]] for k in ("time", "torque", "speed", "angle") if name[k] in cols}
     for key, arr in used.items():
         bad = np.nonzero(~np.isfinite(arr))[0]
         if bad.size:
             raise DataError(f"{_where(row_of, bad[0], where, key)}: {key} is not a finite number")
+    scale = {key: _unit_of(key, name[key], header_units, getattr(o, f"{key}_unit"), where)
+             for key in used}
+    t = t * scale["time"]
     dt = np.diff(t)
     bad = np.nonzero(dt <= 0)[0]
     if bad.size:
         raise DataError(f"{_where(row_of, bad[0] + 1, where, 'time')}: time must be strictly increasing "
                         f"({t[bad[0] + 1]:g} s after {t[bad[0]]:g} s)")
-    ds = Dataset(t.astype(float), cols[o.torque] * TORQUE_UNITS[o.torque_unit],
-                 None if opt["speed"] is None else opt["speed"] * SPEED_UNITS[o.speed_unit],
-                 opt["angle"], source=str(p))
+    si = {k: (used[k] * scale[k] if k in used else None) for k in ("torque", "speed", "angle")}
+    ds = Dataset(t.astype(float), si["torque"], si["speed"], si["angle"], source=str(p))
     if o.steady:
         ds = steady_section(ds, o.steady_tolerance)
-    if o.resample:
+    if o.resample is not None:
         ds = resample(ds, o.resample)
     speed = nominal_speed or (float(np.mean(ds.speed)) if ds.speed is not None else None)
+    if ds.n < 10:
+        raise DataError(f"has {ds.n} samples; at least 10 are needed")
     if speed and speed > 0:
         span = ds.time[-1] - ds.time[0]
         need = min_revolutions * 2 * math.pi / speed
         if span < need * (1 - 1e-9):
-            raise DataError(f"data '{p.name}' spans {span:.4g} s ({ds.n} samples): too few samples for "
+            raise DataError(f"spans {span:.4g} s ({ds.n} samples): too few samples for "
                             f"one revolution ({need:.4g} s at {speed:.4g} rad/s)")
-    if ds.n < 10:
-        raise DataError(f"data '{p.name}' has {ds.n} samples; at least 10 are needed")
     return ds
+
+
+def _column(wanted, cols):
+    """The file's column for an option's name: exact, else without a unit annotation
+    ('torque [N*mm]' -> 'torque'), else the one column equal to it ignoring case ('Torque')."""
+    if not wanted or wanted in cols:
+        return wanted
+    base = split_header(wanted)[0]
+    if base in cols:
+        return base
+    same = [c for c in cols if c.lower() == base.lower()]
+    return same[0] if len(same) == 1 else wanted
+
+
+def _unit_of(key, column, header_units, option_unit, where):
+    """Factor to SI of a used column: the option's unit, else the header's, else SI; an option
+    that contradicts the header is refused."""
+    head = header_units.get(column)
+    if option_unit is not None:
+        f = unit_factor(key, option_unit)
+        if head is not None and not math.isclose(f, unit_factor(key, head, f"{where} '{column}': ")):
+            raise DataError(f"{where} '{column}' is annotated [{head}] but --{key}-unit says "
+                            f"'{option_unit}'; drop one")
+        return f
+    if head is not None:
+        return unit_factor(key, head, f"{where} '{column} [{head}]': ")
+    return 1.0
 
 
 def _where(row_of, index, where, key):
@@ -115,24 +229,59 @@ def _where(row_of, index, where, key):
     return f"sample {index} of {where} '{key}'"
 
 
-def _read_csv(p: Path) -> dict:
+def _decode(p: Path) -> str:
+    """Text of a data or config file: UTF-8 (BOM or not), UTF-16 with BOM (spreadsheet 'Unicode
+    text'), else Windows-1252; binary files are refused."""
     try:
-        lines = p.read_text().splitlines()
-    except (OSError, UnicodeDecodeError) as e:
-        raise DataError(f"cannot read data '{p}': {e}") from None
-    header, rows, line_no = None, [], []
+        raw = p.read_bytes()
+    except OSError as e:
+        raise DataError(f"cannot read: {e.strerror}") from None
+    return decode_text(raw, DataError)
+
+
+def decode_text(raw: bytes, error=DataError) -> str:
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            return raw.decode("utf-16")
+        except UnicodeDecodeError:
+            raise error("is not readable UTF-16 text") from None
+    if raw.startswith(b"PK\x03\x04"):
+        raise error("is a ZIP archive (an Excel .xlsx workbook?), not text; save it as CSV")
+    if b"\x00" in raw[:4096]:
+        raise error("is a binary file, not text (UTF-8 or UTF-16 with BOM)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("cp1252", errors="replace")
+
+
+def _read_csv(p: Path) -> dict:
+    lines = _decode(p).splitlines()
+    header, rows, line_no, sep, comma_decimal = None, [], [], ",", False
     for i, line in enumerate(lines, start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
         if header is None:
-            header = [h.strip() for h in s.split(",")]
-            if len(set(header)) != len(header):
+            sep = ";" if ";" in s else ("\t" if "\t" in s else ",")
+            comma_decimal = sep != ","
+            fields = [h.strip().strip('"').strip() for h in s.split(sep)]
+            if fields and fields[-1] == "" and len(fields) > 1:  # trailing separator
+                fields = fields[:-1]
+            header = [split_header(h) for h in fields]
+            names = [h for h, _ in header]
+            if any(not h for h in names):
+                raise DataError(f"row {i}: empty column name in the header")
+            if len(set(names)) != len(names):
                 raise DataError(f"row {i}: duplicate column names in the header")
             continue
-        parts = s.split(",")
+        parts = [x.strip().strip('"') for x in s.split(sep)]
+        if len(parts) == len(header) + 1 and parts[-1] == "":
+            parts = parts[:-1]
         if len(parts) != len(header):
             raise DataError(f"row {i}: {len(parts)} values, the header has {len(header)} columns")
+        if comma_decimal:
+            parts = [x.replace(",", ".") for x in parts]
         try:
             rows.append([float(x) for x in parts])
         except ValueError:
@@ -140,10 +289,11 @@ def _read_csv(p: Path) -> dict:
             raise DataError(f"row {i}: '{bad.strip()}' is not a number") from None
         line_no.append(i)
     if header is None:
-        raise DataError(f"data '{p.name}' has no header line")
+        raise DataError("has no header line")
     arr = np.array(rows, dtype=float).reshape(-1, len(header))
-    cols = {h: arr[:, j] for j, h in enumerate(header)}
+    cols = {h: arr[:, j] for j, (h, _) in enumerate(header)}
     cols["__rows__"] = np.array(line_no)
+    cols["__units__"] = {h: u for h, u in header if u is not None}
     return cols
 
 
@@ -163,7 +313,7 @@ def _read_mat(p: Path) -> dict:
     except Exception as e:  # scipy raises several types for corrupt files
         raise DataError(f"cannot read MATLAB file '{p.name}': {e}") from None
     return {k: np.asarray(v, dtype=float).ravel() for k, v in m.items()
-            if not k.startswith("__") and np.asarray(v).dtype.kind in "fiu"}
+            if not k.startswith("__") and np.asarray(v).dtype.kind in "fiub"}
 
 
 def _read_tdms(p: Path) -> dict:
@@ -173,18 +323,28 @@ def _read_tdms(p: Path) -> dict:
         f = TdmsFile.read(str(p))
     except Exception as e:  # npTDMS raises several types for corrupt files
         raise DataError(f"cannot read TDMS file '{p.name}': {e}") from None
-    cols = {}
+    cols, units = {}, {}
     for group in f.groups():
         for ch in group.channels():
-            data = np.asarray(ch[:], dtype=float)
-            cols[ch.name] = data
-            cols[f"{group.name}/{ch.name}"] = data
+            try:
+                data = np.asarray(ch[:], dtype=float).ravel()
+            except (TypeError, ValueError):
+                continue  # a text or timestamp channel: not a signal
+            unit = str(ch.properties.get("unit_string", "") or "").strip()
+            for name in (ch.name, f"{group.name}/{ch.name}"):
+                cols[name] = data
+                if unit:
+                    units[name] = unit
+    cols["__units__"] = units
     return cols
 
 
 def resample(ds: Dataset, rate: float) -> Dataset:
-    if not rate > 0:
-        raise DataError(f"resample rate must be > 0, got {rate}")
+    if not (rate > 0 and math.isfinite(rate)):
+        raise DataError(f"--resample must be a rate > 0 [Hz], got {rate}")
+    if (ds.time[-1] - ds.time[0]) * rate > 5_000_000:
+        raise DataError(f"--resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
+                        "5,000,000 samples")
     t = np.arange(ds.time[0], ds.time[-1] + 0.5 / rate, 1.0 / rate)
     t = t[t <= ds.time[-1]]
     f = lambda a: None if a is None else np.interp(t, ds.time, a)  # noqa: E731

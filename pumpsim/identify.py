@@ -79,15 +79,48 @@ class IdentificationResult:
     angle: np.ndarray | None = None
     n_evaluations: int = 0
     provenance: dict = field(default_factory=dict)  # config, data files and hashes, kernel key
+    on_bound: list = field(default_factory=list)  # [(name, bound value)] where the fit stopped
+    no_effect: list = field(default_factory=list)  # unidentifiable because they do not act at all
+    warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
 
     @property
     def residual(self):
+        """Measured minus fitted torque [N m] per sample."""
         return self.measured - self.fitted
 
     def value(self, name):
+        """The estimate of `name` (None when it is not identifiable from the data)."""
         return self.estimates[name].value
 
+    def problems(self) -> list[str]:
+        """Why this fit is not a usable estimate (empty when it is): not converged, a parameter on
+        its bound, parameters not identifiable. The command line exits 1 when there are any."""
+        out = []
+        if not self.converged:
+            out.append(f"NOT converged ({self.message})")
+        for name, bound in self.on_bound:
+            out.append(f"{name} ended on its bound {bound:g} (a unit mistake, a wrong configuration or "
+                       "an effect the model lacks; the interval is not valid)")
+        apart = [n for n in self.unidentifiable if n not in self.no_effect]
+        if apart:  # parameters without any effect are reported, but leave the others' fit usable
+            out.append(f"not identifiable from this data: {', '.join(apart)} (their effects on the torque "
+                       "cannot be told apart: fit fewer parameters, or add a measurement at another speed)")
+        return out
+
+    def __repr__(self):
+        vals = ", ".join(f"{n}={e.value:.6g}" if e.value is not None else f"{n}=None"
+                         for n, e in self.estimates.items())
+        state = "converged" if self.converged and not self.problems() else "NOT usable"
+        return f"<IdentificationResult {self.method}: {vals}; RMS {self.rms:.4g} N m; {state}>"
+
     def to_json(self) -> dict:
+        """The spec §7 JSON document: params {name: value, stderr, ci95, initial, identifiable},
+        iterations, rms [N m], converged, and message, problems, on_bound, correlation, diagnostics.
+
+        Example::
+
+            json.dumps(pumpsim.identify(cfg, "run.csv").to_json())
+        """
         names = list(self.estimates)
         return {
             "params": {n: {"value": e.value, "stderr": e.stderr, "ci95": [e.lower95, e.upper95],
@@ -98,11 +131,14 @@ class IdentificationResult:
             "correlation": {"names": [n for n in names if self.estimates[n].identifiable],
                             "matrix": None if self.correlation is None else self.correlation.tolist()},
             "diagnostics": self.diagnostics, "wall_time": self.wall_time, "provenance": self.provenance,
+            "on_bound": [{"name": n, "bound": b} for n, b in self.on_bound], "no_effect": self.no_effect,
+            "problems": self.problems(), "warnings": self.warnings,
         }
 
     def __str__(self):
+        its = self.iterations[-1].get("iteration", len(self.iterations) - 1) if self.iterations else 0
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
-                 f"after {len(self.iterations) - 1} iterations, residual RMS {self.rms:.6g} N m"]
+                 f"after {its} iterations, residual RMS {self.rms:.6g} N m"]
         if self.provenance:
             pv = self.provenance
             lines.append(f"  from {pv['config']} and " + ", ".join(
@@ -113,8 +149,12 @@ class IdentificationResult:
                 unit = "" if unit in ("–", "?") else f" {unit}"
                 lines.append(f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}{unit}  (95%: {e.lower95:.6g} .. "
                              f"{e.upper95:.6g}; start {e.initial:.6g})")
+            elif e.name in self.no_effect:
+                lines.append(f"  {e.name:<22} not identifiable: no effect on the torque in this data")
             else:
                 lines.append(f"  {e.name:<22} not identifiable from this data")
+        for name, bound in self.on_bound:
+            lines.append(f"  {name} is ON ITS BOUND {bound:g}: the estimate and interval are not valid")
         d = self.diagnostics
         lines.append(f"  residual: runs test p = {d['runs_test']['p_value']:.3g}, Ljung-Box p = "
                      f"{d['ljung_box']['p_value']:.3g} -> {'white' if d['white_at_5pct'] else 'not white'} at 5%")
@@ -458,12 +498,15 @@ def gauss_newton(prob: Problem, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=Fa
     return FitOutcome(x, r, J, history, converged, message)
 
 
+IPOPT_CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small")
+
+
 def ipopt_fit(prob: Problem, x0, log=None):
     phi = ca.MX.sym("phi", len(prob.names))
     r = ca.DM(prob.y) - prob.symbolic_model(phi)
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     # scale the unknowns by their initial magnitude so IPOPT's tolerances mean the same for all
-    sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False,
+    sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                                           "ipopt.hessian_approximation": "limited-memory",
                                           "ipopt.tol": 1e-12, "ipopt.max_iter": 200})
     res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
@@ -476,7 +519,11 @@ def ipopt_fit(prob: Problem, x0, log=None):
                 "iteration": 0},
                {"params": dict(zip(prob.names, map(float, x))), "rms": float(np.sqrt(np.mean((prob.y - m) ** 2))),
                 "iteration": int(st.get("iter_count", 0))}]
-    return FitOutcome(x, prob.y - m, J, history, bool(st.get("success")), str(st.get("return_status")))
+    status = str(st.get("return_status"))
+    # IPOPT stops with a step below machine precision at a least-squares minimum whose gradient is
+    # at rounding level but above its (strict) tol: that is convergence, not failure
+    converged = bool(st.get("success")) or status in IPOPT_CONVERGED
+    return FitOutcome(x, prob.y - m, J, history, converged, status)
 
 
 def phase_and_speed_start(prob: Problem, x):
@@ -549,8 +596,11 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1):
     return Problem(cfg, data, names, initial, extra, ripple_order)
 
 
-def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newton", relaxation=1.0,
-             initial=None, max_iter=50, log=None, multistart=True, ripple_order=1) -> IdentificationResult:
+def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
+             relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
+             ripple_order=1) -> IdentificationResult:
+    """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
+    speed. The engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
     if method not in METHODS:
         raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{method}'")
     if not 0 < relaxation <= 1:
@@ -567,37 +617,52 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
     moves_phase = any(base_name(n) in ("theta0", "speed") for n in prob.names)
     start = prob.start(x0) if multistart and moves_phase else x0
     initial_model = prob.model(x0)
-    # identifiability at the start: a near-singular J'J names the parameters instead of guessing
+    # identifiability at the start and again at the fit: a parameter without effect, or in a
+    # near-null direction of J'J (over-parameterised: COF and offset on a concentric rig), gets no
+    # number; it is fixed and the others are fitted again
     m_start, J_start = prob.model_and_jacobian(start)
-    unident = _unidentifiable(prob.names, J_start, start, m_start)
-    active = [n for n in prob.names if n not in unident]
-    if unident and active:
-        fixed = dict(zip(prob.names, start))
-        sub = make_problem(cfg, data, active, {n: fixed[n] for n in active},
-                      extra={n: fixed[n] for n in unident if n in SPECIAL}, ripple_order=ripple_order)
-        prob_fit, start_fit = sub, np.array([fixed[n] for n in active])
-    elif unident:  # nothing can be fitted: say so, with no numbers for the parameters
-        r = prob.y - m_start
-        est = {n: Estimate(n, None, None, None, None, v, identifiable=False) for n, v in zip(prob.names, x0)}
-        w = prob.speed_of(start)
-        rms = float(np.sqrt(np.mean(r**2)))
-        return IdentificationResult(
-            estimates=est, iterations=[{"params": dict(zip(prob.names, map(float, start))), "rms": rms}],
-            rms=rms, converged=False, message=f"not identifiable from this data: {', '.join(unident)}",
-            correlation=None, diagnostics=residual_report(r, prob.dt, w), method=method,
-            wall_time=_time.perf_counter() - wall0, unidentifiable=unident, time=prob.time_axis(),
-            measured=prob.y, fitted=m_start, initial_model=initial_model, speed=w,
-            angle=prob.angle(start), n_evaluations=prob.n_eval, provenance=provenance(cfg, data, prob.kern))
-    else:
-        prob_fit, start_fit = prob, start
-    # the identifiability check already evaluated the full problem at the start: reuse it
-    at_start = (m_start, J_start) if prob_fit is prob else None
-    if method == "ipopt":
-        x, r, J, history, converged, message = ipopt_fit(prob_fit, start_fit, log)
-    else:
-        x, r, J, history, converged, message = gauss_newton(
-            prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
-            lm=method == "levenberg-marquardt", log=log, start=at_start)
+    fixed = dict(zip(prob.names, start))
+    active, unident, no_effect = list(prob.names), [], []
+    prob_fit, start_fit, at_start, evaluations = prob, start, (m_start, J_start), 0
+
+    def reduced():
+        return make_problem(cfg, data, active, {n: fixed[n] for n in active},
+                            extra={n: fixed[n] for n in unident if base_name(n) in SPECIAL},
+                            ripple_order=ripple_order)
+
+    while True:
+        dead, flat = _to_fix(active, at_start[1], start_fit, at_start[0]) if at_start else ([], [])
+        if dead or flat:
+            fixed.update(zip(active, start_fit))
+            fixed.update({n: x0[prob.names.index(n)] for n in flat if base_name(n) == "speed"})  # nominal
+            unident = sorted(unident + dead + flat, key=prob.names.index)
+            no_effect = no_effect + dead
+            active = [n for n in active if n not in dead + flat]
+            if not active:  # nothing can be fitted: say so, with no numbers for the parameters
+                r, w = prob.y - m_start, prob.speed_of(start)
+                est = {n: Estimate(n, None, None, None, None, v, identifiable=False)
+                       for n, v in zip(prob.names, x0)}
+                rms = float(np.sqrt(np.mean(r**2)))
+                return IdentificationResult(
+                    estimates=est, iterations=[{"params": dict(zip(prob.names, map(float, start))), "rms": rms}],
+                    rms=rms, converged=False, message=f"not identifiable from this data: {', '.join(unident)}",
+                    correlation=None, diagnostics=residual_report(r, prob.dt, w), method=method,
+                    wall_time=_time.perf_counter() - wall0, unidentifiable=unident, time=prob.time_axis(),
+                    measured=prob.y, fitted=m_start, initial_model=initial_model, speed=w,
+                    angle=prob.angle(start), n_evaluations=prob.n_eval + evaluations,
+                    provenance=provenance(cfg, data, prob.kern), no_effect=no_effect)
+            evaluations += prob_fit.n_eval if prob_fit is not prob else 0
+            prob_fit, start_fit, at_start = reduced(), np.array([fixed[n] for n in active]), None
+        if method == "ipopt":
+            x, r, J, history, converged, message = ipopt_fit(prob_fit, start_fit, log)
+        else:
+            x, r, J, history, converged, message = gauss_newton(
+                prob_fit, start_fit, relaxation=relaxation, max_iter=max_iter,
+                lm=method == "levenberg-marquardt", log=log, start=at_start)
+        at_start = (prob_fit.y - r, J)
+        if not any(_to_fix(active, J, x, prob_fit.y - r)):
+            break
+        start_fit = x  # flat at the fit: the loop's head fixes those parameters and refits
     for i, nm in enumerate(prob_fit.names):  # theta0 is periodic: report it in [0, 2 pi)
         if multistart and base_name(nm) == "theta0":
             x[i] = float(np.mod(x[i], 2 * math.pi))
@@ -619,7 +684,18 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu",), method="gauss-newto
         message=message, correlation=corr, diagnostics=diag, method=method,
         wall_time=_time.perf_counter() - wall0, unidentifiable=unident, time=prob.time_axis(),
         measured=prob.y, fitted=fitted, initial_model=initial_model, speed=w, angle=prob_fit.angle(x),
-        n_evaluations=prob.n_eval + prob_fit.n_eval, provenance=provenance(cfg, data, prob.kern))
+        n_evaluations=prob.n_eval + evaluations + (prob_fit.n_eval if prob_fit is not prob else 0),
+        provenance=provenance(cfg, data, prob.kern), on_bound=bounds_reached(prob_fit, x), no_effect=no_effect)
+
+
+def bounds_reached(prob, x) -> list:
+    """[(name, bound)] for fitted values that ended on a finite bound of the fit."""
+    out = []
+    for i, nm in enumerate(prob.names):
+        for b in (prob.lower[i], prob.upper[i]):
+            if np.isfinite(b) and abs(x[i] - b) <= 1e-9 * max(1.0, abs(b)):
+                out.append((nm, float(b)))
+    return out
 
 
 def fit_estimates(names, x, initial, r, J):
@@ -642,15 +718,40 @@ def _unidentifiable(names, J, x, model) -> list:
     """Parameters the data cannot determine: those whose effect on the model is negligible (a
     change by their own size, or by 1 for angles and offsets, moves the model by < 1e-8 of its
     norm), and those in a near-null direction of the column-scaled Jacobian (J'J near-singular)."""
+    return sorted(set(_no_effect(names, J, x, model) + _collinear(names, J, x, model)), key=list(names).index)
+
+
+def _to_fix(names, J, x, model):
+    """(parameters without effect, parameters in a flat direction) to fix before fitting. A flat
+    direction that involves the speed and others fixes the speed alone: its nominal value (config
+    or speed column) is known, and the others (e.g. the COF) are what the fit is for."""
+    dead = _no_effect(names, J, x, model)
+    flat = _collinear(names, J, x, model)
+    speeds = [n for n in flat if base_name(n) == "speed"]
+    if speeds and len(flat) > len(speeds):
+        flat = speeds
+    return dead, flat
+
+
+def _no_effect(names, J, x, model) -> list:
+    """The parameters of `_unidentifiable` that do not act on the model at all."""
+    col = np.linalg.norm(J, axis=0)
+    size = np.maximum(np.abs(x), 1.0)
+    return [n for n, c, sz in zip(names, col, size) if c * sz <= 1e-8 * max(np.linalg.norm(model), 1e-300)]
+
+
+def _collinear(names, J, x, model) -> list:
+    """The parameters of `_unidentifiable` that act, but only in combinations the data cannot
+    tell apart."""
     col = np.linalg.norm(J, axis=0)
     size = np.maximum(np.abs(x), 1.0)
     dead = [n for n, c, sz in zip(names, col, size) if c * sz <= 1e-8 * max(np.linalg.norm(model), 1e-300)]
-    if dead:
-        return dead
-    scale, U, s, Vt = _scaled_svd(J)
+    live = [i for i, n in enumerate(names) if n not in dead]
     bad = []
-    for j in range(len(s)):
-        if s[j] < s[0] / SINGULAR_COND:
-            v = np.abs(Vt[j])
-            bad += [names[i] for i in np.nonzero(v > 0.3 * v.max())[0]]
+    if len(live) > 1:  # near-null directions among the parameters that do act
+        scale, U, s, Vt = _scaled_svd(J[:, live])
+        for j in range(len(s)):
+            if s[j] < s[0] / SINGULAR_COND:
+                v = np.abs(Vt[j])
+                bad += [names[live[i]] for i in np.nonzero(v > 0.3 * v.max())[0]]
     return sorted(set(bad), key=names.index)

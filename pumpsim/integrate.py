@@ -22,7 +22,7 @@ import time as _time
 import casadi as ca
 import numpy as np
 
-from .errors import SolverError
+from .errors import ConfigError, SolverError
 from .tolerances import ATOL, RTOL
 
 # CVODES/IDAS statistics summed over calls (report Table 13), ours -> CasADi's name
@@ -35,9 +35,19 @@ class Integrator:
     """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
     def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=RTOL, atol=ATOL,
-                 max_step=None, rk_steps=10, max_steps=500000, scale=None):
+                 max_step=None, rk_steps=10, max_steps=500000, scale=None, bounds=None, names=None):
         """scale: a nominal size per state; the integrator works on x / scale, so the absolute
-        tolerance of state i is atol * scale[i] (the relative one is unchanged)."""
+        tolerance of state i is atol * scale[i] (the relative one is unchanged).
+        bounds: (lower, upper) per state, the physically possible range; a state outside it (or
+        not finite) is a numerical failure, for every method (an explicit RK4 that diverges gives
+        finite nonsense long before it overflows). names: the states' names for the message."""
+        for name, val in (("rtol", rtol), ("atol", atol)):
+            if not 0 < val < 1:
+                raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
+        if max_step is not None and not max_step > 0:
+            raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
+        self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
+        self.names = list(names) if names is not None else [f"x[{i}]" for i in range(nx)]
         self.params = np.asarray(params, dtype=float).ravel()
         self.nx, self.dt, self.method = nx, float(dt), method
         self.rtol, self.atol, self.max_step, self.rk_steps = rtol, atol, max_step, rk_steps
@@ -63,7 +73,7 @@ class Integrator:
         if self.method == "rk":  # fixed steps: rk_steps per output interval (the option is a total)
             return ca.integrator(name, "rk", dae, 0.0, grid,
                                  {"number_of_finite_elements": self.rk_steps * len(grid)})
-        raise ValueError(f"unknown integration method {self.method!r}")
+        raise ConfigError(f"--method must be cvodes, idas or rk, got {self.method!r}")
 
     def _call(self, integ, x, extra, intervals=1):
         self.calls += 1
@@ -107,7 +117,7 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
     while k < n - 1:
         m = min(CHUNK, n - 1 - k)
         steps_before = integ.stats["nsteps"]
-        X = _guarded(lambda: integ.chunk(x, m), times[k], times[k + m], x, times[:k + 1], xs[:k + 1])
+        X = _guarded(integ, lambda: integ.chunk(x, m), times[k], times[k + m], x, times[:k + 1], xs[:k + 1])
         cut = m
         if switch_fn is not None:
             G = switch_fn(X)
@@ -137,7 +147,9 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
     return xs, events, stats
 
 
-def _guarded(fn, t_a, t_b, x, done_t, done_x):
+def _guarded(integ, fn, t_a, t_b, x, done_t, done_x):
+    """Run one integrator call; a CasADi failure, a non-finite state or a state outside its
+    physical bounds raises SolverError naming the interval and the state."""
     try:
         out = fn()
     except RuntimeError as e:
@@ -145,17 +157,27 @@ def _guarded(fn, t_a, t_b, x, done_t, done_x):
             f"integrator failed between t = {t_a:.9g} s and {t_b:.9g} s starting from state "
             f"{np.array2string(x, precision=6)}: {str(e).strip().splitlines()[-1]}",
             partial=(done_t, done_x)) from None
-    if not np.all(np.isfinite(out)):
-        raise SolverError(f"integrator returned a non-finite state between t = {t_a:.9g} s and "
-                          f"{t_b:.9g} s (state at {t_a:.9g} s: {np.array2string(x, precision=6)})",
-                          partial=(done_t, done_x))
+    rows = np.atleast_2d(out)
+    bad = ~np.isfinite(rows)
+    what = "a non-finite state"
+    if not bad.any() and integ.bounds is not None:
+        bad = (rows < integ.bounds[0]) | (rows > integ.bounds[1])
+        what = "a state outside its physical bounds"
+    if bad.any():
+        k, i = np.argwhere(bad)[0]
+        lo, hi = integ.bounds if integ.bounds is not None else (None, None)
+        limit = f" (bounds {lo[i]:.4g} .. {hi[i]:.4g})" if lo is not None else ""
+        raise SolverError(f"integrator returned {what} between t = {t_a:.9g} s and {t_b:.9g} s: "
+                          f"{integ.names[i]} = {rows[k, i]:.6g}{limit}; the state at {t_a:.9g} s was "
+                          f"{np.array2string(x, precision=6, max_line_width=10**6)} -- a smaller --max-step or an implicit "
+                          "method (cvodes) may help", partial=(done_t, done_x))
     return out
 
 
 def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, done_x):
     while t < t_end:
         dt = t_end - t
-        x_new = _guarded(lambda: integ.step(x, dt), t, t_end, x, done_t, done_x)
+        x_new = _guarded(integ, lambda: integ.step(x, dt), t, t_end, x, done_t, done_x)
         g_new = switch_fn(x_new[None, :])[0]
         crossed = [i for i in np.nonzero(np.sign(g_new) != np.sign(g))[0] if g[i] != 0.0]
         if not crossed:
@@ -167,7 +189,7 @@ def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, 
         if t_s >= dt:  # crossing at the interval end
             events.extend((t_end, int(i)) for i in simultaneous)
             return x_new, g_new
-        x = _guarded(lambda: integ.step(x, t_s), t, t + t_s, x, done_t, done_x)
+        x = _guarded(integ, lambda: integ.step(x, t_s), t, t + t_s, x, done_t, done_x)
         t = t + t_s
         g = switch_fn(x[None, :])[0]
         for i in simultaneous:  # these crossings are done

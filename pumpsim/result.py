@@ -100,7 +100,22 @@ class Solution:
         return names + [f"{c}_{i}" for i in range(self.n_vanes) for c in self.per_vane_columns()]
 
     def columns(self) -> dict:
+        """The spec §7 columns by name (SI units): time, angle, speed, torque, s_i, sdot_i, normal_i,
+        slot1_i, slot2_i (and penetration_i for the contact model).
+
+        Example::
+
+            res = pumpsim.simulate(pumpsim.load_config("examples/test_rig.toml"))
+            list(res.columns())[:4]     # ['time', 'angle', 'speed', 'torque']
+        """
         return {name: self[name] for name in self.column_names()}
+
+    def __repr__(self):
+        return (f"<{type(self).__name__} {self.model} model, {self.mode} drive, {self.n_vanes} vane(s), "
+                f"{len(self.time)} samples over {self.time[-1] - self.time[0]:.4g} s ({self.termination})>")
+
+    def __str__(self):
+        return self.summary()
 
     def __getitem__(self, name):
         """A spec §7 column ('torque', 's_0', ...), or any kernel output by name (per vane: an
@@ -123,6 +138,14 @@ class Solution:
                            f"...; outputs: {', '.join(self.extra.available())}") from None
 
     def to_csv(self, path) -> None:
+        """Write the spec §7 columns (time [s], angle [rad], speed [rad/s], torque [N m], per vane
+        s_i [m], sdot_i [m/s], normal_i, slot1_i, slot2_i [N]) as CSV, atomically.
+
+        Example::
+
+            res = pumpsim.simulate(pumpsim.load_config("examples/test_rig.toml"))
+            res.to_csv("out.csv")
+        """
         cols = self.columns()
         data = np.column_stack([np.asarray(v, dtype=float) for v in cols.values()])
         with atomic_path(path) as tmp:
@@ -145,13 +168,26 @@ class Solution:
             pq.write_table(table, tmp)
 
     def plot(self, path, name: str | None = None, x: str = "angle") -> None:
-        """Figure set (.png/.svg/.pdf): versus rotor angle in degrees, revolutions overlaid
-        (x="time": versus time); `name` (the config's) goes into the title."""
+        """Write the figure set (.png/.svg/.pdf) to `path`: versus rotor angle in degrees,
+        revolutions overlaid (x="time": versus time); `name` (the config's) goes into the title.
+
+        Example::
+
+            res = pumpsim.simulate(pumpsim.load_config("examples/test_rig.toml"))
+            res.plot("out.png")
+        """
         from .plotting import plot_simulation
 
         plot_simulation(self, path, name=name, x=x)
 
     def summary(self) -> str:
+        """A few lines for a terminal: model, drive, samples, torque and normal-force ranges [N m, N],
+        solver statistics and warnings.
+
+        Example::
+
+            print(pumpsim.simulate(pumpsim.load_config("examples/test_rig.toml")).summary())
+        """
         tq = self.torque
         lines = [
             f"model {self.model}, {self.mode} drive, {self.n_vanes} vane(s), "

@@ -110,10 +110,35 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
              rate: float = 10000.0, method: str = "cvodes", rtol: float = RTOL, atol: float = ATOL,
              max_step: float | None = None, progress=None, max_steps: int = 500000,
              **options) -> SimulationResult:
-    """Simulate `cfg`. Speed drive: inverse dynamics at the prescribed speed (no integration).
-    Torque drive: theta and omega integrated; vane positions follow from theta exactly."""
+    """Simulate a pump configuration.
+
+    Speed drive (operation.mode = "speed"): inverse dynamics at the prescribed speed, no
+    integration. Torque drive: theta and omega integrated; vane positions follow from theta exactly.
+
+    Parameters: cfg (PumpConfig, from `load_config`); model "constrained" (Model 2, the tip on the
+    housing) or "contact" (Model 1, penalty contacts); duration [s] (default two revolutions at
+    the configured speed, 0.5 s for a torque drive); rate: output samples per second [Hz];
+    method "cvodes", "idas" or "rk" (explicit RK4, fixed step max_step, default 1e-6 s); rtol,
+    atol: tolerances in (0, 1) (atol for positions [rad, m]); max_step [s]; progress:
+    callable(simulated time); max_steps per integrator call; initial (contact model): "bottom",
+    "rotor" or "housing". A numerical failure raises SolverError naming the time and the state.
+
+    Returns a SimulationResult: columns by name (`res["torque"]`, `res["s_0"]`), `summary()`,
+    `to_csv(path)`, `plot(path)`, `stats`, `events`, `warnings`.
+
+    Example::
+
+        cfg = pumpsim.load_config("examples/ellipse_4vanes.toml")
+        res = pumpsim.simulate(cfg, duration=0.05, rate=20000)
+        print(res.summary())
+    """
     if cfg.mode == "motor":
         raise ConfigError("operation.mode = \"motor\" drives the pneumatic model: use `pumpsim pumpdown`")
+    for name, val in (("rtol", rtol), ("atol", atol)):
+        if not 0 < val < 1:
+            raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
+    if max_step is not None and not max_step > 0:
+        raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
     if model == "contact":
         from .contact import simulate_contact
 
@@ -124,11 +149,6 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
         raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
     if options:
         raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
-    for name, val in (("rtol", rtol), ("atol", atol)):
-        if not 0 < val < 1:
-            raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
-    if max_step is not None and not max_step > 0:
-        raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)
     p = as_array(pv)
@@ -180,8 +200,11 @@ def _torque_drive(kern, p, cfg, t, method, rtol, atol, max_step, progress, max_s
     def rhs(x, pp):
         return ode(x, pp[npar], pp[:npar])
 
+    from .contact import state_bounds
+
+    bounds, names = state_bounds(cfg, vanes=False)
     integ = Integrator(rhs, 2, np.concatenate([p, [torque]]), t[1] - t[0], method=method, rtol=rtol,
-                       atol=atol, max_step=max_step, max_steps=max_steps)
+                       atol=atol, max_step=max_step, max_steps=max_steps, bounds=bounds, names=names)
     v = dict(zip(cfg.parameters().names, p))
     friction_on = any(v[f"friction.{s}.{k}"] > 0 for s in ("housing", "slot") for k in FRICTION_KEYS[:2])
     gfun = switching_functions(kern, p, torque, friction_on)

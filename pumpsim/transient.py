@@ -19,8 +19,8 @@ from .config import PumpConfig, as_array
 from .data import Dataset
 from .diagnostics import residual_report
 from .errors import ConfigError, DataError
-from .identify import (IdentificationResult, fit_estimates, following, gauss_newton, parameter_map,
-                       provenance, start_and_bounds)
+from .identify import (IdentificationResult, bounds_reached, fit_estimates, following, gauss_newton,
+                       parameter_map, provenance, start_and_bounds)
 from .kernels import load_kernels
 from .model_spec.parameters import MEASUREMENT, alias_targets, layout
 
@@ -99,4 +99,5 @@ def identify_transient(cfg: PumpConfig, data: Dataset, params=("mu", "speed0"), 
         message=message + " (transient: speed fitted under the measured torque)", correlation=corr,
         diagnostics=diag, method="gauss-newton/transient", wall_time=_time.perf_counter() - wall0,
         time=data.time, measured=prob.y, fitted=prob.y - r, initial_model=m0, speed=w, angle=angle,
-        n_evaluations=prob.n_eval, provenance=provenance(cfg, data, prob.kern))
+        n_evaluations=prob.n_eval, provenance=provenance(cfg, data, prob.kern),
+        on_bound=bounds_reached(prob, x))

@@ -79,6 +79,37 @@ def apply_changes(d, changes):
     return d
 
 
+def toml_value(v):
+    """A Python value as TOML (floats nan/inf included, inline tables for nested dicts in lists)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else ("inf" if v == math.inf else ("-inf" if v == -math.inf else repr(v)))
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
+    return repr(v)
+
+
+def toml_text(d) -> str:
+    """A config dict as TOML text (tables for nested dicts)."""
+    lines = []
+
+    def emit(prefix, table):
+        if prefix:
+            lines.append(f"[{prefix}]")
+        lines.extend(f"{k} = {toml_value(v)}" for k, v in table.items() if not isinstance(v, dict))
+        for k, v in table.items():
+            if isinstance(v, dict):
+                emit(f"{prefix}.{k}" if prefix else k, v)
+
+    emit("", d)
+    return "\n".join(lines) + "\n"
+
+
 def make_config(base="test_rig", **changes):
     """Config from an example with dotted-key changes, e.g. make_config(**{"rotor.vanes": 1})."""
     cfg = config_from_dict(apply_changes(example_dict(base), changes))

@@ -31,12 +31,16 @@ def test_contact_simulation_writes_penetration_columns_and_plot(tmp_path):
 
 def test_integrator_failure_exits_1_names_time_state_contacts_and_keeps_samples(tmp_path):
     out = tmp_path / "c.csv"
-    r = _cli("simulate", "examples/startup_ellipse.toml", "--model", "contact", "--duration", "0.5",
-             "--rate", "1000", "--max-steps", "40", "--out", str(out))
+    args = ("simulate", "examples/startup_ellipse.toml", "--model", "contact", "--duration", "0.5",
+            "--rate", "1000", "--max-steps", "40", "--out", str(out))
+    r = _cli(*args)
     assert r.returncode == 1
     assert "integrator failed between t =" in r.stderr and "starting from state" in r.stderr
     assert "contact states at t =" in r.stderr and "vane 0" in r.stderr
     assert "Traceback" not in r.stderr
+    assert not out.exists()  # no partial output unless asked for
+    r = _cli(*args, "--keep-partial")
+    assert r.returncode == 1 and "computed before the failure are in" in r.stderr
     rows = out.read_text().splitlines()
     assert 2 <= len(rows) < 502  # the samples before the failure, not the whole run
 

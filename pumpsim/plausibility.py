@@ -1,0 +1,165 @@
+"""Unit-mistake checks before any work: a config in mm/g instead of SI, a speed column in rpm, a
+torque column in N mm, a time column in ms.
+
+Each check compares a magnitude with what a rotary vane pump can physically be, or with what the
+model gives for the configuration; when the mismatch matches a unit factor (1000, 60/2 pi, ...)
+the message names the likely unit and the option or key that fixes it. `force=True` (`--force`)
+turns a refusal into a warning. The limits are generous on purpose: they catch factors of 10 to
+10^9, not engineering judgement.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import ConfigError, DataError
+
+# A vane tip faster than this is no vane pump (automotive pumps run at 10-30 m/s, large
+# industrial ones below 40 m/s): an operation.speed given in rpm gives ~10x.
+MAX_TIP_SPEED = 100.0  # m/s
+MAX_LENGTH = 1.0  # m: no rotor, housing or vane dimension of a vane pump reaches a metre
+MAX_DENSITY = 20000.0  # kg/m^3: above tungsten (19,300)
+MAX_AXIAL_LENGTH = 1.0  # m: bounds a vane's width / the rotor's length for the mass checks
+MIN_SAMPLES_PER_REV = 8  # fewer cannot resolve even the first shaft orders
+TORQUE_MARGIN = 10.0  # a torque level 10x outside the model's COF range [0, 2] is implausible
+
+TORQUE_FACTORS = {"N*mm (use --torque-unit N*mm or a 'torque [N*mm]' header)": 1e3,
+                  "N*cm (use --torque-unit N*cm)": 1e2,
+                  "N*m, but --torque-unit or the header says N*mm": 1e-3}
+SPEED_FACTORS = {"rpm (use --speed-unit rpm or a 'speed [rpm]' header)": 60 / (2 * math.pi),
+                 "rev/s (use --speed-unit rev/s)": 1 / (2 * math.pi),
+                 "deg/s (use a 'speed [deg/s]' header)": 180 / math.pi,
+                 "rad/s, but --speed-unit or the header says rpm": 2 * math.pi / 60}
+TIME_FACTORS = {"ms (use --time-unit ms or a 'time [ms]' header)": 1e3,
+                "us (use --time-unit us or a 'time [us]' header)": 1e6}
+FACTOR_TOL = 0.15  # relative: a ratio within 15 % of a unit factor is taken as that unit
+
+
+def _refuse(problem, force, error):
+    if force:
+        return [f"{problem} (--force: proceeding)"]
+    raise error(f"{problem}; --force proceeds anyway")
+
+
+def config_problems(cfg) -> list[str]:
+    """Magnitudes a pump config in SI units cannot have (lengths in mm, masses in g, speeds in rpm)."""
+    v = cfg.values
+    out = []
+    for key in ("rotor.radius", "housing.a", "housing.b", "vane.length", "vane.thickness"):
+        if v[key] > MAX_LENGTH:
+            shown = "housing.radius" if key.startswith("housing.") and cfg.shape == "circle" else key
+            out.append(f"{shown} = {v[key]:g} m is larger than any vane pump: config values are SI "
+                       f"(metres); {v[key]:g} mm is {v[key] / 1000:g}")
+            return out  # one length in mm: the rest follow, and mass checks would mislead
+    L, h = v["vane.length"], v["vane.thickness"]
+    heaviest = MAX_DENSITY * L * h * MAX_AXIAL_LENGTH
+    if v["vane.mass"] > heaviest:
+        out.append(f"vane.mass = {v['vane.mass']:g} kg is heavier than a tungsten vane of {L * 1e3:g} x "
+                   f"{h * 1e3:g} mm and {MAX_AXIAL_LENGTH:g} m width ({heaviest:.3g} kg): config values are SI "
+                   f"(kg); {v['vane.mass']:g} g is {v['vane.mass'] / 1000:g}")
+    R = v["rotor.radius"]
+    most = MAX_DENSITY * math.pi / 2 * R**4 * MAX_AXIAL_LENGTH
+    if v["rotor.inertia"] > most:
+        out.append(f"rotor.inertia = {v['rotor.inertia']:g} kg m^2 exceeds a solid tungsten rotor of radius "
+                   f"{R * 1e3:g} mm and {MAX_AXIAL_LENGTH:g} m length ({most:.3g} kg m^2): config values are SI "
+                   "(kg m^2; 1 g mm^2 = 1e-9 kg m^2)")
+    bar = v["vane.mass"] * (L**2 + h**2) / 12
+    if not 0.1 * bar <= v["vane.inertia"] <= 10 * bar:
+        out.append(f"vane.inertia = {v['vane.inertia']:g} kg m^2 is {v['vane.inertia'] / bar:.3g} x that of a "
+                   f"{L * 1e3:g} x {h * 1e3:g} mm bar of vane.mass ({bar:.3g}): config values are SI (kg m^2)")
+    if cfg.speed:
+        tip = cfg.speed * max(v["housing.a"], v["housing.b"])
+        if tip > MAX_TIP_SPEED:
+            out.append(f"operation.speed = {cfg.speed:g} rad/s gives a vane tip speed of {tip:.3g} m/s "
+                       f"(limit {MAX_TIP_SPEED:g}): operation.speed is in rad/s (SI); for {cfg.speed:g} rpm "
+                       f"write operation.speed_rpm = {cfg.speed:g} instead")
+    return out
+
+
+def check_config(cfg, force=False) -> list[str]:
+    """Refuse (ConfigError) a config whose magnitudes suggest non-SI units; warnings under force."""
+    problems = config_problems(cfg)
+    if not problems:
+        return []
+    return _refuse("; ".join(problems), force, ConfigError)
+
+
+def _match(ratio, factors):
+    for unit, f in factors.items():
+        if ratio > 0 and abs(math.log(ratio / f)) < math.log1p(FACTOR_TOL):
+            return unit
+    return None
+
+
+def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
+    """Compare a measurement with the configuration before fitting: the speed column with the
+    configured speed and a pump's tip-speed limit, the sampling with the revolution, and the torque
+    level with the model's at COFs 0 and 2 (the fit's bounds). Refuses (DataError, naming the file
+    and the likely unit) unless force; returns warnings."""
+    warnings = []
+    name = ds.name
+    radius = max(cfg.values["housing.a"], cfg.values["housing.b"])
+    speed = None
+    if ds.speed is not None:
+        speed = float(np.mean(ds.speed))
+        tip = abs(speed) * radius
+        if cfg.mode == "speed" and cfg.speed:
+            unit = _match(speed / cfg.speed, SPEED_FACTORS)
+            if unit:
+                warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s is "
+                                    f"{speed / cfg.speed:.4g} x the configured {cfg.speed:.5g} rad/s: "
+                                    f"the column looks like {unit}", force, DataError)
+        if tip > MAX_TIP_SPEED and not warnings:
+            warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s gives a vane tip "
+                                f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (use --speed-unit rpm)",
+                                force, DataError)
+    w = speed if speed and speed > 0 else (cfg.speed if cfg.speed else None)
+    if w and "speed" not in params and ds.n > 1:
+        dt = float(np.median(np.diff(ds.time)))
+        per_rev = 2 * math.pi / (w * dt)
+        if per_rev < MIN_SAMPLES_PER_REV:
+            unit = next((u for u, f in TIME_FACTORS.items() if per_rev * f >= MIN_SAMPLES_PER_REV), None)
+            hint = f": the time column looks like {unit}" if unit else ""
+            warnings += _refuse(f"data '{name}': {per_rev:.3g} samples per revolution at {w:.5g} rad/s "
+                                f"(sample interval {dt:.4g} s; at least {MIN_SAMPLES_PER_REV} needed){hint}",
+                                force, DataError)
+    if w:
+        warnings += _check_torque_level(cfg, ds, w, force)
+    return warnings
+
+
+def model_torque_range(cfg, speed):
+    """RMS of the model torque over one revolution at `speed` for COF 0 and COF 2 (housing and slot,
+    statics scaled by the configured ratios): the range a fit of mu can reach."""
+    from .config import as_array
+    from .kernels import load_kernels
+    from .simulate import inverse_dynamics
+
+    pv = cfg.parameters("constrained")
+    kern = load_kernels(pv.structure)
+    grid = np.linspace(0, 2 * math.pi, 360, endpoint=False)
+    out = []
+    for mu in (0.0, 2.0):
+        vals = dict(pv.values)
+        for side in ("housing", "slot"):
+            ratio = vals[f"friction.{side}.static"] / max(vals[f"friction.{side}.dynamic"], 1e-300)
+            vals[f"friction.{side}.dynamic"] = mu
+            vals[f"friction.{side}.static"] = mu * ratio
+        pv2 = pv.copy()
+        pv2.values.update(vals)
+        tq = inverse_dynamics(kern, as_array(pv2), grid, speed, 0.0)["torque"]
+        out.append(float(np.sqrt(np.mean(tq**2))))
+    return min(out), max(out)
+
+
+def _check_torque_level(cfg, ds, speed, force):
+    lo, hi = model_torque_range(cfg, speed)
+    level = float(np.sqrt(np.mean(ds.torque**2)))
+    if not level > 0 or hi <= 0 or lo / TORQUE_MARGIN <= level <= hi * TORQUE_MARGIN:
+        return []
+    fits = [u for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi]
+    why = f": the torque looks like {fits[0]}" if fits else \
+        ": check the torque unit and the configuration (lengths m, masses kg)"
+    return _refuse(f"data '{ds.name}': torque RMS {level:.4g} N m is outside what the model gives at "
+                   f"{speed:.5g} rad/s for any COF in [0, 2] ({lo:.3g} .. {hi:.3g} N m){why}", force, DataError)
