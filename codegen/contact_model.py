@@ -81,7 +81,7 @@ def vane_functions(b) -> dict:
                   c_visc=ca.if_else(in_contact, b.P["effects.viscous_tip_friction"], 0.0), **g)
     v_t = b.mech(**common)["tip_slip"]
     mu_h = factor * b.friction(v_t, "housing")
-    mu_r = b.friction(sd, "slot")
+    mu_r = factor * b.friction(sd, "slot")  # a vane's material/finish: tip and slot
     common.update(mu_h=mu_h, mu_r=mu_r)
     best, n_cons, amb, final = b.solve_contact_sides(("sddot", "F1", "F2"), common)
     outs = dict(sddot=best[0], normal=N, slot1=best[1], slot2=best[2], bottom=Fb, penetration=delta,

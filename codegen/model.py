@@ -253,7 +253,7 @@ class _Builder:
                       c_visc=self.P["effects.viscous_tip_friction"], **g)
         v_t = self.mech(**common)["tip_slip"]
         mu_h = factor * self.friction(v_t, "housing")
-        mu_r = self.friction(k["sdot"], "slot")
+        mu_r = factor * self.friction(k["sdot"], "slot")  # a vane's material/finish: tip and slot
         common.update(mu_h=mu_h, mu_r=mu_r)
         best, n_cons, amb, final = self.solve_contact_sides(("N", "F1", "F2"), common)
         outs = dict(s=k["s"], sdot=k["sdot"], sddot=k["sddot"], alpha=k["alpha"],
@@ -384,7 +384,7 @@ class _Builder:
                       c_visc=self.P["effects.viscous_tip_friction"], **g)
             v_t = self.mech(**kw)["tip_slip"]
             mu_h = self.P[f"effects.vane_friction_factor.{i}"] * self.friction(v_t, "housing")
-            mu_r = self.friction(qd[1 + i], "slot")
+            mu_r = self.P[f"effects.vane_friction_factor.{i}"] * self.friction(qd[1 + i], "slot")
             m = self.mech(N=eps[3 * i], F1=eps[3 * i + 1], F2=eps[3 * i + 2], sigma1=sig[2 * i],
                           sigma2=sig[2 * i + 1], mu_h=mu_h, mu_r=mu_r, **kw)
             eqs += [m["eq_slide"], m["eq_lateral"], m["eq_tilt"]]

@@ -103,7 +103,7 @@ class NumpyConstrainedModel(_NumpyModel):
                       mu_h=0.0, mu_r=0.0, c_visc=v["effects.viscous_tip_friction"], **g)
             vt = self._slip(*[kw[a] for a in self._dyn_args])
             kw["mu_h"] = v[f"effects.vane_friction_factor.{i}"] * laws.friction_coefficient(vt, *fh)
-            kw["mu_r"] = laws.friction_coefficient(yd[:, 0], *fs)
+            kw["mu_r"] = v[f"effects.vane_friction_factor.{i}"] * laws.friction_coefficient(yd[:, 0], *fs)
             best, best_err = None, None
             for s1, s2 in SIGN_SETS:
                 kw["sigma1"], kw["sigma2"] = s1, s2
@@ -220,7 +220,7 @@ class NumpyContactModel(_NumpyModel):
                           mu_r=0.0, sddot=0.0, F1=0.0, F2=0.0, **g)
                 vt = self._slip(*[kw[k] for k in SYMBOL_NAMES])
                 kw["mu_h"] = v[f"effects.vane_friction_factor.{i}"] * laws.friction_coefficient(vt, *fh)
-                kw["mu_r"] = laws.friction_coefficient(sd, *fs)
+                kw["mu_r"] = v[f"effects.vane_friction_factor.{i}"] * laws.friction_coefficient(sd, *fs)
                 best, best_err = None, None
                 for s1, s2 in SIGN_SETS:
                     kw["sigma1"], kw["sigma2"] = s1, s2

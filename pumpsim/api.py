@@ -130,7 +130,11 @@ class Diagnosis(dict):
     unexplained, confounded, ...) as a dict; `.history` holds the fits behind each step;
     `print(d)` shows the step table."""
 
-    def __init__(self, out: dict):
+    def __init__(self, out):
+        if hasattr(out, "to_json"):  # a diagnose.DiagnosisResult
+            super().__init__(out.to_json())
+            self.history = out.history
+            return
         public = {k: v for k, v in out.items() if not k.startswith("_")}
         super().__init__(public)
         self.history = out.get("_history", [])
@@ -154,7 +158,8 @@ class Diagnosis(dict):
                 f"unexplained {self.get('unexplained')}; confounded {self.get('confounded')}>")
 
 
-def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None) -> Diagnosis:
+def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None,
+             speed_tolerance=None) -> Diagnosis:
     """The discrepancy workflow: fit the baseline (mu, theta0 and the speed when the data has none),
     test the residual, then name and add the effects the model lacks (see README).
 
@@ -166,6 +171,8 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     options : DataOptions for reading files
     force : proceed although the unit checks suspect a unit mistake
     progress : callable(message) for progress lines
+    speed_tolerance : relative band about the configured speed for data without a speed column
+        (default: operation.speed_tolerance, 0.02)
 
     Returns
     -------
@@ -188,4 +195,4 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     for w in warnings:  # accepted under force: say so where the user looks
         if progress:
             progress(f"warning: {w}")
-    return Diagnosis(_diagnose(cfg, datasets, progress=progress))
+    return Diagnosis(_diagnose(cfg, datasets, progress=progress, speed_tolerance=speed_tolerance))

@@ -343,6 +343,9 @@ def register_diagnose(sub):
     dg.add_argument("config", help="TOML configuration (SI units)")
     dg.add_argument("data", nargs="+", help="one or more measurements (several speeds separate "
                     "offset, viscous friction and COF)")
+    dg.add_argument("--speed-tolerance", type=float, dest="speed_tolerance",
+                    help="relative band about the configured speed inside which a measurement without a "
+                         "speed column may refine it (default: operation.speed_tolerance, 0.02)")
     _add_fit_outputs(dg)
     dg.set_defaults(func=cmd_diagnose)
 
@@ -357,7 +360,7 @@ def cmd_diagnose(a) -> int:
     # several files: measurements of one pump at different speeds, fitted together
     data = [load_data(d, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
             for d in a.data]
-    out = diagnose(cfg, data, force=a.force, progress=tty_progress())
+    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     print(out)

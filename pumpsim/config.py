@@ -31,7 +31,8 @@ _OTHER_KEYS = {
     "contact.bottom": {"law": ("str", False, "impact")},
     "operation": {"mode": ("str", False, "speed"), "speed": ("num", False, None),
                   "speed_rpm": ("num", False, None), "angle": ("num", False, 0.0),
-                  "torque": ("num", False, None), "initial_vane_state": ("str", False, None)},
+                  "torque": ("num", False, None), "initial_vane_state": ("str", False, None),
+                  "speed_tolerance": ("num", False, 0.02)},
     "effects": {"vane_friction_factors": ("list", False, None), "speed_ripple": ("list", False, None)},
 }
 SECTIONS = ("housing", "rotor", "vane", "friction.housing", "friction.slot", "contact.housing",
@@ -128,6 +129,9 @@ class PumpConfig:
     path: str | None = None
     # speed mode: omega = speed (1 + amplitude cos(order theta_n + phase)), theta_n the nominal angle
     speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
+    # relative band about `speed` inside which a fit may refine the speed of a measurement without
+    # a speed column (the configured speed is the operating point, not a free guess)
+    speed_tolerance: float = 0.02
     pneumatic: object = None  # spec §8 settings (pneumatics.config.PneumaticSettings) or None
     given: frozenset = frozenset()  # parameter names the file set (the others are defaults)
 
@@ -388,8 +392,15 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
         angle=op["angle"], torque=op["torque"], contact_laws=laws,
         initial_vane_state=op["initial_vane_state"],
         contact_given=c["contact"]["housing"]["stiffness"] is not None, speed_ripple=ripple,
-        given=frozenset(given), pneumatic=pneumatic,
+        given=frozenset(given), pneumatic=pneumatic, speed_tolerance=_speed_tolerance(op),
     )
+
+
+def _speed_tolerance(op: dict) -> float:
+    tol = op["speed_tolerance"]
+    if not 0 <= tol <= 0.5:
+        raise ConfigError(f"operation.speed_tolerance must be in [0, 0.5], got {tol:g}")
+    return float(tol)
 
 
 def as_array(pv: ParameterVector) -> np.ndarray:

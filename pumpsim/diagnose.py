@@ -1,25 +1,33 @@
 """Discrepancy workflow: find where model and measurement disagree, name the missing physical
 effect, add it, refit, show the gap shrink -- and say "unexplained" rather than guess.
 
-1. Baseline fit (identification: mu, theta0, and speed when the data has no speed column).
-2. Residual tests (runs, Ljung-Box, order spectrum, angle-domain average).
-3. Every candidate effect of the library is ranked by a score (Lagrange-multiplier) test computed
-   from the model's sensitivities at the current fit -- no refit needed to rank. Serially
-   correlated residuals make nominal p-values too small, so the test is done on prewhitened
-   quantities: an AR(1) filter estimated on the current residual is applied to the residual and to
-   every Jacobian column (a GLS score test). Where the pump's symmetry cancels a defect's
-   first-order effect (an eccentric housing, odd out-of-round orders with an even vane count), the
-   test uses the second-order terms (exact Jacobians at +-probe points).
-4. Candidates whose score p-value beats 0.01 / (number tested) (Bonferroni) are significant; the
-   two best by p-value and the two whose joint one-step estimate gives the lowest nonlinear
-   residual are refitted, and the lowest BIC wins. It is
-   kept when its likelihood-ratio test (prewhitened, p < 0.01) passes and BIC falls. When a second
-   effect comes within 10 BIC units of it, the two are reported `confounded` and neither is picked.
-   Repeat until the residual is white or nothing significant is left.
-5. Candidates nearly collinear with a fitted parameter (cosine > 0.995) whose projected score is
-   not significant could hide inside that parameter: reported in `confounded`. A residual that
-   stays non-white (runs or Ljung-Box p < 0.005 each, 1 % family-wise) with no significant
-   candidate is `unexplained`, with its spectral peaks.
+1. Speed: the configured speed is the operating point. A measurement without a speed column may
+   refine it only inside a tolerance band (operation.speed_tolerance, default +-2 %) and only
+   from shaft-synchronous evidence (an angle-domain average over revolutions, never a spectral
+   peak); where the data cannot determine it (a concentric housing: torque ~ mu omega^2) it stays
+   at the nominal, with a note.
+2. Baseline fit (mu, theta0, and the speed as in 1.), then the residual detectors
+   (diagnostics.detectors): runs test, Ljung-Box, the synchronous-average F-test (a shaft-locked
+   residual, smooth or a train of one-sample spikes) and the high-frequency noise level;
+   several measurements are tested one by one and combined (Bonferroni).
+3. Every candidate effect of the library is scored on the (screening) record: a prewhitened
+   score (Lagrange-multiplier) test from exact sensitivities, with second-order terms where the
+   pump's symmetry cancels the first-order ones and finite probes where the torque reacts only
+   through friction reversals that move. Every candidate also gets a one-step nonlinear fit, and
+   all are compared by one criterion: the BIC of that fit.
+4. The best few (significant by score or by their one-step likelihood ratio, Bonferroni) are
+   refitted; the lowest BIC wins if its physical parameters are plausible (ranges below, declared
+   once), its prewhitened likelihood-ratio test passes (p < 0.01) and BIC falls on the whole
+   record. A rival within 10 BIC units -> both `confounded`, neither named. Repeat while the
+   detectors reject at 5 %.
+5. Verdict, exactly one of: consistent with noise (possibly after named effects); named effects
+   and an unexplained remainder; nothing named and unexplained. `unexplained` needs the detector
+   family at 1 % and a systematic residual above 0.1 % of the torque RMS (a torque sensor's
+   accuracy class). `confounded` is reported in addition, never instead.
+
+Long records: the search runs on a screening window of SCREEN_SAMPLES (the first samples of
+each measurement); the baseline and every accepted effect are refitted on the whole record, and
+the detectors and the acceptance test use the whole record: cost ~ linear in its length.
 
 Physics worth knowing: with N identical, equally spaced vanes, housing-fixed defects only appear at
 multiples of N shaft orders; other orders point to vane-to-vane differences or drive/sensor effects.
@@ -30,7 +38,7 @@ import dataclasses
 import math
 import sys
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
@@ -38,17 +46,76 @@ from scipy import stats
 
 from .config import PumpConfig
 from .data import Dataset
-from .diagnostics import order_spectrum, residual_report
-from .identify import identify, make_problem
+from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, order_spectrum, synchronous_speed_scan,
+                          systematic_rms)
+from .errors import ConfigError
+from .identify import base_name, identify, make_problem
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
 SCORE_ALPHA = 0.01
 LR_ALPHA = 0.01
 COLLINEAR = 0.995
 MAX_EFFECTS = 4
-UNEXPLAINED_ALPHA = 0.01  # family-wise level of the two whiteness tests behind `unexplained`
-CONTENDERS = 2  # refitted per step: the best by score p-value and the best by one-step residual
+SEARCH_ALPHA = 0.05  # detector family level that keeps the search going
+UNEXPLAINED_ALPHA = 0.01  # detector family level behind `unexplained`
+RELEVANT = 1e-3  # systematic residual RMS / torque RMS below which no discrepancy is claimed
+CONTENDERS = 3  # refitted per step: the best by the one-step BIC
 BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
+SCREEN_SAMPLES = 5000  # the search's window of a long record (all measurements together)
+SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction of the band half-width
+
+
+# --- The effect library and its physical ranges (declared once, here) -------------------------
+
+def clearance(cfg: PumpConfig) -> float:
+    """Smallest radial gap between rotor and housing [m] (nominal housing, no defect)."""
+    v = cfg.values
+    return min(v["housing.a"], v["housing.b"]) - v["rotor.radius"]
+
+
+def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: float, dt: float) -> list:
+    """Reasons why fitted values leave their physical range ([] = all plausible). `values` holds
+    fitted names (joint suffixes allowed) -> value."""
+    v = {base_name(k): x for k, x in values.items() if x is not None}
+    c = clearance(cfg)
+    w = cfg.speed or 1.0
+    N = cfg.vanes
+    out = []
+    mu = v.get("mu", cfg.values["friction.housing.dynamic"])
+    for name in ("mu", "mu_slot"):
+        if name in v and not 0 <= v[name] <= 1:
+            out.append(f"{name} {v[name]:.3g} outside [0, 1] (a COF)")
+    ecc = math.hypot(v.get("housing.center.0", 0.0), v.get("housing.center.1", 0.0))
+    if ecc >= c:
+        out.append(f"eccentricity {ecc * 1e3:.3g} mm not below the smallest clearance {c * 1e3:.3g} mm")
+    amps = {}
+    for k_, x in v.items():
+        if k_.startswith("housing.harmonics.") and k_.endswith(".amplitude"):
+            j = int(k_.split(".")[2])
+            order = cfg.harmonics[j][0] if j < len(cfg.harmonics) else 0
+            amps[order] = math.hypot(amps.get(order, 0.0), x)
+    for order, A in amps.items():
+        if A > 0.25 * c:
+            out.append(f"out-of-round k={order:g} amplitude {A * 1e6:.3g} um above a quarter of the "
+                       f"clearance ({0.25 * c * 1e6:.3g} um)")
+    rip = math.hypot(v.get("ripple_cos", 0.0), v.get("ripple_sin", 0.0))
+    if rip > 0.05:
+        out.append(f"speed ripple {rip * 100:.3g} % above 5 % of the speed")
+    if "lag" in v and not 0 <= v["lag"] <= 1 / (N * w):
+        out.append(f"sensor lag {v['lag'] * 1e3:.3g} ms outside [0, 1/(N omega) = {1e3 / (N * w):.3g} ms] "
+                   "(a slower sensor would damp the vane-passing order by > 30 %)")
+    if "torque_offset" in v and abs(v["torque_offset"]) > 0.5 * torque_rms:
+        out.append(f"torque offset {v['torque_offset']:.3g} N m above half the torque RMS")
+    if "effects.viscous_tip_friction" in v:
+        cmax = abs(mean_torque) / (N * w * cfg.values["housing.a"] ** 2)  # whole torque viscous
+        if not 0 <= v["effects.viscous_tip_friction"] <= cmax:
+            out.append(f"viscous tip coefficient {v['effects.viscous_tip_friction']:.3g} N s/m outside "
+                       f"[0, {cmax:.3g}] (its torque would exceed the measured mean torque)")
+    for i in range(N):
+        f = v.get(f"effects.vane_friction_factor.{i}")
+        if f is not None and not (0.2 <= f <= 5 and f * mu <= 1):
+            out.append(f"vane {i} COF factor {f:.3g} outside [0.2, 5] or its COF {f * mu:.3g} above 1")
+    return out
 
 
 @dataclass
@@ -86,6 +153,8 @@ def candidates(cfg: PumpConfig, added: set) -> list:
         if name not in added:
             out.append(Candidate(name, params))
     if N >= 2 and "vane_friction_spread" not in added:
+        # a vane of another material or finish: its tip and slot COFs scaled together (vane 0 is
+        # the reference; the reported mu is the mean over the vanes)
         out.append(Candidate("vane_friction_spread", [f"effects.vane_friction_factor.{i}" for i in range(1, N)]))
     return out
 
@@ -117,6 +186,10 @@ class State:
         self.names, self.values = list(names), dict(values)
         self.ripple_order = ripple_order
         self._jacobian = None
+
+    def on(self, data):
+        """The same model on other data (the screening record)."""
+        return State(self.cfg, data, self.names, self.values, self.ripple_order)
 
     def jacobian(self):
         """The fitted parameters' Jacobian at the current fit, shared by every candidate's score
@@ -165,23 +238,43 @@ def _second_order_columns(prob, x0, nb, J0e, h, Jb, one_sided=False):
     return np.column_stack(cols), pairs
 
 
-def _probe_grid(prob, nb, Jb, h, directions=8, radii=(0.5, 1, 2, 4, 8, 16)):
-    """The model at finite defect sizes r (cos b, sin b), b in [0, pi) (the mirror defect gives the
-    same torque), with the fitted parameters' linear correction: the best point and its residual.
-    Where the torque reacts to a defect only through the instants of friction reversals (a
-    non-analytic, sampling-dependent change), this finds what no Taylor term can."""
-    best = (None, None, np.inf)
+def _probe_grid(prob, nb, Jb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16)):
+    """The model at finite defect sizes r (cos b, sin b), b in [0, 2 pi), with the fitted
+    parameters' linear correction: the best point, refined by a pattern search in (ln r, b) with
+    halving steps, and its residual. Where the torque reacts to a defect through the instants of
+    friction reversals (a non-analytic, sampling-dependent change), this finds what no Taylor term
+    and no Gauss-Newton step can."""
+    def at(rr, b):
+        x = prob.x0.copy()
+        x[nb:nb + 2] = rr * math.cos(b), rr * math.sin(b)
+        r = prob.y - prob.model(x)
+        if not np.all(np.isfinite(r)):
+            return x, r, np.inf
+        if nb:
+            d = np.linalg.lstsq(Jb, r, rcond=None)[0]
+            x[:nb] += d
+            r = r - Jb @ d
+        return x, r, float(r @ r)
+
+    best, where = (None, None, np.inf), None
     for rr in radii:
-        for b in np.arange(directions) * math.pi / directions:
-            x = prob.x0.copy()
-            x[nb:nb + 2] = rr * h * math.cos(b), rr * h * math.sin(b)
-            r = prob.y - prob.model(x)
-            if nb:
-                d = np.linalg.lstsq(Jb, r, rcond=None)[0]
-                x[:nb] += d
-                r = r - Jb @ d
-            if r @ r < best[2]:
-                best = (x, r, float(r @ r))
+        for b in np.arange(directions) * 2 * math.pi / directions:
+            trial = at(rr * h, b)
+            if trial[2] < best[2]:
+                best, where = trial, (rr * h, b)
+    if where is None:
+        return prob.x0.copy(), prob.y - prob.model(prob.x0)
+    f, db = math.sqrt(2), math.pi / directions
+    for _ in range(12):  # pattern search: move to a better neighbour, else halve the steps
+        moved = False
+        for rr, b in ((where[0] * f, where[1]), (where[0] / f, where[1]), (where[0], where[1] + db),
+                      (where[0], where[1] - db)):
+            trial = at(rr, b)
+            if trial[2] < best[2]:
+                best, where, moved = trial, (rr, b), True
+                break
+        if not moved:
+            f, db = math.sqrt(f), db / 2
     x = np.clip(best[0], prob.lower, prob.upper)
     return x, prob.y - prob.model(x)
 
@@ -260,8 +353,15 @@ def score_test(state: State, cand: Candidate, start=True):
     if nb:
         x1[:nb] += np.linalg.lstsq(Jb_w, r_w - Je_w @ coef, rcond=None)[0]
     x1 = np.clip(x1, prob.lower, prob.upper)
+    if cand.symmetric:  # a step beyond the quadratic model's reach: back inside a tenth of the clearance
+        e = x1[nb:]
+        cap = 0.5 * clearance(state.cfg)
+        if np.linalg.norm(e) > cap:
+            x1[nb:] = e * cap / np.linalg.norm(e)
     r1 = prob.y - prob.model(x1)
-    if quad is not None and len(cand.params) == 2:  # seen only beyond first order: try finite probes
+    if not np.all(np.isfinite(r1)):
+        x1, r1 = prob.x0.copy(), rs
+    if quad is not None and cand.effect == "rotor_eccentricity":  # non-smooth: try finite probes
         xp, rp = _probe_grid(prob, nb, Jb, _probe_scale(state))
         if rp @ rp < r1 @ r1:
             x1, r1 = xp, rp
@@ -279,12 +379,34 @@ def _whitened_rss(r, rho):
     return float(rw @ rw), rw.size
 
 
-def _params_json(res, names):
+def _undetermined(name, value, se, cfg) -> bool:
+    """An estimate whose standard error exceeds what would make it a result: larger than itself
+    for a positive quantity (COF, speed, lag), than half the angular period for theta0, than the
+    clearance for geometry and than its plausible size for the other effect parameters."""
+    if value is None or se is None or not math.isfinite(se):
+        return True
+    b = base_name(name)
+    if b == "theta0":
+        return se > math.pi / max(cfg.vanes, 1)
+    if b in ("mu", "mu_slot", "speed", "lag", "effects.viscous_tip_friction") or b.startswith("effects.vane"):
+        return se > abs(value)
+    if b.startswith("housing."):
+        return se > clearance(cfg)
+    if b in ("ripple_cos", "ripple_sin"):
+        return se > 0.05
+    return False
+
+
+def _params_json(res, names, cfg):
     out = {}
     for n in names:
         e = res.estimates.get(n)
-        if e is not None:
+        if e is None:
+            continue
+        if e.value is not None and not _undetermined(n, e.value, e.stderr, cfg):
             out[n] = {"value": e.value, "stderr": e.stderr}
+        else:  # never a number with a standard error larger than itself as a result
+            out[n] = {"value": None, "stderr": None, "not_determined": {"estimate": e.value, "stderr": e.stderr}}
     return out
 
 
@@ -294,21 +416,27 @@ def _polar(res, names, k):
     ea, eb = res.estimates[names[0]], res.estimates[names[1]]
     a, b = ea.value, eb.value
     A = math.hypot(a, b)
-    ids = [n for n in res.estimates if res.estimates[n].identifiable]
-    C = np.eye(2)
-    if res.correlation is not None and all(n in ids for n in names):
-        i, j = ids.index(names[0]), ids.index(names[1])
-        C = res.correlation[np.ix_([i, j], [i, j])]
-    S = np.outer([ea.stderr, eb.stderr], [ea.stderr, eb.stderr]) * C
+    S = _covariance(res, names)
     gA = np.array([a, b]) / max(A, 1e-300)
     gP = np.array([-b, a]) / max(A * A, 1e-300)
     return ({"value": A, "stderr": float(math.sqrt(max(gA @ S @ gA, 0.0)))},
             {"value": math.atan2(b, a), "stderr": float(math.sqrt(max(gP @ S @ gP, 0.0)))})
 
 
-def _effect_params(cand, res, new_names):
+def _covariance(res, names):
+    """Covariance of the estimates `names` (stderr x correlation x stderr)."""
+    ids = [n for n in res.estimates if res.estimates[n].identifiable]
+    se = np.array([res.estimates[n].stderr or 0.0 for n in names])
+    C = np.eye(len(names))
+    if res.correlation is not None and all(n in ids for n in names):
+        idx = [ids.index(n) for n in names]
+        C = res.correlation[np.ix_(idx, idx)]
+    return np.outer(se, se) * C
+
+
+def _effect_params(cand, res, new_names, cfg):
     """The step's parameters as an engineer reads them."""
-    out = _params_json(res, new_names)
+    out = _params_json(res, new_names, cfg)
     if cand.order:
         out["order"] = cand.order
     if cand.effect == "housing_out_of_round":  # A cos(k (phi - gamma))
@@ -319,139 +447,351 @@ def _effect_params(cand, res, new_names):
     return out
 
 
+def vane_cofs(res, cfg) -> tuple:
+    """Each vane's effective dynamic COF (tip and slot: mu x its factor, vane 0 the reference) and
+    the reported mu, their mean over the vanes, with standard errors by the delta method."""
+    N = cfg.vanes
+    names = ["mu"] + [f"effects.vane_friction_factor.{i}" for i in range(1, N)]
+    fitted = [n for n in names if n in res.estimates and res.estimates[n].value is not None]
+    val = {n: (res.estimates[n].value if n in fitted else
+               (cfg.values["friction.housing.dynamic"] if n == "mu" else cfg.values[n])) for n in names}
+    S = _covariance(res, fitted)
+    mu = val["mu"]
+    facs = [1.0] + [val[n] for n in names[1:]]
+    per = []
+    for i in range(N):
+        g = np.array([facs[i] if n == "mu" else (mu if n == names[i] and i > 0 else 0.0) for n in fitted])
+        per.append({"value": mu * facs[i], "stderr": float(math.sqrt(max(g @ S @ g, 0.0)))})
+    g = np.array([sum(facs) / N if n == "mu" else mu / N for n in fitted])
+    mean = {"value": mu * sum(facs) / N, "stderr": float(math.sqrt(max(g @ S @ g, 0.0)))}
+    return per, mean
+
+
+MU_DEFINITION = ("mu: the mean over the vanes of each vane's dynamic COF (vane-housing tip, slot tied "
+                 "unless mu_slot is fitted); vane_mu: each vane's COF = mu_vane0 x its factor")
+
+
+@dataclass
+class DiagnosisResult:
+    """What `diagnose` found. The JSON names (spec §7) are the fields; `str()` is the step table."""
+
+    baseline: dict
+    steps: list
+    effects: list
+    final: dict
+    unexplained: bool
+    confounded: list
+    unexplained_where: list
+    verdict: str
+    notes: list
+    detectors: dict
+    speed: dict
+    ranking: list
+    rejected: list
+    method: str
+    wall_time: float
+    history: list = field(default_factory=list, repr=False)  # per step: label, IdentificationResult
+
+    JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
+            "verdict", "notes", "detectors", "speed", "ranking", "rejected", "method", "wall_time")
+
+    def to_json(self) -> dict:
+        return {k: getattr(self, k) for k in self.JSON}
+
+    def __getitem__(self, key):  # read like the JSON
+        if key not in self.JSON:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __contains__(self, key):
+        return key in self.JSON
+
+    def __str__(self):
+        return step_table(self)
+
+
+def _split(x, rows):
+    return [x[a:b] for a, b in zip(rows[:-1], rows[1:])]
+
+
+class _Verdict:
+    """Detector results for one fit: per measurement, combined, and the systematic part."""
+
+    def __init__(self, res, datasets, fitted):
+        rows = np.cumsum([0] + [d.n for d in datasets])
+        self.per = [detectors(r, a, fitted) for r, a in zip(_split(res.residual, rows), _split(res.angle, rows))]
+        self.p = combined_p(self.per)
+        self.systematic = max(systematic_rms(r, d) for r, d in zip(_split(res.residual, rows), self.per))
+        self.torque_rms = max(float(np.sqrt(np.mean(d.torque ** 2))) for d in datasets)
+
+    def searching(self):  # any detector at 5 %: naming is guarded by the score and LR tests
+        return min(self.p[d] for d in VERDICT_DETECTORS) < SEARCH_ALPHA
+
+    def consistent(self):
+        return self.p["family"] >= UNEXPLAINED_ALPHA or self.systematic < RELEVANT * self.torque_rms
+
+    def to_json(self):
+        per = [{d: {"statistic": m[d]["statistic"] if "statistic" in m[d] else m[d].get("q", m[d].get("z")),
+                    "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
+        return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
+                "relevance_floor": RELEVANT * self.torque_rms}
+
+
+def _screen(datasets):
+    """The search's window: the first samples of each measurement, SCREEN_SAMPLES in all."""
+    each = max(SCREEN_SAMPLES // len(datasets), 64)
+    if all(d.n <= each for d in datasets):
+        return datasets
+    return [d.window(0, min(d.n, each)) for d in datasets]
+
+
+def _fit(cfg, data, names, values, ripple, screen, multistart=True):
+    """identify on the screening window first (cheap), then polished on the whole record."""
+    held = {k: v for k, v in values.items() if k not in names}
+    init = {n: values[n] for n in names if n in values}
+    if screen is not data:
+        r0 = identify(cfg, screen, names, initial=init, multistart=multistart, ripple_order=ripple, extra=held)
+        init = {n: (e.value if e.value is not None else init.get(n)) for n, e in r0.estimates.items()}
+        init = {n: v for n, v in init.items() if v is not None}
+        multistart = False
+    return identify(cfg, data, names, initial=init, multistart=multistart, ripple_order=ripple, extra=held)
+
+
 def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, progress=None,
-             baseline_params=None) -> dict:
+             baseline_params=None, speed_tolerance: float | None = None) -> DiagnosisResult:
+    """Find, name and add the effects missing from the model of `cfg` that the measurement(s)
+    `data` (a Dataset or a list: several speeds fitted together) show.
+
+    speed_tolerance: relative band about the configured speed for measurements without a speed
+    column (default: the config's operation.speed_tolerance, 0.02). Returns a DiagnosisResult."""
     wall0 = _time.perf_counter()
     say = progress or (lambda msg: None)
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
-    speeds_known = all(d.speed is not None for d in datasets)
-    base_names = baseline_params or (["mu", "theta0"] + ([] if speeds_known else ["speed"]))
+    if speed_tolerance is not None:
+        if not 0 <= speed_tolerance <= 0.5:
+            raise ConfigError(f"--speed-tolerance must be in [0, 0.5], got {speed_tolerance:g}")
+        cfg = dataclasses.replace(cfg, speed_tolerance=float(speed_tolerance))
+    K = len(datasets)
+    suffix = (lambda n, i: f"{n}@{i}") if K > 1 else (lambda n, i: n)
+    notes, rejected = [], []
+    # 1. speed: nominal, refined in the band from shaft-synchronous evidence only
+    free = [i for i, d in enumerate(datasets) if d.speed is None] if cfg.mode == "speed" else []
+    held, speed_info = {}, {"nominal": cfg.speed, "tolerance": cfg.speed_tolerance, "measurements": []}
+    for i, d in enumerate(datasets):
+        if i not in free:
+            speed_info["measurements"].append({"source": "speed column", "value": float(np.mean(d.speed))})
+            continue
+        lo, hi = cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
+        scan = synchronous_speed_scan(d.time, d.torque, lo, hi, cfg.speed)
+        held[suffix("speed", i)] = scan["speed"]
+        speed_info["measurements"].append({"source": "synchronous scan" if scan["refined"] else "nominal",
+                                           "value": scan["speed"], "scan_p_value": scan["p_value"]})
+    screen = _screen(datasets)
+    full_data = datasets if K > 1 else datasets[0]
+    screen_data = screen if K > 1 else screen[0]
+    if screen is datasets:
+        screen_data = full_data
+    base_names = list(baseline_params or (["mu", "theta0"] + (["speed"] if free else [])))
     say("fitting the baseline")
-    base = identify(cfg, datasets, base_names)
-    base_names = list(base.estimates)  # per-measurement names (theta0@i) when several are fitted
-    names = [n for n in base_names if base.estimates[n].identifiable]
-    values = {n: base.estimates[n].value for n in names}
-    state = State(cfg, datasets, names, values)
+    values = dict(held)
+    base = _fit(cfg, full_data, base_names, values, 1, screen_data)
+    # a speed the data does not determine stays where the synchronous evidence put it (or nominal)
+    loose = [n for n, e in base.estimates.items() if base_name(n) == "speed" and
+             (e.value is None or e.stderr is None or
+              e.stderr > SPEED_DETERMINED * cfg.speed_tolerance * cfg.speed)]
+    if loose:
+        for n in loose:
+            i = int(n.split("@")[1]) if "@" in n else 0
+            src = speed_info["measurements"][i]["source"]
+            notes.append(f"speed of measurement {i} not determined by the fit ({'torque depends on mu omega^2 only' if base.estimates[n].value is None else 'standard error above a third of the band'}): "
+                         f"held at the {'synchronous-scan' if src != 'nominal' else 'nominal'} value "
+                         f"{held.get(n, cfg.speed):.6g} rad/s")
+        keep = [b for b in base_names if b != "speed"] if K == 1 or len(loose) == len(free) else base_names
+        if keep != base_names:
+            base_names = keep
+            base = _fit(cfg, full_data, base_names, values, 1, screen_data)
+    names = [n for n in base.estimates if base.estimates[n].identifiable and base.estimates[n].value is not None]
+    for n in base.estimates:
+        if base_name(n) == "speed" and n in names:
+            i = int(n.split("@")[1]) if "@" in n else 0
+            e = base.estimates[n]
+            speed_info["measurements"][i].update(source="fitted in band", value=e.value, stderr=e.stderr)
+    values.update({n: base.estimates[n].value for n in names})
+    state = State(cfg, full_data, names, values)
     current = base
+    y_all = np.concatenate([d.torque for d in datasets])
+    torque_rms, mean_torque = float(np.sqrt(np.mean(y_all ** 2))), float(np.mean(y_all))
+    dt = datasets[0].time[1] - datasets[0].time[0]
+    for reason in plausible(cfg, values, torque_rms, mean_torque, dt):
+        notes.append(f"baseline: {reason} -- check the config and the data's units")
     history = [{"label": "baseline", "result": base}]
-    steps, effects, confounded = [], [], []
-    screens = []  # every candidate's score test at each step, for the report's ranking table
-    screened_for = None  # the state whose candidates were last screened (their collinearity is known)
-    explained_by_confounded = False
+    steps, effects, confounded, ranking = [], [], [], []
+    verdict = _Verdict(current, datasets, len(names))
+    rival_pair = None
     for _ in range(max_effects):
-        if current.diagnostics["white_at_5pct"]:
+        if not verdict.searching():
             break
+        scr = state.on(screen_data)
         cands = candidates(state.cfg, set(effects))
-        screened_for = state
         scored = []
         for c in cands:
             say(f"screening {c.label}")
-            scored.append((c, score_test(state, c)))
-        alpha = SCORE_ALPHA / len(scored)
-        _note_confounded(scored, alpha, confounded)
-        screens.append(_ranking(scored, alpha, effects, current.residual.size))
-        by_p = sorted([cs for cs in scored if cs[1]["p_value"] < alpha],
-                      key=lambda cs: (cs[1]["p_value"], -cs[1]["lm"]))
-        if not by_p:
+            scored.append((c, score_test(scr, c)))
+        ranking = _rank(scr, scored)
+        _note_confounded(scored, SCORE_ALPHA / len(scored), confounded)
+        # the best by the one criterion, and the best by score p-value (a smooth effect whose
+        # one-step fit a probe grid happened to beat)
+        sig = [r for r in ranking if r["significant"]]
+        contenders = sig[:CONTENDERS] + [r for r in sorted(sig, key=lambda r_: r_["score"]["p_value"])[:2]
+                                         if r not in sig[:CONTENDERS]]
+        if not contenders:
             break
-        # ranking needs no refit; choosing among the best few does: the best by p-value and the
-        # best by the nonlinear residual at their one-step estimates are refitted, BIC decides
-        by_rss = sorted(by_p, key=lambda cs: cs[1]["one_step_rss"])
-        contenders = []
-        for c, s in by_p[:CONTENDERS] + by_rss[:CONTENDERS]:
-            if all(c is not c2 for c2, _ in contenders):
-                contenders.append((c, s))
         rho = _ar1(current.residual)
         rss0, nw = _whitened_rss(current.residual, rho)
         bic0 = _bic(rss0, nw, len(state.names))
         fits = []
-        for c, s in contenders:
+        for r in contenders:
+            c, s = r["cand"], r["score"]
             say(f"refitting with {c.label}")
-            new_state, res = _refit(state, c, s)
+            st, res = _refit(scr, c, s)
+            rss_s, n_s = _whitened_rss(res.residual, rho)
+            fits.append({"cand": c, "score": s, "screen_state": st, "screen_res": res,
+                         "bic_screen": _bic(rss_s, n_s, len(st.names))})
+        fits.sort(key=lambda f: f["bic_screen"])
+        accepted = None
+        for f in fits:
+            reasons = plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque, dt)
+            if reasons:
+                rejected.append({"effect": f["cand"].label, "reasons": reasons})
+                notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
+                continue
+            st, res = (f["screen_state"], f["screen_res"]) if screen_data is full_data else \
+                _refit_full(f["screen_state"], full_data, screen_data)
             rss1, _ = _whitened_rss(res.residual, rho)
-            q = len(new_state.names) - len(state.names)
+            q = len(st.names) - len(state.names)
             lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-            fits.append({"cand": c, "score": s, "state": new_state, "res": res, "rss": rss1,
-                         "lr_p": float(stats.chi2.sf(lr, max(q, 1))), "bic": _bic(rss1, nw, len(new_state.names))})
-        fits.sort(key=lambda f: f["bic"])
-        best = fits[0]
-        _note_refits(screens[-1], fits, bic0)
-        if best["lr_p"] >= LR_ALPHA or best["bic"] >= bic0:
+            f.update(state=st, res=res, lr_p=float(stats.chi2.sf(lr, max(q, 1))), bic=_bic(rss1, nw, len(st.names)))
+            if f["lr_p"] < LR_ALPHA and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque, dt):
+                accepted = f
+                break
+        if accepted is None:
             break
-        rival = next((f for f in fits[1:] if f["lr_p"] < LR_ALPHA and f["bic"] < bic0
-                      and f["bic"] - best["bic"] < BIC_DECISIVE), None)
-        if rival is not None:  # two effects explain the residual equally well: do not pick one
-            pair = [best["cand"].effect, rival["cand"].effect]
-            if pair not in confounded:
-                confounded.append(pair)
-            explained_by_confounded = True
+        rival = next((f for f in fits if f is not accepted and "bic" not in f
+                      and f["cand"].effect != accepted["cand"].effect  # another order: BIC chose
+                      and f["bic_screen"] - accepted["bic_screen"] < BIC_DECISIVE
+                      and not plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque, dt)),
+                     None)
+        if rival is not None and screen_data is not full_data:
+            st, res = _refit_full(rival["screen_state"], full_data, screen_data)
+            rss1, _ = _whitened_rss(res.residual, rho)
+            lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
+            rival.update(bic=_bic(rss1, nw, len(st.names)),
+                         lr_p=float(stats.chi2.sf(lr, max(len(st.names) - len(state.names), 1))))
+        elif rival is not None:
+            rival.update(bic=rival["bic_screen"], lr_p=0.0)
+        if (rival is not None and rival["lr_p"] < LR_ALPHA and rival["bic"] < bic0
+                and rival["bic"] - accepted["bic"] < BIC_DECISIVE):
+            rival_pair = [accepted["cand"].effect, rival["cand"].effect]
+            if rival_pair not in confounded:
+                confounded.append(rival_pair)
             break
-        c, s, res, new_state = best["cand"], best["score"], best["res"], best["state"]
+        c, s, res, new_state = accepted["cand"], accepted["score"], accepted["res"], accepted["state"]
         new_names = [n for n in new_state.names if n not in state.names]
-        steps.append({"effect": c.effect, "params": _effect_params(c, res, new_names),
+        steps.append({"effect": c.effect, "params": _effect_params(c, res, new_names, new_state.cfg),
                       "rms_before": current.rms, "rms_after": res.rms, "p_value": s["p_value"],
                       "score": s["lm"], "score_dof": s["dof"], "second_order_score": s["second_order"],
-                      "lr_p_value": best["lr_p"], "bic_before": bic0, "bic_after": best["bic"],
-                      "all_params": _params_json(res, new_state.names)})
+                      "lr_p_value": accepted["lr_p"], "bic_before": bic0, "bic_after": accepted["bic"],
+                      "all_params": _params_json(res, new_state.names, new_state.cfg)})
         effects.append(c.effect)
-        screens[-1]["chosen"] = c.label
         state, current = new_state, res
-        history.append({"label": c.label, "result": res})
-    # a last screen for collinearity, whatever the residual: a white residual can hide an effect that
-    # a fitted parameter absorbed (an offset inside mu at one speed). Skipped when the loop already
-    # screened the final state.
-    if screened_for is not state:
-        scored = [(c, score_test(state, c, start=False)) for c in candidates(state.cfg, set(effects))]
-        _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
-    white = bool(current.diagnostics["white_at_5pct"])
-    first = datasets[0].time.size  # the spectrum of the first measurement (one speed)
-    spec = order_spectrum(current.residual[:first], datasets[0].time[1] - datasets[0].time[0], current.speed)
-    where = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
-             for p in spec["peaks"][:5]]
-    # "unexplained" is a claim about the data, so it needs stronger evidence than the 5 % whiteness
-    # check that stops the search: runs or Ljung-Box below UNEXPLAINED_ALPHA / 2 (Bonferroni)
-    d = current.diagnostics
-    departs = min(d["runs_test"]["p_value"], d["ljung_box"]["p_value"]) < UNEXPLAINED_ALPHA / 2
-    unexplained = departs and not explained_by_confounded
-    out = {
-        "baseline": {"rms": base.rms, "params": _params_json(base, base_names)},
-        "steps": steps,
-        "effects": effects,
-        "final": {"rms": current.rms, "params": _params_json(current, state.names), "residual_white": white,
-                  "runs_p_value": current.diagnostics["runs_test"]["p_value"],
-                  "ljung_box_p_value": current.diagnostics["ljung_box"]["p_value"]},
-        "unexplained": unexplained,
-        "confounded": confounded,
-        "unexplained_where": where if unexplained else [],
-        "notes": _notes(confounded, cfg.vanes, len(datasets)),
-        "method": ("score (Lagrange-multiplier) tests on AR(1)-prewhitened residual and sensitivities "
-                   "(second-order terms where symmetry cancels the first-order ones), Bonferroni alpha "
-                   f"{SCORE_ALPHA}; the {CONTENDERS} best by p-value and by one-step residual refitted and compared by BIC; acceptance by "
-                   f"prewhitened likelihood ratio (p < {LR_ALPHA}) and BIC"),
-        "wall_time": _time.perf_counter() - wall0,
-        "screens": screens,
-    }
-    out["_history"] = history
+        if free and not any(base_name(n) == "speed" for n in state.names):
+            state, current = _try_speed(state, current, full_data, screen_data, speed_info, notes)
+        history.append({"label": c.label, "result": current})
+        verdict = _Verdict(current, datasets, len(state.names))
+    # a last screen for collinearity, whatever the residual: a white residual can hide an effect
+    # that a fitted parameter absorbed (an offset inside mu at one speed)
+    scr = state.on(screen_data)
+    scored = [(c, score_test(scr, c, start=False)) for c in candidates(state.cfg, set(effects)) if not c.symmetric]
+    _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
+    consistent = verdict.consistent()
+    unexplained = not consistent
+    where = _where(current, datasets, verdict) if unexplained else []
+    if rival_pair is not None:
+        notes.append(f"{rival_pair[0]} and {rival_pair[1]} explain the remaining residual equally well "
+                     f"(within {BIC_DECISIVE:g} BIC): neither is named")
+    if consistent and verdict.p["family"] < UNEXPLAINED_ALPHA:
+        notes.append(f"a systematic residual of {verdict.systematic:.3g} N m remains, below "
+                     f"{RELEVANT * 100:g} % of the torque RMS: not claimed as a discrepancy")
+    if verdict.per[0]["kurtosis"]["p_value"] < UNEXPLAINED_ALPHA:
+        notes.append("heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise")
+    notes += _notes(confounded, state, screen_data, K)
+    per_vane, mu_mean = vane_cofs(current, state.cfg)
+    final_params = _params_json(current, state.names, state.cfg)
+    if "mu" in final_params and final_params["mu"]["value"] is not None:
+        final_params["mu"] = mu_mean
+    label = ("consistent with noise" + (" after the named effects" if effects else "")) if consistent else \
+        ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
+    return DiagnosisResult(
+        baseline={"rms": base.rms, "params": _params_json(base, list(base.estimates), cfg)},
+        steps=steps, effects=effects,
+        final={"rms": current.rms, "params": final_params, "residual_white": consistent,
+               "runs_p_value": verdict.p["runs_test"], "ljung_box_p_value": verdict.p["ljung_box"],
+               "synchronous_f_p_value": verdict.p["synchronous_f"],
+               "noise_level_p_value": verdict.p["noise_level"], "vane_mu": per_vane,
+               "mu_definition": MU_DEFINITION},
+        unexplained=unexplained, confounded=confounded, unexplained_where=where, verdict=label,
+        notes=notes, detectors=verdict.to_json(), speed=speed_info,
+        ranking=[{"effect": r["cand"].label, "score_p_value": r["score"]["p_value"],
+                  "one_step_bic": r["bic"], "significant": r["significant"]} for r in ranking],
+        rejected=rejected,
+        method=("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
+                f"(family {UNEXPLAINED_ALPHA:g}, Bonferroni over detectors and measurements); candidates: "
+                "prewhitened score tests (second order where symmetry cancels the first) and one-step "
+                f"nonlinear fits ranked by BIC; the {CONTENDERS} best refitted, physical ranges enforced, "
+                f"acceptance by prewhitened likelihood ratio (p < {LR_ALPHA:g}) and BIC on the whole record"),
+        wall_time=_time.perf_counter() - wall0, history=history)
+
+
+def _rank(state, scored):
+    """All candidates by one criterion: the BIC of their one-step nonlinear fit (score step, or
+    second-order/probe start where the first order is blind). Significant: score p or one-step
+    likelihood ratio below alpha / (number of candidates)."""
+    r = state.problem()
+    r0 = r.y - r.model(r.x0)
+    n = r0.size
+    rss0 = float(r0 @ r0)
+    k0 = len(state.names)
+    alpha = SCORE_ALPHA / max(len(scored), 1)
+    out = []
+    for c, s in scored:
+        q = len(s["params"])
+        rss1 = min(s.get("one_step_rss", rss0), rss0)
+        lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
+        lr_p = float(stats.chi2.sf(lr, max(q, 1)))
+        sig = s["p_value"] < alpha or (s["second_order"] and lr_p < alpha)
+        out.append({"cand": c, "score": s, "bic": _bic(rss1, n, k0 + q), "significant": bool(sig)})
+    out.sort(key=lambda r_: r_["bic"])
     return out
 
 
-def _ranking(scored, alpha, effects, n) -> dict:
-    """One screen's candidates, best first: what was tested, how strongly, what was refitted."""
-    rows = [{"candidate": c.label, "effect": c.effect, "order": c.order, "p_value": s["p_value"],
-             "score": s["lm"], "dof": s["dof"], "significant": bool(s["p_value"] < alpha),
-             "one_step_rms": math.sqrt(s["one_step_rss"] / n) if "one_step_rss" in s else None,
-             "collinear_with": s["partner"]} for c, s in scored]
-    rows.sort(key=lambda r: (r["p_value"], -r["score"]))
-    return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows,
-            "chosen": None}
-
-
-def _note_refits(screen, fits, bic0):
-    """Mark the refitted contenders of a screen with their BIC change and likelihood-ratio p."""
-    by_label = {r["candidate"]: r for r in screen["candidates"]}
-    for f in fits:
-        row = by_label[f["cand"].label]
-        row["refit_delta_bic"], row["refit_lr_p_value"] = f["bic"] - bic0, f["lr_p"]
+def _where(res, datasets, verdict):
+    """Where an unexplained residual lies: spectral peaks (shaft orders, Hz) of the first
+    measurement and, when the synchronous F-test rejects, the rotor angles of the largest
+    departures of the angle-domain average."""
+    n0 = datasets[0].n
+    r = res.residual[:n0]
+    spec = order_spectrum(r, datasets[0].time[1] - datasets[0].time[0], res.speed)
+    out = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
+           for p in spec["peaks"][:5]]
+    sf = verdict.per[0]["synchronous_f"]
+    if sf["applicable"] and sf["p_value"] < UNEXPLAINED_ALPHA:
+        avg = np.nan_to_num(sf["average"])
+        B = avg.size
+        se = math.sqrt(sf["within_var"] / max(np.mean(sf["counts"][sf["counts"] > 0]), 1))
+        for b in np.argsort(-np.abs(avg))[:5]:
+            if abs(avg[b]) > 3 * se:
+                out.append({"angle_deg": round(float((b + 0.5) * 360.0 / B), 2), "amplitude": float(avg[b])})
+    return out
 
 
 def _note_confounded(scored, alpha, confounded):
@@ -459,38 +799,124 @@ def _note_confounded(scored, alpha, confounded):
     significant could hide inside that parameter: report the pair."""
     for c, s in scored:
         if s["partner"] is not None and s["p_value"] >= alpha:
-            pair = [c.effect, s["partner"]]
+            pair = [c.effect, base_name(s["partner"])]
             if pair not in confounded:
                 confounded.append(pair)
 
 
-def _notes(confounded, vanes, measurements=1):
+def _separable_at_another_speed(state, effect, partner):
+    """Would a second measurement at 0.6 x this speed separate `effect` from `partner`? The pair's
+    sensitivities at both speeds stacked: still collinear means no speed separates them."""
+    cand = next((c for c in candidates(state.cfg, set()) if c.effect == effect), None)
+    if cand is None or partner not in state.names or isinstance(state.data, (list, tuple)):
+        return None
+    d = state.data
+    w = float(np.mean(d.speed)) if d.speed is not None else state.values.get("speed", state.cfg.speed)
+    other = Dataset(d.time, d.torque, speed=np.full(d.n, 0.6 * w))
+    cols = []
+    for data in (Dataset(d.time, d.torque, speed=np.full(d.n, w)), other):
+        held = {k: v for k, v in state.values.items() if base_name(k) != "speed"}  # the data's speed
+        st = State(state.cfg, data, [partner], held, state.ripple_order)
+        prob = st.problem(cand.params, cfg=cand.config(state.cfg),
+                          ripple_order=cand.order if cand.effect == "speed_ripple" else None)
+        cols.append(prob.model_and_jacobian(prob.x0)[1])
+    J = np.vstack(cols)
+    a, B = J[:, 0], J[:, 1:]
+    if np.linalg.norm(a) == 0:
+        return None
+    for j in range(B.shape[1]):
+        b = B[:, j]
+        cos = abs(a @ b) / (np.linalg.norm(a) * np.linalg.norm(b) + 1e-300)
+        if cos > COLLINEAR:
+            return False
+    return True
+
+
+def _notes(confounded, state, screen_data, measurements):
     notes = []
-    more = "a second speed" if measurements == 1 else "a measurement at a further speed"
+    scr = state.on(screen_data)
     for a, b in confounded:
-        notes.append(f"{a} and {b} have nearly collinear effects on this data: {more} would separate them")
-    notes.append(f"with {vanes} identical, equally spaced vanes, housing-fixed defects appear only at "
-                 f"multiples of {vanes} shaft orders")
+        if measurements > 1:
+            notes.append(f"{a} and {b} have nearly collinear effects even on these {measurements} measurements")
+            continue
+        sep = _separable_at_another_speed(scr, a, b)
+        if sep is False:
+            notes.append(f"{a} and {b} have nearly collinear effects on this data, and would at any speed")
+        else:
+            notes.append(f"{a} and {b} have nearly collinear effects on this data: a measurement at a "
+                         "second speed would separate them")
+    N = state.cfg.vanes
+    notes.append(f"with {N} identical, equally spaced vanes, housing-fixed defects appear only at "
+                 f"multiples of {N} shaft orders")
     return notes
 
 
 def _refit(state: State, cand: Candidate, score):
-    """Fit the current names plus the candidate's parameters, starting from the score step."""
+    """Fit the current names plus the candidate's parameters, starting from the score step (on the
+    state's data)."""
     cfg = cand.config(state.cfg)
     values = dict(state.values)
-    values.update(score["start"])  # the joint one-step estimate
+    values.update(score.get("start", {}))  # the joint one-step estimate
     if cand.effect == "sensor_lag":
-        values["lag"] = max(values["lag"], 1e-6)
+        values["lag"] = max(values.get("lag", 0.0), 1e-6)
     ripple = cand.order if cand.effect == "speed_ripple" else state.ripple_order
     names = state.names + list(score["params"])
-    res = identify(cfg, state.data, names, initial={n: values[n] for n in names}, multistart=False,
-                   ripple_order=ripple)
-    fitted = {n: (res.estimates[n].value if res.estimates[n].value is not None else values[n]) for n in names}
+    held = {k: v for k, v in values.items() if k not in names}
+    res = identify(cfg, state.data, names, initial={n: values[n] for n in names if n in values},
+                   multistart=False, ripple_order=ripple, extra=held)
+    return _state_from(cfg, state.data, names, values, res, ripple), res
+
+
+def _state_from(cfg, data, names, values, res, ripple):
+    fitted = {n: (res.estimates[n].value if res.estimates[n].value is not None else values.get(n)) for n in names}
+    fitted = {n: v for n, v in fitted.items() if v is not None}
     vals = dict(cfg.values)
     for n_, v in fitted.items():
         if n_ in vals:
             vals[n_] = v
-    return State(dataclasses.replace(cfg, values=vals), state.data, names, fitted, ripple), res
+    allv = {**values, **fitted}
+    return State(dataclasses.replace(cfg, values=vals), data, [n for n in names if n in fitted], allv, ripple)
+
+
+def _refit_full(st: State, full_data, screen_data):
+    """A state fitted on the screening window, refitted on the whole record from there."""
+    held = {k: v for k, v in st.values.items() if k not in st.names}
+    res = identify(st.cfg, full_data, st.names, initial={n: st.values[n] for n in st.names},
+                   multistart=False, ripple_order=st.ripple_order, extra=held)
+    return _state_from(st.cfg, full_data, st.names, st.values, res, st.ripple_order), res
+
+
+def _try_speed(state, current, full_data, screen_data, speed_info, notes):
+    """After an effect has made the torque depend on the angle, refine a held speed in its band if
+    the data now determines it (and BIC agrees)."""
+    K = len(full_data) if isinstance(full_data, (list, tuple)) else 1
+    names = state.names + ["speed"]
+    held = {k: v for k, v in state.values.items() if k not in names}
+    init = {n: state.values[n] for n in state.names}
+    init["speed"] = state.values.get("speed", state.cfg.speed)
+    res = identify(state.cfg, full_data, names, initial=init, multistart=False,
+                   ripple_order=state.ripple_order, extra=held)
+    sp = [e for n, e in res.estimates.items() if base_name(n) == "speed"]
+    band = state.cfg.speed_tolerance * state.cfg.speed
+    n = current.residual.size
+    if (all(e.value is not None and e.stderr is not None and e.stderr <= SPEED_DETERMINED * band for e in sp)
+            and _bic(float(res.residual @ res.residual), n, len(res.estimates))
+            < _bic(float(current.residual @ current.residual), n, len(state.names))):
+        for nm, e in res.estimates.items():
+            if base_name(nm) == "speed":
+                i = int(nm.split("@")[1]) if "@" in nm else 0
+                speed_info["measurements"][i].update(source="fitted in band", value=e.value, stderr=e.stderr)
+        notes.append("speed refined in its band once the named effect made the torque depend on the angle")
+        return _state_from(state.cfg, full_data, list(res.estimates), state.values, res, state.ripple_order), res
+    return state, current
+
+
+def _fmt_param(k, v):
+    if not isinstance(v, dict):
+        return f"{k} {v:.4g}"
+    if v["value"] is None:
+        return f"{k} not determined"
+    return f"{k} {v['value']:.4g} ± {v['stderr']:.2g}"
 
 
 def step_table(result) -> str:
@@ -501,12 +927,18 @@ def step_table(result) -> str:
         ps = ", ".join(step_parameters(s))  # amplitude/phase with units; (a, b) in the JSON only
         lines.append(f"{s['effect']:<28}{s['rms_before']:>13.5g}{s['rms_after']:>13.5g}{s['p_value']:>11.2g}  {ps}")
     f = result["final"]
-    where = ", ".join(str(w["order"]) for w in result["unexplained_where"]) or "none distinct (broadband)"
-    lines.append(f"final: RMS {f['rms']:.5g}, residual {'white' if f['residual_white'] else 'NOT white'} at 5 % "
-                 f"(runs p {f['runs_p_value']:.2g}, Ljung-Box p {f['ljung_box_p_value']:.2g})"
-                 + (f"; UNEXPLAINED residual, spectral peaks at shaft orders: {where}" if result["unexplained"] else ""))
+    lines.append(f"final: RMS {f['rms']:.5g}, mu (mean over vanes) {_fmt_param('', f['params'].get('mu', {'value': None})).strip()}; "
+                 f"detectors p: runs {f['runs_p_value']:.2g}, Ljung-Box {f['ljung_box_p_value']:.2g}, "
+                 f"synchronous F {f['synchronous_f_p_value']:.2g}, noise level {f['noise_level_p_value']:.2g}")
+    if "effects.vane_friction_factor.1" in f["params"]:
+        lines.append("vane COFs: " + ", ".join(f"{i}: {v['value']:.4g}" for i, v in enumerate(f["vane_mu"])))
+    where = ", ".join((f"order {w['order']}" if "order" in w else f"{w['angle_deg']} deg")
+                      for w in result["unexplained_where"]) or "broadband"
+    lines.append(f"verdict: {result['verdict'].upper()}" + (f" (at {where})" if result["unexplained"] else ""))
     for a, b in result["confounded"]:
-        lines.append(f"confounded: {a} ~ {b} (data at another speed would separate them)")
+        lines.append(f"confounded: {a} ~ {b}")
+    for n in result["notes"]:
+        lines.append(f"note: {n}")
     lines.append(PLUS_MINUS)
     if not f["residual_white"]:
         lines.append(OPTIMISTIC)

@@ -74,3 +74,153 @@ def residual_report(res, dt, speed, fitted=0) -> dict:
     lb = ljung_box(res, fitted=fitted)
     return {"runs_test": rt, "ljung_box": lb,
             "spectrum_peaks": spec["peaks"], "white_at_5pct": bool(rt["p_value"] > 0.05 and lb["p_value"] > 0.05)}
+
+
+# --- Detectors of a systematic residual beyond whiteness (the discrepancy workflow's verdict) ------
+# Each returns {"statistic", "p_value", ...}; each p-value is uniform on [0, 1] (or conservative)
+# under its null hypothesis, tested in tests/unit/test_detectors.py over many noise seeds.
+
+def revolution_bins(angle, bins: int | None = None) -> np.ndarray:
+    """Bin index of every sample's rotor angle mod 2 pi; default bins: about one per sample and
+    revolution (so a one-sample spike of the torque stays in one bin), 8 ... 720."""
+    a = np.mod(np.asarray(angle, dtype=float), 2 * math.pi)
+    if bins is None:
+        revs = max((np.max(angle) - np.min(angle)) / (2 * math.pi), 1e-9)
+        bins = int(np.clip(a.size / revs, 8, 720))
+    return np.minimum((a / (2 * math.pi) * bins).astype(int), bins - 1), bins
+
+
+def synchronous_f_test(x, angle, bins: int | None = None) -> dict:
+    """Angle-domain synchronous-average F-test (one-way ANOVA of x over rotor-angle bins, the
+    revolutions of the record being the replicates): between-bin against within-bin variance.
+
+    Null: x is noise with one variance whatever the rotor angle, independent between samples
+    (white); then F ~ F(B - 1, n - B). A deterministic shaft-synchronous residual -- smooth or a
+    train of one-sample spikes at fixed angles, white-looking to runs and Ljung-Box -- puts its
+    power between the bins. Needs two or more revolutions (replicates in every used bin)."""
+    x = np.asarray(x, dtype=float)
+    idx, B = revolution_bins(angle, bins)
+    c = np.bincount(idx, minlength=B)
+    used = c > 0
+    k = int(used.sum())
+    n = x.size
+    if k < 2 or n - k < 2 or np.max(c) < 2:
+        return {"statistic": float("nan"), "p_value": 1.0, "bins": k, "within_var": float(np.var(x)),
+                "applicable": False}
+    s = np.bincount(idx, weights=x, minlength=B)
+    mean_b = np.where(used, s / np.maximum(c, 1), 0.0)
+    within = float(np.sum((x - mean_b[idx]) ** 2))
+    between = float(np.sum(c[used] * (mean_b[used] - x.mean()) ** 2))
+    F = (between / (k - 1)) / max(within / (n - k), 1e-300)
+    return {"statistic": float(F), "p_value": float(stats.f.sf(F, k - 1, n - k)), "bins": k,
+            "within_var": within / (n - k), "applicable": True,
+            "average": np.where(used, mean_b, np.nan), "counts": c}
+
+
+def high_frequency_noise(x, band=(0.2, 0.4)) -> dict:
+    """White-noise variance from the residual's periodogram in the band `band` x sample rate
+    (median of the raw periodogram / ln 2: a narrow line or a spike at a few frequencies does not
+    move a median; the band stops short of Nyquist, where a DAQ's anti-alias filter cuts).
+    Compared with the residual's variance: z = ln(var / sigma_hf^2) over its null standard
+    deviation sqrt((kurtosis - 1)/n + 1/(m ln^2 2)); one-sided p.
+
+    Null: the residual is white (flat spectrum), so both estimate one variance. Broadband model
+    error concentrated below the band (shaft orders, drift) raises the variance only."""
+    x = np.asarray(x, dtype=float) - np.mean(x)
+    n = x.size
+    P = np.abs(np.fft.rfft(x)) ** 2 / n
+    f = np.fft.rfftfreq(n)
+    sel = (f >= band[0]) & (f <= band[1])
+    m = int(sel.sum())
+    var = float(np.mean(x * x))
+    if m < 8 or var == 0:
+        return {"statistic": 0.0, "p_value": 1.0, "sigma": math.sqrt(var), "ratio": 1.0}
+    s2 = float(np.median(P[sel]) / math.log(2))
+    kurt = float(np.mean(x**4) / var**2)
+    sd = math.sqrt(max(kurt - 1, 0.5) / n + 1.0 / (m * math.log(2) ** 2))
+    z = math.log(var / max(s2, 1e-300)) / sd
+    return {"statistic": z, "p_value": float(stats.norm.sf(z)), "sigma": math.sqrt(s2),
+            "ratio": var / max(s2, 1e-300)}
+
+
+def kurtosis_test(x) -> dict:
+    """Heavy tails (positive excess kurtosis, D'Agostino's test, one-sided). Null: Gaussian noise.
+    Reported, not part of the verdict: heavy tails alone are spikes *or* non-Gaussian noise; a
+    spike train that repeats with the shaft is what the synchronous F-test decides."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 20 or np.var(x) == 0:
+        return {"statistic": 0.0, "p_value": 1.0, "excess": 0.0}
+    z, p = stats.kurtosistest(x, alternative="greater")
+    return {"statistic": float(z), "p_value": float(p), "excess": float(stats.kurtosis(x))}
+
+
+VERDICT_DETECTORS = ("runs_test", "ljung_box", "synchronous_f", "noise_level")
+
+
+def detectors(x, angle, fitted: int = 0) -> dict:
+    """Every detector on one measurement's residual x with the fitted rotor angle."""
+    return {"runs_test": runs_test(x), "ljung_box": ljung_box(x, fitted=fitted),
+            "synchronous_f": synchronous_f_test(x, angle), "noise_level": high_frequency_noise(x),
+            "kurtosis": kurtosis_test(x)}
+
+
+def combined_p(per_measurement: list) -> dict:
+    """Each verdict detector's p over several measurements (Bonferroni over them: each file is
+    tested on its own, so concatenation seams and different noise levels raise no false alarm),
+    and the family's p (Bonferroni over the detectors)."""
+    K = len(per_measurement)
+    out = {d: min(1.0, K * min(m[d]["p_value"] for m in per_measurement)) for d in VERDICT_DETECTORS}
+    out["family"] = min(1.0, len(VERDICT_DETECTORS) * min(out[d] for d in VERDICT_DETECTORS))
+    return out
+
+
+def systematic_rms(x, det: dict) -> float:
+    """RMS of the part of x that is not white noise: variance above the noise variance (the smaller
+    of the within-angle-bin and the high-frequency estimates)."""
+    x = np.asarray(x, dtype=float)
+    noise = det["noise_level"]["sigma"] ** 2
+    if det["synchronous_f"]["applicable"]:
+        noise = min(noise, det["synchronous_f"]["within_var"])
+    return math.sqrt(max(float(np.var(x)) - noise, 0.0))
+
+
+def _synchronous_power(t, y, w, bins):
+    """Between-bin sum of squares of y binned by the angle w t mod 2 pi (y has zero mean)."""
+    idx = np.minimum((np.mod(w * t, 2 * math.pi) * (bins / (2 * math.pi))).astype(int), bins - 1)
+    c = np.bincount(idx, minlength=bins)
+    s = np.bincount(idx, weights=y, minlength=bins)
+    return float(np.sum(s[c > 0] ** 2 / c[c > 0]))
+
+
+def synchronous_speed_scan(t, y, lower, upper, nominal, alpha=1e-3) -> dict:
+    """The shaft speed in [lower, upper] that makes y most shaft-synchronous: the between-bin power
+    of y averaged over revolutions in the angle domain, maximised over a grid fine enough that
+    the phase of the highest resolved order drifts < pi/2 over the record, then refined with finer
+    bins. The best speed is used only when its synchronous F-test beats alpha / (grid points)
+    (Bonferroni over the scan); otherwise the nominal speed is returned. Assumes a constant speed
+    over the record. A torque that does not depend on the rotor angle (concentric housing) gives
+    no evidence and keeps the nominal."""
+    t = np.asarray(t, dtype=float) - t[0]
+    y = np.asarray(y, dtype=float) - np.mean(y)
+    T = max(t[-1], 1e-12)
+    n = y.size
+    spr = n / max(nominal * T / (2 * math.pi), 1e-9)  # samples per revolution
+    bins = 32
+    step = math.pi / (bins * T)  # order bins/2 drifts by pi/2 from one grid point to the next
+    grid = np.arange(lower, upper + 0.5 * step, step)
+    grid = np.append(grid, nominal)
+    power = np.array([_synchronous_power(t, y, w, bins) for w in grid])
+    best = float(grid[int(np.argmax(power))])
+    total = float(y @ y)
+    k = bins - 1
+    F = (power.max() / k) / max((total - power.max()) / max(n - bins, 1), 1e-300)
+    p = float(stats.f.sf(F, k, max(n - bins, 1)))
+    if not np.isfinite(p) or p * grid.size >= alpha or spr < 8:
+        return {"speed": float(nominal), "p_value": p, "grid": int(grid.size), "refined": False}
+    top = min(int(spr), 720)
+    while bins < top:  # finer bins resolve higher orders: narrower peaks
+        bins, step = min(4 * bins, top), step / 4
+        local = best + step * np.arange(-8, 9)
+        local = local[(local >= lower) & (local <= upper)]
+        best = float(local[int(np.argmax([_synchronous_power(t, y, w, bins) for w in local]))])
+    return {"speed": best, "p_value": p, "grid": int(grid.size), "refined": True}

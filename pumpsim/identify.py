@@ -21,7 +21,7 @@ from scipy import stats
 
 from .config import PumpConfig, as_array
 from .data import Dataset
-from .diagnostics import residual_report
+from .diagnostics import residual_report, synchronous_speed_scan
 from .errors import ConfigError
 from .kernels import load_kernels, map_samples
 from .model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
@@ -201,6 +201,11 @@ class Problem:
         self.ripple_order = int(ripple_order)
         self.fixed.update(extra or {})
         self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, self.fixed, initial)
+        band = speed_band(cfg, data)
+        if band is not None and "speed" in self.names:  # the nominal speed's tolerance band
+            i = self.names.index("speed")
+            self.lower[i], self.upper[i] = band
+            self.x0[i] = min(max(self.x0[i], band[0]), band[1])
         self._follow = following(cfg)
         self.t = data.time - data.time[0]
         self.y = data.torque
@@ -526,6 +531,16 @@ def ipopt_fit(prob: Problem, x0, log=None):
     return FitOutcome(x, prob.y - m, J, history, converged, status)
 
 
+def speed_band(cfg, data):
+    """(lowest, highest) speed a fit may give a measurement without a speed column: the configured
+    speed +- operation.speed_tolerance (the operating point is known; a spectral peak elsewhere
+    is a disturbance, not the shaft). None when the data has a speed column or no speed is set."""
+    if data.speed is not None or cfg.mode != "speed" or not cfg.speed:
+        return None
+    tol = getattr(cfg, "speed_tolerance", 0.02)
+    return cfg.speed * (1 - tol), cfg.speed * (1 + tol)
+
+
 def phase_and_speed_start(prob: Problem, x):
     """theta0 is periodic and speed moves the phase: start from the best phase (and, when fitted,
     the speed from the torque spectrum) so a wrong initial phase cannot trap the fit."""
@@ -540,7 +555,13 @@ def phase_and_speed_start(prob: Problem, x):
     from .simulate import inverse_dynamics
 
     one_rev = inverse_dynamics(prob.kern, pvec, grid, w, 0.0)["torque"]
-    if "speed" in names and t.size > 64:
+    banded = "speed" in names and np.isfinite(prob.upper[names.index("speed")])
+    if banded:  # inside the tolerance band, from shaft-synchronous evidence only
+        lo, hi = prob.lower[names.index("speed")], prob.upper[names.index("speed")]
+        w = synchronous_speed_scan(t, y, lo, hi, w)["speed"]
+        x[names.index("speed")] = w
+        one_rev = inverse_dynamics(prob.kern, prob.parameter_vector(x), grid, w, 0.0)["torque"]
+    elif "speed" in names and t.size > 64:
         spec_y = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(y.size)))
         f = np.fft.rfftfreq(y.size, t[1] - t[0])
         k = int(np.argmax(spec_y[1:])) + 1
@@ -598,7 +619,7 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1):
 
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
-             ripple_order=1) -> IdentificationResult:
+             ripple_order=1, extra=None) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed. The engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
     if method not in METHODS:
@@ -612,7 +633,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = make_problem(cfg, data, params, initial, ripple_order=ripple_order)
+    prob = make_problem(cfg, data, params, initial, extra, ripple_order=ripple_order)  # extra: held values
     x0 = prob.x0.copy()
     moves_phase = any(base_name(n) in ("theta0", "speed") for n in prob.names)
     start = prob.start(x0) if multistart and moves_phase else x0
@@ -627,7 +648,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
 
     def reduced():
         return make_problem(cfg, data, active, {n: fixed[n] for n in active},
-                            extra={n: fixed[n] for n in unident if base_name(n) in SPECIAL},
+                            extra={**(extra or {}), **{n: fixed[n] for n in unident if base_name(n) in SPECIAL}},
                             ripple_order=ripple_order)
 
     while True:

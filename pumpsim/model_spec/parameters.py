@@ -195,7 +195,7 @@ EFFECTS = [Parameter("effects.viscous_tip_friction", "N s/m", 0.0, lower=NONNEGA
 
 def _factor(i: int) -> Parameter:
     return Parameter(f"effects.vane_friction_factor.{i}", "-", 1.0, lower=NONNEGATIVE,
-                     plausible=(0.5, 1.5), doc="per-vane housing-COF factor")
+                     plausible=(0.5, 1.5), doc="per-vane COF factor (tip and slot)")
 
 
 @dataclass(frozen=True)

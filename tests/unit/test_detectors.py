@@ -1,0 +1,127 @@
+"""Residual detectors against their null distributions: on white noise each test's rejection rate
+at level 5 % must lie inside the binomial 99.9 % interval for its number of trials (a test with
+a wrong null distribution -- too liberal or too conservative -- falls outside), and each detects
+what it is for."""
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from pumpsim.diagnostics import (combined_p, detectors, high_frequency_noise, kurtosis_test, ljung_box,
+                                 runs_test, synchronous_f_test, synchronous_speed_scan, systematic_rms)
+
+TRIALS = 400
+N = 600
+SPEED = 471.0
+DT = 1e-4
+
+
+def _angle(n=N, speed=SPEED):
+    return 0.3 + speed * DT * np.arange(n)
+
+
+def _binomial_bounds(trials=TRIALS, level=0.05, confidence=0.999):
+    lo = stats.binom.ppf((1 - confidence) / 2, trials, level)
+    hi = stats.binom.ppf(1 - (1 - confidence) / 2, trials, level)
+    return lo, hi
+
+
+@pytest.mark.parametrize("detector", ["runs", "ljung_box", "synchronous_f", "noise_level", "kurtosis"])
+@pytest.mark.parametrize("noise", ["gauss", "uniform"])
+def test_size_on_white_noise(detector, noise):
+    """Rejections at 5 % over 400 white-noise records; Gaussian and uniform (quantisation-like)
+    noise. The kurtosis test is one-sided (heavy tails), so light-tailed uniform noise never trips it."""
+    rng = np.random.default_rng(11 if noise == "gauss" else 12)
+    angle = _angle()
+    rejected = 0
+    for _ in range(TRIALS):
+        x = rng.normal(size=N) if noise == "gauss" else rng.uniform(-1, 1, size=N)
+        p = {"runs": lambda: runs_test(x)["p_value"], "ljung_box": lambda: ljung_box(x)["p_value"],
+             "synchronous_f": lambda: synchronous_f_test(x, angle)["p_value"],
+             "noise_level": lambda: high_frequency_noise(x)["p_value"],
+             "kurtosis": lambda: kurtosis_test(x)["p_value"]}[detector]()
+        rejected += p < 0.05
+    if detector == "kurtosis" and noise == "uniform":
+        assert rejected <= _binomial_bounds()[0]
+        return
+    lo, hi = _binomial_bounds()
+    assert lo <= rejected <= hi, f"{detector}: {rejected} of {TRIALS} rejected at 5 %"
+
+
+def test_synchronous_f_p_value_is_uniform_under_the_null():
+    """Kolmogorov-Smirnov of 300 p-values against U(0, 1), including a record whose samples fall
+    on the same angles every revolution (speed x dt a rational fraction of 2 pi)."""
+    rng = np.random.default_rng(3)
+    for speed in (SPEED, 2 * math.pi / (40 * DT)):
+        ps = [synchronous_f_test(rng.normal(size=N), _angle(speed=speed))["p_value"] for _ in range(300)]
+        assert stats.kstest(ps, "uniform").pvalue > 1e-3
+
+
+def test_noise_level_size_with_heavy_tailed_noise():
+    """The variance's null spread is corrected by the kurtosis: with Laplace noise the test stays
+    valid (at most its level; the sample kurtosis makes it somewhat conservative)."""
+    rng = np.random.default_rng(5)
+    rejected = sum(high_frequency_noise(rng.laplace(size=N))["p_value"] < 0.05 for _ in range(TRIALS))
+    assert rejected <= _binomial_bounds()[1]
+
+
+def test_spike_train_at_fixed_angles_is_white_to_runs_and_ljung_box_but_not_to_the_f_test():
+    """Two one-sample spikes of 1.5 sigma per revolution at fixed rotor angles (moved friction
+    reversals): runs and Ljung-Box barely see them; the synchronous average does."""
+    rng = np.random.default_rng(8)
+    n = 4000
+    angle = _angle(n)
+    a = np.mod(angle, 2 * math.pi)
+    step = SPEED * DT
+    spikes = 1.5 * ((np.abs(a - 1.0) < step / 2) | (np.abs(a - 4.0) < step / 2))
+    found = {"runs": 0, "lb": 0, "f": 0}
+    for _ in range(20):
+        x = rng.normal(size=n) + spikes
+        found["runs"] += runs_test(x)["p_value"] < 0.01
+        found["lb"] += ljung_box(x)["p_value"] < 0.01
+        found["f"] += synchronous_f_test(x, angle)["p_value"] < 0.01
+    assert found["f"] >= 19 and found["runs"] <= 5 and found["lb"] <= 5, found
+
+
+def test_noise_level_sees_low_frequency_structure_and_estimates_sigma():
+    rng = np.random.default_rng(9)
+    n = 4000
+    t = DT * np.arange(n)
+    x = rng.normal(0, 0.5, n)
+    hf = high_frequency_noise(x)
+    assert abs(hf["sigma"] / 0.5 - 1) < 0.1  # median of 400 exponential ordinates: ~3.6 % spread
+    drift = x + 0.5 * np.sin(2 * math.pi * 30 * t)
+    assert high_frequency_noise(drift)["p_value"] < 1e-6
+
+
+def test_systematic_rms_of_a_line_plus_noise():
+    rng = np.random.default_rng(10)
+    n = 6000
+    t = DT * np.arange(n)
+    line = 0.3 * math.sqrt(2) * np.sin(2 * math.pi * 37.3 * t)  # RMS 0.3, not shaft-locked
+    x = rng.normal(0, 1, n) + line
+    det = detectors(x, _angle(n))
+    assert abs(systematic_rms(x, det) - 0.3) < 0.12
+
+
+def test_combined_p_is_bonferroni_over_measurements_and_detectors():
+    rng = np.random.default_rng(1)
+    per = [detectors(rng.normal(size=N), _angle()) for _ in range(3)]
+    c = combined_p(per)
+    assert c["runs_test"] == min(1.0, 3 * min(m["runs_test"]["p_value"] for m in per))
+    assert c["family"] == min(1.0, 4 * min(c[d] for d in ("runs_test", "ljung_box", "synchronous_f", "noise_level")))
+
+
+def test_speed_scan_finds_the_shaft_inside_the_band_and_ignores_a_hum():
+    """A torque with a 4th-order content at 1.2 % above nominal and a stronger 37 Hz hum: the scan
+    returns the shaft speed (within the refined grid), never the hum."""
+    rng = np.random.default_rng(2)
+    t = 1 / 20000 * np.arange(8000)
+    w_true = 607.37 * 1.012
+    y = (0.01 * np.cos(4 * w_true * t + 0.3) + 0.004 * np.sign(np.sin(w_true * t))
+         + 0.03 * np.sin(2 * math.pi * 37.3 * t) + rng.normal(0, 0.005, t.size))
+    r = synchronous_speed_scan(t, y, 607.37 * 0.98, 607.37 * 1.02, 607.37)
+    assert r["refined"] and abs(r["speed"] - w_true) * t[-1] < 0.1  # < 0.1 rad of drift over the record
+    flat = synchronous_speed_scan(t, rng.normal(0, 0.005, t.size), 607.37 * 0.98, 607.37 * 1.02, 607.37)
+    assert not flat["refined"] and flat["speed"] == 607.37
