@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design clean
+.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml
@@ -61,6 +61,10 @@ bench: codegen
 bench-design: codegen
 	mkdir -p out
 	$(BIN)/python bench/design.py --json out/bench.json
+
+bench-diagnose: codegen
+	mkdir -p out
+	$(BIN)/python bench/diagnose_grid.py --grid $(or $(GRID),reduced) --json out/bench_diagnose.json
 
 clean:
 	rm -rf generated/*/ out .pytest_cache

@@ -241,6 +241,7 @@ def main(argv=None):
     ap.add_argument("--rigs", help="comma-separated subset of " + ",".join(RIGS))
     ap.add_argument("--truths", help="comma-separated subset of the effects/none/disturbances")
     ap.add_argument("--seeds", type=int, help="number of noise seeds")
+    ap.add_argument("--snrs", help="comma-separated SNRs")
     a = ap.parse_args(argv)
     spec = dict(REDUCED if a.grid == "reduced" else FULL)
     if a.rigs:
@@ -249,6 +250,8 @@ def main(argv=None):
         spec["truths"] = tuple(a.truths.split(","))
     if a.seeds:
         spec["seeds"] = tuple(range(a.seeds))
+    if a.snrs:
+        spec["snrs"] = tuple(float(x) for x in a.snrs.split(","))
     t0 = time.perf_counter()
     cases = run(spec)
     s = summarise(cases)

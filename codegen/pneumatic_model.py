@@ -90,7 +90,7 @@ class _GasBuilder(_Builder):
                       c_visc=P["effects.viscous_tip_friction"], **g)
         v_t = self.mech(**common)["tip_slip"]
         mu_h = factor * self.friction(v_t, "housing")
-        mu_r = self.friction(k["sdot"], "slot")
+        mu_r = factor * self.friction(k["sdot"], "slot")  # a vane's material/finish: tip and slot
         common.update(mu_h=mu_h, mu_r=mu_r)
         # gas loads and their generalised forces (rotor-frame components, see cells.py)
         o = self.geo.outline(theta, phi, s, alpha)

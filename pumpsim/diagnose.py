@@ -62,6 +62,9 @@ RELEVANT = 1e-3  # systematic residual RMS / torque RMS below which no discrepan
 CONTENDERS = 3  # refitted per step: the best by the one-step BIC
 BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
 SCREEN_SAMPLES = 5000  # the search's window of a long record (all measurements together)
+# a fit found by searching ~150 probe configurations (the non-smooth eccentricity) is the best of
+# many: its likelihood-ratio level is divided by this (Bonferroni over the probes)
+SEARCHED = 150
 SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction of the band half-width
 
 
@@ -487,13 +490,14 @@ class DiagnosisResult:
     detectors: dict
     speed: dict
     ranking: list
+    screens: list  # per search step: after, alpha, candidates (by score p), chosen
     rejected: list
     method: str
     wall_time: float
     history: list = field(default_factory=list, repr=False)  # per step: label, IdentificationResult
 
     JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
-            "verdict", "notes", "detectors", "speed", "ranking", "rejected", "method", "wall_time")
+            "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected", "method", "wall_time")
 
     def to_json(self) -> dict:
         return {k: getattr(self, k) for k in self.JSON}
@@ -625,7 +629,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     for reason in plausible(cfg, values, torque_rms, mean_torque, dt):
         notes.append(f"baseline: {reason} -- check the config and the data's units")
     history = [{"label": "baseline", "result": base}]
-    steps, effects, confounded, ranking = [], [], [], []
+    steps, effects, confounded, ranking, screens = [], [], [], [], []
     verdict = _Verdict(current, datasets, len(names))
     rival_pair = None
     for _ in range(max_effects):
@@ -638,6 +642,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             say(f"screening {c.label}")
             scored.append((c, score_test(scr, c)))
         ranking = _rank(scr, scored)
+        screens.append(_screen_table(ranking, SCORE_ALPHA / len(scored), effects, scr))
         _note_confounded(scored, SCORE_ALPHA / len(scored), confounded)
         # the best by the one criterion, and the best by score p-value (a smooth effect whose
         # one-step fit a probe grid happened to beat)
@@ -670,8 +675,15 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             rss1, _ = _whitened_rss(res.residual, rho)
             q = len(st.names) - len(state.names)
             lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-            f.update(state=st, res=res, lr_p=float(stats.chi2.sf(lr, max(q, 1))), bic=_bic(rss1, nw, len(st.names)))
-            if f["lr_p"] < LR_ALPHA and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque, dt):
+            # and without prewhitening: an AR(1) filter fitted to a large unmodelled line amplifies
+            # high frequencies, where moved friction reversals can buy a spurious whitened gain
+            n_full = res.residual.size
+            lr_plain = n_full * math.log(max(float(current.residual @ current.residual), 1e-300)
+                                         / max(float(res.residual @ res.residual), 1e-300))
+            f.update(state=st, res=res, bic=_bic(rss1, nw, len(st.names)),
+                     lr_p=max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
+            level = LR_ALPHA if f["score"]["p_value"] < SCORE_ALPHA / len(scored) else LR_ALPHA / SEARCHED
+            if f["lr_p"] < level and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque, dt):
                 accepted = f
                 break
         if accepted is None:
@@ -703,6 +715,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                       "lr_p_value": accepted["lr_p"], "bic_before": bic0, "bic_after": accepted["bic"],
                       "all_params": _params_json(res, new_state.names, new_state.cfg)})
         effects.append(c.effect)
+        screens[-1]["chosen"] = c.label
         state, current = new_state, res
         if free and not any(base_name(n) == "speed" for n in state.names):
             state, current = _try_speed(state, current, full_data, screen_data, speed_info, notes)
@@ -743,7 +756,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         notes=notes, detectors=verdict.to_json(), speed=speed_info,
         ranking=[{"effect": r["cand"].label, "score_p_value": r["score"]["p_value"],
                   "one_step_bic": r["bic"], "significant": r["significant"]} for r in ranking],
-        rejected=rejected,
+        screens=screens, rejected=rejected,
         method=("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
                 f"(family {UNEXPLAINED_ALPHA:g}, Bonferroni over detectors and measurements); candidates: "
                 "prewhitened score tests (second order where symmetry cancels the first) and one-step "
@@ -768,10 +781,22 @@ def _rank(state, scored):
         rss1 = min(s.get("one_step_rss", rss0), rss0)
         lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
         lr_p = float(stats.chi2.sf(lr, max(q, 1)))
-        sig = s["p_value"] < alpha or (s["second_order"] and lr_p < alpha)
+        sig = s["p_value"] < alpha or (s["second_order"] and lr_p < alpha / SEARCHED)
         out.append({"cand": c, "score": s, "bic": _bic(rss1, n, k0 + q), "significant": bool(sig)})
     out.sort(key=lambda r_: r_["bic"])
     return out
+
+
+def _screen_table(ranking, alpha, effects, state) -> dict:
+    """One screen's candidates for the report, by score p-value: what was tested, how strongly."""
+    n = state.problem().y.size
+    rows = [{"candidate": r["cand"].label, "effect": r["cand"].effect, "order": r["cand"].order,
+             "p_value": r["score"]["p_value"], "score": r["score"]["lm"], "dof": r["score"]["dof"],
+             "significant": r["significant"], "one_step_bic": r["bic"],
+             "one_step_rms": math.sqrt(r["score"]["one_step_rss"] / n) if "one_step_rss" in r["score"] else None,
+             "collinear_with": r["score"]["partner"]} for r in ranking]
+    rows.sort(key=lambda r: (r["p_value"], -r["score"]))
+    return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
 
 
 def _where(res, datasets, verdict):

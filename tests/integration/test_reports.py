@@ -117,8 +117,8 @@ def test_diagnosis_report_reads_a_result_object_with_a_flat_ranking(tmp_path, ou
     cfg, ds, out = out_of_round_diagnosis
     ranking = [{"effect": r["candidate"], "score_p_value": r["p_value"], "one_step_bic": -1.5,
                 "significant": r["significant"]} for r in out["screens"][0]["candidates"]]
-    obj = SimpleNamespace(**{k: v for k, v in out.items() if k not in ("_history", "screens")},
-                          history=out["_history"], ranking=ranking, verdict="housing out of round")
+    obj = SimpleNamespace(**{k: v for k, v in out.to_json().items() if k not in ("screens", "ranking", "verdict")},
+                          history=out.history, ranking=ranking, verdict="housing out of round")
     rep = tmp_path / "d.html"
     diagnosis_report(obj, rep, cfg=cfg, data=ds)
     text = re.sub(r"\s+", " ", _text(html.unescape(rep.read_text())))
@@ -128,7 +128,7 @@ def test_diagnosis_report_reads_a_result_object_with_a_flat_ranking(tmp_path, ou
 
 def test_bic_chain_before_equals_previous_after(out_of_round_diagnosis):
     _, _, out = out_of_round_diagnosis
-    chain, rho = bic_chain(out["_history"])
+    chain, rho = bic_chain(out.history)
     assert len(chain) == len(out["steps"]) + 1 and -1 < rho < 1
     # each model's value is computed once, so a step's "before" is the previous step's "after" by
     # construction; the chain falls where the workflow accepted an effect
