@@ -22,8 +22,9 @@ effect, add it, refit, show the gap shrink -- and say "unexplained" rather than 
    detectors reject at 5 %.
 5. Verdict, exactly one of: consistent with noise (possibly after named effects); named effects
    and an unexplained remainder; nothing named and unexplained. `unexplained` needs the detector
-   family at 1 % and a systematic residual above 0.1 % of the torque RMS (a torque sensor's
-   accuracy class). `confounded` is reported in addition, never instead.
+   family at 1 % and a systematic residual above half the noise sigma (smaller remainders are
+   what a fit's sample-level artefacts leave on exact data); an effect is named only if it changes
+   the torque by more than that. `confounded` is reported in addition, never instead.
 
 Long records: the search runs on a screening window of SCREEN_SAMPLES (the first samples of
 each measurement); the baseline and every accepted effect are refitted on the whole record, and
@@ -58,7 +59,11 @@ COLLINEAR = 0.995
 MAX_EFFECTS = 4
 SEARCH_ALPHA = 0.05  # detector family level that keeps the search going
 UNEXPLAINED_ALPHA = 0.01  # detector family level behind `unexplained`
-RELEVANT = 1e-3  # systematic residual RMS / torque RMS below which no discrepancy is claimed
+# systematic residual (or a named effect's torque change), RMS over the noise sigma, below which
+# nothing is claimed: what a fit's sample-level artefacts (friction reversals moved by less than a
+# sample) leave on exact data
+RELEVANT = 0.5
+NAMED_SIZE = 0.25  # a named effect's torque change, RMS over the noise sigma, at least
 CONTENDERS = 3  # refitted per step: the best by the one-step BIC
 BIC_DECISIVE = 10.0  # a BIC lead below this does not decide between two effects (Kass & Raftery)
 SCREEN_SAMPLES = 5000  # the search's window of a long record (all measurements together)
@@ -526,19 +531,27 @@ class _Verdict:
         self.per = [detectors(r, a, fitted) for r, a in zip(_split(res.residual, rows), _split(res.angle, rows))]
         self.p = combined_p(self.per)
         self.systematic = max(systematic_rms(r, d) for r, d in zip(_split(res.residual, rows), self.per))
-        self.torque_rms = max(float(np.sqrt(np.mean(d.torque ** 2))) for d in datasets)
+        self.sigma = max(_noise_sigma(d) for d in self.per)
 
     def searching(self):  # any detector at 5 %: naming is guarded by the score and LR tests
         return min(self.p[d] for d in VERDICT_DETECTORS) < SEARCH_ALPHA
 
     def consistent(self):
-        return self.p["family"] >= UNEXPLAINED_ALPHA or self.systematic < RELEVANT * self.torque_rms
+        return self.p["family"] >= UNEXPLAINED_ALPHA or self.systematic < RELEVANT * self.sigma
 
     def to_json(self):
         per = [{d: {"statistic": m[d]["statistic"] if "statistic" in m[d] else m[d].get("q", m[d].get("z")),
                     "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
         return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
-                "relevance_floor": RELEVANT * self.torque_rms}
+                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma}
+
+
+def _noise_sigma(det):
+    """Noise standard deviation: the smaller of the high-frequency and within-angle-bin estimates."""
+    v = det["noise_level"]["sigma"] ** 2
+    if det["synchronous_f"]["applicable"]:
+        v = min(v, det["synchronous_f"]["within_var"])
+    return math.sqrt(v)
 
 
 def _screen(datasets):
@@ -683,6 +696,14 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             f.update(state=st, res=res, bic=_bic(rss1, nw, len(st.names)),
                      lr_p=max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
             level = LR_ALPHA if f["score"]["p_value"] < SCORE_ALPHA / len(scored) else LR_ALPHA / SEARCHED
+            # an effect is named only if it changes the model torque by more than a quarter of the
+            # noise sigma: a statistically significant but smaller change is noise fitted through moved
+            # friction reversals
+            size = float(np.sqrt(np.mean((res.fitted - current.fitted) ** 2)))
+            if size < NAMED_SIZE * verdict.sigma:
+                notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
+                             f"below {NAMED_SIZE:g} x the noise sigma")
+                continue
             if f["lr_p"] < level and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque, dt):
                 accepted = f
                 break
@@ -734,7 +755,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                      f"(within {BIC_DECISIVE:g} BIC): neither is named")
     if consistent and verdict.p["family"] < UNEXPLAINED_ALPHA:
         notes.append(f"a systematic residual of {verdict.systematic:.3g} N m remains, below "
-                     f"{RELEVANT * 100:g} % of the torque RMS: not claimed as a discrepancy")
+                     f"{RELEVANT:g} x the noise sigma ({verdict.sigma:.3g} N m): not claimed as a discrepancy")
     if verdict.per[0]["kurtosis"]["p_value"] < UNEXPLAINED_ALPHA:
         notes.append("heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise")
     notes += _notes(confounded, state, screen_data, K)
