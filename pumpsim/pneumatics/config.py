@@ -89,8 +89,22 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     if W is None:
         raise ConfigError("missing required key 'rotor.width' (the gas model needs the axial width)")
     _pos("rotor.width", W)
-    gs, pt, vl, lk, bo = (c[t] for t in ("gas", "ports", "valve", "leak", "booster"))
+    gs = c["gas"]
     v = {"rotor.width": W}
+    _parse_gas(gs, v)
+    _parse_ports(c["ports"], W, v)
+    vt = _parse_valve(c["valve"], v)
+    _parse_leak(c["leak"], v)
+    start, target = _parse_booster(c["booster"], gs["atmosphere"], v)
+    _parse_slot_pressure(c["vane"]["slot_pressure"], v)
+    motor = mode == "motor"
+    _parse_motor(c["motor"], raw, motor, v)
+    v["operation.motor"] = 1.0 if motor else 0.0
+    return PneumaticSettings(v, start, target, vt, motor, present)
+
+
+def _parse_gas(gs: dict, v: dict) -> None:
+    """Checks the [gas] table and adds its values to v."""
     _pos("gas.gas_constant", gs["gas_constant"])
     if not 1.0 < gs["gamma"] <= 2.0:
         raise ConfigError(f"gas.gamma must be in (1, 2], got {gs['gamma']:g}")
@@ -102,6 +116,10 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     v.update({"gas.gas_constant": gs["gas_constant"], "gas.gamma": gs["gamma"],
               "gas.temperature": gs["temperature"], "gas.wall_temperature": wall_t,
               "gas.heat_transfer": gs["heat_transfer"], "gas.atmosphere": gs["atmosphere"]})
+
+
+def _parse_ports(pt: dict, W: float, v: dict) -> None:
+    """Checks the [ports] table (port widths against the rotor width W) and adds its values to v."""
     for name in ("inlet", "exhaust"):
         if pt[name] is None:
             raise ConfigError(f"missing required key 'ports.{name}' ([start, end] in rad)")
@@ -123,7 +141,10 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
               "ports.hose_area": math.pi * pt["hose_diameter"] ** 2 / 4,
               "ports.check_cracking": pt["check_cracking"],
               "ports.check_full_open": pt["check_full_open"]})
-    # exhaust valve
+
+
+def _parse_valve(vl: dict, v: dict) -> str:
+    """Checks the [valve] table (exhaust valve, check or reed), adds its values to v, returns its type."""
     vt = vl["type"]
     if vt not in VALVE_TYPES:
         raise ConfigError(f"valve.type must be \"check\" or \"reed\", got {vt!r}")
@@ -132,34 +153,46 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
                      "valve.force_area": 1.0, "valve.mode": 1.0}
     v.update(reed_defaults)
     if vt == "check":
-        for k in ("mass", "stiffness", "lift_max", "diameter", "force_area", "port_area"):
-            if vl[k] is not None:
-                raise ConfigError(f"valve.{k} is for type = \"reed\"")
-        area = vl["area"] if vl["area"] is not None else math.pi * 0.004 ** 2 / 4
-        _pos("valve.area", area)
-        _nonneg("valve.cracking", vl["cracking"])
-        _pos("valve.full_open", vl["full_open"])
-        v.update({"valve.reed": 0.0, "valve.area": area, "valve.cracking": vl["cracking"],
-                  "valve.full_open": vl["full_open"]})
+        _parse_check_valve(vl, v)
     else:
-        for k in ("mass", "stiffness", "lift_max", "diameter"):
-            if vl[k] is None:
-                raise ConfigError(f"missing required key 'valve.{k}' (type = \"reed\")")
-        for k in ("mass", "lift_max", "diameter"):
-            _pos(f"valve.{k}", vl[k])
-        for k in ("stiffness", "damping", "preload"):
-            _nonneg(f"valve.{k}", vl[k])
-        d = vl["diameter"]
-        port = vl["port_area"] if vl["port_area"] is not None else math.pi * d * d / 4
-        force = vl["force_area"] if vl["force_area"] is not None else math.pi * d * d / 4
-        _pos("valve.port_area", port)
-        _pos("valve.force_area", force)
-        v.update({"valve.reed": 1.0, "valve.area": port, "valve.cracking": 0.0, "valve.full_open": 1.0,
-                  "valve.mass": vl["mass"], "valve.stiffness": vl["stiffness"],
-                  "valve.damping": vl["damping"], "valve.preload": vl["preload"],
-                  "valve.lift_max": vl["lift_max"], "valve.diameter": d, "valve.force_area": force,
-                  "valve.mode": 1.0})
-    # leaks
+        _parse_reed_valve(vl, v)
+    return vt
+
+
+def _parse_check_valve(vl: dict, v: dict) -> None:
+    for k in ("mass", "stiffness", "lift_max", "diameter", "force_area", "port_area"):
+        if vl[k] is not None:
+            raise ConfigError(f"valve.{k} is for type = \"reed\"")
+    area = vl["area"] if vl["area"] is not None else math.pi * 0.004 ** 2 / 4
+    _pos("valve.area", area)
+    _nonneg("valve.cracking", vl["cracking"])
+    _pos("valve.full_open", vl["full_open"])
+    v.update({"valve.reed": 0.0, "valve.area": area, "valve.cracking": vl["cracking"],
+              "valve.full_open": vl["full_open"]})
+
+
+def _parse_reed_valve(vl: dict, v: dict) -> None:
+    for k in ("mass", "stiffness", "lift_max", "diameter"):
+        if vl[k] is None:
+            raise ConfigError(f"missing required key 'valve.{k}' (type = \"reed\")")
+    for k in ("mass", "lift_max", "diameter"):
+        _pos(f"valve.{k}", vl[k])
+    for k in ("stiffness", "damping", "preload"):
+        _nonneg(f"valve.{k}", vl[k])
+    d = vl["diameter"]
+    port = vl["port_area"] if vl["port_area"] is not None else math.pi * d * d / 4
+    force = vl["force_area"] if vl["force_area"] is not None else math.pi * d * d / 4
+    _pos("valve.port_area", port)
+    _pos("valve.force_area", force)
+    v.update({"valve.reed": 1.0, "valve.area": port, "valve.cracking": 0.0, "valve.full_open": 1.0,
+              "valve.mass": vl["mass"], "valve.stiffness": vl["stiffness"],
+              "valve.damping": vl["damping"], "valve.preload": vl["preload"],
+              "valve.lift_max": vl["lift_max"], "valve.diameter": d, "valve.force_area": force,
+              "valve.mode": 1.0})
+
+
+def _parse_leak(lk: dict, v: dict) -> None:
+    """Checks the [leak] table (gaps at most 1 mm) and adds its values to v."""
     for k in ("tip_gap", "end_gap"):
         _nonneg(f"leak.{k}", lk[k])
         if lk[k] > 1e-3:
@@ -167,21 +200,27 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     if not 0 < lk["discharge_coefficient"] <= 1:
         raise ConfigError(f"leak.discharge_coefficient must be in (0, 1], got {lk['discharge_coefficient']:g}")
     v.update({f"leak.{k}": lk[k] for k in ("tip_gap", "end_gap", "discharge_coefficient")})
-    # booster
+
+
+def _parse_booster(bo: dict, atmosphere: float, v: dict) -> tuple:
+    """Checks the [booster] table, adds its values to v, returns (start pressure, target or None)."""
     if bo["volume"] is None:
         raise ConfigError("missing required key 'booster.volume' (m^3)")
     _pos("booster.volume", bo["volume"])
     _nonneg("booster.leak", bo["leak"])
-    start = gs["atmosphere"] if bo["pressure"] is None else bo["pressure"]
+    start = atmosphere if bo["pressure"] is None else bo["pressure"]
     _pos("booster.pressure", start)
-    if start > gs["atmosphere"]:
-        raise ConfigError(f"booster.pressure must be <= gas.atmosphere ({gs['atmosphere']:g} Pa), got {start:g}")
+    if start > atmosphere:
+        raise ConfigError(f"booster.pressure must be <= gas.atmosphere ({atmosphere:g} Pa), got {start:g}")
     target = bo["target"]
     if target is not None and not 0 < target < start:
         raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}")
     v.update({"booster.volume": bo["volume"], "booster.leak": bo["leak"]})
-    # slot pressure
-    sp = c["vane"]["slot_pressure"]
+    return start, target
+
+
+def _parse_slot_pressure(sp, v: dict) -> None:
+    """Checks vane.slot_pressure (a source name or a pressure in Pa) and adds its encoding to v."""
     if isinstance(sp, str):
         if sp not in SLOT_SOURCES[1:]:
             raise ConfigError("vane.slot_pressure must be \"inlet\", \"exhaust\", \"atmosphere\" or a "
@@ -193,9 +232,10 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
         v.update({"vane.slot_pressure.source": 0.0, "vane.slot_pressure.value": float(sp)})
     else:
         raise ConfigError(f"vane.slot_pressure must be a source name or a number, got {sp!r}")
-    # motor
-    mo = c["motor"]
-    motor = mode == "motor"
+
+
+def _parse_motor(mo: dict, raw: dict, motor: bool, v: dict) -> None:
+    """Checks the [motor] table (required in motor mode) and adds its values (or inert ones) to v."""
     if motor and "motor" not in raw:
         raise ConfigError("operation.mode = \"motor\" needs the [motor] table")
     if "motor" in raw:
@@ -211,8 +251,6 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     else:
         v.update({"motor.voltage": 0.0, "motor.resistance": 1.0, "motor.inductance": 1.0,
                   "motor.constant": 1.0, "motor.friction": 0.0, "motor.inertia": 0.0})
-    v["operation.motor"] = 1.0 if motor else 0.0
-    return PneumaticSettings(v, start, target, vt, motor, present)
 
 
 def check_tip(values: dict) -> None:
