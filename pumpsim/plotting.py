@@ -209,54 +209,16 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
     d = _Drawer(res, x)
     xlabel = ("time [s]" if x == "time" else "rotor angle θ [deg] (revolutions overlaid; the last 360° bold)"
               if d.overlay else f"rotor angle θ [deg] ({d.turns:.3g} of a revolution simulated)")
-    axes = {}
-    first = None
-    for r, key in enumerate(rows):
-        if key == "summary":
-            continue
-        share = first if key != "step" else None
-        ax = fig.add_subplot(gs[r, 0], sharex=share)
-        if key != "step" and first is None:
-            first = ax
-        axes[key] = ax
-        ax.grid(alpha=0.3)
+    axes = _panel_axes(fig, gs, rows)
     # one colour per vane, the same in every panel (beyond ten vanes from a colour map)
     colors = [f"C{i}" for i in range(n)] if n <= 10 else [plt.cm.turbo(i / (n - 1)) for i in range(n)]
-
-    def vane_panel(ax, col, label, scale):
-        curves = np.array([_column(res, f"{col}_{i}") * scale for i in range(n)])
-        groups = vane_groups(curves)
-        for g in groups:
-            d.plot(ax, curves[g[0]], color=colors[g[0]])
-        ax.set_ylabel(label, fontsize=8.5)
-        tidy_axis(ax, curves)
-        _legend(ax, [Line2D([], [], color=colors[g[0]], lw=1.4, label=group_label(g)) for g in groups])
-
     for col, label, scale in VANE_PANELS:
-        vane_panel(axes[col], col, label, scale)
+        _vane_panel(axes[col], d, res, colors, col, label, scale)
     if penetration:
-        vane_panel(axes["penetration"], "penetration", "penetration δ [µm]", 1e6)
-    ax = axes["slots"]
-    handles = []
-    slot_curves = {c: np.array([_column(res, f"{c}_{i}") for i in range(n)]) for c in SLOT_PANEL[1]}
-    for c, ls in zip(SLOT_PANEL[1], ("-", "--")):
-        for g in vane_groups(slot_curves[c]):
-            d.plot(ax, slot_curves[c][g[0]], color=colors[g[0]], ls=ls)
-            handles.append(Line2D([], [], color=colors[g[0]], ls=ls, lw=1.4,
-                                  label=f"{SLOT_NAMES[c]} {group_label(g)}"))
-    ax.axhline(0, color="0.4", lw=0.6)
-    ax.set_ylabel(SLOT_PANEL[0], fontsize=8.5)
-    tidy_axis(ax, np.concatenate(list(slot_curves.values())))
-    _legend(ax, handles, ncol=1 if len(handles) <= 8 else 2)
+        _vane_panel(axes["penetration"], d, res, colors, "penetration", "penetration δ [µm]", 1e6)
+    _slot_panel(axes["slots"], d, res, colors)
     orders = torque_orders(res)
-    tq = _column(res, "torque")
-    ax = axes["torque"]
-    d.plot(ax, tq, color="k")
-    ax.axhline(orders["mean"], color="C3", ls=":", lw=1.0)
-    ax.set_ylabel("drive torque τ [N·m]", fontsize=8.5)
-    tidy_axis(ax, tq)
-    _legend(ax, [Line2D([], [], color="k", lw=1.4, label="torque"),
-                 Line2D([], [], color="C3", ls=":", label=f"mean {orders['mean']:.4g} N·m")])
+    _torque_panel(axes["torque"], d, res, orders)
     if "speed" in axes:
         ax = axes["speed"]
         sp = _column(res, "speed") * RPM
@@ -269,6 +231,69 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
         ax.set_ylabel("integrator step [s]", fontsize=8.5)
         ax.set_xlabel("time [s]", fontsize=8.5)
         tidy_axis(ax, axis="x")
+    _finish_shared_axes(axes, rows, d, xlabel)
+    _summary(fig, gs[len(heights) - 1, 0], res, orders)
+    fig.suptitle(title_of(res, name), fontsize=11, y=1 - 0.12 / total, va="top")
+    return fig
+
+
+def _panel_axes(fig, gs, rows) -> dict:
+    """One axes per row but the summary; all share x except the step-size panel (over time)."""
+    axes = {}
+    first = None
+    for r, key in enumerate(rows):
+        if key == "summary":
+            continue
+        share = first if key != "step" else None
+        ax = fig.add_subplot(gs[r, 0], sharex=share)
+        if key != "step" and first is None:
+            first = ax
+        axes[key] = ax
+        ax.grid(alpha=0.3)
+    return axes
+
+
+def _vane_panel(ax, d, res, colors, col, label, scale):
+    """One curve per group of identical vanes of the per-vane column col (times scale)."""
+    n = len(colors)
+    curves = np.array([_column(res, f"{col}_{i}") * scale for i in range(n)])
+    groups = vane_groups(curves)
+    for g in groups:
+        d.plot(ax, curves[g[0]], color=colors[g[0]])
+    ax.set_ylabel(label, fontsize=8.5)
+    tidy_axis(ax, curves)
+    _legend(ax, [Line2D([], [], color=colors[g[0]], lw=1.4, label=group_label(g)) for g in groups])
+
+
+def _slot_panel(ax, d, res, colors):
+    """The slot forces of each group of identical vanes, one line style per slot column."""
+    n = len(colors)
+    handles = []
+    slot_curves = {c: np.array([_column(res, f"{c}_{i}") for i in range(n)]) for c in SLOT_PANEL[1]}
+    for c, ls in zip(SLOT_PANEL[1], ("-", "--")):
+        for g in vane_groups(slot_curves[c]):
+            d.plot(ax, slot_curves[c][g[0]], color=colors[g[0]], ls=ls)
+            handles.append(Line2D([], [], color=colors[g[0]], ls=ls, lw=1.4,
+                                  label=f"{SLOT_NAMES[c]} {group_label(g)}"))
+    ax.axhline(0, color="0.4", lw=0.6)
+    ax.set_ylabel(SLOT_PANEL[0], fontsize=8.5)
+    tidy_axis(ax, np.concatenate(list(slot_curves.values())))
+    _legend(ax, handles, ncol=1 if len(handles) <= 8 else 2)
+
+
+def _torque_panel(ax, d, res, orders):
+    """The drive torque with its mean."""
+    tq = _column(res, "torque")
+    d.plot(ax, tq, color="k")
+    ax.axhline(orders["mean"], color="C3", ls=":", lw=1.0)
+    ax.set_ylabel("drive torque τ [N·m]", fontsize=8.5)
+    tidy_axis(ax, tq)
+    _legend(ax, [Line2D([], [], color="k", lw=1.4, label="torque"),
+                 Line2D([], [], color="C3", ls=":", label=f"mean {orders['mean']:.4g} N·m")])
+
+
+def _finish_shared_axes(axes, rows, d, xlabel):
+    """Finishes the shared-x panels; only the lowest of them carries the x label."""
     for key, ax in axes.items():
         if key == "step":
             continue
@@ -278,9 +303,6 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
             ax.set_xlabel(xlabel, fontsize=8.5)
         else:
             ax.tick_params(labelbottom=False)
-    _summary(fig, gs[len(heights) - 1, 0], res, orders)
-    fig.suptitle(title_of(res, name), fontsize=11, y=1 - 0.12 / total, va="top")
-    return fig
 
 
 def _summary(fig, cell, res, orders):
