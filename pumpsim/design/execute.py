@@ -293,36 +293,50 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
                 own.close()
 
 
+def _warm_workers(study, X, workers, client) -> list:
+    """Each worker imports the runtime and loads its kernels while this process times the pilot."""
+    warm = []
+    if client is not None and workers != 0 and len(X):
+        for addr in client.scheduler_info().get("workers", {}):
+            warm.append(client.submit(run_batch, study, np.arange(1), X[:1], workers=[addr],
+                                      allow_other_workers=False, pure=False))
+    return warm
+
+
+def _build_kernels(study) -> None:
+    """Builds missing kernel variants once, before local workers look."""
+    from ..kernels import load_kernels
+
+    from .evaluate import _fast
+
+    for st in structures(study):
+        load_kernels(st)
+        if st.model == "constrained":
+            _fast(st)
+
+
+def _pilot_batch_size(study, X, client) -> int:
+    """The pilot's batch size, rounded so the batches split evenly over the workers (no lone task)."""
+    bs = pilot_batch_size(study, X) if len(X) > 1 else 1
+    n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
+    if n_workers > 1:  # a multiple of the workers in equal tasks: no lone task at the end
+        nb = math.ceil(math.ceil(len(X) / bs) / n_workers) * n_workers
+        bs = max(1, math.ceil(len(X) / nb))
+    return bs
+
+
 def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
     import pandas as pd
 
     stats = RunStats(designs=len(X))
-    warm = []
-    if client is not None and workers != 0 and len(X):
-        # each worker imports the runtime and loads its kernels while this process times the pilot
-        for addr in client.scheduler_info().get("workers", {}):
-            warm.append(client.submit(run_batch, study, np.arange(1), X[:1], workers=[addr],
-                                      allow_other_workers=False, pure=False))
+    _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
     if study.function is None and not scheduler:
-        from ..kernels import load_kernels
-
-        from .evaluate import _fast
-
-        for st in structures(study):  # build missing variants once, before local workers look
-            load_kernels(st)
-            if st.model == "constrained":
-                _fast(st)
+        _build_kernels(study)
     if man and study.function is None and not scheduler and man.get("kernel_keys") != kernel_keys(study):
         raise ConfigError(f"--out '{out}' was written with other compiled kernels "
                           f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
                           "choose another folder or remove it")
-    bs = batch_size or study.batch_size or (man or {}).get("batch_size")
-    if not bs:
-        bs = pilot_batch_size(study, X) if len(X) > 1 else 1
-        n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
-        if n_workers > 1:  # a multiple of the workers in equal tasks: no lone task at the end
-            nb = math.ceil(math.ceil(len(X) / bs) / n_workers) * n_workers
-            bs = max(1, math.ceil(len(X) / nb))
+    bs = batch_size or study.batch_size or (man or {}).get("batch_size") or _pilot_batch_size(study, X, client)
     plan = Plan(study, X, int(bs))
     stats.batch_size, stats.batches = plan.batch_size, plan.n_batches
     folder = Path(out) if out else None

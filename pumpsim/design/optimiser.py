@@ -127,6 +127,36 @@ def optimize(study, method=None, max_iter=None, tol=None, progress=None) -> dict
                            tol or float(opt.get("tolerance", 1e-9)), progress)
 
 
+def _start_point(study, lo, hi):
+    """Each variable's start, else its config value, else its bounds' midpoint; clipped to the bounds."""
+    x0 = np.array([v.start if v.start is not None else (v.base if v.base is not None else 0.5 * (a + b))
+                   for v, a, b in zip(study.variables, lo, hi)])
+    return np.clip(x0, lo, hi)
+
+
+def _constraint_terms(study, outs0) -> list:
+    """One (output, speed index, side, bound, scale) per given bound per speed; scale from the start."""
+    cons = []
+    for name, (clo, chi) in study.constraints.items():
+        for k in range(len(outs0)):
+            for side, b in (("lower", clo), ("upper", chi)):
+                if b is not None:
+                    cons.append((name, k, side, b, max(abs(b), abs(outs0[k][name]), 1e-300)))
+    return cons
+
+
+def _constraint_report(study, outs, speeds) -> dict:
+    """Each constraint's value at each speed and whether it holds (relative slack 1e-6)."""
+    conres = {}
+    for name, (clo, chi) in study.constraints.items():
+        for k, w in enumerate(speeds):
+            val = outs[k][name]
+            ok = (clo is None or val >= clo - 1e-6 * max(1, abs(clo))) and (chi is None or val <= chi + 1e-6 * max(1, abs(chi)))
+            conres[name if len(speeds) == 1 else f"{name}@{w:g}"] = {
+                "value": float(val), "lower": clo, "upper": chi, "satisfied": bool(ok)}
+    return conres
+
+
 def _gradient_based(study, method, max_iter, tol, progress):
     from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
@@ -134,9 +164,7 @@ def _gradient_based(study, method, max_iter, tol, progress):
     lo = np.array([v.bounds[0] for v in study.variables])
     hi = np.array([v.bounds[1] for v in study.variables])
     span = hi - lo
-    x0 = np.array([v.start if v.start is not None else (v.base if v.base is not None else 0.5 * (a + b))
-                   for v, a, b in zip(study.variables, lo, hi)])
-    x0 = np.clip(x0, lo, hi)
+    x0 = _start_point(study, lo, hi)
     obj_name = study.objective[0]
     cache = {}
 
@@ -149,12 +177,7 @@ def _gradient_based(study, method, max_iter, tol, progress):
 
     outs0, _ = fn.evaluate(x0, gradient=False)
     f_scale = max(abs(np.mean([o[obj_name] for o in outs0])), 1e-300)
-    cons = []  # (output, speed index, side, bound, scale)
-    for name, (clo, chi) in study.constraints.items():
-        for k in range(len(outs0)):
-            for side, b in (("lower", clo), ("upper", chi)):
-                if b is not None:
-                    cons.append((name, k, side, b, max(abs(b), abs(outs0[k][name]), 1e-300)))
+    cons = _constraint_terms(study, outs0)
 
     def f(z):
         o, _ = ev(z)
@@ -199,13 +222,7 @@ def _gradient_based(study, method, max_iter, tol, progress):
     x = lo + np.clip(res.x, 0, 1) * span
     outs, grads = fn.evaluate(x)
     speeds = design_speeds(study, prepare(study, fn.values(x)).cfg)
-    conres = {}
-    for name, (clo, chi) in study.constraints.items():
-        for k, w in enumerate(speeds):
-            val = outs[k][name]
-            ok = (clo is None or val >= clo - 1e-6 * max(1, abs(clo))) and (chi is None or val <= chi + 1e-6 * max(1, abs(chi)))
-            conres[name if len(speeds) == 1 else f"{name}@{w:g}"] = {
-                "value": float(val), "lower": clo, "upper": chi, "satisfied": bool(ok)}
+    conres = _constraint_report(study, outs, speeds)
     feasible = all(v["satisfied"] for v in conres.values())
     return {
         "method": method, "success": bool(res.success) and feasible, "message": str(res.message),

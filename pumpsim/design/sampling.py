@@ -59,13 +59,6 @@ def parse_variable(key: str, spec, default, sampler) -> Variable:
     for k in spec:
         if k not in _KEYS:
             raise ConfigError(f"unknown key '{where}.{k}'")
-
-    def need(name):
-        v = spec.get(name)
-        if not _num(v):
-            raise ConfigError(f"{where}.{name} must be a finite number, got {v!r}")
-        return float(v)
-
     var = Variable(key, base=default)
     given = [k for k in ("values", "range", "distribution") if k in spec]
     if len(given) > 1:
@@ -84,55 +77,7 @@ def parse_variable(key: str, spec, default, sampler) -> Variable:
             raise ConfigError(f"{where}.range low ({r[0]:g}) must be <= high ({r[1]:g})")
         var.values = [float(x) for x in np.linspace(r[0], r[1], int(r[2]))]
     elif "distribution" in spec:
-        name = spec["distribution"]
-        if name not in DISTRIBUTIONS:
-            raise ConfigError(f"{where}.distribution must be one of {', '.join(DISTRIBUTIONS)}, got {name!r}")
-        rel = spec.get("relative", False)
-        if not isinstance(rel, bool):
-            raise ConfigError(f"{where}.relative must be true or false")
-        mean = need("mean") if "mean" in spec else default
-        if name != "uniform" and mean is None:
-            raise ConfigError(f"{where}.mean is needed (the config has no value for {key})")
-        scale = abs(mean) if rel else 1.0
-        if rel and mean == 0:
-            raise ConfigError(f"{where}: relative = true needs a non-zero mean")
-        if name in ("normal", "truncnormal", "lognormal"):
-            sd = need("sd") * scale
-            if sd < 0:
-                raise ConfigError(f"{where}.sd must be >= 0, got {sd:g}")
-        if name == "normal":
-            var.dist = stats.norm(mean, sd) if sd > 0 else None
-            var.params = {"mean": mean, "sd": sd}
-        elif name == "truncnormal":
-            # relative: low/high are multiples of the mean (0.98 = 2 % below it)
-            lo, hi = need("low"), need("high")
-            if rel:
-                lo, hi = lo * mean, hi * mean
-            if not lo < hi:
-                raise ConfigError(f"{where}.low ({lo:g}) must be < high ({hi:g})")
-            if sd > 0:
-                var.dist = stats.truncnorm((lo - mean) / sd, (hi - mean) / sd, loc=mean, scale=sd)
-            var.params = {"mean": mean, "sd": sd, "low": lo, "high": hi}
-        elif name == "uniform":
-            lo, hi = need("low"), need("high")
-            if rel:
-                if mean is None:
-                    raise ConfigError(f"{where}.mean is needed for relative = true")
-                lo, hi = lo * mean, hi * mean
-            if not lo <= hi:
-                raise ConfigError(f"{where}.low ({lo:g}) must be <= high ({hi:g})")
-            var.dist = stats.uniform(lo, hi - lo) if hi > lo else None
-            var.params = {"low": lo, "high": hi}
-            mean = 0.5 * (lo + hi)
-        else:  # lognormal with the given mean and standard deviation of the variable itself
-            if not mean > 0:
-                raise ConfigError(f"{where}: a lognormal needs mean > 0, got {mean:g}")
-            s2 = math.log1p((sd / mean) ** 2)
-            var.dist = stats.lognorm(math.sqrt(s2), scale=mean * math.exp(-s2 / 2)) if sd > 0 else None
-            var.params = {"mean": mean, "sd": sd, "sigma_log": math.sqrt(s2)}
-        var.distribution = name
-        if var.dist is None:  # zero spread: the mean, exactly
-            var.values = [float(mean)]
+        _parse_distribution(var, spec, where, key, default)
     elif "bounds" not in spec:
         raise ConfigError(f"{where} needs values, range, distribution or bounds")
     if "bounds" in spec:
@@ -143,12 +88,73 @@ def parse_variable(key: str, spec, default, sampler) -> Variable:
     else:
         var.bounds = implied_bounds(var)
     if "start" in spec:
-        var.start = need("start")
+        var.start = _need(spec, where, "start")
     if var.values is None and var.dist is None and sampler != "grid":
         # bounds only: sampled uniformly between them
         var.dist = stats.uniform(var.bounds[0], var.bounds[1] - var.bounds[0])
         var.distribution = "uniform"
     return var
+
+
+def _need(spec: dict, where: str, name: str) -> float:
+    """spec[name] as a float; a ConfigError unless it is a finite number."""
+    v = spec.get(name)
+    if not _num(v):
+        raise ConfigError(f"{where}.{name} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _parse_distribution(var: Variable, spec: dict, where: str, key: str, default) -> None:
+    """Sets var's distribution (dist, params, distribution; values = [mean] at zero spread) from spec."""
+    name = spec["distribution"]
+    if name not in DISTRIBUTIONS:
+        raise ConfigError(f"{where}.distribution must be one of {', '.join(DISTRIBUTIONS)}, got {name!r}")
+    rel = spec.get("relative", False)
+    if not isinstance(rel, bool):
+        raise ConfigError(f"{where}.relative must be true or false")
+    mean = _need(spec, where, "mean") if "mean" in spec else default
+    if name != "uniform" and mean is None:
+        raise ConfigError(f"{where}.mean is needed (the config has no value for {key})")
+    scale = abs(mean) if rel else 1.0
+    if rel and mean == 0:
+        raise ConfigError(f"{where}: relative = true needs a non-zero mean")
+    if name in ("normal", "truncnormal", "lognormal"):
+        sd = _need(spec, where, "sd") * scale
+        if sd < 0:
+            raise ConfigError(f"{where}.sd must be >= 0, got {sd:g}")
+    if name == "normal":
+        var.dist = stats.norm(mean, sd) if sd > 0 else None
+        var.params = {"mean": mean, "sd": sd}
+    elif name == "truncnormal":
+        # relative: low/high are multiples of the mean (0.98 = 2 % below it)
+        lo, hi = _need(spec, where, "low"), _need(spec, where, "high")
+        if rel:
+            lo, hi = lo * mean, hi * mean
+        if not lo < hi:
+            raise ConfigError(f"{where}.low ({lo:g}) must be < high ({hi:g})")
+        if sd > 0:
+            var.dist = stats.truncnorm((lo - mean) / sd, (hi - mean) / sd, loc=mean, scale=sd)
+        var.params = {"mean": mean, "sd": sd, "low": lo, "high": hi}
+    elif name == "uniform":
+        lo, hi = _need(spec, where, "low"), _need(spec, where, "high")
+        if rel:
+            if mean is None:
+                raise ConfigError(f"{where}.mean is needed for relative = true")
+            lo, hi = lo * mean, hi * mean
+        if not lo <= hi:
+            raise ConfigError(f"{where}.low ({lo:g}) must be <= high ({hi:g})")
+        var.dist = stats.uniform(lo, hi - lo) if hi > lo else None
+        var.params = {"low": lo, "high": hi}
+        mean = 0.5 * (lo + hi)
+    else:  # lognormal with the given mean and standard deviation of the variable itself
+        if not mean > 0:
+            raise ConfigError(f"{where}: a lognormal needs mean > 0, got {mean:g}")
+        s2 = math.log1p((sd / mean) ** 2)
+        var.dist = stats.lognorm(math.sqrt(s2), scale=mean * math.exp(-s2 / 2)) if sd > 0 else None
+        var.params = {"mean": mean, "sd": sd, "sigma_log": math.sqrt(s2)}
+    var.distribution = name
+    if var.dist is None:  # zero spread: the mean, exactly
+        var.values = [float(mean)]
 
 
 def implied_bounds(var: Variable):
