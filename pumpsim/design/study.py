@@ -250,38 +250,9 @@ def load_study(path) -> Study:
 def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     from .analytic import FUNCTIONS
 
-    for k in raw:
-        if k not in _TOP_KEYS:
-            raise ConfigError(f"unknown study table '{k}' (one of {', '.join(sorted(_TOP_KEYS))})")
-    st = raw.get("study", {})
-    if not isinstance(st, dict):
-        raise ConfigError("[study] must be a table")
-    for k in st:
-        if k not in _STUDY_KEYS:
-            raise ConfigError(f"unknown key 'study.{k}'")
+    st = _study_table(raw)
     function = st.get("function")
-    base, cfg_path = {}, None
-    if function is not None:
-        if function not in FUNCTIONS:
-            raise ConfigError(f"study.function must be one of {', '.join(FUNCTIONS)}, got {function!r}")
-        if "config" in st:
-            raise ConfigError("give study.config or study.function, not both")
-    else:
-        if "config" not in st:
-            raise ConfigError("missing required key 'study.config' (the base pump config)")
-        cfg_path = Path(base_dir) / st["config"]
-        base = _read_toml(cfg_path, "study.config")
-        try:
-            base_cfg = config_from_dict(base, name_default=cfg_path.stem)
-        except ConfigError as e:
-            raise ConfigError(f"study.config '{cfg_path}': {e}") from None
-        from ..geometry import check_geometry
-
-        try:
-            check_geometry(base_cfg)
-        except ConfigError as e:
-            raise ConfigError(f"study.config '{cfg_path}': {e}") from None
-
+    base, cfg_path, base_cfg = _base_config(st, function, base_dir, FUNCTIONS)
     sampler = st.get("sampler", "sobol")
     if sampler not in SAMPLERS:
         raise ConfigError(f"study.sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
@@ -305,15 +276,85 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     nrev = st.get("revolution_samples", st.get("samples_per_revolution", 360))
     if not isinstance(nrev, int) or isinstance(nrev, bool) or not 8 <= nrev <= 100_000:
         raise ConfigError(f"study.revolution_samples must be an integer in [8, 100000], got {nrev!r}")
+    variables = _parse_variables(raw.get("vary", {}), function, base, sampler, FUNCTIONS)
+    speeds = _parse_speeds(st.get("speeds"), function, variables)
+    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS)
+    outputs = st.get("outputs", names)
+    if not isinstance(outputs, list) or not outputs:
+        raise ConfigError("study.outputs must be a non-empty list of output names")
+    for o in outputs:
+        if o not in names:
+            raise ConfigError(f"study.outputs: unknown output {o!r} (one of {', '.join(names)})")
+    limits = _limits_table(raw.get("limits", {}), "limits")
+    for o in limits:
+        _check_numeric_output(o, f"limits.{o}", names)
+    constraints = _limits_table(raw.get("constraints", {}), "constraints")
+    for o in constraints:
+        _check_numeric_output(o, f"constraints.{o}", names)
+    objective = _parse_objective(raw.get("objective", {}), names)
+    opt = raw.get("optimize", {})
+    sens = raw.get("sensitivity", {})
+    for tbl, where in ((opt, "optimize"), (sens, "sensitivity")):
+        if not isinstance(tbl, dict):
+            raise ConfigError(f"[{where}] must be a table")
+    scheduler, workers, batch = _parse_execution(st)
+    warnings = [w for v in variables for w in plausibility_warnings(base, v)] if function is None else []
+    return Study(path=path, base=base, config_path=None if cfg_path is None else str(cfg_path),
+                 variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
+                 outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
+                 objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
+                 scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
+                 revolutions=revolutions, warnings=warnings)
 
-    vary = raw.get("vary", {})
+
+def _study_table(raw: dict) -> dict:
+    """The [study] table, after checking the top-level tables' and its own keys."""
+    for k in raw:
+        if k not in _TOP_KEYS:
+            raise ConfigError(f"unknown study table '{k}' (one of {', '.join(sorted(_TOP_KEYS))})")
+    st = raw.get("study", {})
+    if not isinstance(st, dict):
+        raise ConfigError("[study] must be a table")
+    for k in st:
+        if k not in _STUDY_KEYS:
+            raise ConfigError(f"unknown key 'study.{k}'")
+    return st
+
+
+def _base_config(st: dict, function, base_dir, functions) -> tuple:
+    """(raw base config, its path, the checked PumpConfig); ({}, None, None) for an analytic function."""
+    if function is not None:
+        if function not in functions:
+            raise ConfigError(f"study.function must be one of {', '.join(functions)}, got {function!r}")
+        if "config" in st:
+            raise ConfigError("give study.config or study.function, not both")
+        return {}, None, None
+    if "config" not in st:
+        raise ConfigError("missing required key 'study.config' (the base pump config)")
+    cfg_path = Path(base_dir) / st["config"]
+    base = _read_toml(cfg_path, "study.config")
+    try:
+        base_cfg = config_from_dict(base, name_default=cfg_path.stem)
+    except ConfigError as e:
+        raise ConfigError(f"study.config '{cfg_path}': {e}") from None
+    from ..geometry import check_geometry
+
+    try:
+        check_geometry(base_cfg)
+    except ConfigError as e:
+        raise ConfigError(f"study.config '{cfg_path}': {e}") from None
+    return base, cfg_path, base_cfg
+
+
+def _parse_variables(vary, function, base: dict, sampler: str, functions) -> list:
+    """The [vary."KEY"] tables as Variables, each checked against the function's inputs or the config."""
     if not isinstance(vary, dict) or not vary:
         raise ConfigError("the study needs at least one [vary.\"KEY\"] table")
     variables = []
     for key, spec in vary.items():
         if function is not None:
-            if key not in FUNCTIONS[function].inputs:
-                raise ConfigError(f"vary.\"{key}\": {function} takes {', '.join(FUNCTIONS[function].inputs)}")
+            if key not in functions[function].inputs:
+                raise ConfigError(f"vary.\"{key}\": {function} takes {', '.join(functions[function].inputs)}")
             default = None
         else:
             if not config_key_ok(key):
@@ -334,37 +375,32 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         if grid_bad:
             raise ConfigError(f"study.sampler = \"grid\" needs values or range for every key; "
                               f"vary.\"{grid_bad[0]}\" has a distribution")
+    return variables
 
-    speeds = st.get("speeds")
-    if speeds is not None:
-        if function is not None:
-            raise ConfigError("study.speeds is for a pump study")
-        if not isinstance(speeds, list) or not speeds or not all(_num(x) and x > 0 for x in speeds):
-            raise ConfigError(f"study.speeds must be a list of speeds > 0 [rad/s], got {speeds!r}")
-        if SPEED_KEY in [v.key for v in variables]:
-            raise ConfigError(f"give study.speeds or vary.\"{SPEED_KEY}\", not both")
-        speeds = [float(x) for x in speeds]
-    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS)
-    outputs = st.get("outputs", names)
-    if not isinstance(outputs, list) or not outputs:
-        raise ConfigError("study.outputs must be a non-empty list of output names")
-    for o in outputs:
-        if o not in names:
-            raise ConfigError(f"study.outputs: unknown output {o!r} (one of {', '.join(names)})")
 
-    def known(o, where):
-        if o not in names and not (o.startswith("friction_power_") and o[15:].isdigit()):
-            raise ConfigError(f"{where}: unknown output {o!r} (one of {', '.join(names)})")
-        if o in BOOL_OUTPUTS:
-            raise ConfigError(f"{where}: {o} is a flag; limits and objectives take numeric outputs")
+def _parse_speeds(speeds, function, variables) -> list | None:
+    """study.speeds as floats (a pump study only, not together with a varied speed); None if not given."""
+    if speeds is None:
+        return None
+    if function is not None:
+        raise ConfigError("study.speeds is for a pump study")
+    if not isinstance(speeds, list) or not speeds or not all(_num(x) and x > 0 for x in speeds):
+        raise ConfigError(f"study.speeds must be a list of speeds > 0 [rad/s], got {speeds!r}")
+    if SPEED_KEY in [v.key for v in variables]:
+        raise ConfigError(f"give study.speeds or vary.\"{SPEED_KEY}\", not both")
+    return [float(x) for x in speeds]
 
-    limits = _limits_table(raw.get("limits", {}), "limits")
-    for o in limits:
-        known(o, f"limits.{o}")
-    constraints = _limits_table(raw.get("constraints", {}), "constraints")
-    for o in constraints:
-        known(o, f"constraints.{o}")
-    obj = raw.get("objective", {})
+
+def _check_numeric_output(o: str, where: str, names: list) -> None:
+    """o must name a numeric output (limits, constraints and objectives take no flags)."""
+    if o not in names and not (o.startswith("friction_power_") and o[15:].isdigit()):
+        raise ConfigError(f"{where}: unknown output {o!r} (one of {', '.join(names)})")
+    if o in BOOL_OUTPUTS:
+        raise ConfigError(f"{where}: {o} is a flag; limits and objectives take numeric outputs")
+
+
+def _parse_objective(obj, names: list) -> list:
+    """[objective] minimize = OUTPUT or a list of them (a Pareto front); [] without the table."""
     objective = []
     if obj:
         if not isinstance(obj, dict) or set(obj) - {"minimize"}:
@@ -374,12 +410,12 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         if not isinstance(objective, list) or not objective or not all(isinstance(o, str) for o in objective):
             raise ConfigError("objective.minimize must be an output name or a list of them")
         for o in objective:
-            known(o, "objective.minimize")
-    opt = raw.get("optimize", {})
-    sens = raw.get("sensitivity", {})
-    for tbl, where in ((opt, "optimize"), (sens, "sensitivity")):
-        if not isinstance(tbl, dict):
-            raise ConfigError(f"[{where}] must be a table")
+            _check_numeric_output(o, "objective.minimize", names)
+    return objective
+
+
+def _parse_execution(st: dict) -> tuple:
+    """(scheduler address, workers, batch size) from [study], each None when not given."""
     scheduler = st.get("scheduler")
     if scheduler is not None and not isinstance(scheduler, str):
         raise ConfigError(f"study.scheduler must be an address string, got {scheduler!r}")
@@ -389,13 +425,7 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     batch = st.get("batch_size")
     if batch is not None and (not isinstance(batch, int) or batch < 1):
         raise ConfigError(f"study.batch_size must be an integer >= 1, got {batch!r}")
-    warnings = [w for v in variables for w in plausibility_warnings(base, v)] if function is None else []
-    return Study(path=path, base=base, config_path=None if cfg_path is None else str(cfg_path),
-                 variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
-                 outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
-                 objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
-                 scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
-                 revolutions=revolutions, warnings=warnings)
+    return scheduler, workers, batch
 
 
 __all__ = ["Study", "load_study", "study_from_dict", "apply_values", "DISTRIBUTIONS", "Variable"]
