@@ -179,7 +179,8 @@ def _result(cfg, kern, dyn, drive, p, values, run) -> SimulationResult:
     extra["step_time"] = np.array([s[0] for s in run.step_log])
     extra["step"] = np.array([s[1] for s in run.step_log])
     return SimulationResult("contact", cfg.mode, t, xs[:, 0], xs[:, 1], torque, vanes, dict(values),
-                            run.stats, events, warnings, run.termination, extra, kernel_key=kern.key)
+                            run.stats, events, warnings, run.termination, extra, kernel_key=kern.key,
+                            config_name=cfg.name)
 
 
 def _grid(kern, name, xs, drive, p, outputs=None):

@@ -79,6 +79,7 @@ class Solution:
     # solver traces (contact model: step size)
     extra: dict = field(default_factory=LazyOutputs)
     kernel_key: str = ""  # the compiled library's content key (model_spec.manifest)
+    config_name: str = ""  # the config's `name`: figure titles say which pump this is
     _columns: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):

@@ -174,7 +174,8 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
     vanes = {c: out[c] for c in PER_VANE_COLUMNS}
     extra = LazyOutputs(out, more, kern["inverse_dynamics"].name_out())
     return SimulationResult("constrained", cfg.mode, t, theta, omega, torque, vanes, dict(pv.values),
-                            stats, events, warnings, extra=extra, kernel_key=kern.key)
+                            stats, events, warnings, extra=extra, kernel_key=kern.key,
+                            config_name=cfg.name)
 
 
 def switching_functions(kern, p, torque, friction_on):

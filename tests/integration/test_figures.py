@@ -117,6 +117,14 @@ def test_title_names_config_and_speed_and_axis_is_rotor_angle(ellipse4):
     plt.close(fig)
 
 
+def test_python_api_figure_title_names_the_config_without_being_told(ellipse4):
+    cfg, res = ellipse4  # res.plot(path) in the README passes no name: the Solution carries it
+    assert res.config_name == cfg.name
+    fig = simulation_figure(res)
+    assert fig._suptitle.get_text().startswith(f"{cfg.name}: ")
+    plt.close(fig)
+
+
 def test_cli_figure_title_and_refused_format(tmp_path):
     svg = tmp_path / "f.svg"
     r = subprocess.run([sys.executable, "-m", "pumpsim", "simulate", "examples/test_rig.toml", "--plot", str(svg)],
