@@ -179,18 +179,20 @@ def add_design_commands(sub) -> None:
                     help="designs per task (default: >= 0.5 s of work from a pilot run)")
     cluster(sw)
     sw.set_defaults(func=cmd_sweep)
-    se = sub.add_parser("sensitivity", help="Sobol' indices or Morris screening of a study (SALib)")
-    se.add_argument("study")
-    se.add_argument("--json")
-    se.add_argument("--report", help="self-contained HTML report")
+    def analysis(name, help):
+        """A command on a study with --json and --report outputs."""
+        p = sub.add_parser(name, help=help)
+        p.add_argument("study")
+        p.add_argument("--json")
+        p.add_argument("--report", help="self-contained HTML report")
+        return p
+
+    se = analysis("sensitivity", "Sobol' indices or Morris screening of a study (SALib)")
     se.add_argument("--method", choices=["sobol", "morris"])
     se.add_argument("--samples", type=int, help="base sample count N (Sobol: N (D + 2) designs)")
     cluster(se)
     se.set_defaults(func=cmd_sensitivity)
-    op = sub.add_parser("optimize", help="minimise an output subject to constraints")
-    op.add_argument("study")
-    op.add_argument("--json")
-    op.add_argument("--report", help="self-contained HTML report")
+    op = analysis("optimize", "minimise an output subject to constraints")
     op.add_argument("--method", choices=["slsqp", "trust-constr", "nsga2"])
     op.add_argument("--max-iter", type=int, dest="max_iter")
     op.set_defaults(func=cmd_optimize)
