@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import os
 import sys
 from concurrent.futures import ThreadPoolExecutor
 
@@ -30,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import CodegenError, ConfigError
+from .kernels import _log_if_terminal, building_allowed
 from .model_spec import manifest as mf
 from .model_spec.outputs import VANE_OUTPUTS
 from .model_spec.parameters import Structure, layout
@@ -192,11 +192,6 @@ class ScalarInverseDynamics(FastInverseDynamics):
         return self.split(out)
 
 
-def _log_if_terminal(msg):
-    if sys.stderr.isatty():
-        print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
-
-
 def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: bool = True, log=None):
     """The SIMD inverse dynamics of `structure` (constrained model), built if missing or stale
     (unless build=False or PUMPSIM_NO_BUILD=1: then refused). If no SIMD library can be built on
@@ -210,9 +205,7 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
         return _LOADED[memo]
     folder, manifest = find_simd(structure, ca.__version__, fingerprint)
     if manifest is None:
-        if build is None:
-            build = os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0")
-        if not build:
+        if not building_allowed(build):
             raise CodegenError(
                 f"SIMD kernel for {structure.variant} is missing or stale for this source and CPU "
                 f"(source {fingerprint}, in {mf.generated_dir()}); run `make codegen` or unset PUMPSIM_NO_BUILD")

@@ -69,6 +69,11 @@ def _log_if_terminal(msg):
         print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
 
 
+def building_allowed(build: bool | None) -> bool:
+    """build if given, else True unless PUMPSIM_NO_BUILD is set (to anything but 0)."""
+    return os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0") if build is None else build
+
+
 def _build(structure: Structure, log):
     """The one way the runtime builds a variant (codegen is imported here and nowhere else)."""
     from codegen.build import build_variant
@@ -83,9 +88,7 @@ def load_kernels(structure: Structure, build: bool | None = None, log=None) -> K
         return _LOADED[memo]
     folder, manifest = mf.find_variant(structure, ca.__version__, fingerprint)
     if manifest is None:
-        if build is None:
-            build = os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0")
-        if not build:
+        if not building_allowed(build):
             raise CodegenError(
                 f"compiled kernel for {structure.variant} is missing or stale (source "
                 f"{fingerprint}, CasADi {ca.__version__}, in {mf.generated_dir()}); "
