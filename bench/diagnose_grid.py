@@ -254,7 +254,7 @@ def summarise(cases):
 
 def print_summary(s):
     cols = sorted({v for row in s["confusion"].values() for v in row})
-    print(f"{"true / verdict":<34}" + "".join(f"{c[:14]:>15}" for c in cols))
+    print(f"{'true / verdict':<34}" + "".join(f"{c[:14]:>15}" for c in cols))
     for truth, row in s["confusion"].items():
         print(f"{truth:<34}" + "".join(f"{row.get(c, 0):>15}" for c in cols))
     print(f"cases {s['cases']} (+{s['unobservable']} unobservable, left out; {s['absorbed']} absorbed by the baseline)")
