@@ -51,6 +51,7 @@ from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, order_spectr
                           systematic_rms)
 from .errors import ConfigError
 from .identify import base_name, identify, make_problem
+from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
 SCORE_ALPHA = 0.01
@@ -81,48 +82,32 @@ def clearance(cfg: PumpConfig) -> float:
     return min(v["housing.a"], v["housing.b"]) - v["rotor.radius"]
 
 
-def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: float, dt: float) -> list:
+def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: float) -> list:
     """Reasons why fitted values leave their physical range ([] = all plausible). `values` holds
-    fitted names (joint suffixes allowed) -> value."""
+    fitted names (joint suffixes allowed) -> value. The ranges and their physics are declared once,
+    with each parameter, in the registry (model_spec.parameters: `plausible`); here only how this
+    workflow's parametrisation maps onto them: an out-of-round of one order is a pair of harmonic
+    slots (their hypot is the amplitude), and a vane's COF is mu times its factor."""
     v = {base_name(k): x for k, x in values.items() if x is not None}
-    c = clearance(cfg)
-    w = cfg.speed or 1.0
-    N = cfg.vanes
-    out = []
-    mu = v.get("mu", cfg.values["friction.housing.dynamic"])
-    for name in ("mu", "mu_slot"):
-        if name in v and not 0 <= v[name] <= 1:
-            out.append(f"{name} {v[name]:.3g} outside [0, 1] (a COF)")
-    ecc = math.hypot(v.get("housing.center.0", 0.0), v.get("housing.center.1", 0.0))
-    if ecc >= c:
-        out.append(f"eccentricity {ecc * 1e3:.3g} mm not below the smallest clearance {c * 1e3:.3g} mm")
-    amps = {}
+    context = {"clearance": clearance(cfg), "speed": cfg.speed or 1.0, "vanes": cfg.vanes,
+               "housing_a": cfg.values["housing.a"], "torque_rms": torque_rms, "mean_torque": mean_torque}
+    amps, plain = {}, {}
     for k_, x in v.items():
         if k_.startswith("housing.harmonics.") and k_.endswith(".amplitude"):
             j = int(k_.split(".")[2])
             order = cfg.harmonics[j][0] if j < len(cfg.harmonics) else 0
-            amps[order] = math.hypot(amps.get(order, 0.0), x)
-    for order, A in amps.items():
-        if A > 0.25 * c:
-            out.append(f"out-of-round k={order:g} amplitude {A * 1e6:.3g} um above a quarter of the "
-                       f"clearance ({0.25 * c * 1e6:.3g} um)")
-    rip = math.hypot(v.get("ripple_cos", 0.0), v.get("ripple_sin", 0.0))
-    if rip > 0.05:
-        out.append(f"speed ripple {rip * 100:.3g} % above 5 % of the speed")
-    if "lag" in v and not 0 <= v["lag"] <= 1 / (N * w):
-        out.append(f"sensor lag {v['lag'] * 1e3:.3g} ms outside [0, 1/(N omega) = {1e3 / (N * w):.3g} ms] "
-                   "(a slower sensor would damp the vane-passing order by > 30 %)")
-    if "torque_offset" in v and abs(v["torque_offset"]) > 0.5 * torque_rms:
-        out.append(f"torque offset {v['torque_offset']:.3g} N m above half the torque RMS")
-    if "effects.viscous_tip_friction" in v:
-        cmax = abs(mean_torque) / (N * w * cfg.values["housing.a"] ** 2)  # whole torque viscous
-        if not 0 <= v["effects.viscous_tip_friction"] <= cmax:
-            out.append(f"viscous tip coefficient {v['effects.viscous_tip_friction']:.3g} N s/m outside "
-                       f"[0, {cmax:.3g}] (its torque would exceed the measured mean torque)")
-    for i in range(N):
+            amps.setdefault(order, [k_, 0.0])[1] = math.hypot(amps.get(order, [k_, 0.0])[1], x)
+        elif k_ not in ("theta0", "speed", "delay"):
+            plain[k_] = x
+    out = implausible(plain, context=context)
+    for order, (k_, A) in amps.items():
+        out += [m.replace(k_, f"out-of-round k={order:g} amplitude", 1) for m in implausible({k_: A}, context=context)]
+    mu = v.get("mu", cfg.values["friction.housing.dynamic"])
+    for i in range(cfg.vanes):
         f = v.get(f"effects.vane_friction_factor.{i}")
-        if f is not None and not (0.2 <= f <= 5 and f * mu <= 1):
-            out.append(f"vane {i} COF factor {f:.3g} outside [0.2, 5] or its COF {f * mu:.3g} above 1")
+        if f is not None:
+            out += [m.replace("friction.housing.dynamic", f"vane {i} COF (mu x factor)", 1)
+                    for m in implausible({"friction.housing.dynamic": f * mu})]
     return out
 
 
@@ -639,7 +624,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     y_all = np.concatenate([d.torque for d in datasets])
     torque_rms, mean_torque = float(np.sqrt(np.mean(y_all ** 2))), float(np.mean(y_all))
     dt = datasets[0].time[1] - datasets[0].time[0]
-    for reason in plausible(cfg, values, torque_rms, mean_torque, dt):
+    for reason in plausible(cfg, values, torque_rms, mean_torque):
         notes.append(f"baseline: {reason} -- check the config and the data's units")
     history = [{"label": "baseline", "result": base}]
     steps, effects, confounded, ranking, screens = [], [], [], [], []
@@ -678,7 +663,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         fits.sort(key=lambda f: f["bic_screen"])
         accepted = None
         for f in fits:
-            reasons = plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque, dt)
+            reasons = plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque)
             if reasons:
                 rejected.append({"effect": f["cand"].label, "reasons": reasons})
                 notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
@@ -704,7 +689,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                 notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
                              f"below {NAMED_SIZE:g} x the noise sigma")
                 continue
-            if f["lr_p"] < level and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque, dt):
+            if f["lr_p"] < level and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque):
                 accepted = f
                 break
         if accepted is None:
@@ -712,7 +697,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
         rival = next((f for f in fits if f is not accepted and "bic" not in f
                       and f["cand"].effect != accepted["cand"].effect  # another order: BIC chose
                       and f["bic_screen"] - accepted["bic_screen"] < BIC_DECISIVE
-                      and not plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque, dt)),
+                      and not plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque)),
                      None)
         if rival is not None and screen_data is not full_data:
             st, res = _refit_full(rival["screen_state"], full_data, screen_data)

@@ -63,7 +63,9 @@ class Parameter:
     below: str = ""  # another entry this one must stay below (v_static < v_dynamic)
     identifiable: bool = True  # may be fitted (--params)
     aliases: tuple = ()  # other names that set this entry (housing.radius sets a and b; mu)
-    plausible: tuple | None = None  # physical plausibility range [SI]: diagnose, sweeps
+    plausible: tuple | None = None  # physical plausibility range [SI]: diagnose, sweeps (see PLAUSIBLE)
+    plausible_why: str = ""  # the physics behind the range, quoted when a value leaves it
+    norm: str = ""  # entries sharing a norm key: the range bounds their Euclidean norm
     doc: str = ""
 
     @property
@@ -128,7 +130,8 @@ def friction_args(values, side: str) -> list:
     return [values[f"friction.{side}.{k}"] for k in FRICTION_KEYS]
 
 
-COF = dict(lower=NONNEGATIVE, upper=Bound(2.0), plausible=(0.0, 1.0))  # the COF range, once
+COF = dict(lower=NONNEGATIVE, upper=Bound(2.0), plausible=(0.0, 1.0),
+           plausible_why="a COF")  # the COF range, once
 
 
 def _friction(side: str, default_from: str | None = None) -> list[Parameter]:
@@ -157,9 +160,15 @@ def _contact(side: str) -> list[Parameter]:
 def _harmonic(j: int) -> list[Parameter]:
     pre = f"housing.harmonics.{j}"
     return [Parameter(f"{pre}.order", "-", 0.0, lower=NONNEGATIVE, identifiable=False),
-            Parameter(f"{pre}.amplitude", "m", 0.0), Parameter(f"{pre}.phase", "rad", 0.0)]
+            Parameter(f"{pre}.amplitude", "m", 0.0, plausible=("-0.25 * clearance", "0.25 * clearance"),
+                      plausible_why="an out-of-round (one order) below a quarter of the clearance: more "
+                      "would leave no running gap on the tight side"),
+            Parameter(f"{pre}.phase", "rad", 0.0)]
 
 
+# the rotor touches the housing where the centre offset reaches the radial gap
+ECCENTRICITY = dict(plausible=(0.0, "clearance"), norm="eccentricity",
+                    plausible_why="below the smallest rotor-housing clearance")
 HOUSING_SIZE = dict(lower=Bound("rotor.radius", open=True), aliases=("housing.radius",),
                     plausible=(5e-3, 0.1))
 ROTOR = [
@@ -183,19 +192,24 @@ VANE = [
 HOUSING = [
     Parameter("housing.a", "m", **HOUSING_SIZE, doc="semi-axis along housing x (circle: radius)"),
     Parameter("housing.b", "m", **HOUSING_SIZE, doc="semi-axis along housing y (circle: radius)"),
-    Parameter("housing.center.0", "m", 0.0),
-    Parameter("housing.center.1", "m", 0.0),
+    Parameter("housing.center.0", "m", 0.0, **ECCENTRICITY),
+    Parameter("housing.center.1", "m", 0.0, **ECCENTRICITY),
     Parameter("housing.angle", "rad", 0.0),
 ]
 OPERATION = [Parameter("operation.bearing_torque", "N m", 0.0)]
 # Effect parameters: zero (or one, for factors) means "absent".
 EFFECTS = [Parameter("effects.viscous_tip_friction", "N s/m", 0.0, lower=NONNEGATIVE,
-                     plausible=(0.0, 10.0), doc="tip force per slip speed")]
+                     plausible=(0.0, "abs(mean_torque) / (vanes * speed * housing_a ** 2)"),
+                     plausible_why="its torque N c omega a^2 cannot exceed the measured mean torque",
+                     doc="tip force per slip speed")]
 
 
 def _factor(i: int) -> Parameter:
     return Parameter(f"effects.vane_friction_factor.{i}", "-", 1.0, lower=NONNEGATIVE,
-                     plausible=(0.5, 1.5), doc="per-vane COF factor (tip and slot)")
+                     plausible=(0.2, 5.0), plausible_why="a vane of another material or finish: COFs of "
+                     "vane materials (carbon, PTFE and PEEK composites, steel) lie within a factor 5 of "
+                     "each other; its COF mu x factor must also stay a COF",
+                     doc="per-vane COF factor (tip and slot)")
 
 
 @dataclass(frozen=True)
@@ -273,17 +287,60 @@ def alias_targets(name: str) -> tuple:
 DERIVED = tuple(q for q in ROTOR + VANE + HOUSING if q.derived)
 
 
-def implausible(values: dict, structure: Structure | None = None) -> list[str]:
-    """Messages for values outside their entry's physical plausibility range (valid, but worth a
-    second look: a fitted COF of 1.4, a 5 cm vane); for diagnose's and sweeps' checks."""
-    reg = registry(structure)
+# Names a context-dependent plausibility bound may use (formulas in PLAUSIBLE ranges): the pump's
+# smallest radial gap [m], speed [rad/s], vane count, housing semi-axis a [m], and the measured
+# torque's RMS and mean [N m].
+PLAUSIBLE_CONTEXT = ("clearance", "speed", "vanes", "housing_a", "torque_rms", "mean_torque")
+
+
+def plausible_range(spec, context: dict | None) -> tuple | None:
+    """(low, high) of a plausibility declaration: numbers, or formulas in PLAUSIBLE_CONTEXT names
+    evaluated with `context`; None when a formula needs a name the context lacks."""
     out = []
+    for b in spec:
+        if isinstance(b, str):
+            env = {k: v for k, v in (context or {}).items() if k in PLAUSIBLE_CONTEXT}
+            try:
+                b = float(eval(b, {"__builtins__": {"abs": abs}}, env))  # noqa: S307 (the registry's formulas)
+            except (NameError, ZeroDivisionError):
+                return None
+        out.append(b)
+    return tuple(out)
+
+
+def plausibility(name: str, structure: Structure | None = None):
+    """The entry (Parameter or MeasurementParameter) that declares `name`'s plausible range, or None."""
+    q = MEASUREMENT_BY_NAME.get(name) or registry(structure).get(name)
+    if q is None and alias_targets(name):
+        q = registry(structure)[alias_targets(name)[0]]
+    return q if q is not None and q.plausible is not None else None
+
+
+def implausible(values: dict, structure: Structure | None = None, context: dict | None = None) -> list[str]:
+    """Messages for values outside their entry's physical plausibility range (valid, but worth a
+    second look: a fitted COF of 1.4, a 5 cm vane); for diagnose's and sweeps' checks. Entries
+    sharing a norm key (the housing centre) are checked by their Euclidean norm; a bound that
+    needs a context name missing from `context` is not checked."""
+    out, norms = [], {}
     for name, v in values.items():
-        q = reg.get(name)
-        if q is not None and q.plausible is not None and not q.plausible[0] <= v <= q.plausible[1]:
-            out.append(f"{name} = {v:g} {q.unit} is outside the plausible range "
-                       f"[{q.plausible[0]:g}, {q.plausible[1]:g}] {q.unit}")
+        q = plausibility(name, structure)
+        if q is None:
+            continue
+        if q.norm:
+            norms.setdefault(q.norm, [q, 0.0])[1] += v * v
+            continue
+        out += _outside(name, v, q, context)
+    for key, (q, ss) in norms.items():
+        out += _outside(key, math.sqrt(ss), q, context)
     return out
+
+
+def _outside(label, v, q, context) -> list[str]:
+    rng = plausible_range(q.plausible, context)
+    if rng is None or rng[0] <= v <= rng[1]:
+        return []
+    why = f" ({q.plausible_why})" if q.plausible_why else ""
+    return [f"{label} = {v:g} {q.unit} is outside the plausible range [{rng[0]:g}, {rng[1]:g}] {q.unit}{why}"]
 
 
 # -- measurement parameters: what a fit adds to the model's (not in the config, not in p) --------
@@ -298,9 +355,14 @@ class MeasurementParameter:
     period: float | None = None  # periodic (theta0: 2 pi; the start is scanned over it)
     band: float | None = None  # relative band around the nominal value the start search keeps to
     transient: bool = False  # a transient (run-up) fit's parameter
+    plausible: tuple | None = None  # as Parameter.plausible
+    plausible_why: str = ""
+    norm: str = ""
     doc: str = ""
 
 
+# a drive holding its speed: a motor's speed ripple under a vane pump's load is a few per cent at most
+RIPPLE = dict(plausible=(0.0, 0.05), norm="speed ripple", plausible_why="a few per cent of the speed")
 MEASUREMENT = (
     MeasurementParameter("theta0", "rad", in_kernel_graph=True, through_angle=True,
                          period=2 * math.pi, transient=True, doc="rotor angle at the first sample"),
@@ -308,12 +370,16 @@ MEASUREMENT = (
                          doc="constant speed; its start from the torque spectrum within +-50 %"),
     MeasurementParameter("delay", "s", in_kernel_graph=True, through_angle=True,
                          doc="time shift between torque and angle"),
-    MeasurementParameter("torque_offset", "N m", in_kernel_graph=True, doc="sensor zero offset"),
-    MeasurementParameter("ripple_cos", "-", in_kernel_graph=True, through_angle=True,
+    MeasurementParameter("torque_offset", "N m", in_kernel_graph=True,
+                         plausible=("-0.5 * torque_rms", "0.5 * torque_rms"),
+                         plausible_why="a sensor zero error is a small part of the signal", doc="sensor zero offset"),
+    MeasurementParameter("ripple_cos", "-", in_kernel_graph=True, through_angle=True, **RIPPLE,
                          doc="relative speed ripple A cos(phase) at shaft order ripple_order"),
-    MeasurementParameter("ripple_sin", "-", in_kernel_graph=True, through_angle=True,
+    MeasurementParameter("ripple_sin", "-", in_kernel_graph=True, through_angle=True, **RIPPLE,
                          doc="relative speed ripple A sin(phase)"),
-    MeasurementParameter("lag", "s", lower=0.0, doc="first-order torque-sensor time constant"),
+    MeasurementParameter("lag", "s", lower=0.0, plausible=(0.0, "1 / (vanes * speed)"),
+                         plausible_why="a slower sensor would damp the vane-passing order by more than 30 %",
+                         doc="first-order torque-sensor time constant"),
     MeasurementParameter("speed0", "rad/s", transient=True, doc="speed at the first sample (transient)"),
 )
 MEASUREMENT_BY_NAME = {m.name: m for m in MEASUREMENT}
