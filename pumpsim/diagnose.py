@@ -559,6 +559,28 @@ def _fit(cfg, data, names, values, ripple, screen, multistart=True):
     return identify(cfg, data, names, initial=init, multistart=multistart, ripple_order=ripple, extra=held)
 
 
+@dataclass
+class _Run:
+    """What every step of one diagnosis shares: the data (whole record and screening window),
+    the torque scale the plausibility ranges need, and the notes and lists the steps add to."""
+
+    cfg: PumpConfig
+    datasets: list
+    full_data: object
+    screen_data: object
+    free: list
+    say: object
+    speed_info: dict
+    notes: list = field(default_factory=list)
+    rejected: list = field(default_factory=list)
+    confounded: list = field(default_factory=list)
+    torque_rms: float = 0.0
+    mean_torque: float = 0.0
+
+    def implausible(self, st) -> list:
+        return plausible(st.cfg, st.values, self.torque_rms, self.mean_torque)
+
+
 def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, progress=None,
              baseline_params=None, speed_tolerance: float | None = None) -> DiagnosisResult:
     """Find, name and add the effects missing from the model of `cfg` that the measurement(s)
@@ -567,16 +589,37 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     speed_tolerance: relative band about the configured speed for measurements without a speed
     column (default: the config's operation.speed_tolerance, 0.02). Returns a DiagnosisResult."""
     wall0 = _time.perf_counter()
-    say = progress or (lambda msg: None)
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
     if speed_tolerance is not None:
         if not 0 <= speed_tolerance <= 0.5:
             raise ConfigError(f"--speed-tolerance must be in [0, 0.5], got {speed_tolerance:g}")
         cfg = dataclasses.replace(cfg, speed_tolerance=float(speed_tolerance))
+    run, held = _start(cfg, datasets, progress)
+    base, state = _baseline(run, baseline_params, held)
+    current = base
+    history = [{"label": "baseline", "result": base}]
+    steps, effects, ranking, screens = [], [], [], []
+    verdict = _Verdict(current, datasets, len(state.names))
+    rival_pair = None
+    for _ in range(max_effects):
+        if not verdict.searching():
+            break
+        found = _search_step(run, state, current, verdict, effects, screens)
+        ranking = found["ranking"]
+        rival_pair = found.get("rival_pair", rival_pair)
+        if "accepted" not in found:
+            break
+        state, current = _add_effect(run, found, state, current, steps, effects, screens)
+        history.append({"label": found["accepted"]["cand"].label, "result": current})
+        verdict = _Verdict(current, datasets, len(state.names))
+    return _result(run, base, state, current, verdict, steps, effects, ranking, screens, rival_pair,
+                   history, wall0)
+
+
+def _start(cfg, datasets, progress):
+    """Step 1, the speed: nominal, refined in its band from shaft-synchronous evidence only; and
+    the screening window. Returns the run's context and the held speeds by fit name."""
     K = len(datasets)
-    suffix = (lambda n, i: f"{n}@{i}") if K > 1 else (lambda n, i: n)
-    notes, rejected = [], []
-    # 1. speed: nominal, refined in the band from shaft-synchronous evidence only
     free = [i for i, d in enumerate(datasets) if d.speed is None] if cfg.mode == "speed" else []
     held, speed_info = {}, {"nominal": cfg.speed, "tolerance": cfg.speed_tolerance, "measurements": []}
     for i, d in enumerate(datasets):
@@ -585,156 +628,184 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             continue
         lo, hi = cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
         scan = synchronous_speed_scan(d.time, d.torque, lo, hi, cfg.speed)
-        held[suffix("speed", i)] = scan["speed"]
+        held[f"speed@{i}" if K > 1 else "speed"] = scan["speed"]
         speed_info["measurements"].append({"source": "synchronous scan" if scan["refined"] else "nominal",
                                            "value": scan["speed"], "scan_p_value": scan["p_value"]})
     screen = _screen(datasets)
     full_data = datasets if K > 1 else datasets[0]
-    screen_data = screen if K > 1 else screen[0]
-    if screen is datasets:
-        screen_data = full_data
-    base_names = list(baseline_params or (["mu", "theta0"] + (["speed"] if free else [])))
-    say("fitting the baseline")
+    screen_data = full_data if screen is datasets else (screen if K > 1 else screen[0])
+    y_all = np.concatenate([d.torque for d in datasets])
+    run = _Run(cfg, datasets, full_data, screen_data, free, progress or (lambda msg: None), speed_info,
+               torque_rms=float(np.sqrt(np.mean(y_all ** 2))), mean_torque=float(np.mean(y_all)))
+    return run, held
+
+
+def _baseline(run, baseline_params, held):
+    """Step 2: mu, theta0 (and a free speed, dropped again where the fit does not determine it)."""
+    cfg, K = run.cfg, len(run.datasets)
+    base_names = list(baseline_params or (["mu", "theta0"] + (["speed"] if run.free else [])))
+    run.say("fitting the baseline")
     values = dict(held)
-    base = _fit(cfg, full_data, base_names, values, 1, screen_data)
+    base = _fit(cfg, run.full_data, base_names, values, 1, run.screen_data)
     # a speed the data does not determine stays where the synchronous evidence put it (or nominal)
     loose = [n for n, e in base.estimates.items() if base_name(n) == "speed" and
              (e.value is None or e.stderr is None or
               e.stderr > SPEED_DETERMINED * cfg.speed_tolerance * cfg.speed)]
-    if loose:
-        for n in loose:
-            i = int(n.split("@")[1]) if "@" in n else 0
-            src = speed_info["measurements"][i]["source"]
-            notes.append(f"speed of measurement {i} not determined by the fit ({'torque depends on mu omega^2 only' if base.estimates[n].value is None else 'standard error above a third of the band'}): "
-                         f"held at the {'synchronous-scan' if src != 'nominal' else 'nominal'} value "
+    for n in loose:
+        i = int(n.split("@")[1]) if "@" in n else 0
+        src = run.speed_info["measurements"][i]["source"]
+        why = ("torque depends on mu omega^2 only" if base.estimates[n].value is None
+               else "standard error above a third of the band")
+        run.notes.append(f"speed of measurement {i} not determined by the fit ({why}): held at the "
+                         f"{'synchronous-scan' if src != 'nominal' else 'nominal'} value "
                          f"{held.get(n, cfg.speed):.6g} rad/s")
-        keep = [b for b in base_names if b != "speed"] if K == 1 or len(loose) == len(free) else base_names
+    if loose:
+        keep = [b for b in base_names if b != "speed"] if K == 1 or len(loose) == len(run.free) else base_names
         if keep != base_names:
-            base_names = keep
-            base = _fit(cfg, full_data, base_names, values, 1, screen_data)
+            base = _fit(cfg, run.full_data, keep, values, 1, run.screen_data)
     names = [n for n in base.estimates if base.estimates[n].identifiable and base.estimates[n].value is not None]
     for n in base.estimates:
         if base_name(n) == "speed" and n in names:
             i = int(n.split("@")[1]) if "@" in n else 0
             e = base.estimates[n]
-            speed_info["measurements"][i].update(source="fitted in band", value=e.value, stderr=e.stderr)
+            run.speed_info["measurements"][i].update(source="fitted in band", value=e.value, stderr=e.stderr)
     values.update({n: base.estimates[n].value for n in names})
-    state = State(cfg, full_data, names, values)
-    current = base
-    y_all = np.concatenate([d.torque for d in datasets])
-    torque_rms, mean_torque = float(np.sqrt(np.mean(y_all ** 2))), float(np.mean(y_all))
-    dt = datasets[0].time[1] - datasets[0].time[0]
-    for reason in plausible(cfg, values, torque_rms, mean_torque):
-        notes.append(f"baseline: {reason} -- check the config and the data's units")
-    history = [{"label": "baseline", "result": base}]
-    steps, effects, confounded, ranking, screens = [], [], [], [], []
-    verdict = _Verdict(current, datasets, len(names))
-    rival_pair = None
-    for _ in range(max_effects):
-        if not verdict.searching():
-            break
-        scr = state.on(screen_data)
-        cands = candidates(state.cfg, set(effects))
-        scored = []
-        for c in cands:
-            say(f"screening {c.label}")
-            scored.append((c, score_test(scr, c)))
-        ranking = _rank(scr, scored)
-        screens.append(_screen_table(ranking, SCORE_ALPHA / len(scored), effects, scr))
-        _note_confounded(scored, SCORE_ALPHA / len(scored), confounded)
-        # the best by the one criterion, and the best by score p-value (a smooth effect whose
-        # one-step fit a probe grid happened to beat)
-        sig = [r for r in ranking if r["significant"]]
-        contenders = sig[:CONTENDERS] + [r for r in sorted(sig, key=lambda r_: r_["score"]["p_value"])[:2]
-                                         if r not in sig[:CONTENDERS]]
-        if not contenders:
-            break
-        rho = _ar1(current.residual)
-        rss0, nw = _whitened_rss(current.residual, rho)
-        bic0 = _bic(rss0, nw, len(state.names))
-        fits = []
-        for r in contenders:
-            c, s = r["cand"], r["score"]
-            say(f"refitting with {c.label}")
-            st, res = _refit(scr, c, s)
-            rss_s, n_s = _whitened_rss(res.residual, rho)
-            fits.append({"cand": c, "score": s, "screen_state": st, "screen_res": res,
-                         "bic_screen": _bic(rss_s, n_s, len(st.names))})
-        fits.sort(key=lambda f: f["bic_screen"])
-        accepted = None
-        for f in fits:
-            reasons = plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque)
-            if reasons:
-                rejected.append({"effect": f["cand"].label, "reasons": reasons})
-                notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
-                continue
-            st, res = (f["screen_state"], f["screen_res"]) if screen_data is full_data else \
-                _refit_full(f["screen_state"], full_data, screen_data)
-            rss1, _ = _whitened_rss(res.residual, rho)
-            q = len(st.names) - len(state.names)
-            lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-            # and without prewhitening: an AR(1) filter fitted to a large unmodelled line amplifies
-            # high frequencies, where moved friction reversals can buy a spurious whitened gain
-            n_full = res.residual.size
-            lr_plain = n_full * math.log(max(float(current.residual @ current.residual), 1e-300)
-                                         / max(float(res.residual @ res.residual), 1e-300))
-            f.update(state=st, res=res, bic=_bic(rss1, nw, len(st.names)),
-                     lr_p=max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
-            level = LR_ALPHA if f["score"]["p_value"] < SCORE_ALPHA / len(scored) else LR_ALPHA / SEARCHED
-            # an effect is named only if it changes the model torque by more than a quarter of the
-            # noise sigma: a statistically significant but smaller change is noise fitted through moved
-            # friction reversals
-            size = float(np.sqrt(np.mean((res.fitted - current.fitted) ** 2)))
-            if size < NAMED_SIZE * verdict.sigma:
-                notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
+    for reason in plausible(cfg, values, run.torque_rms, run.mean_torque):
+        run.notes.append(f"baseline: {reason} -- check the config and the data's units")
+    return base, State(cfg, run.full_data, names, values)
+
+
+def _search_step(run, state, current, verdict, effects, screens) -> dict:
+    """Step 3-4 once: score and rank every candidate on the screening window, refit the best,
+    accept the lowest-BIC plausible one whose LR test passes. Returns ranking and, when one is
+    accepted, `accepted` and the whitened baseline `bic0`; a decisive-less rival: `rival_pair`."""
+    scr = state.on(run.screen_data)
+    scored = []
+    for c in candidates(state.cfg, set(effects)):
+        run.say(f"screening {c.label}")
+        scored.append((c, score_test(scr, c)))
+    ranking = _rank(scr, scored)
+    screens.append(_screen_table(ranking, SCORE_ALPHA / len(scored), effects, scr))
+    _note_confounded(scored, SCORE_ALPHA / len(scored), run.confounded)
+    # the best by the one criterion, and the best by score p-value (a smooth effect whose
+    # one-step fit a probe grid happened to beat)
+    sig = [r for r in ranking if r["significant"]]
+    contenders = sig[:CONTENDERS] + [r for r in sorted(sig, key=lambda r_: r_["score"]["p_value"])[:2]
+                                     if r not in sig[:CONTENDERS]]
+    if not contenders:
+        return {"ranking": ranking}
+    rho = _ar1(current.residual)
+    rss0, nw = _whitened_rss(current.residual, rho)
+    bic0 = _bic(rss0, nw, len(state.names))
+    fits = []
+    for r in contenders:
+        c, s = r["cand"], r["score"]
+        run.say(f"refitting with {c.label}")
+        st, res = _refit(scr, c, s)
+        rss_s, n_s = _whitened_rss(res.residual, rho)
+        fits.append({"cand": c, "score": s, "screen_state": st, "screen_res": res,
+                     "bic_screen": _bic(rss_s, n_s, len(st.names))})
+    fits.sort(key=lambda f: f["bic_screen"])
+    level0 = SCORE_ALPHA / len(scored)
+    accepted = _accept(run, fits, state, current, verdict, rho, (rss0, nw, bic0), level0)
+    if accepted is None:
+        return {"ranking": ranking}
+    pair = _rival(run, fits, accepted, state, rho, (rss0, nw, bic0))
+    if pair is not None:
+        return {"ranking": ranking, "rival_pair": pair}
+    return {"ranking": ranking, "accepted": accepted, "bic0": bic0}
+
+
+def _accept(run, fits, state, current, verdict, rho, base_fit, score_level):
+    """The first fit (by screening BIC) that is plausible, refitted on the whole record, changes
+    the torque by at least NAMED_SIZE sigma, passes the LR test (prewhitened and plain) and lowers
+    BIC; None if none does. Implausible fits go to `rejected` with their reasons."""
+    rss0, nw, bic0 = base_fit
+    for f in fits:
+        reasons = run.implausible(f["screen_state"])
+        if reasons:
+            run.rejected.append({"effect": f["cand"].label, "reasons": reasons})
+            run.notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
+            continue
+        st, res = (f["screen_state"], f["screen_res"]) if run.screen_data is run.full_data else \
+            _refit_full(f["screen_state"], run.full_data, run.screen_data)
+        rss1, _ = _whitened_rss(res.residual, rho)
+        q = len(st.names) - len(state.names)
+        lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
+        # and without prewhitening: an AR(1) filter fitted to a large unmodelled line amplifies
+        # high frequencies, where moved friction reversals can buy a spurious whitened gain
+        n_full = res.residual.size
+        lr_plain = n_full * math.log(max(float(current.residual @ current.residual), 1e-300)
+                                     / max(float(res.residual @ res.residual), 1e-300))
+        f.update(state=st, res=res, bic=_bic(rss1, nw, len(st.names)),
+                 lr_p=max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
+        level = LR_ALPHA if f["score"]["p_value"] < score_level else LR_ALPHA / SEARCHED
+        # an effect is named only if it changes the model torque by more than a quarter of the
+        # noise sigma: a statistically significant but smaller change is noise fitted through moved
+        # friction reversals
+        size = float(np.sqrt(np.mean((res.fitted - current.fitted) ** 2)))
+        if size < NAMED_SIZE * verdict.sigma:
+            run.notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
                              f"below {NAMED_SIZE:g} x the noise sigma")
-                continue
-            if f["lr_p"] < level and f["bic"] < bic0 and not plausible(st.cfg, st.values, torque_rms, mean_torque):
-                accepted = f
-                break
-        if accepted is None:
-            break
-        rival = next((f for f in fits if f is not accepted and "bic" not in f
-                      and f["cand"].effect != accepted["cand"].effect  # another order: BIC chose
-                      and f["bic_screen"] - accepted["bic_screen"] < BIC_DECISIVE
-                      and not plausible(f["screen_state"].cfg, f["screen_state"].values, torque_rms, mean_torque)),
-                     None)
-        if rival is not None and screen_data is not full_data:
-            st, res = _refit_full(rival["screen_state"], full_data, screen_data)
-            rss1, _ = _whitened_rss(res.residual, rho)
-            lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-            rival.update(bic=_bic(rss1, nw, len(st.names)),
-                         lr_p=float(stats.chi2.sf(lr, max(len(st.names) - len(state.names), 1))))
-        elif rival is not None:
-            rival.update(bic=rival["bic_screen"], lr_p=0.0)
-        if (rival is not None and rival["lr_p"] < LR_ALPHA and rival["bic"] < bic0
-                and rival["bic"] - accepted["bic"] < BIC_DECISIVE):
-            rival_pair = [accepted["cand"].effect, rival["cand"].effect]
-            if rival_pair not in confounded:
-                confounded.append(rival_pair)
-            break
-        c, s, res, new_state = accepted["cand"], accepted["score"], accepted["res"], accepted["state"]
-        new_names = [n for n in new_state.names if n not in state.names]
-        steps.append({"effect": c.effect, "params": _effect_params(c, res, new_names, new_state.cfg),
-                      "rms_before": current.rms, "rms_after": res.rms, "p_value": s["p_value"],
-                      "score": s["lm"], "score_dof": s["dof"], "second_order_score": s["second_order"],
-                      "lr_p_value": accepted["lr_p"], "bic_before": bic0, "bic_after": accepted["bic"],
-                      "all_params": _params_json(res, new_state.names, new_state.cfg)})
-        effects.append(c.effect)
-        screens[-1]["chosen"] = c.label
-        state, current = new_state, res
-        if free and not any(base_name(n) == "speed" for n in state.names):
-            state, current = _try_speed(state, current, full_data, screen_data, speed_info, notes)
-        history.append({"label": c.label, "result": current})
-        verdict = _Verdict(current, datasets, len(state.names))
+            continue
+        if f["lr_p"] < level and f["bic"] < bic0 and not run.implausible(st):
+            return f
+    return None
+
+
+def _rival(run, fits, accepted, state, rho, base_fit):
+    """Another effect (not another order of the same) within BIC_DECISIVE of the accepted one,
+    significant and plausible? Then the pair (returned, else None) goes to `confounded` and
+    neither is named."""
+    rss0, nw, bic0 = base_fit
+    rival = next((f for f in fits if f is not accepted and "bic" not in f
+                  and f["cand"].effect != accepted["cand"].effect  # another order: BIC chose
+                  and f["bic_screen"] - accepted["bic_screen"] < BIC_DECISIVE
+                  and not run.implausible(f["screen_state"])), None)
+    if rival is None:
+        return None
+    if run.screen_data is not run.full_data:
+        st, res = _refit_full(rival["screen_state"], run.full_data, run.screen_data)
+        rss1, _ = _whitened_rss(res.residual, rho)
+        lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
+        rival.update(bic=_bic(rss1, nw, len(st.names)),
+                     lr_p=float(stats.chi2.sf(lr, max(len(st.names) - len(state.names), 1))))
+    else:
+        rival.update(bic=rival["bic_screen"], lr_p=0.0)
+    if rival["lr_p"] < LR_ALPHA and rival["bic"] < bic0 and rival["bic"] - accepted["bic"] < BIC_DECISIVE:
+        pair = [accepted["cand"].effect, rival["cand"].effect]
+        if pair not in run.confounded:
+            run.confounded.append(pair)
+        return pair
+    return None
+
+
+def _add_effect(run, found, state, current, steps, effects, screens):
+    """Record the accepted effect as a step; the new state (with a held speed tried again)."""
+    accepted = found["accepted"]
+    c, s, res, new_state = accepted["cand"], accepted["score"], accepted["res"], accepted["state"]
+    new_names = [n for n in new_state.names if n not in state.names]
+    steps.append({"effect": c.effect, "params": _effect_params(c, res, new_names, new_state.cfg),
+                  "rms_before": current.rms, "rms_after": res.rms, "p_value": s["p_value"],
+                  "score": s["lm"], "score_dof": s["dof"], "second_order_score": s["second_order"],
+                  "lr_p_value": accepted["lr_p"], "bic_before": found["bic0"], "bic_after": accepted["bic"],
+                  "all_params": _params_json(res, new_state.names, new_state.cfg)})
+    effects.append(c.effect)
+    screens[-1]["chosen"] = c.label
+    if run.free and not any(base_name(n) == "speed" for n in new_state.names):
+        return _try_speed(new_state, res, run.full_data, run.screen_data, run.speed_info, run.notes)
+    return new_state, res
+
+
+def _result(run, base, state, current, verdict, steps, effects, ranking, screens, rival_pair, history, wall0):
+    """Step 5: the verdict (exactly one of three), notes, the reported mu, the DiagnosisResult."""
     # a last screen for collinearity, whatever the residual: a white residual can hide an effect
     # that a fitted parameter absorbed (an offset inside mu at one speed)
-    scr = state.on(screen_data)
+    scr = state.on(run.screen_data)
     scored = [(c, score_test(scr, c, start=False)) for c in candidates(state.cfg, set(effects)) if not c.symmetric]
-    _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), confounded)
+    _note_confounded(scored, SCORE_ALPHA / max(len(scored), 1), run.confounded)
     consistent = verdict.consistent()
-    unexplained = not consistent
-    where = _where(current, datasets, verdict) if unexplained else []
+    notes = run.notes
     if rival_pair is not None:
         notes.append(f"{rival_pair[0]} and {rival_pair[1]} explain the remaining residual equally well "
                      f"(within {BIC_DECISIVE:g} BIC): neither is named")
@@ -743,7 +814,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
                      f"{RELEVANT:g} x the noise sigma ({verdict.sigma:.3g} N m): not claimed as a discrepancy")
     if verdict.per[0]["kurtosis"]["p_value"] < UNEXPLAINED_ALPHA:
         notes.append("heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise")
-    notes += _notes(confounded, state, screen_data, K)
+    notes += _notes(run.confounded, state, run.screen_data, len(run.datasets))
     per_vane, mu_mean = vane_cofs(current, state.cfg)
     final_params = _params_json(current, state.names, state.cfg)
     if "mu" in final_params and final_params["mu"]["value"] is not None:
@@ -751,24 +822,27 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     label = ("consistent with noise" + (" after the named effects" if effects else "")) if consistent else \
         ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
     return DiagnosisResult(
-        baseline={"rms": base.rms, "params": _params_json(base, list(base.estimates), cfg)},
+        baseline={"rms": base.rms, "params": _params_json(base, list(base.estimates), run.cfg)},
         steps=steps, effects=effects,
         final={"rms": current.rms, "params": final_params, "residual_white": consistent,
                "runs_p_value": verdict.p["runs_test"], "ljung_box_p_value": verdict.p["ljung_box"],
                "synchronous_f_p_value": verdict.p["synchronous_f"],
                "noise_level_p_value": verdict.p["noise_level"], "vane_mu": per_vane,
                "mu_definition": MU_DEFINITION},
-        unexplained=unexplained, confounded=confounded, unexplained_where=where, verdict=label,
-        notes=notes, detectors=verdict.to_json(), speed=speed_info,
+        unexplained=not consistent, confounded=run.confounded,
+        unexplained_where=[] if consistent else _where(current, run.datasets, verdict), verdict=label,
+        notes=notes, detectors=verdict.to_json(), speed=run.speed_info,
         ranking=[{"effect": r["cand"].label, "score_p_value": r["score"]["p_value"],
                   "one_step_bic": r["bic"], "significant": r["significant"]} for r in ranking],
-        screens=screens, rejected=rejected,
-        method=("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
-                f"(family {UNEXPLAINED_ALPHA:g}, Bonferroni over detectors and measurements); candidates: "
-                "prewhitened score tests (second order where symmetry cancels the first) and one-step "
-                f"nonlinear fits ranked by BIC; the {CONTENDERS} best refitted, physical ranges enforced, "
-                f"acceptance by prewhitened likelihood ratio (p < {LR_ALPHA:g}) and BIC on the whole record"),
+        screens=screens, rejected=run.rejected, method=METHOD,
         wall_time=_time.perf_counter() - wall0, history=history)
+
+
+METHOD = ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
+          f"(family {UNEXPLAINED_ALPHA:g}, Bonferroni over detectors and measurements); candidates: "
+          "prewhitened score tests (second order where symmetry cancels the first) and one-step "
+          f"nonlinear fits ranked by BIC; the {CONTENDERS} best refitted, physical ranges enforced, "
+          f"acceptance by prewhitened likelihood ratio (p < {LR_ALPHA:g}) and BIC on the whole record")
 
 
 def _rank(state, scored):
