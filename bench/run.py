@@ -169,7 +169,7 @@ def bench_identify(duration=0.5, rate=10000.0):
     import dataclasses
 
     from pumpsim.data import Dataset
-    from pumpsim.identify import Problem, gauss_newton, identify
+    from pumpsim.identification import ConstantSpeedProblem, gauss_newton, identify
     from pumpsim.simulate import simulate
 
     base = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
@@ -204,13 +204,15 @@ def bench_identify(duration=0.5, rate=10000.0):
                 J[:, j] = (self.p.model(x + e) - m) / h
             return m, J
 
-    prob = Problem(start, data, ["mu", "theta0"], initial={"theta0": 0.3})
+    prob = ConstantSpeedProblem(start, data, ["mu", "theta0"], initial={"theta0": 0.3})
     t0 = time.perf_counter()
-    x_gn, _, _, hist_gn, _, _ = gauss_newton(prob, prob.x0)
+    gn = gauss_newton(prob, prob.x0)
+    x_gn, hist_gn = gn.x, gn.history
     t_gn = time.perf_counter() - t0
     fd = FiniteDifferences(prob)
     t0 = time.perf_counter()
-    x_fd, _, _, hist_fd, conv_fd, _ = gauss_newton(fd, prob.x0)
+    fdo = gauss_newton(fd, prob.x0)
+    x_fd, hist_fd = fdo.x, fdo.history
     t_fd = time.perf_counter() - t0
     print(f"\nIdentification of mu and theta0, 4 vanes, ellipse, {sim.time.size} samples")
     print(f"{'':<46}{'wall [s]':>10}{'iterations':>12}{'mu':>10}")
@@ -224,7 +226,7 @@ def bench_identify(duration=0.5, rate=10000.0):
                                                      "mu": res.value("mu")},
             "exact_loop": {"seconds": t_gn, "iterations": len(hist_gn) - 1, "mu": float(x_gn[0])},
             "finite_differences": {"seconds": t_fd, "iterations": len(hist_fd) - 1, "mu": float(x_fd[0]),
-                                   "converged": bool(conv_fd)},
+                                   "converged": bool(fdo.converged)},
             "ratio": t_fd / t_gn}
 
 

@@ -18,7 +18,7 @@ _EXPORTS = {
     "IdentificationError": ".errors",
     "identify": ".api", "diagnose": ".api", "Diagnosis": ".api",
     "load_data": ".data", "Dataset": ".data", "DataOptions": ".data",
-    "IdentificationResult": ".identify",
+    "IdentificationResult": ".identification",
 }
 __all__ = list(_EXPORTS)
 __version__ = "0.1.0"

@@ -109,7 +109,7 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
         res = pumpsim.identify("examples/test_rig.toml", "examples/data/test_rig_measurement.csv")
         print(res.value("mu"), res.estimates["mu"].stderr)
     """
-    from .identify import identify as _identify
+    from .identification import identify as _identify
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)

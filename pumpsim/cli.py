@@ -310,9 +310,9 @@ def cmd_identify(a) -> int:
                      nominal_speed=None if ("speed" in params or a.transient) else
                      (cfg.speed if cfg.mode == "speed" else None))
     if a.transient:
-        from .transient import identify_transient
+        from .identification import identify_transient
 
-        res = identify_transient(cfg, data, params=params, initial=initial, max_iter=a.max_iter)
+        res = identify_transient(cfg, data, params=params, initial=initial, max_iter=a.max_iter, method=a.method)
     else:
         if sys.stderr.isatty():
             print(f"pumpsim: fitting {', '.join(params)} to {data.n:,} samples of {data.name}", end="",

@@ -50,7 +50,7 @@ from .data import Dataset
 from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, order_spectrum, synchronous_speed_scan,
                           systematic_rms)
 from .errors import ConfigError
-from .identify import base_name, identify, make_problem
+from .identification import base_name, identify, make_problem
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 

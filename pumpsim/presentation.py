@@ -17,7 +17,7 @@ PLUS_MINUS = "± = one standard error (1σ, from σ²(JᵀJ)⁻¹); 95 % interva
 OPTIMISTIC = ("the residual is not white: the ± and the intervals assume independent errors and are "
               "optimistic (too narrow)")
 
-# fitted names that are not config keys (identify.SPECIAL): label, SI unit
+# fitted names that are not config keys (identification: Problem.SPECIAL): label, SI unit
 _SPECIAL = {
     "mu": ("vane–housing COF μ (dynamic)", "-"),
     "mu_slot": ("slot-wall COF μ_r (dynamic)", "-"),

@@ -12,6 +12,18 @@ PARADOX_TOL = 1e-6
 # contact.state_scale).
 RTOL = 1e-8
 ATOL = 1e-10
+# Identification: a column-scaled Jacobian whose condition number exceeds this has a near-null
+# direction (J'J singular to working precision after squaring: 1e14 of 1e16): the parameters along it
+# are not identifiable, and Gauss-Newton stops rather than take a step along it.
+SINGULAR_COND = 1e7
+# A fitted parameter whose change by its own size (or by 1 for angles and offsets) moves the model
+# by less than this share of its norm does not act on the data at all (rounding of the kernel is ~1e-15).
+NO_EFFECT_REL = 1e-8
+# Transient identification integrates the speed with CVODES sample by sample; its sensitivities
+# must be far more accurate than the speed noise (~1e-2 rad/s on ~1e2 rad/s) for the Gauss-Newton
+# steps and the standard errors to be the data's, not the integrator's.
+TRANSIENT_FIT_RTOL = 1e-9
+TRANSIENT_FIT_ATOL = 1e-11
 # Explicit RK4: fixed substep when --max-step is not given [s] (a contact transient at k = 1e5 N/m
 # and a 1 g vane has a period ~0.6 ms; 1 us resolves it with RK4's stability margin).
 RK_MAX_STEP = 1e-6

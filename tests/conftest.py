@@ -131,4 +131,21 @@ def cfg_factory():
     return make_config
 
 
-__all__ = ["make_config", "kernel_and_p", "one_revolution", "pumpsim"]
+@pytest.fixture(scope="session")
+def transient_run():
+    """A torque-driven run of the ellipse pump (mu = 0.17, 0.03 N m from 150 rad/s, 40 samples):
+    the data of the transient identification tests."""
+    import dataclasses
+
+    truth = make_config("ellipse_4vanes", **{"friction.housing.dynamic": 0.17, "friction.housing.static": 0.18})
+    return pumpsim.simulate(dataclasses.replace(truth, mode="torque", torque=0.03, speed=150.0, angle=0.2),
+                            duration=0.02, rate=2000, rtol=1e-11, atol=1e-13)
+
+
+def transient_start_config():
+    """The transient tests' start: mu = 0.1 with the truth's static/dynamic ratio."""
+    return make_config("ellipse_4vanes", **{"friction.housing.dynamic": 0.1,
+                                            "friction.housing.static": 0.18 * 0.1 / 0.17})
+
+
+__all__ = ["make_config", "kernel_and_p", "one_revolution", "transient_start_config", "pumpsim"]

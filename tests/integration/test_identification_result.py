@@ -4,7 +4,7 @@ import hashlib
 import pytest
 
 from pumpsim.data import load_data
-from pumpsim.identify import FitOutcome, IdentificationResult, gauss_newton, identify, make_problem
+from pumpsim.identification import FitOutcome, IdentificationResult, gauss_newton, identify, make_problem
 from pumpsim.kernels import load_kernels
 from tests.conftest import ROOT, make_config
 

@@ -7,7 +7,7 @@ import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
-from pumpsim.identify import Problem, identify, make_problem
+from pumpsim.identification import ConstantSpeedProblem, identify, make_problem
 from tests.conftest import make_config
 from tests.tolerances import (ANGLE_FD_ABS, ANGLE_FD_REL, COLUMNS_ABS_FRAC, COLUMNS_REL, FD_ANGLE_REL,
                               FD_DIRECT_REL, FIT_SPEED_ABS, FIT_THETA0_ABS, METHODS_AGREE_REL,
@@ -85,7 +85,7 @@ def test_exact_jacobian_matches_central_differences():
                    **{"housing.center": [3e-4, 1e-4], "rotor.slot_tilt": 0.1})
     cfg = make_config("ellipse_4vanes", **{**cof(0.15), "housing.center": [2e-4, 0.0], "rotor.slot_tilt": 0.1})
     names = ["mu", "torque_offset", "housing.center.0", "mu_slot", "vane.mass"]
-    _fd_check(Problem(cfg, ds, names), names, rtol=FD_DIRECT_REL)
+    _fd_check(ConstantSpeedProblem(cfg, ds, names), names, rtol=FD_DIRECT_REL)
 
 
 def test_phase_jacobian_is_the_sample_averaged_derivative():
@@ -97,7 +97,7 @@ def test_phase_jacobian_is_the_sample_averaged_derivative():
                    **{**zero, "housing.center": [3e-4, 1e-4]})
     cfg = make_config("ellipse_4vanes", **{**zero, "housing.center": [3e-4, 1e-4]})
     names = ["theta0", "speed"]
-    _fd_check(Problem(cfg, ds, names, initial={"theta0": 0.3}), names, rtol=FD_ANGLE_REL)
+    _fd_check(ConstantSpeedProblem(cfg, ds, names, initial={"theta0": 0.3}), names, rtol=FD_ANGLE_REL)
 
 
 def test_ripple_and_delay_columns_are_the_sample_averaged_derivative():
@@ -106,7 +106,7 @@ def test_ripple_and_delay_columns_are_the_sample_averaged_derivative():
     zero = {"friction.housing.dynamic": 0.0, "friction.housing.static": 0.0}
     ds, _ = signal("ellipse_4vanes", 0.0, 0.3, duration=0.01, rate=100000, **zero)
     names = ["theta0", "delay", "ripple_cos", "ripple_sin"]
-    prob = Problem(make_config("ellipse_4vanes", **zero), ds, names, ripple_order=3,
+    prob = ConstantSpeedProblem(make_config("ellipse_4vanes", **zero), ds, names, ripple_order=3,
                    initial={"theta0": 0.3, "delay": 1e-4, "ripple_cos": 0.02, "ripple_sin": -0.01})
     _fd_check(prob, names, rtol=FD_ANGLE_REL)
     # the angle's own derivative (smooth, closed form) to rounding

@@ -149,7 +149,7 @@ def test_iteration_axes_have_integer_ticks_and_labels_are_not_clipped(tmp_path):
     res = pumpsim.simulate(cfg, duration=0.02, rate=10000)
     y = res.torque + np.random.default_rng(0).normal(0, 1e-3, res.torque.size)
     from pumpsim.data import Dataset
-    from pumpsim.identify import identify
+    from pumpsim.identification import identify
 
     fit = identify(cfg, Dataset(res.time, y), ["mu"], initial={"mu": 0.1})
     captured = []

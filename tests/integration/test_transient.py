@@ -1,28 +1,18 @@
 """Identification on a transient (torque-driven run) with CVODES forward sensitivities."""
-import dataclasses
-
 import numpy as np
 import pytest
 
-import pumpsim
 from pumpsim.data import Dataset
 from pumpsim.errors import DataError
-from pumpsim.transient import TransientProblem, identify_transient
-from tests.conftest import make_config
+from pumpsim.identification import TransientProblem, identify_transient
+from tests.conftest import transient_start_config as start_config
 from tests.tolerances import (SENSITIVITY_REL, SENSITIVITY_THETA0_REL, TRANSIENT_MU_REL,
                               TRANSIENT_SPEED0_ABS)
 
 
-@pytest.fixture(scope="module")
-def run():
-    truth = make_config("ellipse_4vanes", **{"friction.housing.dynamic": 0.17, "friction.housing.static": 0.18})
-    return pumpsim.simulate(dataclasses.replace(truth, mode="torque", torque=0.03, speed=150.0, angle=0.2),
-                            duration=0.02, rate=2000, rtol=1e-11, atol=1e-13)
-
-
-def start_config():
-    return make_config("ellipse_4vanes", **{"friction.housing.dynamic": 0.1,
-                                            "friction.housing.static": 0.18 * 0.1 / 0.17})
+@pytest.fixture
+def run(transient_run):
+    return transient_run
 
 
 def test_transient_fit_recovers_cof(run):

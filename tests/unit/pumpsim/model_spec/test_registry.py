@@ -7,7 +7,7 @@ import pytest
 from pumpsim.config import config_from_dict
 from pumpsim.data import Dataset
 from pumpsim.errors import ConfigError
-from pumpsim.identify import Problem
+from pumpsim.identification import ConstantSpeedProblem
 from pumpsim.model_spec import parameters as reg
 from tests.conftest import apply_changes, example_dict, make_config
 from tests.tolerances import ROUNDING_REL, SEED_REL
@@ -51,7 +51,7 @@ def test_derived_inertia_follows_the_mass_unless_the_file_sets_it():
 def test_fitted_mass_carries_the_derived_inertia_into_the_kernel():
     cfg = make_config()
     t = np.arange(200) / 10000.0
-    prob = Problem(cfg, Dataset(t, np.zeros_like(t)), ["vane.mass", "mu"])
+    prob = ConstantSpeedProblem(cfg, Dataset(t, np.zeros_like(t)), ["vane.mass", "mu"])
     p = np.asarray(prob.parameter_vector(np.array([0.002, 0.2]))).ravel()
     names = cfg.parameters().names
     L, h = cfg.values["vane.length"], cfg.values["vane.thickness"]

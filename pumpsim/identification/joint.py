@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identify import Problem, base_name, phase_and_speed_start
+from .problem import ConstantSpeedProblem, Problem, base_name
 
 LOCAL = ("theta0", "speed", "delay")
 
 
-class JointProblem:
-    """The Problem interface (model, Jacobian, bounds) over stacked measurements."""
+class JointProblem(Problem):
+    """The Problem interface over stacked constant-speed measurements (one sub-problem each)."""
+
+    SPECIAL = ConstantSpeedProblem.SPECIAL
 
     def __init__(self, cfg, datasets, names, initial=None, extra=None, ripple_order: int = 1):
         initial, extra = initial or {}, extra or {}
@@ -30,15 +32,14 @@ class JointProblem:
         for i, ds in enumerate(datasets):
             local = [n for n in self.names if n.endswith(f"@{i}")]
             mine = lambda d: {base_name(k): v for k, v in d.items() if "@" not in k or k.endswith(f"@{i}")}  # noqa: E731
-            self.subs.append(Problem(cfg, ds, self.shared + [base_name(n) for n in local], mine(initial),
-                                     mine(extra), ripple_order))
+            self.subs.append(ConstantSpeedProblem(cfg, ds, self.shared + [base_name(n) for n in local],
+                                                  mine(initial), mine(extra), ripple_order))
             self.cols.append(np.array([self.names.index(n) for n in self.shared + local]))
-        self.data, self.kern, self.fixed = datasets, self.subs[0].kern, self.subs[0].fixed
+        self.cfg, self.data, self.kern, self.fixed = cfg, datasets, self.subs[0].kern, self.subs[0].fixed
         self.x0, self.lower, self.upper = (self._gather(lambda s: s.x0), self._gather(lambda s: s.lower),
                                            self._gather(lambda s: s.upper))
         self.y = np.concatenate([s.y for s in self.subs])
         self.rows = np.cumsum([0] + [s.y.size for s in self.subs])
-        self.dt = self.subs[0].dt
 
     def _gather(self, get):
         x = np.empty(len(self.names))
@@ -49,6 +50,10 @@ class JointProblem:
     @property
     def n_eval(self):
         return sum(s.n_eval for s in self.subs)
+
+    @property
+    def dt(self):
+        return self.subs[0].dt
 
     def model(self, x):
         return np.concatenate([s.model(x[c]) for s, c in zip(self.subs, self.cols)])
@@ -65,8 +70,8 @@ class JointProblem:
             m[lo:hi], J[lo:hi, [cols.index(c[i]) for i in mine]] = s.model_and_jacobian(x[c], mine)
         return m, J
 
-    def residual(self, x):
-        return self.y - self.model(x)
+    def symbolic_model(self, phi):
+        raise NotImplementedError("IPOPT fits one measurement")  # refused before (make_problem's caller)
 
     def angle(self, x):
         return np.concatenate([s.angle(x[c]) for s, c in zip(self.subs, self.cols)])
@@ -88,5 +93,5 @@ class JointProblem:
     def start(self, x):
         x = np.array(x, dtype=float)
         for s, c in zip(self.subs, self.cols):
-            x[c] = phase_and_speed_start(s, x[c])
+            x[c] = s.start(x[c])
         return x

@@ -1,0 +1,148 @@
+"""The identification driver: a Problem for the data (constant speed, several measurements
+jointly, or a transient), its parameters checked for identifiability before and after the fit,
+one Optimiser, one IdentificationResult."""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import PumpConfig
+from ..data import Dataset
+from ..diagnostics import residual_report
+from ..errors import ConfigError
+from .identifiability import to_fix
+from .joint import JointProblem
+from .optimiser import FitOutcome, Optimiser
+from .problem import ConstantSpeedProblem, Problem, base_name
+from .result import Estimate, IdentificationResult, bounds_reached, fit_estimates, provenance
+from .transient import TransientProblem
+
+
+def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, transient=False) -> Problem:
+    """One measurement: ConstantSpeedProblem; several (a list of Datasets): JointProblem; a run-up
+    or coast-down (transient=True): TransientProblem. `extra`: values held for special names."""
+    datasets = list(data) if isinstance(data, (list, tuple)) else [data]
+    if transient:
+        if len(datasets) > 1:
+            raise ConfigError("transient identification fits one measurement")
+        return TransientProblem(cfg, datasets[0], names, initial, extra)
+    if len(datasets) > 1:
+        return JointProblem(cfg, datasets, names, initial, extra, ripple_order)
+    return ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order)
+
+
+def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
+             relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
+             ripple_order=1, extra=None, transient=False) -> IdentificationResult:
+    """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
+    speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
+    engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
+    optimiser = Optimiser(method, relaxation, max_iter, log)
+    datasets = data if isinstance(data, (list, tuple)) else [data]
+    if method == "ipopt" and len(datasets) > 1:
+        raise ConfigError("--method ipopt fits one measurement; use gauss-newton or levenberg-marquardt")
+    if method == "ipopt" and transient:  # CVODES adjoints inside IPOPT: minutes, and they fail
+        raise ConfigError("--method ipopt fits constant-speed data; a transient fit uses gauss-newton or "
+                          "levenberg-marquardt")
+    if not transient and cfg.mode != "speed" and "speed" not in params and any(d.speed is None for d in datasets):
+        raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
+                          "speed column in the data, or 'speed' in --params")
+    wall0 = _time.perf_counter()
+    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient)
+
+    def reduced(active, fixed, unident):  # the identifiable names, the others held where they were
+        held = {n: fixed[n] for n in unident if base_name(n) in prob.SPECIAL}
+        return make_problem(cfg, data, active, {n: fixed[n] for n in active}, {**(extra or {}), **held},
+                            ripple_order, transient)
+
+    start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
+    initial_model = prob.model(prob.x0)
+    fit = _fit_identifiable(prob, start, optimiser, reduced)
+    res = _result(prob, fit, multistart)
+    res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
+    res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
+    return res
+
+
+def identify_transient(cfg: PumpConfig, data: Dataset, params=("mu", "speed0"), initial=None,
+                       max_iter=30, method="gauss-newton") -> IdentificationResult:
+    """Fit `params` (mu, mu_slot, speed0, theta0 or config paths) to a run-up or coast-down: the
+    measured torque drives the model, its speed is compared with the measured speed."""
+    return identify(cfg, data, params, method=method, initial=initial, max_iter=max_iter, transient=True)
+
+
+@dataclass
+class _Fit:
+    """The identifiable part of a fit: the problem finally fitted (its names the identifiable
+    ones), the optimiser's outcome (None when nothing is identifiable), the names fixed on the way."""
+
+    prob: Problem
+    outcome: FitOutcome | None
+    start: np.ndarray
+    model_at_start: np.ndarray
+    unident: list
+    no_effect: list
+    evaluations: int  # model evaluations of the problems fitted and dropped on the way
+
+
+def _fit_identifiable(prob, start, optimiser, reduced) -> _Fit:
+    """Identifiability at the start and again at the fit: a parameter without effect, or in a
+    near-null direction of J'J (over-parameterised: COF and offset on a concentric rig), gets no
+    number; it is fixed and the others are fitted again."""
+    at_start = prob.model_and_jacobian(start)
+    m_start = at_start[0]
+    fixed = dict(zip(prob.names, start))
+    active, unident, no_effect = list(prob.names), [], []
+    prob_fit, start_fit, evaluations = prob, start, 0
+    while True:
+        dead, flat = to_fix(active, at_start[1], start_fit, at_start[0]) if at_start else ([], [])
+        if dead or flat:
+            fixed.update(zip(active, start_fit))
+            fixed.update({n: prob.x0[prob.names.index(n)] for n in flat if base_name(n) == "speed"})  # nominal
+            unident = sorted(unident + dead + flat, key=prob.names.index)
+            no_effect = no_effect + dead
+            active = [n for n in active if n not in dead + flat]
+            if not active:  # nothing can be fitted: say so, with no numbers for the parameters
+                return _Fit(prob, None, start, m_start, unident, no_effect, evaluations)
+            evaluations += prob_fit.n_eval if prob_fit is not prob else 0
+            prob_fit, start_fit, at_start = reduced(active, fixed, unident), np.array([fixed[n] for n in active]), None
+        out = optimiser.fit(prob_fit, start_fit, start=at_start)
+        at_start = (prob_fit.y - out.residual, out.jacobian)
+        if not any(to_fix(active, out.jacobian, out.x, prob_fit.y - out.residual)):
+            return _Fit(prob_fit, out, start, m_start, unident, no_effect, evaluations)
+        start_fit = out.x  # flat at the fit: the loop's head fixes those parameters and refits
+
+
+def _result(prob, fit: _Fit, wrap_phase: bool) -> IdentificationResult:
+    """The result in the names asked for (`prob`): estimates of the identifiable ones, no number
+    for the others; residual diagnostics at the fit (or at the start when nothing was fitted)."""
+    x0 = dict(zip(prob.names, prob.x0))
+    if fit.outcome is None:
+        r, w, x = prob.y - fit.model_at_start, prob.speed_of(fit.start), fit.start
+        est, corr, k, history = {}, None, 0, [{"params": dict(zip(prob.names, map(float, x))),
+                                                "rms": float(np.sqrt(np.mean(r**2)))}]
+        converged, message, on_bound, fitted_prob = False, "", [], prob
+    else:
+        out, fitted_prob = fit.outcome, fit.prob
+        x, r, history = np.array(out.x, dtype=float), out.residual, out.history
+        for i, nm in enumerate(fitted_prob.names):  # theta0 is periodic: report it in [0, 2 pi)
+            if wrap_phase and base_name(nm) == "theta0":
+                x[i] = float(np.mod(x[i], 2 * math.pi))
+                x[i] = 0.0 if x[i] > 2 * math.pi - 1e-12 else x[i]
+        k, w = len(fitted_prob.names), fitted_prob.speed_of(x)
+        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
+        converged, message, on_bound = out.converged, out.message + prob.NOTE, bounds_reached(fitted_prob, x)
+    for name in fit.unident:
+        est[name] = Estimate(name, None, None, None, None, x0[name], identifiable=False)
+    if fit.unident:
+        message += ("; " if message else "") + f"not identifiable from this data: {', '.join(fit.unident)}"
+    n_eval = prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0)
+    return IdentificationResult(
+        estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r**2))),
+        converged=converged, message=message, correlation=corr,
+        diagnostics=residual_report(r, prob.dt, w, fitted=k), method="", wall_time=0.0,
+        unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
+        speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect)

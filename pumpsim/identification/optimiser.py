@@ -1,0 +1,145 @@
+"""One optimiser interface for every identification problem: the report's Gauss-Newton with
+relaxation factor (report §12), Levenberg-Marquardt, or IPOPT through CasADi's nlpsol with bounds.
+Each returns a FitOutcome."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ConfigError
+from ..tolerances import SINGULAR_COND
+
+METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
+# IPOPT stops with a step below machine precision at a least-squares minimum whose gradient is at
+# rounding level but above its (strict) tol: that is convergence, not failure
+IPOPT_CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small")
+
+
+@dataclass(frozen=True)
+class FitOutcome:
+    """What every optimiser returns: the fitted values x, the residual (measured - model) and the
+    Jacobian at x, the history [{"params", "rms"[, "iteration"]}], whether it converged and why."""
+
+    x: np.ndarray
+    residual: np.ndarray
+    jacobian: np.ndarray
+    history: list
+    converged: bool
+    message: str
+
+    def __iter__(self):  # unpacks as (x, residual, jacobian, history, converged, message)
+        return iter((self.x, self.residual, self.jacobian, self.history, self.converged, self.message))
+
+
+@dataclass(frozen=True)
+class Optimiser:
+    """The method and its settings, checked once; `fit(problem, x0)` -> FitOutcome for any Problem."""
+
+    method: str = "gauss-newton"
+    relaxation: float = 1.0  # Gauss-Newton's relaxation factor f in (0, 1]
+    max_iter: int = 50
+    log: Callable | None = None  # called with each history entry
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{self.method}'")
+        if not 0 < self.relaxation <= 1:
+            raise ConfigError(f"--relaxation must be in (0, 1], got {self.relaxation:g}")
+
+    def fit(self, prob, x0, start=None) -> FitOutcome:
+        """Fit prob from x0; `start` = (model, Jacobian) at x0 when the caller has them already."""
+        if self.method == "ipopt":
+            return ipopt_fit(prob, x0, self.log)
+        return gauss_newton(prob, x0, relaxation=self.relaxation, max_iter=self.max_iter,
+                            lm=self.method == "levenberg-marquardt", log=self.log, start=start)
+
+
+def scaled_svd(J):
+    """SVD of J with unit-norm columns: (column norms, U, s, Vt); a zero column keeps scale 1."""
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, Vt = np.linalg.svd(J / scale, full_matrices=False)
+    return scale, U, s, Vt
+
+
+def _rms(r) -> float:
+    return float(np.sqrt(np.mean(r**2)))
+
+
+def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
+                 start=None) -> FitOutcome:
+    """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
+    Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
+    least-squares solve; bounds are enforced by projection. `start` = (model, Jacobian) at x0 when
+    the caller has them already."""
+    x = np.array(x0, dtype=float)
+    m, J = start if start is not None else prob.model_and_jacobian(x)
+    r = prob.y - m
+    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _rms(r)}]
+    lam = 1e-3
+    converged, message = False, "maximum iterations reached"
+    for _ in range(max_iter):
+        scale, U, s, Vt = scaled_svd(J)
+        if s[-1] < s[0] / SINGULAR_COND:
+            message = "Jacobian became singular"
+            break
+        g = U.T @ r
+        if lm:
+            while True:
+                step = (Vt.T @ (s * g / (s**2 + lam))) / scale
+                xn = np.clip(x + step, prob.lower, prob.upper)
+                rn = prob.y - prob.model(xn)
+                if rn @ rn <= r @ r or lam > 1e12:
+                    lam = max(lam / 3, 1e-12)
+                    _, Jn = prob.model_and_jacobian(xn)
+                    break
+                lam *= 4
+        else:
+            step = relaxation * (Vt.T @ (g / s)) / scale
+            for _ in range(10):  # safeguard: halve a step that would increase the residual
+                xn = np.clip(x + step, prob.lower, prob.upper)
+                rn = prob.y - prob.model(xn)  # trial: the model only, the Jacobian once accepted
+                if rn @ rn <= r @ r:
+                    _, Jn = prob.model_and_jacobian(xn)
+                    break
+                step = 0.5 * step
+            else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
+                converged, message = True, "no further decrease of the residual"
+                break
+        small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
+        x, r, J = xn, rn, Jn
+        history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _rms(r)})
+        if log:
+            log(history[-1])
+        if small:
+            converged, message = True, "step below tolerance"
+            break
+        if history[-2]["rms"] - history[-1]["rms"] <= 1e-6 * history[-1]["rms"]:
+            converged, message = True, "residual no longer decreases (relative change < 1e-6)"
+            break
+    return FitOutcome(x, r, J, history, converged, message)
+
+
+def ipopt_fit(prob, x0, log=None) -> FitOutcome:
+    """IPOPT (limited-memory Hessian) on 0.5 |y - model|^2 with the fit's bounds; the problem gives
+    its model as a CasADi expression (`symbolic_model`)."""
+    phi = ca.MX.sym("phi", len(prob.names))
+    r = ca.DM(prob.y) - prob.symbolic_model(phi)
+    nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
+    sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+                                          "ipopt.hessian_approximation": "limited-memory",
+                                          "ipopt.tol": 1e-12, "ipopt.max_iter": 200})
+    res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
+              ubx=np.where(np.isfinite(prob.upper), prob.upper, 1e20))
+    x = np.asarray(res["x"]).ravel()
+    m, J = prob.model_and_jacobian(x)
+    st = sol.stats()
+    history = [{"params": dict(zip(prob.names, map(float, x0))), "rms": _rms(prob.residual(x0)), "iteration": 0},
+               {"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m),
+                "iteration": int(st.get("iter_count", 0))}]
+    status = str(st.get("return_status"))
+    converged = bool(st.get("success")) or status in IPOPT_CONVERGED
+    return FitOutcome(x, prob.y - m, J, history, converged, status)

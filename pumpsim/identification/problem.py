@@ -1,0 +1,330 @@
+"""The Problem interface every identification problem offers the optimiser and the result, what
+single-measurement problems share (names checked against the registries, start values, bounds, the
+runtime parameter vector with fitted values put in), and the constant-speed problem."""
+from __future__ import annotations
+
+import difflib
+import math
+
+import casadi as ca
+import numpy as np
+
+from ..config import PumpConfig, as_array
+from ..data import Dataset
+from ..errors import ConfigError
+from ..kernels import load_kernels, map_samples
+from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
+                                     MEASUREMENT, alias_targets, derive, fit_bounds, layout)
+from ..sensor import first_order_lag
+from ..simulate import ripple_motion
+from .start import phase_and_speed_start
+
+Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
+
+
+def base_name(name):
+    """'theta0@1' (a per-measurement parameter of a joint fit) -> 'theta0'."""
+    return name.split("@", 1)[0]
+
+
+class Problem:
+    """What the optimiser and the result use, the same for constant-speed, joint and transient
+    problems: `names`, start `x0`, bounds `lower`/`upper`, measured `y`, `model(x)`,
+    `model_and_jacobian(x, cols=None)` (exact derivatives), `symbolic_model(phi)` (IPOPT),
+    `residual(x)`, `dt`, `time_axis()`, `speed_of(x)`, `angle(x)`, `start(x)` (a better start for
+    periodic parameters), `parameter_vector(x)`, the kernels `kern` and the evaluation count `n_eval`.
+
+    `_setup` is what every single-measurement problem shares: the config's parameter vector and
+    kernels, the fit names checked against the registries (`SPECIAL`: the names beyond parameter
+    paths and aliases), start values (`initial`, else `starts`, else the config) and bounds."""
+
+    SPECIAL: tuple = ()
+    KIND = ""  # how an error message names the problem
+    METHOD_TAG = ""  # appended to the result's method
+    NOTE = ""  # appended to the result's message
+
+    def _setup(self, cfg: PumpConfig, data: Dataset, names, starts: dict, initial=None):
+        self.cfg, self.data = cfg, data
+        self.pv = cfg.parameters("constrained")
+        self.kern = load_kernels(self.pv.structure)
+        self.p0 = as_array(self.pv)
+        self.names = list(names)
+        if not self.names:
+            raise ConfigError("--params names no parameter to fit")
+        self._index = {n: i for i, n in enumerate(self.pv.names)}
+        for n in self.names:
+            self._check_name(n)
+        if len(set(self.names)) != len(self.names):
+            raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
+        v = self.pv.values
+        self._ratios = np.array([v[f"friction.{side}.static"] / max(v[f"friction.{side}.dynamic"], 1e-300)
+                                 for side in ("housing", "slot")])
+        self._follow = following(cfg)
+        self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"], **starts}
+        self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, self.fixed, initial)
+        self.t = data.time - data.time[0]
+        self.n_eval = 0
+
+    def _check_name(self, n):
+        if n in self.SPECIAL or n in self._index or alias_targets(n):
+            return
+        close = difflib.get_close_matches(n, list(self.SPECIAL) + list(self._index), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ConfigError(f"--params: unknown parameter '{n}'{self.KIND}{hint}")
+
+    def _parameters(self, val, lib=np):
+        """The runtime parameter vector with the fitted values `val` (name -> value) put in."""
+        p0 = self.p0 if lib is np else ca.DM(self.p0)
+        return parameter_map(self._index, p0, val, self.fixed["mu_slot"], self._ratios, self._follow)
+
+    def residual(self, x):
+        return self.y - self.model(x)
+
+    @property
+    def dt(self):
+        return self.t[1] - self.t[0]
+
+    def time_axis(self):
+        return self.t + self.data.time[0]
+
+    def start(self, x):
+        return np.array(x, dtype=float)
+
+    def moves_phase(self) -> bool:
+        """Whether a fitted name shifts the model along the angle (a phase scan may find a better start)."""
+        return any(base_name(n) in ("theta0", "speed") for n in self.names)
+
+
+class ConstantSpeedProblem(Problem):
+    """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi, exact (CasADi
+    forward AD through the compiled inverse-dynamics kernel).
+
+    Every fitted name acts on the model through z = (runtime parameter vector, theta0, speed,
+    delay, torque_offset, ripple_cos, ripple_sin), and z is affine in the fitted values: z(x) =
+    z(x0) + S (x - x0), S a constant seed matrix. The compiled graph is one sample's torque and its
+    derivatives along the columns of S, mapped over the samples: it depends only on the variant and
+    the number of directions, never on the names or the sample count, so building it is cheap and
+    every fit, candidate and joint measurement shares it."""
+
+    # the COF aliases and the measurement parameters of a constant-speed fit (registry)
+    SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if not m.transient or m.in_kernel_graph)
+
+    def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
+                 ripple_order: int = 1):
+        starts = {"theta0": float(data.angle[0]) if data.angle is not None else cfg.angle,
+                  "speed": float(np.mean(data.speed)) if data.speed is not None else cfg.speed,
+                  "torque_offset": 0.0, "delay": 0.0, "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0,
+                  **(extra or {})}
+        self._setup(cfg, data, names, starts, initial)
+        self.ripple_order = int(ripple_order)
+        band = speed_band(cfg, data)
+        if band is not None and "speed" in self.names:  # the nominal speed's tolerance band
+            i = self.names.index("speed")
+            self.lower[i], self.upper[i] = band
+            self.x0[i] = min(max(self.x0[i], band[0]), band[1])
+        self.y = data.torque
+        self._seeds = self._seed_matrix()
+        self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
+
+    def _values(self, x):
+        """Every special value at x: the fitted ones from x, the others fixed."""
+        d = dict(self.fixed)
+        d.update(zip(self.names, x))
+        return d
+
+    def z(self, x):
+        """The kernel-graph input z at the fitted values x."""
+        d = self._values(x)
+        p = self._parameters(dict(zip(self.names, x)))
+        return np.concatenate([np.asarray(p, dtype=float).ravel(), [d[s] for s in Z_SPECIAL]])
+
+    def _seed_matrix(self):
+        """S = dz/dx at the start: the map from fitted values to z is affine (a derived default that
+        follows a fitted input, vane inertia from the mass, is linear in it), so each column is the
+        central difference of the map by a unit step ('lag' acts after the kernel: a zero column)."""
+        S = np.zeros((self.p0.size + len(Z_SPECIAL), len(self.names)))
+        for j, nm in enumerate(self.names):
+            at = [{n: v + (n == nm) * sgn for n, v in zip(self.names, self.x0)} for sgn in (0.5, -0.5)]
+            hi, lo = (np.asarray(parameter_map(self._index, self.p0, a, 0.0, self._ratios, self._follow),
+                                 dtype=float).ravel() for a in at)
+            S[:self.p0.size, j] = hi - lo
+            if nm in Z_SPECIAL:
+                S[self.p0.size + Z_SPECIAL.index(nm), j] = 1.0
+        return S
+
+    def angle_and_jacobian(self, x, lib=np):
+        """Rotor angle per sample and its derivative by the fitted values (lib = ca for a symbolic
+        x): the integral of omega = omega0 (1 + rc cos(k theta_n) - rs sin(k theta_n)) with the
+        nominal angle theta_n = theta0 + omega0 (t - delay)."""
+        d = self._values(x)
+        th0, w0, dl, rc, rs, k = (d["theta0"], d["speed"], d["delay"], d["ripple_cos"], d["ripple_sin"],
+                                  self.ripple_order)
+        t = self.t if lib is np else ca.DM(self.t)
+        thn = th0 + w0 * (t - dl)
+        theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
+        if lib is not np:
+            return theta, None
+        cols = {"theta0": g - rc * math.cos(k * th0) + rs * math.sin(k * th0), "speed": (t - dl) * g,
+                "delay": -w0 * g, "ripple_cos": (np.sin(k * thn) - math.sin(k * th0)) / k,
+                "ripple_sin": (np.cos(k * thn) - math.cos(k * th0)) / k}
+        J = np.zeros((t.size, len(self.names)))
+        for j, nm in enumerate(self.names):
+            if nm in cols:
+                J[:, j] = cols[nm]
+        return theta, J
+
+    def angle(self, x):
+        return self.angle_and_jacobian(x)[0]
+
+    def _lag(self, x):
+        return self._values(x)["lag"]
+
+    def _torque(self, theta, z):
+        f = sample_torque(self.kern, 0, theta.size)
+        return np.asarray(f(theta, self.t, z, self.ripple_order)).ravel()
+
+    def _filter(self, y, T):
+        return first_order_lag(y, self.dt, T)
+
+    def model(self, x):
+        self.n_eval += 1
+        return self._filter(self._torque(self.angle(x), self.z(x)), self._lag(x))
+
+    def model_and_jacobian(self, x, cols=None):
+        """Torque and its Jacobian (the columns `cols` only, default all). For the angle-acting
+        parameters (theta0, speed, delay, ripple) the derivative is that of the sample-interval
+        average of the model, [tau(theta + h) - tau(theta - h)] / (2 h) with 2 h = omega dt:
+        Coulomb friction reversals change tau over ~1e-4 rad, far below a sample angle, so the
+        pointwise d tau / d theta is a set of spikes that carries no phase information at the
+        sampling scale."""
+        self.n_eval += 1
+        cols = list(range(len(self.names))) if cols is None else list(cols)
+        names = [self.names[c] for c in cols]
+        theta, dtheta = self.angle_and_jacobian(x)
+        z = self.z(x)
+        f = sample_torque(self.kern, len(cols), theta.size)
+        tq, J = f(theta, self.t, z, self.ripple_order, self._seeds[:, cols])
+        tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
+        T = self._lag(x)
+        slope = None
+        if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
+            h = abs(self.speed_of(x)) * self._half_step
+            slope = (self._torque(theta + h, z) - self._torque(theta - h, z)) / (2 * h)
+            for i, c in enumerate(cols):
+                if self.names[c] in ANGLE_ACTING:
+                    J[:, i] += slope * dtheta[:, c]
+        if T > 0:
+            y = self._filter(tq, T)
+            J = self._filter(J, T)
+            if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
+                dT = 1e-6 * T
+                J[:, names.index("lag")] = (self._filter(tq, T + dT) - self._filter(tq, T - dT)) / (2 * dT)
+            return y, J
+        if "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
+            J[:, names.index("lag")] = -self.speed_of(x) * slope
+        return tq, J
+
+    def symbolic_model(self, phi):
+        """The (unfiltered) model torque as a CasADi expression of symbolic fitted values phi."""
+        theta, _ = self.angle_and_jacobian([phi[i] for i in range(len(self.names))], lib=ca)
+        z = ca.DM(self.z(self.x0)) + ca.mtimes(ca.DM(self._seeds), phi - ca.DM(self.x0))
+        f = sample_torque(self.kern, 0, self.t.size)
+        return f(theta.T, ca.DM(self.t).T, z, self.ripple_order).T
+
+    def speed_of(self, x):
+        return self._values(x)["speed"]
+
+    def start(self, x):
+        return phase_and_speed_start(self, x)
+
+    def parameter_vector(self, x):
+        return self.z(x)[:self.p0.size]
+
+
+_SAMPLE_FNS: dict = {}  # per (variant key, directions[, samples]): see sample_torque
+
+
+def sample_torque(kern, directions: int, samples: int) -> ca.Function:
+    """One sample's drive torque at angle theta and time t given z (runtime parameters, theta0,
+    speed, delay, torque_offset, ripple_cos, ripple_sin) and the ripple order k -- the speed and
+    acceleration come from the ripple at the nominal angle -- with, for directions m > 0, its
+    derivatives along the m columns of a seed matrix S; mapped over `samples` samples."""
+    key = (kern.key, directions)
+    if key not in _SAMPLE_FNS:
+        npar = len(layout(kern.structure))
+        th, t, k = ca.MX.sym("theta"), ca.MX.sym("t"), ca.MX.sym("k")
+        z = ca.MX.sym("z", npar + len(Z_SPECIAL))
+        theta0, w0, delay, offset, rc, rs = (z[npar + i] for i in range(len(Z_SPECIAL)))
+        _, w, wd = ripple_motion(theta0 + w0 * (t - delay), theta0, w0, rc, rs, k, ca)
+        tq = kern["inverse_dynamics"](th, w, wd, z[:npar])[0] + offset
+        if directions == 0:
+            _SAMPLE_FNS[key] = ca.Function("torque", [th, t, z, k], [tq])
+        else:
+            S = ca.MX.sym("S", z.size1(), directions)
+            _SAMPLE_FNS[key] = ca.Function("torque_dir", [th, t, z, k, S], [tq, ca.jtimes(tq, z, S)])
+    mkey = key + (samples,)
+    if mkey not in _SAMPLE_FNS:
+        _SAMPLE_FNS[mkey] = map_samples(_SAMPLE_FNS[key], samples)
+    return _SAMPLE_FNS[mkey]
+
+
+def start_and_bounds(names, pv, starts, initial=None):
+    """Start values and bounds of the fit names (every problem): a start given by the caller, else
+    the measurement's (theta0, speed, ...), else the config value (an alias: its first target's --
+    mu is the housing's dynamic COF); bounds from the registries."""
+    initial = initial or {}
+
+    def start(n):
+        if n in initial:
+            return float(initial[n])
+        if n in starts:
+            return float(starts[n])
+        return float(pv.values[n if n in pv.values else alias_targets(n)[0]])
+
+    lower, upper = zip(*[fit_bounds(n, pv.structure) for n in names]) if names else ((), ())
+    return np.array([start(n) for n in names], dtype=float), np.array(lower), np.array(upper)
+
+
+def speed_band(cfg, data):
+    """(lowest, highest) speed a fit may give a measurement without a speed column: the configured
+    speed +- operation.speed_tolerance (the operating point is known; a spectral peak elsewhere
+    is a disturbance, not the shaft). None when the data has a speed column or no speed is set."""
+    if data.speed is not None or cfg.mode != "speed" or not cfg.speed:
+        return None
+    tol = getattr(cfg, "speed_tolerance", 0.02)
+    return cfg.speed * (1 - tol), cfg.speed * (1 + tol)
+
+
+def following(cfg):
+    """The derived defaults the config did not set: they follow their inputs when those are fitted."""
+    return tuple(q for q in DERIVED if q.name not in cfg.given)
+
+
+def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
+    """The runtime parameter vector with the fitted values `val` (name -> expression) put in:
+    mu sets the housing COF (static scaled by the configured ratio) and, unless mu_slot is fitted,
+    the slot COF; an alias sets its targets (housing.radius: both semi-axes); any other name is a
+    parameter path; a derived default in `follow` is recomputed from its fitted inputs."""
+    p = [p0[i] for i in range(p0.shape[0])]
+
+    def setp(name, expr):
+        p[index[name]] = expr
+
+    mu_slot = mu_slot_fixed
+    if "mu" in val:
+        setp("friction.housing.dynamic", val["mu"])
+        setp("friction.housing.static", val["mu"] * ratios[0])
+        if "mu_slot" not in val:
+            mu_slot = val["mu"]  # slot COF tied to the housing COF unless mu_slot is named
+    if "mu_slot" in val:
+        mu_slot = val["mu_slot"]
+    if "mu" in val or "mu_slot" in val:
+        setp("friction.slot.dynamic", mu_slot)
+        setp("friction.slot.static", mu_slot * ratios[1])
+    for nm, e in val.items():
+        for target in alias_targets(nm) or ((nm,) if nm in index else ()):
+            setp(target, e)
+    for q in follow:
+        if any(n in val for n in q.inputs):
+            setp(q.name, derive(q.derived, {n: p[index[n]] for n in q.inputs}))
+    return ca.vertcat(*p)
