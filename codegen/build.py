@@ -91,38 +91,61 @@ def build_variant(structure, log=None) -> Path:
     from .model import build_model
 
     log = log or (lambda msg: None)
+    spec = None
+
+    def generate(folder):
+        nonlocal spec
+        spec = build_model(structure)
+        return generate_c(spec, mf.library_name(structure), folder), {}
+
+    def compile_(source):
+        lib, seconds = compile_library(structure, source, log)
+        checks = {"functions": {n: {"inputs": f.name_in(), "outputs": f.name_out()} for n, f in spec.functions.items()},
+                  "parameters": [{"name": q.name, "unit": q.unit} for q in spec.parameters]}
+        return lib, checks, seconds
+
+    def built(final, t_model, t_compile, checks):
+        log(f"built {final.name} in {t_model + t_compile:.1f} s "
+            f"(model {t_model:.1f} s, C compile {t_compile:.1f} s)")
+
+    return install_library(structure, structure, OPTIONS, generate, compile_, built, log, stage="model")
+
+
+def install_library(named, structure, options: dict, generate, compile_, built, log, stage: str) -> Path:
+    """The one build procedure of every compiled library (the scalar variants here, the SIMD ones in
+    simd.py): in a temporary folder under generated/, `generate(folder)` -> (C source path, manifest
+    entries); its key (mf.content_key of the source, CasADi, `options`); a trusted library with that
+    key is reused (only this tree's source fingerprint recorded, no compiler run); else
+    `compile_(source)` -> (library path, manifest entries, seconds), the manifest is written and the
+    folder renamed into place (atomic; a concurrent build of the same key wins the race harmlessly),
+    and `built(final, generate seconds, compile seconds, entries)` reports it. `named` gives the
+    folder's variant name, `structure` the manifest's structure; `stage` names the generation time."""
     fingerprint = mf.source_fingerprint()
     base = mf.generated_dir()
     base.mkdir(parents=True, exist_ok=True)
     _sweep_stale_temporaries(base)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{structure.variant}.tmp-", dir=base))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{named.variant}.tmp-", dir=base))
     from pumpsim.io import umask_mode
 
     os.chmod(tmp, umask_mode(directory=True))  # mkdtemp's 0700 would hide the kernels from colleagues
     try:
         t0 = time.perf_counter()
-        spec = build_model(structure)
-        source = generate_c(spec, mf.library_name(structure), tmp)
-        t_model = time.perf_counter() - t0
+        source, generated = generate(tmp)
+        t_gen = time.perf_counter() - t0
         c_sha = hashlib.sha256(source.read_bytes()).hexdigest()
-        key = mf.content_key(c_sha, ca.__version__, OPTIONS)
-        final = mf.variant_dir(structure, key)
-        if mf.trusted_manifest(final, structure.variant, ca.__version__, None) is not None:
+        key = mf.content_key(c_sha, ca.__version__, options)
+        final = mf.variant_dir(named, key)
+        if mf.trusted_manifest(final, named.variant, ca.__version__, None) is not None:
             _record_fingerprint(final, fingerprint)  # same library: nothing to compile
             log(f"{final.name}: the model source changed, the generated code did not")
             return final
-        lib, t_compile = compile_library(structure, source, log)
+        lib, checks, t_compile = compile_(source)
         manifest = {
-            "key": key, "variant": structure.variant, "structure": structure.as_dict(),
-            "library": lib.name, "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(),
-            "c_source": source.name, "c_source_sha256": c_sha, "casadi": ca.__version__,
-            "options": OPTIONS, "schema": mf.SCHEMA_VERSION,
-            "source_fingerprints": [fingerprint] if fingerprint else [],
-            "functions": {
-                n: {"inputs": f.name_in(), "outputs": f.name_out()} for n, f in spec.functions.items()
-            },
-            "parameters": [{"name": q.name, "unit": q.unit} for q in spec.parameters],
-            "seconds": {"model": round(t_model, 3), "compile": round(t_compile, 3)},
+            "key": key, "variant": named.variant, "structure": structure.as_dict(), "library": lib.name,
+            "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(), "c_source": source.name,
+            "c_source_sha256": c_sha, "casadi": ca.__version__, "options": options,
+            "schema": mf.SCHEMA_VERSION, "source_fingerprints": [fingerprint] if fingerprint else [],
+            **checks, **generated, "seconds": {stage: round(t_gen, 3), "compile": round(t_compile, 3)},
         }
         mf.write_manifest(tmp, manifest)
         try:
@@ -131,8 +154,7 @@ def build_variant(structure, log=None) -> Path:
             if mf.read_manifest(final) is None:
                 raise
             _record_fingerprint(final, fingerprint)
-        log(f"built {final.name} in {t_model + t_compile:.1f} s "
-            f"(model {t_model:.1f} s, C compile {t_compile:.1f} s)")
+        built(final, t_gen, t_compile, checks)
         return final
     finally:
         if tmp.exists():

@@ -31,20 +31,16 @@ output for vanes 0..N-1; `ld` lets callers write a column range of a larger arra
 from __future__ import annotations
 
 import functools
-import hashlib
 import math
 import os
 import re
-import shutil
 import subprocess
-import tempfile
 import time
 from pathlib import Path
 
 import casadi as ca
 
 from pumpsim.errors import CodegenError
-from pumpsim.model_spec import manifest as mf
 from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, simd_options, simd_variant
 
 from . import build
@@ -333,47 +329,23 @@ def _compile(structure, source: Path, info: dict, log) -> tuple[Path, dict, floa
 
 
 def build_simd(structure, log=None) -> Path:
-    """Generate, compile and check the SIMD library; return its folder. As build_variant: a key
-    that exists is reused (only this tree's fingerprint recorded), builds are atomic renames."""
+    """Generate, compile and check the SIMD library; return its folder. The build procedure is
+    build_variant's (build.install_library): a key that exists is reused, builds are atomic renames."""
     log = log or (lambda msg: None)
     native = native_target()
     if not native:
         raise CodegenError(f"{build.CC} cannot resolve -march=native here; no SIMD library")
-    sv = simd_variant(structure)
-    fingerprint = mf.source_fingerprint()
-    base = mf.generated_dir()
-    base.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{sv.variant}.tmp-", dir=base))
-    try:
-        t0 = time.perf_counter()
-        src, info = generate_source(structure)
-        source = tmp / f"{LIBRARY}.c"
+    info = {}
+
+    def generate(folder):
+        src, found = generate_source(structure)
+        info.update(found)
+        source = folder / f"{LIBRARY}.c"
         source.write_text(src)
-        t_gen = time.perf_counter() - t0
-        c_sha = hashlib.sha256(source.read_bytes()).hexdigest()
-        options = simd_options(native)
-        key = mf.content_key(c_sha, ca.__version__, options)
-        final = mf.variant_dir(sv, key)
-        if mf.trusted_manifest(final, sv.variant, ca.__version__, None) is not None:
-            build._record_fingerprint(final, fingerprint)
-            return final
-        lib, checks, t_compile = _compile(structure, source, info, log)
-        manifest = {
-            "key": key, "variant": sv.variant, "structure": structure.as_dict(), "library": lib.name,
-            "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(), "c_source": source.name,
-            "c_source_sha256": c_sha, "casadi": ca.__version__, "options": options,
-            "schema": mf.SCHEMA_VERSION, "source_fingerprints": [fingerprint] if fingerprint else [],
-            **checks, **info, "seconds": {"generate": round(t_gen, 3), "compile": round(t_compile, 3)},
-        }
-        mf.write_manifest(tmp, manifest)
-        try:
-            os.replace(tmp, final)
-        except OSError:  # another process won the race: its build is as good as ours
-            if mf.read_manifest(final) is None:
-                raise
-            build._record_fingerprint(final, fingerprint)
+        return source, info
+
+    def built(final, t_gen, t_compile, checks):
         log(f"built {final.name} in {t_gen + t_compile:.1f} s (vector calls: {', '.join(checks['vector_symbols'])})")
-        return final
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+
+    return build.install_library(simd_variant(structure), structure, simd_options(native), generate,
+                                 lambda source: _compile(structure, source, info, log), built, log, stage="generate")
