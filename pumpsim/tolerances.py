@@ -31,7 +31,7 @@ RK_MAX_STEP = 1e-6
 # CONSTANT_ABS (by unit) is the round-off of a constant (the torque ripple of a concentric rig is
 # ~1e-16 N m): the report shows it as a constant and Sobol' analysis skips it.
 DESIGN_CONSTANT_REL = 1e-9
-DESIGN_CONSTANT_ABS = {"N·m": 1e-12, "W": 1e-9, "N": 1e-9, "m": 1e-12}
+DESIGN_CONSTANT_ABS = {"N·m": 1e-12, "W": 1e-9, "N": 1e-9, "m": 1e-12, "Pa·m/s": 1e-6}
 # Contact-model study: the last two simulated revolutions' torque may differ by this share of its
 # peak for the last one to count as the periodic steady state. Measured from the in-contact start:
 # the ellipse example is at 2.5e-6 after 6 revolutions; the concentric rig (k = 5e4 N/m) decays

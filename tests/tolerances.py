@@ -132,3 +132,10 @@ DAMPED_ENERGY_LOSS, DAMPED_ENERGY_RISE = 1e-4, 1e-9
 CROSSING_REL = 1e-6
 # The contact laws against the spec formulas in NumPy: the same arithmetic, rounding only.
 CONTACT_LAW_REL = 1e-12
+# Design-study gas outputs (issue 14, spec §9) vs a full pump-down (spec §8) averaged over
+# 0.3-0.4 s, after the motor's run-up (time constant ~0.03 s), while the booster falls 3 %: the
+# study's periodic steady state holds the booster at the window's mean pressure. Flow, gas power
+# and speed are near-linear in p over the window (observed <= 0.3 %): 1 %. The current also
+# follows the falling pressure through the motor's lag (observed 2.1 %): 3 %.
+GAS_FLOW_VS_PUMPDOWN_REL = 0.01
+GAS_CURRENT_VS_PUMPDOWN_REL = 0.03

@@ -19,7 +19,8 @@ from ..errors import ConfigError, PumpsimError
 from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
 from ..kernels import load_kernels
 from ..tolerances import CONTACT_PERIODIC_REL
-from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, per_vane_name, reduce_revolution
+from .pneumatic import gas_outputs, motor_driven
+from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_revolution
 
 SAMPLE_OUTPUTS = ("torque",)
 
@@ -155,17 +156,24 @@ def housing_check_samples(kern, p, n):
 class Prepared:
     """One design: its validated config and parameter vector, or why it has none."""
 
-    __slots__ = ("cfg", "p", "status", "values")
+    __slots__ = ("cfg", "p", "status", "values", "width")
 
-    def __init__(self, cfg=None, p=None, status="ok", values=None):
-        self.cfg, self.p, self.status, self.values = cfg, p, status, values
+    def __init__(self, cfg=None, p=None, status="ok", values=None, width=None):
+        self.cfg, self.p, self.status, self.values, self.width = cfg, p, status, values, width
+
+    def constants(self) -> dict:
+        """What the reductions need besides the kernel outputs (outputs.design_constants)."""
+        return design_constants(self.values, mouth_depth(self.values), self.width)
 
 
 def prepare(study, values: dict) -> Prepared:
+    from .study import get_value
+
     try:
-        cfg = config_from_dict(study.design_dict(values))
+        table = study.design_dict(values)
+        cfg = config_from_dict(table)
         pv = cfg.parameters("constrained")
-        return Prepared(cfg, as_array(pv), "ok", pv.values)
+        return Prepared(cfg, as_array(pv), "ok", pv.values, get_value(table, "rotor.width"))
     except ConfigError as e:
         return Prepared(status=f"config: {e}")
     except (TypeError, ValueError, OverflowError) as e:  # e.g. a non-finite sampled value
@@ -173,7 +181,26 @@ def prepare(study, values: dict) -> Prepared:
 
 
 def design_speeds(study, cfg) -> list:
-    return list(study.speeds) if study.speeds else [float(cfg.speed)]
+    """The speeds a design is evaluated at; NaN where its motor sets the speed (pneumatic.py)."""
+    if study.speeds:
+        return list(study.speeds)
+    return [math.nan] if motor_driven(study, cfg) else [float(cfg.speed)]
+
+
+def _gas_points(study, pr, speeds) -> tuple[list, dict]:
+    """(speeds, {speed: gas outputs}) from the gas model's periodic steady state (pneumatic.py);
+    ({} for a study that does not run it). Under a motor the one speed is the motor's."""
+    if study.booster_pressure is None:
+        return speeds, {}
+    if motor_driven(study, pr.cfg):
+        w, g = gas_outputs(pr.cfg, study.booster_pressure)
+        return [w], {w: g}
+    return speeds, {w: gas_outputs(pr.cfg, study.booster_pressure, w)[1] for w in speeds}
+
+
+def _asked(study, name) -> bool:
+    """An output the study reports (per-vane friction powers come with friction_power)."""
+    return name in study.outputs or (name.startswith("friction_power_") and "friction_power" in study.outputs)
 
 
 def _status(out):
@@ -191,24 +218,33 @@ def _evaluate_one(study, kern, pr, nrev):
     """(status, [(speed, outputs or None)] or None) of one prepared design."""
     theta = revolution(pr.cfg.angle, nrev)
     speeds = design_speeds(study, pr.cfg)
-    try:
-        ev = evaluate_designs(kern, np.repeat(pr.p[None, :], len(speeds), axis=0), theta, np.asarray(speeds))
+    run = lambda ws: evaluate_designs(kern, np.repeat(pr.p[None, :], len(ws), axis=0), theta,  # noqa: E731
+                                      np.asarray(ws))
+    try:  # (the positions, hence the geometry verdict, do not depend on the speed)
+        ev = run(np.nan_to_num(speeds, nan=1.0))
         alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
     except PumpsimError as e:
         return f"numerical: {e}", None
     verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, ev["s"][0], ev["position_residual"][0])
     if verdict:
         return f"geometry: {verdict}", None
+    try:
+        given = speeds
+        speeds, gas = _gas_points(study, pr, speeds)
+        if speeds != given:
+            ev = run(speeds)
+    except PumpsimError as e:
+        return f"numerical: gas model (spec §8): {e}", None
     res = ev["position_residual"]
     if not np.all(np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:
         return "numerical: position problem did not converge", None
-    v = pr.values
-    lm = mouth_depth(v)
+    const = pr.constants()
     per_speed = []
     for k, w in enumerate(speeds):
         a = {nm: arr[k] for nm, arr in ev.items()}
-        out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
-        if not all(np.isfinite(x) for x in out.values() if not isinstance(x, bool)):
+        out, _ = reduce_revolution(a, const)
+        out.update(gas.get(w, {}))
+        if not all(np.isfinite(x) for o, x in out.items() if not isinstance(x, bool) and _asked(study, o)):
             out = None
         per_speed.append((w, out))
     return "ok", per_speed
@@ -234,8 +270,7 @@ def _evaluate_contact(study, pr, nrev):
     verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, s, res)
     if verdict:
         return f"geometry: {verdict}", None
-    v = pr.values
-    lm = mouth_depth(v)
+    const = pr.constants()
     revs = study.revolutions or CONTACT_REVOLUTIONS
     per_speed = []
     for w in design_speeds(study, pr.cfg):
@@ -255,7 +290,7 @@ def _evaluate_contact(study, pr, nrev):
              **{k: r.extra[k][:, last] for k in ("tip_slip", "mu_housing", "mu_slot")}}
         a["n_consistent"] = np.ones_like(a["s"])
         a["ambiguity"] = np.zeros_like(a["s"])
-        out, _ = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
+        out, _ = reduce_revolution(a, const)
         out["lift_off"] = bool(out["min_normal_force"] <= 0)  # the penalty force never pulls: 0 is no contact
         out["paradox"] = any("friction paradox" in msg for msg in r.warnings)
         per_speed.append((w, out))

@@ -78,6 +78,10 @@ def structures(study) -> list:
         out.append(cfg.structure_for("constrained"))
         if study.model == "contact":
             out.append(cfg.structure_for("contact"))
+        if study.booster_pressure is not None:
+            from ..pneumatics.kernel import structure_of
+
+            out.append(structure_of(cfg))
     return out
 
 

@@ -24,6 +24,7 @@ from ..geometry import mouth_depth
 from ..kernels import load_kernels
 from .evaluate import (design_speeds, evaluate_rows, kernel_tangents, prepare, revolution)
 from .outputs import reduce_revolution
+from .pneumatic import GAS_OUTPUTS
 from .study import SPEED_KEY
 
 METHODS = ("slsqp", "trust-constr", "nsga2")
@@ -59,7 +60,7 @@ class DesignFunction:
         iv = {n: i for i, n in enumerate(names)}
         nk = len(self.keys)
         dP, domega = np.zeros((nk, p.size)), np.zeros(nk)
-        dlm = np.zeros(nk)
+        dlm, darea = np.zeros(nk), np.zeros(nk)
         if gradient:
             for j, key in enumerate(self.keys):
                 if key == SPEED_KEY:
@@ -72,22 +73,22 @@ class DesignFunction:
                 pp, pm = self._p(xp), self._p(xm)
                 dP[j] = (pp.p - pm.p) / (2 * h)
                 dlm[j] = (mouth_depth(pp.values) - mouth_depth(pm.values)) / (2 * h)
+                darea[j] = (pp.constants()["tip_area"] - pm.constants()["tip_area"]) / (2 * h)
         theta = revolution(cfg.angle, self.study.revolution_samples)
         from .evaluate import evaluate_designs
 
         outs, grads = [], []
-        v = pr.values
-        lm = mouth_depth(v)
+        const = pr.constants()
         for w in design_speeds(self.study, cfg):
             ev = evaluate_designs(kern, p[None, :], theta, np.array([w]))
             a = {k: arr[0] for k, arr in ev.items()}
             if gradient:
                 da = kernel_tangents(kern, p, theta, w, dP, domega)
                 dpar = {"c_visc": dP[:, iv["effects.viscous_tip_friction"]], "L": dP[:, iv["vane.length"]],
-                        "lm": dlm}
-                o, g = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm, da, dpar)
+                        "lm": dlm, "tip_area": darea}
+                o, g = reduce_revolution(a, const, da, dpar)
             else:
-                o, g = reduce_revolution(a, v["effects.viscous_tip_friction"], v["vane.length"], lm)
+                o, g = reduce_revolution(a, const)
             outs.append(o)
             grads.append(g)
         return outs, grads
@@ -102,6 +103,10 @@ def _check(study):
         raise ConfigError("optimize needs [objective] minimize = OUTPUT")
     if study.function is not None:
         raise ConfigError("optimize runs on a pump config (study.config)")
+    gas = [o for o in list(study.objective) + list(study.constraints) if o in GAS_OUTPUTS]
+    if gas:
+        raise ConfigError(f"optimize: {gas[0]} comes from the gas model's periodic steady state, which "
+                          "has no kernel gradient here; sweep it (pumpsim sweep) instead")
     for v in study.variables:
         if v.bounds is None:
             raise ConfigError(f"vary.\"{v.key}\" needs bounds = [low, high] (or a range or distribution "

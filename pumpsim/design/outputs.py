@@ -7,8 +7,11 @@ Definitions (i: vane, k: sample of the revolution):
 - tip friction power  mean_k sum_i (mu_h(v_t) N v_t + c v_t^2)   (mu_h is odd: mu_h v_t >= 0)
 - slot friction power mean_k sum_i mu_r(sdot) sdot (|F1| + |F2|)
   (spec §4: their sum equals the mean drive power tau * omega; tested)
-- max_tip_pv          max N |v_t| [W]: the tip's line load times slip speed, times the vane
-                      width (the mechanical model is planar and has no width); the wear proxy
+- max_tip_pv          max (N / (w h)) |v_t| [Pa·m/s]: nominal contact pressure times slip speed,
+                      the wear proxy. The pressure is the housing reaction over the tip's projected
+                      area, axial width w (`rotor.width`) x vane thickness h -- the convention in
+                      which sliding materials (carbon-graphite vanes) are rated for PV; the real
+                      contact band of a rounded tip is narrower. NaN without rotor.width
 - extension           s + L - l_m, the vane length standing out of the rotor
 - lift_off            some housing reaction N < 0 (Model 2 holds the vane on the housing)
 - paradox             some sample with no consistent slot contact-side set, or several that
@@ -17,6 +20,8 @@ Each reduction also carries its derivative along given parameter directions (for
 which the optimiser uses; a max/min takes the derivative at its arg-max (a subgradient).
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -28,8 +33,8 @@ OUTPUTS = ("mean_torque", "rms_torque", "ptp_torque", "friction_power", "tip_fri
 BOOL_OUTPUTS = ("lift_off", "paradox")
 UNITS = {"mean_torque": "N·m", "rms_torque": "N·m", "ptp_torque": "N·m", "friction_power": "W",
          "tip_friction_power": "W", "slot_friction_power": "W", "max_normal_force": "N",
-         "min_normal_force": "N", "max_slot_force": "N", "max_tip_pv": "W", "min_extension": "m",
-         "max_extension": "m"}
+         "min_normal_force": "N", "max_slot_force": "N", "max_tip_pv": "Pa·m/s", "min_extension": "m",
+         "max_extension": "m", "gas_power": "W", "pumping_speed": "m³/s", "mean_current": "A"}
 # kernel outputs the reductions read
 KERNEL_OUTPUTS = ("torque", "s", "sdot", "normal", "slot1", "slot2", "tip_slip", "mu_housing",
                   "mu_slot", "n_consistent", "ambiguity", "position_residual")
@@ -46,12 +51,23 @@ def _at(x, dx, idx):
     return v, (None if dx is None else dx.reshape(dx.shape[0], -1)[:, idx])
 
 
-def reduce_revolution(a: dict, c_visc: float, L: float, lm: float, da: dict | None = None,
+def design_constants(values: dict, lm: float, width: float | None) -> dict:
+    """The design's numbers the reductions need besides the kernel outputs: viscous tip
+    coefficient, vane length L, slot mouth depth l_m and the tip's projected area w h (NaN
+    without rotor.width)."""
+    area = width * values["vane.thickness"] if width else math.nan
+    return {"c_visc": values["effects.viscous_tip_friction"], "L": values["vane.length"], "lm": lm,
+            "tip_area": area}
+
+
+def reduce_revolution(a: dict, k: dict, da: dict | None = None,
                       dpar: dict | None = None) -> tuple[dict, dict]:
-    """Outputs of one design from its revolution `a` (kernel outputs: torque (n,), per vane (N, n)).
-    da: the same arrays' tangents with a leading axis of directions; dpar: tangents of c_visc, L
-    and l_m along those directions. Returns (values, derivatives); derivatives is {} without da."""
+    """Outputs of one design from its revolution `a` (kernel outputs: torque (n,), per vane (N, n))
+    and its constants k (design_constants). da: the same arrays' tangents with a leading axis of
+    directions; dpar: tangents of k's entries along those directions. Returns (values,
+    derivatives); derivatives is {} without da."""
     out, der = {}, {}
+    c_visc, L, lm, area = k["c_visc"], k["L"], k["lm"], k["tip_area"]
     t = a["torque"]
     g = (lambda k: da[k]) if da is not None else (lambda k: None)
     out["mean_torque"] = t.mean()
@@ -75,8 +91,8 @@ def reduce_revolution(a: dict, c_visc: float, L: float, lm: float, da: dict | No
     F = np.maximum(np.abs(F1), np.abs(F2))
     iF = int(np.argmax(F))
     out["max_slot_force"] = F.ravel()[iF]
-    pv = N * np.abs(v)
-    ipv = int(np.argmax(pv))
+    pv = N * np.abs(v) / area
+    ipv = int(np.argmax(N * np.abs(v)))
     out["max_tip_pv"] = pv.ravel()[ipv]
     ext = a["s"] + L - lm
     ie_lo, ie_hi = int(np.argmin(ext)), int(np.argmax(ext))
@@ -106,7 +122,8 @@ def reduce_revolution(a: dict, c_visc: float, L: float, lm: float, da: dict | No
     der["min_normal_force"] = _at(N, dN, iN_lo)[1]
     dF = np.where(np.abs(F1) >= np.abs(F2), np.sign(F1) * dF1, np.sign(F2) * dF2)
     der["max_slot_force"] = _at(F, dF, iF)[1]
-    der["max_tip_pv"] = _at(pv, dN * np.abs(v) + N * np.sign(v) * dv, ipv)[1]
+    dpv = (dN * np.abs(v) + N * np.sign(v) * dv) / area - pv * (dpar["tip_area"] / area)[:, None, None]
+    der["max_tip_pv"] = _at(pv, dpv, ipv)[1]
     dext = g("s") + (dpar["L"] - dpar["lm"])[:, None, None]
     der["min_extension"] = _at(ext, dext, ie_lo)[1]
     der["max_extension"] = _at(ext, dext, ie_hi)[1]

@@ -19,13 +19,14 @@ from pathlib import Path
 from ..config import _SCHEMA, config_from_dict
 from ..errors import ConfigError
 from .outputs import BOOL_OUTPUTS, OUTPUTS
+from .pneumatic import GAS_OUTPUTS, check_gas_outputs
 from .sampling import DISTRIBUTIONS, SAMPLERS, Variable, parse_variable
 
 MODELS = ("constrained", "contact")
 SPEED_KEY = "operation.speed"
 _STUDY_KEYS = {"config", "function", "sampler", "samples", "seed", "speeds", "outputs", "model",
                "samples_per_revolution", "scheduler", "workers", "batch_size", "revolution_samples",
-               "revolutions"}
+               "revolutions", "booster_pressure"}
 _TOP_KEYS = {"study", "vary", "limits", "objective", "constraints", "optimize", "sensitivity"}
 
 
@@ -52,6 +53,7 @@ class Study:
     batch_size: int | None = None
     function: str | None = None  # analytic verification function instead of the pump
     revolutions: int | None = None  # contact model: revolutions simulated (the last is reported)
+    booster_pressure: float | None = None  # Pa: the gas outputs' operating point (None: none asked)
     raw: dict = field(default_factory=dict)  # the study file's table (for the hash)
     warnings: list = field(default_factory=list)  # e.g. varied values outside plausible ranges
 
@@ -184,6 +186,10 @@ def key_targets(base: dict, key: str, value) -> list[str]:
         return ["structure"]
     pa, pb = a.parameters("constrained").values, b.parameters("constrained").values
     out = [n for n in pa if pa[n] != pb.get(n)]
+    ga, gb = (c.pneumatic.values if c.pneumatic is not None else {} for c in (a, b))
+    out += [n for n in ga if ga[n] != gb.get(n) and n not in out]  # the gas model's (spec §8)
+    if key == "rotor.width" and "rotor.width" not in out:
+        out.append("rotor.width")  # the tip's contact area (max_tip_pv)
     if a.speed != b.speed:
         out.append("speed")
     return out
@@ -278,8 +284,8 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         raise ConfigError(f"study.revolution_samples must be an integer in [8, 100000], got {nrev!r}")
     variables = _parse_variables(raw.get("vary", {}), function, base, sampler, FUNCTIONS)
     speeds = _parse_speeds(st.get("speeds"), function, variables)
-    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS)
-    outputs = st.get("outputs", names)
+    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS) + list(GAS_OUTPUTS)
+    outputs = st.get("outputs", _available(names, base, base_cfg))
     if not isinstance(outputs, list) or not outputs:
         raise ConfigError("study.outputs must be a non-empty list of output names")
     for o in outputs:
@@ -292,6 +298,11 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     for o in constraints:
         _check_numeric_output(o, f"constraints.{o}", names)
     objective = _parse_objective(raw.get("objective", {}), names)
+    booster_pressure = None
+    if function is None:
+        asked = list(dict.fromkeys(list(outputs) + list(limits) + list(constraints) + objective))
+        _check_tip_pv(asked, base)
+        booster_pressure = check_gas_outputs(asked, base_cfg, speeds, model, st.get("booster_pressure"))
     opt = raw.get("optimize", {})
     sens = raw.get("sensitivity", {})
     for tbl, where in ((opt, "optimize"), (sens, "sensitivity")):
@@ -304,7 +315,22 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
                  outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
                  objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
                  scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
-                 revolutions=revolutions, warnings=warnings)
+                 revolutions=revolutions, warnings=warnings, booster_pressure=booster_pressure)
+
+
+def _available(names: list, base: dict, base_cfg) -> list:
+    """The outputs a study reports when study.outputs is omitted: those this config can give."""
+    if base_cfg is None:
+        return names
+    return [o for o in names if not (o == "max_tip_pv" and get_value(base, "rotor.width") is None)
+            and not (o in GAS_OUTPUTS and (base_cfg.pneumatic is None or (
+                o == "mean_current" and not base_cfg.pneumatic.motor)))]
+
+
+def _check_tip_pv(asked: list, base: dict) -> None:
+    if "max_tip_pv" in asked and get_value(base, "rotor.width") is None:
+        raise ConfigError("max_tip_pv (contact pressure x slip speed) needs the contact area: give "
+                          "rotor.width (the axial width of rotor and vanes) in the config")
 
 
 def _study_table(raw: dict) -> dict:
@@ -367,8 +393,8 @@ def _parse_variables(vary, function, base: dict, sampler: str, functions) -> lis
         if function is None:
             at = var.values[0] if var.values else (default if default is not None else var.bounds[0])
             if not key_targets(base, key, at):
-                raise ConfigError(f"vary.\"{key}\" does not enter the constrained model's parameters "
-                                  "(model_spec registry) or its speed; it cannot change an output")
+                raise ConfigError(f"vary.\"{key}\" does not enter the constrained or gas model's "
+                                  "parameters (model_spec registry) or the speed; it cannot change an output")
         variables.append(var)
     if sampler == "grid":
         grid_bad = [v.key for v in variables if v.values is None]

@@ -65,7 +65,9 @@ def test_concentric_rig_outputs_follow_the_closed_form():
         tau = 4 * 0.2 * r._3 * r.speed**2 * (0.0225 - 0.006) * 0.0225
         assert r.mean_torque == pytest.approx(tau, rel=CLOSED_FORM_REL)
         assert r.min_normal_force == pytest.approx(r._3 * r.speed**2 * (0.0225 - 0.006), rel=CLOSED_FORM_REL)
-        assert r.max_tip_pv == pytest.approx(r.min_normal_force * r.speed * 0.0225, rel=CLOSED_FORM_REL)
+        # tip PV: contact pressure N / (width x thickness) x slip speed omega R (concentric: constant)
+        assert r.max_tip_pv == pytest.approx(r.min_normal_force / (0.010 * 0.003) * r.speed * 0.0225,
+                                             rel=CLOSED_FORM_REL)
 
 
 def test_zero_spread_monte_carlo_gives_the_base_design():

@@ -30,7 +30,7 @@ def study(vary, **st):
     ({"study": {"config": "nope.toml"}, "vary": {"vane.mass": {"values": [1e-3]}}}, "study.config: cannot read"),
     ({"study": {"config": RIG, "speeds": [100.0]}, "vary": {"operation.speed": {"values": [1.0]}}}, "not both"),
     ({"study": {"config": RIG}, "vary": {"rotor.vanes": {"values": [2.5]}}}, "integer key"),
-    ({"study": {"config": RIG}, "vary": {"contact.housing.stiffness": {"values": [1e5]}}}, "does not enter the constrained model"),
+    ({"study": {"config": RIG}, "vary": {"contact.housing.stiffness": {"values": [1e5]}}}, "does not enter the constrained or gas model"),
     ({"study": {"config": RIG}, "vary": {"housing.a": {"values": [0.0225]}}}, 'vary."housing.a": housing.a is for shape = "ellipse"'),
     ({"study": {"config": RIG, "colour": 1}, "vary": {"vane.mass": {"values": [1e-3]}}}, "unknown key 'study.colour'"),
 ])
