@@ -139,3 +139,62 @@ CONTACT_LAW_REL = 1e-12
 # follows the falling pressure through the motor's lag (observed 2.1 %): 3 %.
 GAS_FLOW_VS_PUMPDOWN_REL = 0.01
 GAS_CURRENT_VS_PUMPDOWN_REL = 0.03
+# Data written in other units (N·mm, mN·m, rpm, ms, decimal comma) with 10 significant digits and
+# read back: the printing rounds to 5e-11 relative, each conversion adds rounding; 1e-9 relative.
+DATA_UNIT_REL = 1e-9
+# Two kernel evaluations at different rotor/housing angles compared with each other, each within
+# CLOSED_FORM_REL of the exact value: their sum with margin.
+ROTATION_INVARIANCE_REL = 10 * CLOSED_FORM_REL
+# The bundled rig record (report §14: "the COF, 0.203"): the fit gives 0.20295 +- 0.00009; every
+# way of reading the record (paths, arrays, other units, CLI) must reproduce the report's value to
+# 1 %, which a unit slip (x1000, rpm for rad/s) or a lost column cannot.
+RIG_MU, RIG_MU_ABS = 0.203, 0.002
+# Study outputs that are zero on a pump (ripple of a concentric rig ~1e-16) compared absolutely
+# (~100 ulps of unit-size quantities).
+DESIGN_OUTPUT_FLOOR_ABS = 1e-14
+# A sum of a few same-signed terms against its parts, computed separately: a few ulps.
+PARTS_SUM_REL = 1e-12
+# The same computation run again (another batch, worker or call): rounding only.
+REPEAT_REL = 1e-12
+# Design optimum vs its closed form: a bound that is active is reached to the projection's rounding
+# (1e-9); a constraint that is active to SLSQP's tolerance (ftol 1e-9 on a unit-scaled objective).
+DESIGN_OPTIMUM_BOUND_REL, DESIGN_OPTIMUM_REL = 1e-9, 1e-8
+# An input that does not act on an output (slot radius on a concentric rig's torque): its Morris
+# mu* is the rounding of the outputs' differences, below 1e-12 of an acting input's.
+NO_EFFECT_SHARE = 1e-12
+# Model 1 (penalty contact, k = 5e4..1e6 N/m) in periodic steady state vs Model 2: the tip sits
+# N/k deeper (observed 0.2 % on the rig at 5800 rpm, 0.54 % at 471 rad/s, ~2 % dynamic
+# amplification on the ellipse at k = 5e4 that falls with k): 1 %.
+CONTACT_VS_CONSTRAINED_REL = 1e-2
+# From k = 5e4 to 1e6 N/m (20x) the static offset N/k falls 20x (ratio 0.05); 0.15 leaves room for
+# the dynamic part, which falls more slowly, and still fails if the deviation does not shrink with k.
+STIFFNESS_CONVERGENCE_RATIO = 0.15
+# A figure's y axis spans more than 1e-6 of its values: not a zoom into rounding noise.
+AXIS_SPAN_MIN_REL = 1e-6
+# Order amplitudes and peak-to-peak from angle-domain resampling of 20001 samples over 3.4
+# revolutions (1e-3 rad spacing): interpolation errs by ~(k dtheta)^2 / 8 ~ 1e-5 of an order-8
+# amplitude; 1e-4 absolute on a unit torque.
+ORDER_AMPLITUDE_ABS = 1e-4
+# Sample statistics of 4096 quasi-random draws: a mean within 4 of its standard errors (QMC does
+# better than MC); a standard deviation within 5 % (its relative spread is 1/sqrt(2 n) = 1.1 % for
+# MC: ~4.5 sigma); a 5 % lognormal's mean within 0.5 % (its standard error 0.08 %: ~6 sigma); the
+# truncated normal's sd (0.0197) within 0.001 (5 %).
+MEAN_SIGMAS, SAMPLE_SD_REL, SAMPLE_MEAN_REL, TRUNCNORM_SD_ABS = 4, 0.05, 0.005, 1e-3
+# The friction law's continuity check: the largest jump on a grid is the largest slope times the
+# step; 1 % above it for the grid's uneven (by ulps) steps.
+CONTINUITY_MARGIN = 1.01
+# The AR(1) inflation factor of the intervals when two hidden effects leave a correlated residual
+# (the rig's white residual gives ~1): above 1.5.
+OPTIMISTIC_FACTOR_MIN = 1.5
+# Display rules (presentation): a shown value within a tenth of its standard error of the estimate,
+# the standard error with two significant digits (rounding <= 5 % when its leading digit is 1).
+DISPLAY_VALUE_SE, DISPLAY_SE_REL = 0.1, 0.05
+# Frictionless torque drive over a nominal 100 revolutions at 300 rad/s: the speed varies with the
+# vanes' motion by a few %, so at least 95 % of the revolutions; the vanes must exchange energy
+# with the rotor (each vane's energy swings by > 1 %) for the conservation test to mean anything.
+REVOLUTIONS_SHARE, VANE_ENERGY_SWING_MIN = 0.95, 0.01
+# With friction and no torque, 0.05 s from 200 rad/s loses more than 10 % of the energy.
+FRICTION_ENERGY_KEPT_MAX = 0.9
+# The solver study over 2 revolutions: every method's torque within 20 % of the reference's peak
+# (RK4 at its default step and IDAS at loose tolerances included): a sanity bound, not accuracy.
+SOLVER_STUDY_DEVIATION_MAX = 0.2

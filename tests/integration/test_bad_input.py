@@ -12,6 +12,7 @@ import pytest
 
 from pumpsim.cli import main
 from tests.conftest import EXAMPLES, apply_changes, example_dict, toml_text
+from tests.tolerances import DATA_UNIT_REL, RIG_MU, RIG_MU_ABS
 
 RIG = str(EXAMPLES / "test_rig.toml")
 ELLIPSE = str(EXAMPLES / "ellipse_4vanes.toml")
@@ -94,7 +95,7 @@ def test_header_units_fix_the_same_data(tmp_path, capsys):
     assert code == 0, err
     import json
 
-    assert abs(json.loads(js.read_text())["params"]["mu"]["value"] - 0.203) < 0.002
+    assert abs(json.loads(js.read_text())["params"]["mu"]["value"] - RIG_MU) < RIG_MU_ABS
 
 
 @pytest.mark.parametrize("changes,key", [
@@ -128,7 +129,7 @@ def test_package_level_api_takes_paths_and_cli_defaults():
 
     res = pumpsim.identify(RIG, RIG_DATA)  # a config path, a data path; defaults as the CLI
     assert list(res.estimates) == ["mu", "theta0"]
-    assert abs(res.value("mu") - 0.203) < 0.002
+    assert abs(res.value("mu") - RIG_MU) < RIG_MU_ABS
     assert "mu" in repr(res) and "RMS" in str(res)
     for fn in (pumpsim.identify, pumpsim.diagnose, pumpsim.load_config, pumpsim.load_data,
                pumpsim.simulate, pumpsim.SimulationResult.to_csv, pumpsim.SimulationResult.plot):
@@ -141,7 +142,7 @@ def test_identify_takes_arrays():
 
     t, tq, w = rig_columns()
     res = pumpsim.identify(pumpsim.load_config(RIG), {"time": t, "torque": tq, "speed": w}, params=["mu"])
-    assert abs(res.value("mu") - 0.203) < 0.002
+    assert abs(res.value("mu") - RIG_MU) < RIG_MU_ABS
 
 
 # --- 4. bad files and options: exit 2 with a message, never a traceback ------------------------
@@ -297,8 +298,8 @@ def test_spreadsheet_exports_are_read(tmp_path):
         f"{float(a)!r}\t{float(b) * 1000!r}\t{float(c)!r}" for a, b, c in zip(t, tq, w))).encode("utf-16"))
     for f in (bom, semi, utf16):
         ds = load_data(f)
-        np.testing.assert_allclose(ds.torque, plain.torque, rtol=1e-9)
-        np.testing.assert_allclose(ds.speed, plain.speed, rtol=1e-9)
+        np.testing.assert_allclose(ds.torque, plain.torque, rtol=DATA_UNIT_REL)
+        np.testing.assert_allclose(ds.speed, plain.speed, rtol=DATA_UNIT_REL)
 
 
 def test_capitalised_and_annotated_column_names_are_found(tmp_path):
@@ -307,8 +308,8 @@ def test_capitalised_and_annotated_column_names_are_found(tmp_path):
     t, tq, w = rig_columns()
     f = write(tmp_path / "d.csv", "Time,Torque [N*mm],n_motor [rpm]", t, tq * 1000, w * 60 / (2 * math.pi))
     ds = load_data(f, DataOptions(speed="n_motor [rpm]"))
-    np.testing.assert_allclose(ds.torque, tq, rtol=1e-9)
-    np.testing.assert_allclose(ds.speed, w, rtol=1e-9)
+    np.testing.assert_allclose(ds.torque, tq, rtol=DATA_UNIT_REL)
+    np.testing.assert_allclose(ds.speed, w, rtol=DATA_UNIT_REL)
 
 
 def test_unknown_header_unit_and_contradicting_option(tmp_path, capsys):

@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from tests.conftest import ROOT
+from tests.tolerances import RIG_MU, RIG_MU_ABS
 
 
 def test_identify_json_contract_and_report(tmp_path):
@@ -27,7 +28,7 @@ def test_identify_json_contract_and_report(tmp_path):
     assert r.returncode == 0, r.stderr
     out = json.loads(js.read_text())
     mu = out["params"]["mu"]
-    assert abs(mu["value"] - 0.203) < 0.002 and mu["stderr"] > 0 and out["converged"]
+    assert abs(mu["value"] - RIG_MU) < RIG_MU_ABS and mu["stderr"] > 0 and out["converged"]
     assert out["iterations"][0]["params"]["mu"] == 0.1 and "rms" in out["iterations"][-1]
     page = rep.read_text()
     assert page.count("data:image/png;base64,") >= 3

@@ -15,7 +15,9 @@ from pumpsim.design.execute import MANIFEST, read_manifest, read_results, run_st
 from pumpsim.design.optimiser import gradient_check
 from pumpsim.design.study import study_from_dict
 from tests.conftest import EXAMPLES, make_config
-from tests.tolerances import (CLOSED_FORM_REL, DESIGN_GRADIENT_REL, POWER_BALANCE_REL,
+from tests.tolerances import (CLOSED_FORM_REL, CONTACT_VS_CONSTRAINED_REL, DESIGN_GRADIENT_REL,
+                              DESIGN_OPTIMUM_BOUND_REL, DESIGN_OPTIMUM_REL, DESIGN_OUTPUT_FLOOR_ABS,
+                              NO_EFFECT_SHARE, PARTS_SUM_REL, POWER_BALANCE_REL, REPEAT_REL,
                               SOBOL_INTERVAL_FACTOR)
 
 RIG = str(EXAMPLES / "test_rig.toml")
@@ -48,13 +50,13 @@ def test_one_key_sweep_reproduces_single_simulate_runs():
             "max_extension": (res.vanes["s"] + 0.012 - 0.011).max(),
         }
         for k, v in expect.items():
-            assert getattr(row, k) == pytest.approx(v, rel=CLOSED_FORM_REL, abs=1e-14), k
+            assert getattr(row, k) == pytest.approx(v, rel=CLOSED_FORM_REL, abs=DESIGN_OUTPUT_FLOOR_ABS), k
         # spec §4 power balance: friction power (tip + slot) = mean drive power over the revolution
         assert row.friction_power == pytest.approx(tq.mean() * w, rel=POWER_BALANCE_REL)
-        assert row.friction_power == pytest.approx(row.tip_friction_power + row.slot_friction_power, rel=1e-12)
+        assert row.friction_power == pytest.approx(row.tip_friction_power + row.slot_friction_power, rel=PARTS_SUM_REL)
         assert row.slot_friction_power > 0 and not row.lift_off and not row.paradox
         per_vane = [getattr(row, f"friction_power_{i}") for i in range(4)]
-        assert sum(per_vane) == pytest.approx(row.friction_power, rel=1e-12)
+        assert sum(per_vane) == pytest.approx(row.friction_power, rel=PARTS_SUM_REL)
 
 
 def test_concentric_rig_outputs_follow_the_closed_form():
@@ -187,9 +189,9 @@ def test_optimisation_reaches_the_closed_form_optimum():
     r = design.optimize(s)
     w = 5800 * 2 * math.pi / 60
     assert r["success"] and r["feasible"]
-    assert r["design"]["housing.radius"] == pytest.approx(0.0215, rel=1e-9)
-    assert r["design"]["vane.mass"] == pytest.approx(8.0 / (w**2 * (0.0215 - 0.006)), rel=1e-8)
-    assert r["objective"]["value"] == pytest.approx(4 * 0.2 * 0.0215 * 8.0, rel=1e-8)
+    assert r["design"]["housing.radius"] == pytest.approx(0.0215, rel=DESIGN_OPTIMUM_BOUND_REL)
+    assert r["design"]["vane.mass"] == pytest.approx(8.0 / (w**2 * (0.0215 - 0.006)), rel=DESIGN_OPTIMUM_REL)
+    assert r["objective"]["value"] == pytest.approx(4 * 0.2 * 0.0215 * 8.0, rel=DESIGN_OPTIMUM_REL)
 
 
 def test_optimiser_gradients_equal_central_differences():
@@ -243,7 +245,7 @@ def test_cli_sweep_summary_csv_report_and_optimize(tmp_path, capsys):
     assert main(["optimize", str(op), "--json", str(tmp_path / "o.json")]) == 0
     res = json.loads((tmp_path / "o.json").read_text())
     w = 5800 * 2 * math.pi / 60
-    assert res["design"]["vane.mass"] == pytest.approx(5.0 / (w**2 * 0.0165), rel=1e-8)
+    assert res["design"]["vane.mass"] == pytest.approx(5.0 / (w**2 * 0.0165), rel=DESIGN_OPTIMUM_REL)
     assert res["iterations"] and res["constraints"]["min_normal_force"]["satisfied"]
 
 
@@ -283,7 +285,7 @@ def test_morris_screening_gives_an_inert_key_zero():
     r = design.sensitivity(s, workers=0)
     mt = r["indices"]["mean_torque"]
     assert r["designs"] == 12 * 4
-    assert mt["rotor.slot_radius"]["mu_star"] <= 1e-12 * mt["vane.mass"]["mu_star"]
+    assert mt["rotor.slot_radius"]["mu_star"] <= NO_EFFECT_SHARE * mt["vane.mass"]["mu_star"]
     assert mt["friction.housing.dynamic"]["mu_star"] > mt["vane.mass"]["mu_star"] > 0
 
 
@@ -302,8 +304,8 @@ def test_nsga2_pareto_front_of_friction_power_and_torque_ripple():
         assert not np.any(np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1))
     bs = [f["design"]["housing.b"] for f in front]
     df, _ = design.sweep(study(ELLIPSE, {"housing.b": {"values": bs}}, sampler="grid"), workers=0)
-    assert np.allclose(df["friction_power"], F[:, 0], rtol=1e-12)
-    assert np.allclose(df["ptp_torque"], F[:, 1], rtol=1e-12)
+    assert np.allclose(df["friction_power"], F[:, 0], rtol=REPEAT_REL)
+    assert np.allclose(df["ptp_torque"], F[:, 1], rtol=REPEAT_REL)
 
 
 def test_contact_model_study_converges_to_the_constrained_one():
@@ -314,4 +316,4 @@ def test_contact_model_study_converges_to_the_constrained_one():
     m, _ = design.sweep(study(RIG, vary, sampler="grid"), workers=0)
     assert c.status[0] == "ok" and not c.lift_off[0]
     for k in ("mean_torque", "friction_power", "max_normal_force", "min_normal_force"):
-        assert c[k][0] == pytest.approx(m[k][0], rel=0.01), k
+        assert c[k][0] == pytest.approx(m[k][0], rel=CONTACT_VS_CONSTRAINED_REL), k

@@ -20,6 +20,7 @@ from pumpsim.presentation import OPTIMISTIC, PLUS_MINUS, describe
 from pumpsim.report import bic_chain, diagnosis_report
 from tests.conftest import ROOT, make_config
 from tests.integration.test_diagnose_effects import measurement
+from tests.tolerances import DISPLAY_SE_REL, DISPLAY_VALUE_SE, EFFECT_PARAM_REL, OPTIMISTIC_FACTOR_MIN
 
 RIG = ["examples/test_rig.toml", "examples/data/test_rig_measurement.csv"]
 HIDDEN = ["examples/ellipse_4vanes.toml", "examples/data/ellipse_hidden_effects.csv"]
@@ -63,7 +64,7 @@ def test_identify_warns_that_intervals_are_optimistic_when_the_residual_is_not_w
     assert OPTIMISTIC in stdout and "Intervals are optimistic" in page and OPTIMISTIC in page
     # the AR(1) inflation factor is stated and > 1
     f = float(re.search(r"= ([0-9.]+)×", page).group(1))
-    assert f > 1.5
+    assert f > OPTIMISTIC_FACTOR_MIN
 
 
 def test_parameter_units_come_from_the_registry():
@@ -93,7 +94,7 @@ def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_d
     assert "housing.harmonics" not in text
     assert re.search(r"radial amplitude [0-9.]+ ± [0-9.]+ µm", text)
     amp = float(re.search(r"radial amplitude ([0-9.]+) ±", text).group(1))
-    assert abs(amp - 20.0) < 2.0  # the truth: 20 µm
+    assert abs(amp - 20.0) < EFFECT_PARAM_REL * 20.0  # the truth: 20 µm
     assert PLUS_MINUS in text and PLUS_MINUS in step_table(out)
     # the candidate ranking: every library candidate of the first screen, the chosen one marked
     assert "Candidate ranking" in text and "<tr class=chosen>" in page
@@ -182,10 +183,10 @@ def test_estimates_are_rounded_to_their_standard_error(value, stderr):
     from pumpsim.presentation import fmt_estimate, fmt_interval
 
     v, e = fmt_estimate(value, stderr).split(" ± ")
-    assert abs(float(v) - value) <= 0.1 * stderr and abs(float(e) / stderr - 1) < 0.05
+    assert abs(float(v) - value) <= DISPLAY_VALUE_SE * stderr and abs(float(e) / stderr - 1) < DISPLAY_SE_REL
     lo, hi = fmt_interval(value - 2 * stderr, value + 2 * stderr, stderr).split(" … ")
-    assert abs(float(lo) - (value - 2 * stderr)) <= 0.1 * stderr
-    assert abs(float(hi) - (value + 2 * stderr)) <= 0.1 * stderr
+    assert abs(float(lo) - (value - 2 * stderr)) <= DISPLAY_VALUE_SE * stderr
+    assert abs(float(hi) - (value + 2 * stderr)) <= DISPLAY_VALUE_SE * stderr
 
 
 def test_provenance_falls_back_on_the_results_own_record():

@@ -6,8 +6,9 @@ import numpy as np
 
 import pumpsim
 from tests.conftest import make_config
-from tests.tolerances import (ENERGY_REL, ENERGY_RTOL, FORWARD_INVERSE_REL, GRADIENT_FLOOR, GRADIENT_REL,
-                              MONOTONE_ENERGY_REL)
+from tests.tolerances import (ENERGY_REL, ENERGY_RTOL, FORWARD_INVERSE_REL, FRICTION_ENERGY_KEPT_MAX,
+                              GRADIENT_FLOOR, GRADIENT_REL, MONOTONE_ENERGY_REL, REVOLUTIONS_SHARE,
+                              VANE_ENERGY_SWING_MIN)
 
 
 def total_kinetic_energy(res):
@@ -23,11 +24,11 @@ def test_frictionless_energy_is_conserved_over_100_revolutions():
     cfg = spinning(make_config("ellipse_4vanes", **zero), omega0=300.0)
     duration = 100 * 2 * math.pi / 300.0
     res = pumpsim.simulate(cfg, duration=duration, rate=200.0, rtol=ENERGY_RTOL, atol=1e-12)
-    assert res.angle[-1] - res.angle[0] > 100 * 2 * math.pi * 0.95
+    assert res.angle[-1] - res.angle[0] > 100 * 2 * math.pi * REVOLUTIONS_SHARE
     ke = total_kinetic_energy(res)
     # the vanes really exchange energy with the rotor: each vane's energy swings by > 1 %
     vane_ke = res.extra["kinetic_energy"]
-    assert np.all(np.ptp(vane_ke, axis=1) > 0.01 * vane_ke.mean(axis=1))
+    assert np.all(np.ptp(vane_ke, axis=1) > VANE_ENERGY_SWING_MIN * vane_ke.mean(axis=1))
     assert np.max(np.abs(ke - ke[0])) <= ENERGY_REL * ke[0]
 
 
@@ -35,7 +36,7 @@ def test_with_friction_and_no_torque_energy_only_decreases():
     cfg = spinning(make_config("ellipse_4vanes"), omega0=200.0)
     res = pumpsim.simulate(cfg, duration=0.05, rate=4000.0, rtol=1e-9, atol=1e-12)
     ke = total_kinetic_energy(res)
-    assert ke[-1] < 0.9 * ke[0]
+    assert ke[-1] < FRICTION_ENERGY_KEPT_MAX * ke[0]
     assert np.all(np.diff(ke) <= MONOTONE_ENERGY_REL * ke[0])
     assert res.stats["nsteps"] > 0 and "integrator_calls" in res.stats
 

@@ -9,6 +9,7 @@ from pumpsim.config import config_from_dict, load_config
 from pumpsim.errors import ConfigError
 from pumpsim.geometry import check_geometry
 from tests.conftest import ROOT, apply_changes, example_dict
+from tests.tolerances import ROUNDING_REL
 
 REJECTIONS = [
     # (changes, message fragment)
@@ -72,9 +73,9 @@ def test_geometry_rejections_name_the_condition(changes, message):
 
 def test_defaults_and_rpm():
     cfg = config_from_dict(example_dict())
-    assert cfg.speed == pytest.approx(5800 * 2 * math.pi / 60)
+    assert cfg.speed == pytest.approx(5800 * 2 * math.pi / 60, rel=ROUNDING_REL)
     v = cfg.values
-    assert v["vane.inertia"] == pytest.approx(0.0012 * (0.012**2 + 0.003**2) / 12)
+    assert v["vane.inertia"] == pytest.approx(0.0012 * (0.012**2 + 0.003**2) / 12, rel=ROUNDING_REL)
     assert v["friction.slot.dynamic"] == v["friction.housing.dynamic"]
 
 

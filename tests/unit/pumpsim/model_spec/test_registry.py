@@ -65,7 +65,7 @@ def test_fitted_mass_carries_the_derived_inertia_into_the_kernel():
 def test_measurement_registry_orders_the_fit_graph_inputs():
     assert reg.KERNEL_GRAPH_INPUTS == ("theta0", "speed", "delay", "torque_offset", "ripple_cos",
                                        "ripple_sin")
-    assert reg.MEASUREMENT_BY_NAME["theta0"].period == pytest.approx(2 * math.pi)
+    assert reg.MEASUREMENT_BY_NAME["theta0"].period == pytest.approx(2 * math.pi, rel=ROUNDING_REL)
     assert reg.MEASUREMENT_BY_NAME["speed"].band == 0.5
 
 
