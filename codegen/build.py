@@ -1,7 +1,7 @@
 """Compile a model variant to a C shared library in generated/<variant>-<key>/ with a manifest.
 
-The one entry point the runtime uses is `build_variant(structure)` (imported lazily, only when no
-trusted library exists). The key and the trust rules are the contract's
+The one entry point the runtime uses is `build_library(structure, simd=False)` (imported lazily,
+only when no trusted library exists). The key and the trust rules are the contract's
 (`pumpsim.model_spec.manifest`): the key hashes the generated C source, the codegen options, the
 CasADi version and the compiler flags. A build whose key already exists reuses that library and
 only records this tree's source fingerprint in its manifest -- no compiler run. Builds go to a
@@ -85,6 +85,16 @@ def _record_fingerprint(folder: Path, fingerprint: str | None) -> None:
         mf.write_manifest(folder, m)
 
 
+def build_library(structure, simd: bool = False, log=None) -> Path:
+    """The entry point the runtime uses (pumpsim.kernels.build_library): the variant's library, or
+    with simd=True its SIMD inverse dynamics (codegen/simd.py); returns the folder."""
+    if simd:
+        from .simd import build_simd
+
+        return build_simd(structure, log=log)
+    return build_variant(structure, log=log)
+
+
 def build_variant(structure, log=None) -> Path:
     """Generate C, compile unless a library with the same key exists, write the manifest; return
     the variant folder."""
@@ -125,9 +135,7 @@ def install_library(named, structure, options: dict, generate, compile_, built, 
     base.mkdir(parents=True, exist_ok=True)
     _sweep_stale_temporaries(base)
     tmp = Path(tempfile.mkdtemp(prefix=f".{named.variant}.tmp-", dir=base))
-    from pumpsim.io import umask_mode
-
-    os.chmod(tmp, umask_mode(directory=True))  # mkdtemp's 0700 would hide the kernels from colleagues
+    os.chmod(tmp, mf.umask_mode(directory=True))  # mkdtemp's 0700 would hide the kernels from colleagues
     try:
         t0 = time.perf_counter()
         source, generated = generate(tmp)

@@ -11,7 +11,7 @@ reuse it: fresh pages cost ~0.2 us per sample). ctypes releases the GIL during t
 Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key over C source and
 options, library hash, this tree's source fingerprint) plus this CPU's instruction-set flags and C
 library (pumpsim.model_spec.simd); a missing or mismatched library is built through
-codegen.simd.build_simd, imported only then (PUMPSIM_NO_BUILD=1: refused). On a machine where no
+kernels.build_library (codegen's one entry point), imported only then (PUMPSIM_NO_BUILD=1: refused). On a machine where no
 SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel` returns
 the same interface over the scalar CasADi kernel (`.simd` False; fallback=False raises instead).
 
@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import CodegenError, ConfigError
-from .kernels import _log_if_terminal, building_allowed
+from .kernels import _log_if_terminal, build_library, building_allowed
 from .model_spec import manifest as mf
 from .model_spec.outputs import VANE_OUTPUTS
 from .model_spec.parameters import Structure, layout
@@ -209,11 +209,9 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
             raise CodegenError(
                 f"SIMD kernel for {structure.variant} is missing or stale for this source and CPU "
                 f"(source {fingerprint}, in {mf.generated_dir()}); run `make codegen` or unset PUMPSIM_NO_BUILD")
-        from codegen.simd import build_simd  # codegen only when building
-
         log = log or _log_if_terminal
         try:
-            build_simd(structure, log=log)
+            build_library(structure, log, simd=True)
         except CodegenError as exc:
             if not fallback:
                 raise

@@ -15,13 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import ConfigError
-
-
-def umask_mode(directory: bool = False) -> int:
-    """The mode a new file (0666) or folder (0777) gets under the current umask."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return (0o777 if directory else 0o666) & ~mask
+from .model_spec.manifest import umask_mode
 
 
 def _folder(target: Path) -> Path:

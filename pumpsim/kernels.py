@@ -4,7 +4,7 @@ The runtime finds a variant's library by the contract's rules (`model_spec.manif
 manifest of the same variant, schema and CasADi version whose key matches its recorded contents,
 whose library has the recorded hash and which lists this tree's source fingerprint. No compiler
 and no SymPy is involved in that check. A missing or stale variant is built through one entry
-point, `codegen.build.build_variant`, imported only then (set PUMPSIM_NO_BUILD=1 to refuse
+point, `codegen.build.build_library`, imported only then (set PUMPSIM_NO_BUILD=1 to refuse
 instead). Loaded kernels are cached in memory per variant and source.
 
 `python -m pumpsim.kernels [CONFIG ...] [--model contact]` loads (building when needed) the
@@ -74,11 +74,12 @@ def building_allowed(build: bool | None) -> bool:
     return os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0") if build is None else build
 
 
-def _build(structure: Structure, log):
-    """The one way the runtime builds a variant (codegen is imported here and nowhere else)."""
-    from codegen.build import build_variant
+def build_library(structure: Structure, log=None, simd: bool = False):
+    """The one way the runtime builds a library -- the variant's, or with simd=True its SIMD
+    inverse dynamics -- through codegen's one entry point, imported here and nowhere else."""
+    from codegen.build import build_library as build
 
-    return build_variant(structure, log=log or _log_if_terminal)
+    return build(structure, simd=simd, log=log or _log_if_terminal)
 
 
 def load_kernels(structure: Structure, build: bool | None = None, log=None) -> Kernels:
@@ -93,7 +94,7 @@ def load_kernels(structure: Structure, build: bool | None = None, log=None) -> K
                 f"compiled kernel for {structure.variant} is missing or stale (source "
                 f"{fingerprint}, CasADi {ca.__version__}, in {mf.generated_dir()}); "
                 "run `make codegen` or unset PUMPSIM_NO_BUILD")
-        folder = _build(structure, log)
+        folder = build_library(structure, log)
         manifest = mf.trusted_manifest(folder, structure.variant, ca.__version__, fingerprint)
         if manifest is None:
             raise CodegenError(f"build of {structure.variant} did not produce a valid library")

@@ -24,6 +24,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import MaxNLocator, MultipleLocator, ScalarFormatter  # noqa: E402
 
 from .io import atomic_path  # noqa: E402
+from .tolerances import FLAT_RTOL, IDENTICAL_RTOL  # noqa: E402
 
 RPM = 60 / (2 * math.pi)
 FORMATS = ("png", "svg", "pdf")
@@ -31,8 +32,6 @@ FORMATS = ("png", "svg", "pdf")
 VANE_PANELS = [("s", "vane extension s [mm]", 1e3), ("normal", "housing normal force N [N]", 1.0)]
 SLOT_PANEL = ("slot forces F1, F2 [N]", ("slot1", "slot2"))
 SLOT_NAMES = {"slot1": "F1 (bottom end)", "slot2": "F2 (slot mouth)"}
-IDENTICAL_RTOL = 1e-7  # two vanes' curves closer than this (relative to the panel's range) coincide
-FLAT_RTOL = 1e-9  # a torque ripple below this fraction of the mean is rounding, not physics
 MODEL_TITLE = {"constrained": "constrained model (Model 2)", "contact": "contact model (Model 1)"}
 
 

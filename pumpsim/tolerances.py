@@ -24,6 +24,11 @@ NO_EFFECT_REL = 1e-8
 # steps and the standard errors to be the data's, not the integrator's.
 TRANSIENT_FIT_RTOL = 1e-9
 TRANSIENT_FIT_ATOL = 1e-11
+# Figures: two vanes' curves closer than IDENTICAL_RTOL of the panel's range are drawn as one (the
+# vanes of a concentric pump differ by rounding, ~1e-12); a torque ripple below FLAT_RTOL of the
+# mean torque is rounding, not physics (a concentric rig's ripple is ~1e-16 of it).
+IDENTICAL_RTOL = 1e-7
+FLAT_RTOL = 1e-9
 # Explicit RK4: fixed substep when --max-step is not given [s] (a contact transient at k = 1e5 N/m
 # and a 1 g vane has a period ~0.6 ms; 1 us resolves it with RK4's stability margin).
 RK_MAX_STEP = 1e-6

@@ -130,6 +130,14 @@ def find_variant(structure, casadi_version: str, fingerprint: str | None):
     return None, None
 
 
+def umask_mode(directory: bool = False) -> int:
+    """The mode a new file (0666) or folder (0777) gets under the current umask (a build folder made
+    by mkdtemp is 0700 and would hide the kernels from colleagues sharing generated/)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return (0o777 if directory else 0o666) & ~mask
+
+
 def write_manifest(folder: Path, manifest: dict) -> None:
     """Atomic replace (a reader never sees half a manifest)."""
     tmp = Path(folder) / f".{MANIFEST}.{os.getpid()}"

@@ -1,4 +1,5 @@
 """The contract between codegen and the runtime: imports, cache key, prebuilt libraries."""
+import ast
 import json
 import os
 import shutil
@@ -30,6 +31,27 @@ def test_codegen_imports_no_runtime_module():
     loaded = [m for m in mods if m.split(".")[0] == "pumpsim"]
     runtime = [m for m in loaded if m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
     assert "pumpsim.model_spec" in loaded and runtime == []
+
+
+def _absolute_imports(package):
+    """(file, module) for every absolute import in a package's source, in function bodies too."""
+    for path in sorted((ROOT / package).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                yield from ((path.relative_to(ROOT).as_posix(), a.name) for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                yield path.relative_to(ROOT).as_posix(), node.module
+
+
+def test_no_import_anywhere_crosses_the_contract():
+    """Also the imports inside functions (which the sys.modules checks cannot see unless they run):
+    codegen names only the contract of pumpsim, and the runtime names codegen in one place, the
+    lazily imported builder entry point."""
+    crossing = [(f, m) for f, m in _absolute_imports("codegen") if m.split(".")[0] == "pumpsim"
+                and m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
+    assert crossing == []
+    into_codegen = [(f, m) for f, m in _absolute_imports("pumpsim") if m.split(".")[0] == "codegen"]
+    assert into_codegen == [("pumpsim/kernels.py", "codegen.build")]
 
 
 def test_runtime_imports_no_codegen_and_no_sympy():
