@@ -156,19 +156,75 @@ class _GasBuilder(_Builder):
 def build_pneumatic_model(structure) -> BuiltModel:
     b = _GasBuilder(structure)
     N = structure.vanes
-    kin_fn = b.vane_kinematics()
-    dyn_fn = b.vane_dynamics()
-    cell_fn = b.cell_function()
-    kin_map = kin_fn.map(N)
-    dyn_map = dyn_fn.map(N)
+    dyn_map = b.vane_dynamics().map(N)
+    p, P = parameter_symbols(b)
+    phis, facs = b.slot_angles(p), b.factors(p)
+    geometry = cell_geometry(b, p, phis)
+    nx = len(state_names(N))
+    x = ca.MX.sym("x", nx)
+    theta, omega, cur = x[0], x[1], x[2]
+    m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
+    m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
+    geo = geometry(theta)
+    gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
+    fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
+    # mechanics: required shaft torque at omegadot, gas loads included
+    p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
+    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
+
+    def required(wd):
+        o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
+                    gs["p_slot"], p)
+        od = dict(zip(VANE_DYN_OUTPUTS, o))
+        return Ir * wd + tb + ca.sum2(od["torque_share"]), od
+
+    drive = motor_drive(P, omega, cur, required, Ir, P("motor.inertia"))
+    od = drive["outputs"]
+    xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
+                      energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
+                      fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
+    W = gs["W"]
+    slot_rate = P("vane.thickness") * W * ca.sum2(od["sdot"])
+    gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
+    fric_power = ca.sum2(od["friction_power"]) + tb * omega
+    qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power)
+    rhs, jac, wd = implicit_rates(x, xdot, qdot, drive, p)
+    outs = dict(
+        torque=drive["torque"], omegadot=drive["omegadot_used"], current=cur, pressure=gs["pc"],
+        volume=geo["V"], temperature=gs["Tc"], dvolume=geo["dV"], inlet_pressure=gs["p_in"],
+        exhaust_pressure=gs["p_ex"], booster_pressure=gs["p_b"], slot_pressure=gs["p_slot"],
+        gas_torque=-ca.dot(gs["pc"], geo["dV"]) - gs["p_slot"] * P("vane.thickness") * W * ca.sum2(geo["ds"]),
+        friction_power=fric_power, gas_power=gas_power,
+        load_power=ca.sum2(od["load_power"]), kinetic_energy=ca.sum2(od["kinetic_energy"]),
+        normal=od["normal"].T, slot1=od["slot1"].T, slot2=od["slot2"].T,
+        n_consistent=od["n_consistent"].T, s=geo["s"].T, position_residual=geo["residual"].T,
+        inlet_flow=fl["f_in"], exhaust_flow=fl["f_ex"], leak_flow=fl["f_lk"], hose_flow=fl["f_hose"],
+        booster_leak=fl["f_bleak"], valve_flow=fl["f_valve"], reed_force=fl["F_reed"],
+        mass_total=ca.sum1(m) + m_in + m_ex + m_b, inlet_length=geo["lin"],
+        exhaust_length=geo["lex"], vane_volume=geo["vane_volume"],
+    )
+    outs["motor_residual"] = ca.if_else(drive["motor"], drive["residual"], 0.0)
+    out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p], list(outs.values()))
+    out_fn = ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs))
+    fns = {f.name(): f for f in (cell_geometry_function(geometry, p), orifice_function(P, p), rhs,
+                                 jac, out_fn)}
+    return BuiltModel(structure, b.params, fns)
+
+
+# -- pieces of the right-hand side, shared with the contact-model variant -------------------------
+def parameter_symbols(b):
+    """The runtime parameter vector p (MX) and P(name) -> its entry."""
     names = [q.name for q in b.params]
     p = ca.MX.sym("p", len(names))
+    return p, lambda name: p[names.index(name)]
 
-    def P(name):
-        return p[names.index(name)]
 
-    phis = b.slot_angles(p)
-    facs = b.factors(p)
+def cell_geometry(b, p, phis):
+    """theta -> Model 2 vane positions (s, alpha and d/dtheta) and the cells at them: volumes V,
+    dV/dtheta, port overlap lengths, wall areas, exposed vane lengths, vane volumes."""
+    N = b.st.vanes
+    kin_map = b.vane_kinematics().map(N)
+    cell_fn = b.cell_function()
 
     def geometry(theta):
         s, al, ds, dal, res = kin_map(theta, phis, p)
@@ -176,87 +232,115 @@ def build_pneumatic_model(structure) -> BuiltModel:
         return dict(s=s, alpha=al, ds=ds, dalpha=dal, residual=res, V=V, dV=dV, lin=lin, lex=lex,
                     wall=wall, exposed=exposed, vane_volume=vvol)
 
+    return geometry
+
+
+def gas_state(P, m, U, V, m_in, m_ex, m_b) -> dict:
+    """Gas constants, the cells' axial width W, cell pressures pc and temperatures Tc from
+    (m, U, V); manifold, exhaust-port and booster pressures (isothermal at gas.temperature); the
+    slot-bottom pressure."""
     R, g = P("gas.gas_constant"), P("gas.gamma")
     cv, cp = R / (g - 1), g * R / (g - 1)
-    T0, p_atm, W = P("gas.temperature"), P("gas.atmosphere"), P("rotor.width")
-
-    def flow(p1, T1, p2, T2, area):
-        return gas.orifice_flow(p1, T1, p2, T2, area, R, g)
-
-    nx = 3 + 2 * N + 5
-    x = ca.MX.sym("x", nx)
-    theta, omega, cur = x[0], x[1], x[2]
-    m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
-    m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
-    geo = geometry(theta)
-    V, dV = geo["V"], geo["dV"]
-    pc = (g - 1) * U / V
-    Tc = U / (m * cv)
+    T0, p_atm = P("gas.temperature"), P("gas.atmosphere")
     p_in = m_in * R * T0 / P("ports.inlet_volume")
     p_ex = m_ex * R * T0 / P("ports.exhaust_volume")
-    p_b = m_b * R * T0 / P("booster.volume")
     src = P("vane.slot_pressure.source")
     p_slot = ca.if_else(src < 0.5, P("vane.slot_pressure.value"),
                         ca.if_else(src < 1.5, p_in, ca.if_else(src < 2.5, p_ex, p_atm)))
-    # flows: ports (into cell from the manifold, out of the cell into the exhaust port)
+    return dict(R=R, g=g, cv=cv, cp=cp, T0=T0, p_atm=p_atm, W=P("rotor.width"), pc=(g - 1) * U / V, Tc=U / (m * cv),
+                p_in=p_in, p_ex=p_ex, p_b=m_b * R * T0 / P("booster.volume"), p_slot=p_slot)
+
+
+def _flow(gs, p1, T1, p2, T2, area):
+    return gas.orifice_flow(p1, T1, p2, T2, area, gs["R"], gs["g"])
+
+
+def cell_flows(P, N, gs, lin, lex, exposed, lift_gap=None) -> dict:
+    """Port flows (into cell i from the inlet manifold, out of it into the exhaust port) and the
+    leak across vane j from cell j-1 to cell j (tip gap, plus a lifted vane's gap, and both end
+    faces); prev/nxt: the neighbouring cells."""
+    T0, pc, Tc, W = gs["T0"], gs["pc"], gs["Tc"], gs["W"]
     Cd = P("ports.discharge_coefficient")
-    A_in = Cd * geo["lin"] * P("ports.inlet.width")
-    A_ex = Cd * geo["lex"] * P("ports.exhaust.width")
-    f_in = ca.vertcat(*[flow(p_in, T0, pc[i], Tc[i], A_in[i]) for i in range(N)])
-    f_ex = ca.vertcat(*[flow(pc[i], Tc[i], p_ex, T0, A_ex[i]) for i in range(N)])
-    # leak across vane j from cell j-1 (its trailing side) to cell j: tip gap and both end faces
-    A_leak = P("leak.discharge_coefficient") * (P("leak.tip_gap") * W
-                                                + 2 * P("leak.end_gap") * geo["exposed"])
+    A_in = Cd * lin * P("ports.inlet.width")
+    A_ex = Cd * lex * P("ports.exhaust.width")
+    f_in = ca.vertcat(*[_flow(gs, gs["p_in"], T0, pc[i], Tc[i], A_in[i]) for i in range(N)])
+    f_ex = ca.vertcat(*[_flow(gs, pc[i], Tc[i], gs["p_ex"], T0, A_ex[i]) for i in range(N)])
+    tip = P("leak.tip_gap") if lift_gap is None else P("leak.tip_gap") + lift_gap
+    A_leak = P("leak.discharge_coefficient") * (tip * W + 2 * P("leak.end_gap") * exposed)
     prev = [(j - 1) % N for j in range(N)]
-    f_lk = ca.vertcat(*[flow(pc[prev[j]], Tc[prev[j]], pc[j], Tc[j], A_leak[j]) for j in range(N)])
+    f_lk = ca.vertcat(*[_flow(gs, pc[prev[j]], Tc[prev[j]], pc[j], Tc[j], A_leak[j])
+                        for j in range(N)])
     if N == 1:
         f_lk = 0 * f_lk  # one cell: the leak across the only vane returns to the same cell
-    # booster -> hose and inlet check valve -> manifold; atmosphere -> booster leak
+    return dict(f_in=f_in, f_ex=f_ex, f_lk=f_lk, prev=prev, nxt=[(i + 1) % N for i in range(N)])
+
+
+def booster_flows(P, gs) -> dict:
+    """Booster -> hose and inlet check valve -> manifold; atmosphere -> booster leak."""
+    T0, p_atm, p_b, p_in = gs["T0"], gs["p_atm"], gs["p_b"], gs["p_in"]
     A_hose = P("ports.hose_area") * gas.ramp(p_b - p_in, P("ports.check_cracking"),
                                              P("ports.check_full_open"))
-    f_hose = flow(p_b, T0, p_in, T0, A_hose)
-    A_bleak = P("booster.leak") / gas.choked_flux(p_atm, T0, R, g)
-    f_bleak = flow(p_atm, T0, p_b, T0, A_bleak)
-    # exhaust valve to the atmosphere
+    A_bleak = P("booster.leak") / gas.choked_flux(p_atm, T0, gs["R"], gs["g"])
+    return dict(f_hose=_flow(gs, p_b, T0, p_in, T0, A_hose),
+                f_bleak=_flow(gs, p_atm, T0, p_b, T0, A_bleak))
+
+
+def exhaust_valve(P, gs, xr, vr) -> dict:
+    """Exhaust port -> atmosphere through the check valve or the reed (lift xr, rate vr: its rates
+    while free, its damping power)."""
+    T0, p_atm, p_ex = gs["T0"], gs["p_atm"], gs["p_ex"]
     reed = P("valve.reed") > 0.5
     A_check = P("valve.area") * gas.ramp(p_ex - p_atm, P("valve.cracking"), P("valve.full_open"))
     A_reed = ca.fmin(math.pi * P("valve.diameter") * ca.fmax(xr, 0.0), P("valve.area"))
-    f_valve = flow(p_ex, T0, p_atm, T0, ca.if_else(reed, A_reed, A_check))
+    f_valve = _flow(gs, p_ex, T0, p_atm, T0, ca.if_else(reed, A_reed, A_check))
     F_reed = (p_ex - p_atm) * P("valve.force_area") - P("valve.preload") - P("valve.stiffness") * xr
     free = ca.logic_and(reed, P("valve.mode") < 0.5)
-    xr_dot = ca.if_else(free, vr, 0.0)
-    vr_dot = ca.if_else(free, (F_reed - P("valve.damping") * vr) / P("valve.mass"), 0.0)
-    # cell balances
-    Q = P("gas.heat_transfer") * geo["wall"] * (P("gas.wall_temperature") - Tc)
-    nxt = [(i + 1) % N for i in range(N)]
-    dm = ca.vertcat(*[f_in[i] - f_ex[i] + f_lk[i] - f_lk[nxt[i]] for i in range(N)])
-    dU = ca.vertcat(*[
+    return dict(f_valve=f_valve, F_reed=F_reed, free=free, xr_dot=ca.if_else(free, vr, 0.0),
+                vr_dot=ca.if_else(free, (F_reed - P("valve.damping") * vr) / P("valve.mass"), 0.0),
+                valve_damping=ca.if_else(free, P("valve.damping") * vr * vr, 0.0))
+
+
+def gas_flows(P, N, gs, lin, lex, exposed, xr, vr, lift_gap=None) -> dict:
+    """Every flow of the gas network and the mass rows: dm (cells), dm_in (manifold), dm_ex
+    (exhaust port), dm_b (booster); the reed's rates."""
+    fl = cell_flows(P, N, gs, lin, lex, exposed, lift_gap)
+    fl.update(booster_flows(P, gs))
+    fl.update(exhaust_valve(P, gs, xr, vr))
+    f_in, f_ex, f_lk, nxt = fl["f_in"], fl["f_ex"], fl["f_lk"], fl["nxt"]
+    fl.update(dm=ca.vertcat(*[f_in[i] - f_ex[i] + f_lk[i] - f_lk[nxt[i]] for i in range(N)]),
+              dm_in=fl["f_hose"] - ca.sum1(f_in), dm_ex=ca.sum1(f_ex) - fl["f_valve"],
+              dm_b=fl["f_bleak"] - fl["f_hose"])
+    return fl
+
+
+def energy_rows(P, N, gs, fl, dV, wall, omega=None):
+    """dU_i/dt: enthalpy carried by every flow (upstream temperature), the p dV work and the wall
+    heat. dV is dV/dtheta with omega given (Model 2), else dV/dt."""
+    T0, Tc, pc, cp = gs["T0"], gs["Tc"], gs["pc"], gs["cp"]
+    prev, nxt = fl["prev"], fl["nxt"]
+    f_in, f_ex, f_lk = fl["f_in"], fl["f_ex"], fl["f_lk"]
+    Q = P("gas.heat_transfer") * wall * (P("gas.wall_temperature") - Tc)
+    work = [pc[i] * omega * dV[i] if omega is not None else pc[i] * dV[i] for i in range(N)]
+    return ca.vertcat(*[
         gas.enthalpy_flow(f_in[i], T0, Tc[i], cp) - gas.enthalpy_flow(f_ex[i], Tc[i], T0, cp)
         + gas.enthalpy_flow(f_lk[i], Tc[prev[i]], Tc[i], cp)
         - gas.enthalpy_flow(f_lk[nxt[i]], Tc[i], Tc[nxt[i]], cp)
-        - pc[i] * omega * dV[i] + Q[i] for i in range(N)])
-    dm_in = f_hose - ca.sum1(f_in)
-    dm_ex = ca.sum1(f_ex) - f_valve
-    dm_b = f_bleak - f_hose
-    # mechanics: required shaft torque at omegadot, gas loads included
-    p_trail = ca.vertcat(*[pc[prev[i]] for i in range(N)])
-    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
+        - work[i] + Q[i] for i in range(N)])
 
-    def required(wd):
-        o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], pc.T, p_trail.T,
-                    p_slot, p)
-        od = dict(zip(VANE_DYN_OUTPUTS, o))
-        return Ir * wd + tb + ca.sum2(od["torque_share"]), od
 
+def motor_drive(P, omega, cur, required, rotor_inertia, motor_inertia) -> dict:
+    """Shaft balance. Constant speed (operation.motor = 0: omegadot = 0, the torque is the inverse
+    dynamics) or the brushed DC motor: omegadot from k i - tau_f - I_m omegadot = required(omegadot)
+    (required(wd) -> (torque, per-vane outputs with torque_slope)) by Newton steps on the
+    piecewise-affine required torque; di/dt = (V - R i - k omega) / L."""
     motor = P("operation.motor") > 0.5
-    k_m, Im = P("motor.constant"), P("motor.inertia")
+    k_m = P("motor.constant")
     tau_mf = P("motor.friction") * ca.tanh(omega / MOTOR_FRICTION_SPEED)
     tau_motor = k_m * cur - tau_mf
 
     def residual(wd):
-        """Motor drive: shaft torque required at wd minus what the motor delivers."""
         rt, od = required(wd)
-        return rt + Im * wd - tau_motor, od
+        return rt + motor_inertia * wd - tau_motor, od
 
     # the rates as functions of (x, omegadot): the gas rows never see the mechanics
     wd_s = ca.MX.sym("omegadot")
@@ -264,58 +348,59 @@ def build_pneumatic_model(structure) -> BuiltModel:
     tau, od = required(wd_use)
     di = ca.if_else(motor, (P("motor.voltage") - P("motor.resistance") * cur - k_m * omega)
                     / P("motor.inductance"), 0.0)
-    xdot = ca.vertcat(omega, wd_use, di, dm, dU, dm_in, dm_ex, dm_b, xr_dot, vr_dot)
-    # budgets
-    slot_rate = P("vane.thickness") * W * ca.sum2(od["sdot"])
-    gas_power = -ca.dot(pc, dV) * omega - p_slot * slot_rate
-    fric_power = ca.sum2(od["friction_power"]) + tb * omega
-    volt = ca.if_else(motor, P("motor.voltage"), 0.0)
-    qdot = ca.vertcat(volt * cur, tau * omega, gas_power, fric_power,
-                      P("motor.resistance") * cur * cur, tau_mf * omega,
-                      ca.if_else(free, P("valve.damping") * vr * vr, 0.0), f_bleak - f_valve)
-    # omegadot: Newton on the piecewise-affine residual (each vane returns its slope); its
-    # derivative by the implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from one
-    # reverse sweep, so the Jacobian never differentiates through the iterations
     wd = ca.MX(0.0)
     for _ in range(MOTOR_NEWTON_ITERATIONS):
         r, o = residual(wd)
-        wd = wd - r / (Ir + Im + ca.sum2(o["torque_slope"]))
+        wd = wd - r / (rotor_inertia + motor_inertia + ca.sum2(o["torque_slope"]))
     r_s, o_s = residual(wd_s)
-    slope = Ir + Im + ca.sum2(o_s["torque_slope"])
-    J = ca.jacobian(xdot, x) - ca.mtimes(ca.jacobian(xdot, wd_s), ca.gradient(r_s, x).T) / slope
+    return dict(motor=motor, omegadot_symbol=wd_s, omegadot_used=wd_use, omegadot=wd, torque=tau,
+                outputs=od, residual=r_s,
+                slope=rotor_inertia + motor_inertia + ca.sum2(o_s["torque_slope"]),
+                motor_friction=tau_mf, voltage=ca.if_else(motor, P("motor.voltage"), 0.0),
+                current_rate=di)
+
+
+def budget_rates(P, cur, omega, drive, fl, gas_power, fric_power, *extra):
+    """Quadrature rates in QUAD_NAMES order (then `extra`): electrical energy, shaft, gas and
+    friction work, copper loss, motor friction, valve damping, net mass from the atmosphere."""
+    return ca.vertcat(drive["voltage"] * cur, drive["torque"] * omega, gas_power, fric_power,
+                      P("motor.resistance") * cur * cur, drive["motor_friction"] * omega,
+                      fl["valve_damping"], fl["f_bleak"] - fl["f_valve"], *extra)
+
+
+def implicit_rates(x, xdot, qdot, drive, p):
+    """pump_rhs and pump_rhs_jac from the rates as functions of (x, omegadot symbol). omegadot:
+    Newton on the piecewise-affine residual (each vane returns its slope); its derivative by the
+    implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from one reverse sweep, so the
+    Jacobian never differentiates through the iterations. Returns (rhs, jac, omegadot)."""
+    wd_s, wd, r_s = drive["omegadot_symbol"], drive["omegadot"], drive["residual"]
+    J = (ca.jacobian(xdot, x)
+         - ca.mtimes(ca.jacobian(xdot, wd_s), ca.gradient(r_s, x).T) / drive["slope"])
     rates = ca.Function("rates", [x, wd_s, p], [xdot, qdot])
     xdot_v, qdot_v = rates(x, wd, p)
     J_v = ca.Function("rates_jac", [x, wd_s, p], [J])(x, wd, p)
     rhs = ca.Function("pump_rhs", [x, p], [xdot_v, qdot_v], ["x", "p"], ["xdot", "qdot"])
     # the quadratures do not feed back: their Jacobian rows are left to CVODES' Newton iteration
     # (which then converges on them in one extra step at most) -- zero rows here
-    jac = ca.Function("pump_rhs_jac", [x, p], [J_v, ca.MX(qdot.size1(), nx)],
+    jac = ca.Function("pump_rhs_jac", [x, p], [J_v, ca.MX(qdot.size1(), x.size1())],
                       ["x", "p"], ["jac_xdot_x", "jac_qdot_x"])
-    mass_total = ca.sum1(m) + m_in + m_ex + m_b
-    outs = dict(
-        torque=tau, omegadot=wd_use, current=cur, pressure=pc, volume=V, temperature=Tc, dvolume=dV,
-        inlet_pressure=p_in, exhaust_pressure=p_ex, booster_pressure=p_b, slot_pressure=p_slot,
-        gas_torque=-ca.dot(pc, dV) - p_slot * P("vane.thickness") * W * ca.sum2(geo["ds"]),
-        friction_power=fric_power, gas_power=gas_power,
-        load_power=ca.sum2(od["load_power"]), kinetic_energy=ca.sum2(od["kinetic_energy"]),
-        normal=od["normal"].T, slot1=od["slot1"].T, slot2=od["slot2"].T,
-        n_consistent=od["n_consistent"].T, s=geo["s"].T, position_residual=geo["residual"].T,
-        inlet_flow=f_in, exhaust_flow=f_ex, leak_flow=f_lk, hose_flow=f_hose,
-        booster_leak=f_bleak, valve_flow=f_valve, reed_force=F_reed, mass_total=mass_total,
-        inlet_length=geo["lin"], exhaust_length=geo["lex"], vane_volume=geo["vane_volume"],
-    )
-    outs["motor_residual"] = ca.if_else(motor, r_s, 0.0)
-    out_s = ca.Function("outputs_at", [x, wd_s, p], list(outs.values()))
-    out_fn = ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs))
+    return rhs, jac, wd
+
+
+def cell_geometry_function(geometry, p):
+    """cell_geometry(theta, p): the Model 2 cells (the runtime's start state and plots)."""
     th = ca.MX.sym("theta")
     gg = geometry(th)
-    cells = ca.Function("cell_geometry", [th, p],
-                        [gg["V"], gg["dV"], gg["vane_volume"], gg["lin"], gg["lex"], gg["s"].T,
-                         gg["alpha"].T, gg["residual"].T],
-                        ["theta", "p"], ["volume", "dvolume", "vane_volume", "inlet_length",
-                                         "exhaust_length", "s", "alpha", "position_residual"])
+    return ca.Function("cell_geometry", [th, p],
+                       [gg["V"], gg["dV"], gg["vane_volume"], gg["lin"], gg["lex"], gg["s"].T,
+                        gg["alpha"].T, gg["residual"].T],
+                       ["theta", "p"], ["volume", "dvolume", "vane_volume", "inlet_length",
+                                        "exhaust_length", "s", "alpha", "position_residual"])
+
+
+def orifice_function(P, p):
+    """orifice_flow(p1, T1, p2, T2, area, p): the compiled orifice law (closed-form tests)."""
     a = [ca.MX.sym(n) for n in ("p1", "T1", "p2", "T2", "area")]
-    ori = ca.Function("orifice_flow", [*a, p], [flow(*a)], ["p1", "T1", "p2", "T2", "area", "p"],
-                      ["mdot"])
-    fns = {f.name(): f for f in (cells, ori, rhs, jac, out_fn)}
-    return BuiltModel(structure, b.params, fns)
+    R, g = P("gas.gas_constant"), P("gas.gamma")
+    return ca.Function("orifice_flow", [*a, p], [gas.orifice_flow(*a, R, g)],
+                       ["p1", "T1", "p2", "T2", "area", "p"], ["mdot"])
