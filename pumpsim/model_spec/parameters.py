@@ -468,25 +468,27 @@ def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):
 GAS_PARAMETERS = (
     _p("rotor.width", "m", positive=True, doc="axial width of rotor, vanes and housing"),
     _p("gas.gas_constant", "J/(kg K)", positive=True),
-    _p("gas.gamma", "-", 1.0, 2.0, doc="ratio of specific heats"),
+    Parameter("gas.gamma", "-", lower=Bound(1.0, open=True), upper=Bound(2.0),
+              doc="ratio of specific heats"),
     _p("gas.temperature", "K", positive=True, doc="atmosphere, booster and plenum temperature"),
     _p("gas.wall_temperature", "K", positive=True),
     _p("gas.heat_transfer", "W/(m^2 K)", 0.0, doc="cell-wall film coefficient, 0 = adiabatic"),
     _p("gas.atmosphere", "Pa", positive=True, doc="atmospheric pressure"),
     _p("ports.inlet.start", "rad", doc="inlet window start, housing polar angle (housing frame)"),
     _p("ports.inlet.end", "rad"),
-    _p("ports.inlet.width", "m", 0.0, doc="axial width of the inlet window"),
+    Parameter("ports.inlet.width", "m", lower=POSITIVE, upper=Bound("rotor.width"),
+              doc="axial width of the inlet window"),
     _p("ports.exhaust.start", "rad"),
     _p("ports.exhaust.end", "rad"),
-    _p("ports.exhaust.width", "m", 0.0),
-    _p("ports.discharge_coefficient", "-", 0.0, 1.0),
+    Parameter("ports.exhaust.width", "m", lower=POSITIVE, upper=Bound("rotor.width")),
+    Parameter("ports.discharge_coefficient", "-", lower=POSITIVE, upper=Bound(1.0)),
     _p("ports.inlet_volume", "m^3", positive=True, doc="inlet manifold between hose and window"),
     _p("ports.exhaust_volume", "m^3", positive=True, doc="exhaust port volume under the valve"),
-    _p("ports.hose_area", "m^2", 0.0, doc="booster hose orifice area"),
+    _p("ports.hose_area", "m^2", positive=True, doc="booster hose orifice area"),
     _p("ports.check_cracking", "Pa", 0.0, doc="inlet check valve cracking pressure difference"),
     _p("ports.check_full_open", "Pa", positive=True, doc="inlet check valve: excess for full area"),
     _p("valve.reed", "-", 0.0, 1.0, doc="exhaust valve: 0 check, 1 reed"),
-    _p("valve.area", "m^2", 0.0, doc="check: full flow area; reed: port area (flow area cap)"),
+    _p("valve.area", "m^2", positive=True, doc="check: full flow area; reed: port area (flow area cap)"),
     _p("valve.cracking", "Pa", 0.0, doc="check: cracking pressure difference"),
     _p("valve.full_open", "Pa", positive=True, doc="check: excess over cracking for full area"),
     _p("valve.mass", "kg", positive=True, doc="reed: effective mass"),
@@ -497,9 +499,9 @@ GAS_PARAMETERS = (
     _p("valve.diameter", "m", positive=True, doc="reed: port diameter d (curtain area pi d x)"),
     _p("valve.force_area", "m^2", positive=True, doc="reed: area the pressure difference acts on"),
     _p("valve.mode", "-", 0.0, 2.0, doc="reed contact mode (runtime): 0 free, 1 seated, 2 on the stop"),
-    _p("leak.tip_gap", "m", 0.0),
-    _p("leak.end_gap", "m", 0.0),
-    _p("leak.discharge_coefficient", "-", 0.0, 1.0),
+    Parameter("leak.tip_gap", "m", lower=NONNEGATIVE, upper=Bound(1e-3, label="1 mm")),
+    Parameter("leak.end_gap", "m", lower=NONNEGATIVE, upper=Bound(1e-3, label="1 mm")),
+    Parameter("leak.discharge_coefficient", "-", lower=POSITIVE, upper=Bound(1.0)),
     _p("booster.volume", "m^3", positive=True),
     _p("booster.leak", "kg/s", 0.0, doc="booster leak mass flow at full atmospheric difference"),
     _p("vane.slot_pressure.source", "-", 0.0, 3.0, doc="0 value, 1 inlet, 2 exhaust, 3 atmosphere"),
@@ -512,6 +514,16 @@ GAS_PARAMETERS = (
     _p("motor.friction", "N m", 0.0, doc="motor friction torque"),
     _p("motor.inertia", "kg m^2", 0.0, doc="armature inertia"),
 )
+
+
+# Config checks loop over GAS_PARAMETERS: an entry the config sets under another key is named by
+# that key; encodings (valve type, reed mode, drive, slot-pressure source) and the hose area (from
+# ports.hose_diameter) are checked as the config keys that set them.
+GAS_CONFIG_KEYS = {"ports.inlet.width": "ports.inlet_width", "ports.exhaust.width": "ports.exhaust_width",
+                   "vane.slot_pressure.value": "vane.slot_pressure"}
+GAS_ENCODED = ("valve.reed", "valve.mode", "operation.motor", "vane.slot_pressure.source",
+               "ports.hose_area", "ports.inlet.start", "ports.inlet.end", "ports.exhaust.start",
+               "ports.exhaust.end")
 
 
 def pneumatic_layout(structure: PneumaticStructure) -> tuple[Parameter, ...]:

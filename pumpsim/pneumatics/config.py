@@ -10,7 +10,8 @@ import math
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError
-from ..model_spec.parameters import SLOT_SOURCES, VALVE_TYPES
+from ..model_spec.parameters import (GAS_CONFIG_KEYS, GAS_ENCODED, GAS_PARAMETERS, SLOT_SOURCES,
+                                      VALVE_TYPES)
 
 TABLES = ("gas", "ports", "valve", "leak", "booster", "motor")
 
@@ -56,9 +57,13 @@ def _pos(path, v):
         raise ConfigError(f"{path} must be > 0, got {v}")
 
 
-def _nonneg(path, v):
-    if v < 0:
-        raise ConfigError(f"{path} must be >= 0, got {v:g}")
+def _check(v: dict, prefix: str, keys: dict | None = None) -> None:
+    """Every registry entry under `prefix` that v sets, within its registry bounds; the message
+    names the config key (GAS_CONFIG_KEYS, or `keys`) and the limit."""
+    keys = {**GAS_CONFIG_KEYS, **(keys or {})}
+    for q in GAS_PARAMETERS:
+        if q.name.startswith(prefix) and q.name in v and q.name not in GAS_ENCODED:
+            q.check(v, keys.get(q.name, q.name))
 
 
 def _window(path, v):
@@ -88,9 +93,9 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     W = c["rotor"]["width"]
     if W is None:
         raise ConfigError("missing required key 'rotor.width' (the gas model needs the axial width)")
-    _pos("rotor.width", W)
     gs = c["gas"]
     v = {"rotor.width": W}
+    _check(v, "rotor.")
     _parse_gas(gs, v)
     _parse_ports(c["ports"], W, v)
     vt = _parse_valve(c["valve"], v)
@@ -105,17 +110,11 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
 
 def _parse_gas(gs: dict, v: dict) -> None:
     """Checks the [gas] table and adds its values to v."""
-    _pos("gas.gas_constant", gs["gas_constant"])
-    if not 1.0 < gs["gamma"] <= 2.0:
-        raise ConfigError(f"gas.gamma must be in (1, 2], got {gs['gamma']:g}")
-    for k in ("temperature", "atmosphere"):
-        _pos(f"gas.{k}", gs[k])
     wall_t = gs["temperature"] if gs["wall_temperature"] is None else gs["wall_temperature"]
-    _pos("gas.wall_temperature", wall_t)
-    _nonneg("gas.heat_transfer", gs["heat_transfer"])
-    v.update({"gas.gas_constant": gs["gas_constant"], "gas.gamma": gs["gamma"],
-              "gas.temperature": gs["temperature"], "gas.wall_temperature": wall_t,
-              "gas.heat_transfer": gs["heat_transfer"], "gas.atmosphere": gs["atmosphere"]})
+    v.update({f"gas.{k}": gs[k] for k in ("gas_constant", "gamma", "temperature", "heat_transfer",
+                                          "atmosphere")})
+    v["gas.wall_temperature"] = wall_t
+    _check(v, "gas.")
 
 
 def _parse_ports(pt: dict, W: float, v: dict) -> None:
@@ -127,20 +126,12 @@ def _parse_ports(pt: dict, W: float, v: dict) -> None:
         width = pt[f"{name}_width"] if pt[f"{name}_width"] is not None else pt["width"]
         if width is None:
             raise ConfigError(f"missing required key 'ports.{name}_width' (or ports.width)")
-        _pos(f"ports.{name}_width", width)
-        if width > W:
-            raise ConfigError(f"ports.{name}_width must be <= rotor.width ({W:g} m), got {width:g}")
         v.update({f"ports.{name}.start": a, f"ports.{name}.end": b, f"ports.{name}.width": width})
-    if not 0 < pt["discharge_coefficient"] <= 1:
-        raise ConfigError(f"ports.discharge_coefficient must be in (0, 1], got {pt['discharge_coefficient']:g}")
-    for k in ("inlet_volume", "exhaust_volume", "hose_diameter", "check_full_open"):
-        _pos(f"ports.{k}", pt[k])
-    _nonneg("ports.check_cracking", pt["check_cracking"])
-    v.update({"ports.discharge_coefficient": pt["discharge_coefficient"],
-              "ports.inlet_volume": pt["inlet_volume"], "ports.exhaust_volume": pt["exhaust_volume"],
-              "ports.hose_area": math.pi * pt["hose_diameter"] ** 2 / 4,
-              "ports.check_cracking": pt["check_cracking"],
-              "ports.check_full_open": pt["check_full_open"]})
+    _pos("ports.hose_diameter", pt["hose_diameter"])  # the registry holds the area
+    v.update({f"ports.{k}": pt[k] for k in ("discharge_coefficient", "inlet_volume", "exhaust_volume",
+                                            "check_cracking", "check_full_open")})
+    v["ports.hose_area"] = math.pi * pt["hose_diameter"] ** 2 / 4
+    _check(v, "ports.")
 
 
 def _parse_valve(vl: dict, v: dict) -> str:
@@ -164,50 +155,38 @@ def _parse_check_valve(vl: dict, v: dict) -> None:
         if vl[k] is not None:
             raise ConfigError(f"valve.{k} is for type = \"reed\"")
     area = vl["area"] if vl["area"] is not None else math.pi * 0.004 ** 2 / 4
-    _pos("valve.area", area)
-    _nonneg("valve.cracking", vl["cracking"])
-    _pos("valve.full_open", vl["full_open"])
     v.update({"valve.reed": 0.0, "valve.area": area, "valve.cracking": vl["cracking"],
               "valve.full_open": vl["full_open"]})
+    _check(v, "valve.")
 
 
 def _parse_reed_valve(vl: dict, v: dict) -> None:
     for k in ("mass", "stiffness", "lift_max", "diameter"):
         if vl[k] is None:
             raise ConfigError(f"missing required key 'valve.{k}' (type = \"reed\")")
-    for k in ("mass", "lift_max", "diameter"):
-        _pos(f"valve.{k}", vl[k])
-    for k in ("stiffness", "damping", "preload"):
-        _nonneg(f"valve.{k}", vl[k])
     d = vl["diameter"]
     port = vl["port_area"] if vl["port_area"] is not None else math.pi * d * d / 4
     force = vl["force_area"] if vl["force_area"] is not None else math.pi * d * d / 4
-    _pos("valve.port_area", port)
-    _pos("valve.force_area", force)
     v.update({"valve.reed": 1.0, "valve.area": port, "valve.cracking": 0.0, "valve.full_open": 1.0,
               "valve.mass": vl["mass"], "valve.stiffness": vl["stiffness"],
               "valve.damping": vl["damping"], "valve.preload": vl["preload"],
               "valve.lift_max": vl["lift_max"], "valve.diameter": d, "valve.force_area": force,
               "valve.mode": 1.0})
+    _check(v, "valve.", {"valve.area": "valve.port_area"})
 
 
 def _parse_leak(lk: dict, v: dict) -> None:
     """Checks the [leak] table (gaps at most 1 mm) and adds its values to v."""
-    for k in ("tip_gap", "end_gap"):
-        _nonneg(f"leak.{k}", lk[k])
-        if lk[k] > 1e-3:
-            raise ConfigError(f"leak.{k} must be <= 1 mm, got {lk[k]:g} m")
-    if not 0 < lk["discharge_coefficient"] <= 1:
-        raise ConfigError(f"leak.discharge_coefficient must be in (0, 1], got {lk['discharge_coefficient']:g}")
     v.update({f"leak.{k}": lk[k] for k in ("tip_gap", "end_gap", "discharge_coefficient")})
+    _check(v, "leak.")
 
 
 def _parse_booster(bo: dict, atmosphere: float, v: dict) -> tuple:
     """Checks the [booster] table, adds its values to v, returns (start pressure, target or None)."""
     if bo["volume"] is None:
         raise ConfigError("missing required key 'booster.volume' (m^3)")
-    _pos("booster.volume", bo["volume"])
-    _nonneg("booster.leak", bo["leak"])
+    v.update({"booster.volume": bo["volume"], "booster.leak": bo["leak"]})
+    _check(v, "booster.")
     start = atmosphere if bo["pressure"] is None else bo["pressure"]
     _pos("booster.pressure", start)
     if start > atmosphere:
@@ -215,7 +194,6 @@ def _parse_booster(bo: dict, atmosphere: float, v: dict) -> tuple:
     target = bo["target"]
     if target is not None and not 0 < target < start:
         raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}")
-    v.update({"booster.volume": bo["volume"], "booster.leak": bo["leak"]})
     return start, target
 
 
@@ -228,8 +206,8 @@ def _parse_slot_pressure(sp, v: dict) -> None:
         v.update({"vane.slot_pressure.source": float(SLOT_SOURCES.index(sp)),
                   "vane.slot_pressure.value": 0.0})
     elif isinstance(sp, (int, float)) and not isinstance(sp, bool):
-        _nonneg("vane.slot_pressure", sp)
         v.update({"vane.slot_pressure.source": 0.0, "vane.slot_pressure.value": float(sp)})
+        _check(v, "vane.slot_pressure")
     else:
         raise ConfigError(f"vane.slot_pressure must be a source name or a number, got {sp!r}")
 
@@ -242,12 +220,9 @@ def _parse_motor(mo: dict, raw: dict, motor: bool, v: dict) -> None:
         for k in ("voltage", "resistance", "inductance", "constant"):
             if mo[k] is None:
                 raise ConfigError(f"missing required key 'motor.{k}'")
-        for k in ("resistance", "inductance", "constant"):
-            _pos(f"motor.{k}", mo[k])
-        for k in ("friction", "inertia"):
-            _nonneg(f"motor.{k}", mo[k])
         v.update({f"motor.{k}": mo[k] for k in ("voltage", "resistance", "inductance", "constant",
                                                  "friction", "inertia")})
+        _check(v, "motor.")
     else:
         v.update({"motor.voltage": 0.0, "motor.resistance": 1.0, "motor.inductance": 1.0,
                   "motor.constant": 1.0, "motor.friction": 0.0, "motor.inertia": 0.0})
