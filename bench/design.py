@@ -41,27 +41,33 @@ def one_core(n=2000):
 def workers_scaling(n=6000, repeats=3):
     """The same study on a LocalCluster of 1 and of 2 worker processes (clusters started before
     the clock: the evaluation phase is timed), alternating, best of `repeats` each: the machine is
-    shared, and the best run is the one least disturbed. Same batch size for both."""
+    shared, and the best run is the one least disturbed. Each with the layout a user gets (equal
+    batches on one worker, guided on two). The overhead share is also given over all runs."""
     s = rig(n)
     clusters = {w: connect(None, w, True) for w in (1, 2)}
-    best, bs = {}, None
+    best, shares = {}, []
     try:
         for w, (client, _) in clusters.items():
             run_study(rig(64), client=client, workers=w, progress=False)  # warm the workers
         for _ in range(repeats):
             for w, (client, _) in clusters.items():
-                _, st = run_study(s, client=client, workers=w, batch_size=bs, progress=False)
-                bs = st.batch_size
+                _, st = run_study(s, client=client, workers=w, progress=False)
+                if w == 2:
+                    shares.append(st.overhead_share)
                 if w not in best or st.wall < best[w].wall:
                     best[w] = st
     finally:
         for client, cluster in clusters.values():
             client.close()
             cluster.close()
-    return {"designs": n, "batch_size": bs, "wall_1_s": best[1].wall, "wall_2_s": best[2].wall,
-            "speedup_2_workers": best[1].wall / best[2].wall,
-            "overhead_share_1": best[1].overhead_share, "overhead_share_2": best[2].overhead_share,
-            "tasks": best[2].batches, "repeats": repeats}
+    b = best[2]
+    W = b.workers * b.wall
+    return {"designs": n, "batch_size": b.batch_size, "wall_1_s": best[1].wall, "wall_2_s": b.wall,
+            "speedup_2_workers": best[1].wall / b.wall,
+            "overhead_share_1": best[1].overhead_share, "overhead_share_2": b.overhead_share,
+            "overhead_share_2_all_runs": shares,
+            "idle_2_start": b.idle_start / W, "idle_2_between": b.idle_between / W, "idle_2_end": b.idle_end / W,
+            "tasks": b.batches, "guided": b.guided, "repeats": repeats}
 
 
 def end_to_end(n=10_000):
@@ -91,11 +97,15 @@ def main():
     res["workers"] = r
     print(f"  LocalCluster 1 -> 2 workers: {r['wall_1_s']:.2f} s -> {r['wall_2_s']:.2f} s, speed-up "
           f"{r['speedup_2_workers']:.2f}x (target >= 1.7), Dask overhead share {100 * r['overhead_share_2']:.1f} % "
-          f"(target <= 5 %), {r['tasks']} tasks of {r['batch_size']} designs")
+          f"(target <= 5 %; start {100 * r['idle_2_start']:.1f} + between tasks {100 * r['idle_2_between']:.1f} "
+          f"+ end {100 * r['idle_2_end']:.1f}; all runs "
+          f"{', '.join(f'{100 * x:.1f}' for x in r['overhead_share_2_all_runs'])} %), {r['tasks']} tasks "
+          f"({'guided, first ' if r['guided'] else 'of '}{r['batch_size']} designs)")
     r = end_to_end()
     res["end_to_end_10k"] = r
     print(f"  10,000-design MC end to end (cluster start, sampling, evaluation, Parquet, report): "
-          f"{r['total_s']:.1f} s (target <= 60 s; report {r['report_s']:.1f} s, {r['workers']} workers)")
+          f"{r['total_s']:.1f} s (target <= 60 s; report {r['report_s']:.1f} s, {r['workers']} workers, "
+          f"Dask overhead share {100 * r['overhead_share']:.1f} %)")
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}

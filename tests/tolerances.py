@@ -198,3 +198,6 @@ FRICTION_ENERGY_KEPT_MAX = 0.9
 # The solver study over 2 revolutions: every method's torque within 20 % of the reference's peak
 # (RK4 at its default step and IDAS at loose tolerances included): a sanity bound, not accuracy.
 SOLVER_STUDY_DEVIATION_MAX = 0.2
+# A study's idle split (RunStats.idle_*) is built from the tasks' wall-clock spans (time.time),
+# the total from perf_counter: the two clocks agree to microseconds over a few seconds; 1 ms.
+CLOCK_ABS = 1e-3  # s

@@ -64,8 +64,10 @@ def cmd_sweep(a) -> int:
                           batch_size=a.batch_size)
     man = read_manifest(a.out) if a.out else None
     print(summary_text(df, study.outputs, study.limits, man))
-    print(f"{stats.designs} designs in {stats.batches} batches of {stats.batch_size} on {stats.workers} "
-          f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed)")
+    size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
+    print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
+          f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
+          f"{100 * stats.overhead_share:.1f} % of the workers' time idle)")
     if a.csv:
         from ..io import atomic_path
 

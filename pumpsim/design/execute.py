@@ -2,9 +2,12 @@
 
 - Default: a LocalCluster with one single-threaded worker process per core; `scheduler` (the
   `--scheduler ADDRESS` option or `study.scheduler`) runs the same study on an existing cluster.
-- Tasks are batches of designs sized to >= TASK_SECONDS of work from a pilot run. A task carries
-  the study (plain data) and its designs' key values; the worker loads or builds the compiled
-  variant from the hashed cache itself. Compiled functions never travel.
+- Tasks are batches of designs sized from a pilot run's time per design: on several workers by
+  guided self-scheduling (guided_bounds: large batches first, >= TASK_SECONDS while more than two
+  per worker remain, shrinking to ~TAIL_TASK_SECONDS so the workers finish together), else equal
+  batches of >= TASK_SECONDS. A task carries the study (plain data) and its designs' key values;
+  the worker loads or builds the compiled variant from the hashed cache itself. Compiled
+  functions never travel. RunStats splits the workers' idle time by where it falls.
 - Every design's values are fixed on the client before any task runs (sampling.py), and each
   design is evaluated on its own, so the table is the same for 1 or 64 workers and any batching.
 - Each finished batch is written by the client as `part-NNNNN.parquet` (temporary file + rename);
@@ -32,6 +35,7 @@ from .outputs import BOOL_OUTPUTS, per_vane_name
 from .sampling import design_matrix
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
+TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the workers finish together
 PILOT_DESIGNS = 6
 CONNECT_TIMEOUT = 5.0  # s: an unreachable scheduler fails this fast
 PART = "part-{:05d}.parquet"
@@ -129,10 +133,14 @@ def rows_to_table(study, rows):
 
 @dataclass
 class Plan:
+    """The designs cut into batches: equal ones of batch_size, or (bounds given) the batch b is
+    rows bounds[b]:bounds[b + 1] (guided_bounds)."""
+
     study: object
     X: np.ndarray  # (designs, keys)
     batch_size: int
     ids: np.ndarray = field(default=None)
+    bounds: list | None = None
 
     def __post_init__(self):
         if self.ids is None:
@@ -140,11 +148,35 @@ class Plan:
 
     @property
     def n_batches(self) -> int:
+        if self.bounds is not None:
+            return len(self.bounds) - 1
         return math.ceil(len(self.X) / self.batch_size)
 
     def batch(self, b: int):
-        lo, hi = b * self.batch_size, min(len(self.X), (b + 1) * self.batch_size)
+        if self.bounds is not None:
+            lo, hi = self.bounds[b], self.bounds[b + 1]
+        else:
+            lo, hi = b * self.batch_size, min(len(self.X), (b + 1) * self.batch_size)
         return self.ids[lo:hi], self.X[lo:hi]
+
+
+def guided_bounds(n: int, per_design: float, workers: int) -> list[int]:
+    """Batch bounds for n designs on `workers` workers (guided self-scheduling): each batch is
+    1/(2 workers) of what remains, so the first are large (few tasks, little per-task cost) and
+    they shrink toward the end, where the last ones take ~TAIL_TASK_SECONDS and the workers finish
+    together. Batches stay >= TASK_SECONDS of work until <= 2 such batches per worker remain."""
+    big = max(1, math.ceil(TASK_SECONDS / per_design))
+    small = max(1, math.ceil(TAIL_TASK_SECONDS / per_design))
+    bounds, lo = [0], 0
+    while lo < n:
+        rem = n - lo
+        floor = big if rem > 2 * workers * big else small
+        size = max(math.ceil(rem / (2 * workers)), floor)
+        if rem - size < small:
+            size = rem
+        lo += size
+        bounds.append(lo)
+    return bounds
 
 
 def study_designs(study) -> np.ndarray:
@@ -156,25 +188,43 @@ def study_designs(study) -> np.ndarray:
 
 
 def run_batch(study, ids, X):
-    """The task: evaluate designs on whichever process runs it. Returns (ids, Arrow table, seconds)."""
+    """The task: evaluate designs on whichever process runs it. Returns (first id, Arrow table,
+    seconds, (worker, start, stop on its wall clock))."""
     from .evaluate import evaluate_rows
 
-    t0 = time.perf_counter()
+    w0, t0 = time.time(), time.perf_counter()
     rows = evaluate_rows(study, X, ids, max_vanes(study))
-    return ids[0], rows_to_table(study, rows), time.perf_counter() - t0
+    table = rows_to_table(study, rows)
+    sec = time.perf_counter() - t0
+    return ids[0], table, sec, (_worker_name(), w0, w0 + sec)
 
 
-def pilot_batch_size(study, X) -> int:
-    """Designs per task so that a task is >= TASK_SECONDS of work (timed on this process, which
-    also builds any missing variant into the cache before the workers look for it)."""
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return get_worker().address
+    except (ImportError, ValueError):  # not inside a Dask task
+        return "local"
+
+
+def pilot_time_per_design(study, X) -> float:
+    """Seconds per design on this process (which also builds any missing variant into the cache
+    before the workers look for it): the least of three timings of PILOT_DESIGNS designs, as the
+    machine may be shared and a disturbed timing only ever reads long."""
     from .evaluate import evaluate_rows
 
     n = min(len(X), PILOT_DESIGNS)
     evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
-    t0 = time.perf_counter()
-    evaluate_rows(study, X[:n], np.arange(n), max_vanes(study))
-    per = max((time.perf_counter() - t0) / n, 1e-6)
-    return max(1, math.ceil(TASK_SECONDS / per))
+    best = math.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        evaluate_rows(study, X[:n], np.arange(n), max_vanes(study))
+        best = min(best, time.perf_counter() - t0)
+        if best > 2 * TASK_SECONDS:  # slow designs: one timing says enough
+            break
+    return max(best / n, 1e-6)
+
 
 
 def check_out_dir(out, study_hash) -> dict | None:
@@ -255,11 +305,16 @@ class RunStats:
     designs: int = 0
     batches: int = 0
     batches_skipped: int = 0
-    batch_size: int = 0
+    batch_size: int = 0  # designs per batch (guided: of the first)
+    guided: bool = False  # batches by guided_bounds
     workers: int = 0
     wall: float = 0.0  # evaluation phase
     compute: float = 0.0  # sum of in-task times
     setup: float = 0.0  # cluster start + pilot
+    # where workers x wall - compute went (worker-seconds, from the tasks' wall-clock spans):
+    idle_start: float = 0.0  # evaluation phase start -> a worker's first task (scatter, submit, dispatch)
+    idle_between: float = 0.0  # between a worker's tasks (result hand-off, next task's dispatch)
+    idle_end: float = 0.0  # a worker's last task -> the end (the tail, the last result's transfer and write)
 
     @property
     def overhead_share(self) -> float:
@@ -319,14 +374,37 @@ def _build_kernels(study) -> None:
             _fast(st)
 
 
-def _pilot_batch_size(study, X, client) -> int:
-    """The pilot's batch size, rounded so the batches split evenly over the workers (no lone task)."""
-    bs = pilot_batch_size(study, X) if len(X) > 1 else 1
+def _plan(study, X, man, batch_size, client) -> Plan:
+    """The batches: of the size asked (option, then study key), of a resumed run's manifest, or
+    from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
+    guided_bounds on several."""
+    bs = batch_size or study.batch_size
+    if bs:
+        return Plan(study, X, int(bs))
+    if man and man.get("batch_bounds"):
+        return Plan(study, X, int(man["batch_size"]), bounds=list(man["batch_bounds"]))
+    if man and man.get("batch_size"):
+        return Plan(study, X, int(man["batch_size"]))
+    per = pilot_time_per_design(study, X) if len(X) > 1 else TASK_SECONDS
     n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
-    if n_workers > 1:  # a multiple of the workers in equal tasks: no lone task at the end
-        nb = math.ceil(math.ceil(len(X) / bs) / n_workers) * n_workers
-        bs = max(1, math.ceil(len(X) / nb))
-    return bs
+    if n_workers > 1:
+        bounds = guided_bounds(len(X), per, n_workers)
+        return Plan(study, X, bounds[1] - bounds[0], bounds=bounds)
+    return Plan(study, X, max(1, math.ceil(TASK_SECONDS / per)))
+
+
+def _idle(stats, spans, t_start, t_end) -> None:
+    """Splits the workers' idle time (workers x wall - compute) by where it falls: before a
+    worker's first task, between its tasks, after its last (spans: (worker, start, stop))."""
+    by_worker: dict = {}
+    for w, a, b in spans:
+        by_worker.setdefault(w, []).append((a, b))
+    for iv in by_worker.values():
+        iv.sort()
+        stats.idle_start += max(0.0, iv[0][0] - t_start)
+        stats.idle_between += sum(max(0.0, b[0] - a[1]) for a, b in zip(iv, iv[1:]))
+        stats.idle_end += max(0.0, t_end - iv[-1][1])
+    stats.idle_start += max(0, stats.workers - len(by_worker)) * (t_end - t_start)  # never given a task
 
 
 def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
@@ -340,9 +418,8 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         raise ConfigError(f"--out '{out}' was written with other compiled kernels "
                           f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
                           "choose another folder or remove it")
-    bs = batch_size or study.batch_size or (man or {}).get("batch_size") or _pilot_batch_size(study, X, client)
-    plan = Plan(study, X, int(bs))
-    stats.batch_size, stats.batches = plan.batch_size, plan.n_batches
+    plan = _plan(study, X, man, batch_size, client)
+    stats.batch_size, stats.batches, stats.guided = plan.batch_size, plan.n_batches, plan.bounds is not None
     folder = Path(out) if out else None
     done = set()
     if folder is not None:
@@ -355,8 +432,11 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     bar = _bar(progress, len(todo))
     written = [0]
 
-    def finish(b, table, seconds):
+    spans = []
+
+    def finish(b, table, seconds, span):
         stats.compute += seconds
+        spans.append(span)
         if folder is not None:
             import pyarrow.parquet as pq
 
@@ -371,13 +451,12 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
 
     try:
         stats.setup = time.perf_counter() - t0
-        t1 = time.perf_counter()
+        t1, w1 = time.perf_counter(), time.time()
         if workers == 0 or not todo:
             stats.workers = 1
             for b in todo:
                 ids, Xb = plan.batch(b)
-                _, table, sec = run_batch(study, ids, Xb)
-                finish(b, table, sec)
+                finish(b, *run_batch(study, ids, Xb)[1:])
         else:
             from dask.distributed import as_completed
 
@@ -388,9 +467,9 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                 ids, Xb = plan.batch(b)
                 futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
             for fut in as_completed(futs):
-                _, table, sec = fut.result()
-                finish(futs[fut], table, sec)
+                finish(futs[fut], *fut.result()[1:])
         stats.wall = time.perf_counter() - t1
+        _idle(stats, spans, w1, w1 + stats.wall)
     finally:
         if bar is not None:
             bar.close()
@@ -415,7 +494,7 @@ def write_manifest(folder, study, plan, status, stats=None):
         "study_hash": study.study_hash(), "study": study.path, "config": study.config_path,
         "function": study.function, "sampler": study.sampler, "seed": study.seed,
         "samples": study.samples, "designs": int(len(plan.X)), "batch_size": plan.batch_size,
-        "batches": plan.n_batches, "part_pattern": PART, "keys": study.keys,
+        "batch_bounds": plan.bounds, "batches": plan.n_batches, "part_pattern": PART, "keys": study.keys,
         "speeds": study.speeds, "outputs": study.outputs, "model": study.model,
         "revolution_samples": study.revolution_samples,
         "limits": {k: list(v) for k, v in study.limits.items()},
