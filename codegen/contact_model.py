@@ -39,13 +39,12 @@ def contact_law(b, side, delta, delta_dot):
     return force, energy
 
 
-def vane_functions(b) -> dict:
-    """One vane: every output (vane_contact), the lean rates the ODEs need, their Jacobians."""
-    th, w, wd, s, sd, phi, factor = (ca.SX.sym(n) for n in
-                                     ("theta", "omega", "omegadot", "s", "sdot", "phi", "factor"))
+def housing_contact(b, th, w, s, sd, phi) -> dict:
+    """The housing contact of one vane at (theta, omega, s, sdot): housing parameter alpha (Newton on
+    the equation that fixes C, as a function of (theta, s)), its rate, the penetration delta and its
+    exact rate, C and n (rotor frame), and the Newton residual."""
     g = b.geometry()
     rho = g["rho"]
-    # housing point: Newton on the equation that fixes C, as a function of (theta, s)
     a_s, th_s, s_s, ph_s = ca.SX.sym("a"), ca.SX.sym("th"), ca.SX.sym("s"), ca.SX.sym("ph")
 
     def geometry_at(th_, s_, ph_, a_):
@@ -59,7 +58,7 @@ def vane_functions(b) -> dict:
         delta = rho - ca.dot(m["P"] - C, n)
         return m, C, n, gap_eq, delta
 
-    m0, _, _, gap_eq, delta_s = geometry_at(th_s, s_s, ph_s, a_s)
+    _, _, _, gap_eq, delta_s = geometry_at(th_s, s_s, ph_s, a_s)
     base = b.mech(phi=phi, s=s, **g)
     alpha, res = b.newton_alpha(b.ray_guess(th, base["Ob"], base["u"]), gap_eq, [th, s, phi],
                                 [th_s, s_s, ph_s], a_s)
@@ -72,23 +71,51 @@ def vane_functions(b) -> dict:
     alphadot = -(dGv[0] * w + dGv[1] * sd) / dGv[2]
     delta_dot = dDv[0] * w + dDv[1] * sd + dDv[2] * alphadot
     _, C, n, _, _ = geometry_at(th, s, phi, alpha)
+    return dict(alpha=alpha, alphadot=alphadot, delta=delta, delta_dot=delta_dot, C=C, n=n,
+                residual=res)
 
+
+def contact_vane(b, th, w, wd, s, sd, phi, factor, loads=None) -> dict:
+    """One vane's penalty contacts, friction and the vane equations solved for (sddot, F1, F2).
+    loads(alpha) -> (slide, lateral, tilt, rotor) generalised forces of further loads (gas
+    pressure, spec §8) at housing parameter alpha, or None; the rotor's share is the vane's drive
+    torque share minus the loads' moment on the rotor."""
+    g = b.geometry()
+    cp = housing_contact(b, th, w, s, sd, phi)
+    alpha, delta, delta_dot, C, n = (cp[k] for k in ("alpha", "delta", "delta_dot", "C", "n"))
     N, e_h = contact_law(b, "housing", delta, delta_dot)
     Fb, e_b = contact_law(b, "bottom", -s, -sd)
     in_contact = delta > 0
+    c_visc = ca.if_else(in_contact, b.P["effects.viscous_tip_friction"], 0.0)
     common = dict(theta=th, omega=w, omegadot=wd, phi=phi, s=s, sdot=sd, Cx=C[0], Cy=C[1],
-                  nx=n[0], ny=n[1], N=N, Fb=Fb,
-                  c_visc=ca.if_else(in_contact, b.P["effects.viscous_tip_friction"], 0.0), **g)
+                  nx=n[0], ny=n[1], N=N, Fb=Fb, c_visc=c_visc, **g)
     v_t = b.mech(**common)["tip_slip"]
     mu_h = factor * b.friction(v_t, "housing")
     mu_r = factor * b.friction(sd, "slot")  # a vane's material/finish: tip and slot
     common.update(mu_h=mu_h, mu_r=mu_r)
-    best, n_cons, amb, final = b.solve_contact_sides(("sddot", "F1", "F2"), common)
+    gf = loads(alpha) if loads is not None else None
+    best, n_cons, amb, final = b.solve_contact_sides(("sddot", "F1", "F2"), common,
+                                                     extra=None if gf is None else gf[:3])
+    share = final["torque_share"] if gf is None else final["torque_share"] - gf[3]
     outs = dict(sddot=best[0], normal=N, slot1=best[1], slot2=best[2], bottom=Fb, penetration=delta,
                 penetration_rate=delta_dot, alpha=alpha, tip_slip=v_t, mu_housing=mu_h, mu_slot=mu_r,
                 kinetic_energy=final["kinetic_energy"], potential_energy=e_h + e_b,
-                torque_share=final["torque_share"], torque_slope=ca.jacobian(final["torque_share"], wd),
-                n_consistent=n_cons, ambiguity=amb, position_residual=res)
+                torque_share=share, torque_slope=ca.jacobian(share, wd),
+                n_consistent=n_cons, ambiguity=amb, position_residual=cp["residual"])
+    # power of the tip and slot friction (and viscous tip friction), and of the penalty contacts
+    # on the vane's surroundings (elastic storage + contact damping)
+    outs["friction_power"] = (N * mu_h * v_t + c_visc * v_t * v_t
+                              + mu_r * sd * (ca.fabs(best[1]) + ca.fabs(best[2])))
+    outs["contact_power"] = N * delta_dot - Fb * sd
+    outs["alphadot"] = cp["alphadot"]
+    return outs
+
+
+def vane_functions(b) -> dict:
+    """One vane: every output (vane_contact), the lean rates the ODEs need, their Jacobians."""
+    th, w, wd, s, sd, phi, factor = (ca.SX.sym(n) for n in
+                                     ("theta", "omega", "omegadot", "s", "sdot", "phi", "factor"))
+    outs = contact_vane(b, th, w, wd, s, sd, phi, factor)
     args = [th, w, wd, s, sd, phi, factor, b.p]
     names = ["theta", "omega", "omegadot", "s", "sdot", "phi", "factor", "p"]
 
