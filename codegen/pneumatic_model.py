@@ -72,6 +72,24 @@ class _GasBuilder(_Builder):
                            ["theta", "phi", "p"], ["s", "alpha", "ds", "dalpha", "residual"],
                            {"cse": True})
 
+    def gas_loads(self, theta, phi, s, alpha, p_lead, p_trail, p_slot):
+        """Generalised forces of the gas on vane i (slide, lateral, tilt about G) and its moment on
+        the rotor: p_lead on the +w side (cell i), p_trail on the -w side (cell i-1), p_slot under
+        the vane (rotor-frame components, see cells.py); the slot-bottom gas pushes the rotor back."""
+        W, h = self.P["rotor.width"], self.P["vane.thickness"]
+        o = self.geo.outline(theta, phi, s, alpha)
+        lead, trail, _, _, _ = self.geo.vane_pieces(o)
+        loads = [(p_lead * W * f, X) for f, X in lead] + [(p_trail * W * f, X) for f, X in trail]
+        loads.append((p_slot * h * W * o["u"], o["A"]))
+        u, w, G = o["u"], o["w"], o["G"]
+        gf_slide = sum(ca.dot(F, u) for F, _ in loads)
+        gf_lat = sum(ca.dot(F, w) for F, _ in loads)
+        gf_tilt = sum((X[0] - G[0]) * F[1] - (X[1] - G[1]) * F[0] for F, X in loads)
+        gf_rotor = sum(X[0] * F[1] - X[1] * F[0] for F, X in loads)
+        F_b, Ob = -p_slot * h * W * u, o["Ob"]  # slot-bottom gas on the rotor
+        gf_rotor += Ob[0] * F_b[1] - Ob[1] * F_b[0]
+        return gf_slide, gf_lat, gf_tilt, gf_rotor
+
     def vane_dynamics(self):
         """Model 2 vane at a solved position with gas loads: p_lead acts on the +w side (cell i),
         p_trail on the -w side (cell i-1), p_slot under the vane."""
@@ -80,7 +98,6 @@ class _GasBuilder(_Builder):
         theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot = (
             ca.SX.sym(n) for n in names)
         P = self.P
-        W = P["rotor.width"]
         k = self.kinematics_at(theta, omega, omegadot, phi, s, alpha)
         hs = self.housing(alpha)
         C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
@@ -92,18 +109,8 @@ class _GasBuilder(_Builder):
         mu_h = factor * self.friction(v_t, "housing")
         mu_r = factor * self.friction(k["sdot"], "slot")  # a vane's material/finish: tip and slot
         common.update(mu_h=mu_h, mu_r=mu_r)
-        # gas loads and their generalised forces (rotor-frame components, see cells.py)
-        o = self.geo.outline(theta, phi, s, alpha)
-        lead, trail, _, _, _ = self.geo.vane_pieces(o)
-        loads = [(p_lead * W * f, X) for f, X in lead] + [(p_trail * W * f, X) for f, X in trail]
-        loads.append((p_slot * g["h"] * W * o["u"], o["A"]))
-        u, w, G = o["u"], o["w"], o["G"]
-        gf_slide = sum(ca.dot(F, u) for F, _ in loads)
-        gf_lat = sum(ca.dot(F, w) for F, _ in loads)
-        gf_tilt = sum((X[0] - G[0]) * F[1] - (X[1] - G[1]) * F[0] for F, X in loads)
-        gf_rotor = sum(X[0] * F[1] - X[1] * F[0] for F, X in loads)
-        F_b, Ob = -p_slot * g["h"] * W * u, o["Ob"]  # slot-bottom gas on the rotor
-        gf_rotor += Ob[0] * F_b[1] - Ob[1] * F_b[0]
+        gf_slide, gf_lat, gf_tilt, gf_rotor = self.gas_loads(theta, phi, s, alpha, p_lead, p_trail,
+                                                             p_slot)
         best, n_cons, _, final = self.solve_contact_sides(("N", "F1", "F2"), common,
                                                           extra=(gf_slide, gf_lat, gf_tilt))
         share = final["torque_share"] - gf_rotor
