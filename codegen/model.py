@@ -417,6 +417,10 @@ def build_model(structure: Structure) -> BuiltModel:
         from .pneumatic_model import build_pneumatic_model
 
         return build_pneumatic_model(structure)
+    if structure.model == "pneumatic-contact":  # spec §8 with Model 1: vanes free in their slots
+        from .pneumatic_contact_model import build_pneumatic_contact_model
+
+        return build_pneumatic_contact_model(structure)
     if structure.model != "constrained":
         from .contact_model import build_contact_functions  # Model 1
 

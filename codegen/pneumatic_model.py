@@ -125,8 +125,9 @@ class _GasBuilder(_Builder):
                            [outs[nm] for nm in VANE_DYN_OUTPUTS], [*names, "p"],
                            list(VANE_DYN_OUTPUTS), {"cse": True})
 
-    def cell_function(self):
-        """Cell volumes and d/dtheta, port overlaps, wall areas, from (theta, s, alpha, s', alpha')."""
+    def cell_function(self, rates=False):
+        """Cell volumes and d/dtheta, port overlaps, wall areas, from (theta, s, alpha, s', alpha')
+        (rates: from (theta, s, alpha, sdot, alphadot, omega), d/dt instead of d/dtheta)."""
         N = self.st.vanes
         P = self.P
         theta = ca.SX.sym("theta")
@@ -135,7 +136,8 @@ class _GasBuilder(_Builder):
         W = P["rotor.width"]
         V = ca.vertcat(*c["area"]) * W
         q = ca.vertcat(theta, s, al)
-        dV = ca.jtimes(V, q, ca.vertcat(1.0, ds, dal))
+        omega = ca.SX.sym("omega")
+        dV = ca.jtimes(V, q, ca.vertcat(omega if rates else 1.0, ds, dal))
         psi = P["housing.angle"]
 
         def port(name):
@@ -153,9 +155,9 @@ class _GasBuilder(_Builder):
         exposed = ca.vertcat(*[0.5 * (ca.norm_2(o["Jp"] - o["Rp"]) + ca.norm_2(o["Jm"] - o["Rm"]))
                                for o in c["outlines"]])
         vane_area = ca.vertcat(*c["vane_area"]) * W
-        return ca.Function("cells", [theta, s, al, ds, dal, self.p],
+        return ca.Function("cells", [theta, s, al, ds, dal, *([omega] if rates else []), self.p],
                            [V, dV, port("inlet"), port("exhaust"), wall, exposed, vane_area],
-                           ["theta", "s", "alpha", "ds", "dalpha", "p"],
+                           ["theta", "s", "alpha", "ds", "dalpha", *(["omega"] if rates else []), "p"],
                            ["volume", "dvolume", "inlet_length", "exhaust_length", "wall_area",
                             "exposed", "vane_volume"], {"cse": True})
 

@@ -90,6 +90,9 @@ OUTPUTS = _declare(
     ("vane_volume", "m^3", "cell", "vane volume outside the rotor (one per vane)"),
     ("motor_residual", "N m", "sample", "motor-drive torque residual after the omegadot Newton"),
     ("mdot", "kg/s", "sample", "orifice mass flow, side 1 -> 2"),
+    ("contact_power", "W", "sample", "power of the penalty contacts on their surroundings: elastic "
+     "storage + contact damping (Model 1 with gas)"),
+    ("volume_rate", "m^3/s", "cell", "d volume / dt (Model 1 with gas: the vanes move on their own)"),
     ("qdot", "-", "other", "rates of the energy and mass budgets"),
     ("jac_qdot_x", "-", "other", "d qdot / d x"),
 )
@@ -155,10 +158,25 @@ _PNEUMATIC = {
 }
 
 
+# Model 1 with gas (spec §2 and §8): the vanes' own states, contacts and lift-off
+PUMP_CONTACT_OUTPUTS = PUMP_OUTPUTS + (
+    "sdot", "penetration", "bottom", "alpha", "tip_slip", "ambiguity", "potential_energy",
+    "contact_power", "volume_rate",
+)
+_PNEUMATIC_CONTACT = {
+    **_PNEUMATIC,
+    "pump_outputs": Signature(("x", "p"), PUMP_CONTACT_OUTPUTS),
+    "constrained_state": _CONTACT["constrained_state"],
+}
+
+
 def signatures(model: str) -> dict:
-    """Exported function name -> Signature for one model ("constrained" | "contact")."""
+    """Exported function name -> Signature for one model ("constrained" | "contact" | "pneumatic"
+    | "pneumatic-contact")."""
     if model == "pneumatic":
         return dict(_PNEUMATIC)
+    if model == "pneumatic-contact":
+        return dict(_PNEUMATIC_CONTACT)
     return {**(_CONTACT if model == "contact" else _CONSTRAINED), **_BOTH}
 
 

@@ -442,22 +442,37 @@ REED_MODES = {"free": 0.0, "seated": 1.0, "stop": 2.0}
 
 @dataclass(frozen=True)
 class PneumaticStructure:
-    """A pneumatic variant: Model 2 mechanics with N gas cells."""
+    """A pneumatic variant: Model 2 mechanics with N gas cells ("pneumatic"), or Model 1 (penalty
+    contacts, each vane's s_i and sdot_i integrated with the gas: "pneumatic-contact", with the
+    contact laws of the housing and the slot bottom)."""
 
     vanes: int = 4
     harmonics: int = 0
     model: str = "pneumatic"
+    housing_law: str = "impact"  # pneumatic-contact only
+    bottom_law: str = "impact"  # pneumatic-contact only
+
+    @property
+    def contact(self) -> bool:
+        return self.model == "pneumatic-contact"
 
     @property
     def variant(self) -> str:
+        if self.contact:
+            return f"pneumatic-contact-n{self.vanes}-h{self.harmonics}-{self.housing_law}-{self.bottom_law}"
         return f"pneumatic-n{self.vanes}-h{self.harmonics}"
 
     @property
     def mechanical(self) -> Structure:
+        if self.contact:
+            return Structure("contact", self.vanes, self.harmonics, self.housing_law, self.bottom_law)
         return Structure("constrained", self.vanes, self.harmonics)
 
     def as_dict(self) -> dict:
-        return {"model": self.model, "vanes": self.vanes, "harmonics": self.harmonics}
+        d = {"model": self.model, "vanes": self.vanes, "harmonics": self.harmonics}
+        if self.contact:
+            d.update(housing_law=self.housing_law, bottom_law=self.bottom_law)
+        return d
 
 
 def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):

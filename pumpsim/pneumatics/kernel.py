@@ -9,17 +9,21 @@ from ..kernels import load_kernels
 from ..model_spec.parameters import PneumaticStructure, pneumatic_layout
 
 
-def structure_of(cfg: PumpConfig) -> PneumaticStructure:
+def structure_of(cfg: PumpConfig, model: str = "constrained") -> PneumaticStructure:
+    """The gas variant with Model 2 mechanics ("constrained") or Model 1's ("contact")."""
+    if model == "contact":
+        return PneumaticStructure(cfg.vanes, len(cfg.harmonics), "pneumatic-contact",
+                                  cfg.contact_laws["housing"], cfg.contact_laws["bottom"])
     return PneumaticStructure(cfg.vanes, len(cfg.harmonics))
 
 
-def parameter_vector(cfg: PumpConfig, **overrides) -> np.ndarray:
+def parameter_vector(cfg: PumpConfig, model: str = "constrained", **overrides) -> np.ndarray:
     """Stacked parameters (registry order); `overrides` by registry name with '.' as '__'."""
     if cfg.pneumatic is None:
         raise ConfigError(f"{cfg.path or cfg.name}: the gas model needs [ports] and [booster] "
                           "(spec §8)")
-    st = structure_of(cfg)
-    mech = cfg.parameters("constrained").values
+    st = structure_of(cfg, model)
+    mech = cfg.parameters(model).values
     values = {**mech, **cfg.pneumatic.values}
     values.update({k.replace("__", "."): v for k, v in overrides.items()})
     names = [q.name for q in pneumatic_layout(st)]
@@ -34,5 +38,5 @@ def parameter_index(cfg_or_structure, name: str) -> int:
     return [q.name for q in pneumatic_layout(st)].index(name)
 
 
-def kernels(cfg: PumpConfig):
-    return load_kernels(structure_of(cfg))
+def kernels(cfg: PumpConfig, model: str = "constrained"):
+    return load_kernels(structure_of(cfg, model))

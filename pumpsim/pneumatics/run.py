@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import SolverError
 from ..integrate import _illinois
-from .kernel import kernels, parameter_index, parameter_vector, structure_of
+from .kernel import kernels, parameter_index, parameter_vector
 from ..model_spec.parameters import REED_MODES
 
 EVENT_TIME_TOL = 1e-10  # s
@@ -123,7 +123,7 @@ class PumpIntegrator:
 def initial_state(cfg, kern, p, theta0=None, omega0=None):
     """Everything at rest pressure: cells and exhaust port at the atmosphere, inlet manifold and
     booster at the booster's start pressure, reed seated."""
-    st = structure_of(cfg)
+    st = kern.structure
     v = dict(zip([q for q in _names(st)], p))
     th = cfg.angle if theta0 is None else theta0
     om = cfg.speed if omega0 is None else omega0
@@ -183,17 +183,19 @@ def _reed_switch(kern, p, X, mode):
 
 
 def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=1e-7, atol=1e-9,
-              progress=None, max_steps=2_000_000) -> PumpdownRun:
+              progress=None, max_steps=2_000_000, kern=None, scale=None) -> PumpdownRun:
     """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
-    booster pressure falls to `until` (located to EVENT_TIME_TOL)."""
-    kern = kernels(cfg)
+    booster pressure falls to `until` (located to EVENT_TIME_TOL). kern, scale: another variant
+    (Model 1 with gas) and its state scale; its p and x0 are then given."""
+    kern = kernels(cfg) if kern is None else kern
     p = parameter_vector(cfg) if p is None else np.asarray(p, float)
-    st = structure_of(cfg)
+    st = kern.structure
     N = st.vanes
     x0 = initial_state(cfg, kern, p) if x0 is None else np.asarray(x0, float)
     reed = p[parameter_index(st, "valve.reed")] > 0.5
     mode = float(p[parameter_index(st, "valve.mode")]) if reed else 0.0
-    integ = PumpIntegrator(kern, p, rtol, atol, state_scale(x0, p, st), max_steps)
+    scale = state_scale(x0, p, st) if scale is None else scale
+    integ = PumpIntegrator(kern, p, rtol, atol, scale, max_steps)
     dt = 1.0 / rate
     n_total = int(math.floor(duration * rate + 1e-9))
     times, xs, qs = [0.0], [x0], [np.zeros(integ.nq)]
