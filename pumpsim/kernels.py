@@ -125,10 +125,11 @@ def main(argv=None) -> int:
         if cfg.pneumatic is not None:  # spec §8 configs also get their gas-cell variant
             from .pneumatics.kernel import structure_of
 
-            st = structure_of(cfg)
-            if st not in seen:
-                seen.add(st)
-                print(f"{st.variant}: {load_kernels(st, log=lambda m: print(m, flush=True)).folder}")
+            models = ["constrained"] + (["contact"] if cfg.contact_given else [])  # Model 1 with gas too
+            for st in (structure_of(cfg, m) for m in models):
+                if st not in seen:
+                    seen.add(st)
+                    print(f"{st.variant}: {load_kernels(st, log=lambda m: print(m, flush=True)).folder}")
     return 0
 
 

@@ -132,8 +132,14 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
         res = pumpsim.simulate(cfg, duration=0.05, rate=20000)
         print(res.summary())
     """
+    if model == "contact" and cfg.pneumatic is not None:  # spec §8 tables: Model 1 with the gas
+        from .pneumatics.contact import simulate as simulate_gas_contact
+
+        return simulate_gas_contact(cfg, duration=duration, rate=rate, method=method, rtol=rtol,
+                                    atol=atol, progress=progress, max_steps=max_steps, **options)
     if cfg.mode == "motor":
-        raise ConfigError("operation.mode = \"motor\" drives the pneumatic model: use `pumpsim pumpdown`")
+        raise ConfigError("operation.mode = \"motor\" drives the pneumatic model: use `pumpsim pumpdown` "
+                          "(or `pumpsim simulate --model contact`)")
     for name, val in (("rtol", rtol), ("atol", atol)):
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")

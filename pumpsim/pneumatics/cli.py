@@ -21,6 +21,9 @@ def add_pumpdown_command(sub) -> None:
     pd.add_argument("--fast", action="store_true",
                     help="also run the fast path (cycle-averaged maps) and compare (always with "
                          "--plot/--report: the maps give the S(p) figure)")
+    pd.add_argument("--model", choices=["constrained", "contact"], default="constrained",
+                    help="constrained: Model 2 (tips on the housing); contact: Model 1 (vanes free in "
+                         "their slots, penalty contacts, lift-off reported; needs [contact.housing])")
     pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
     pd.add_argument("--rtol", type=float, default=1e-5)
     pd.add_argument("--atol", type=float, default=1e-5,
@@ -51,12 +54,15 @@ def cmd_pumpdown(a) -> int:
     from . import pumpdown as pdm
 
     _check_outputs(a)
+    if a.model == "contact" and (a.fast or a.plot or a.report):
+        raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
+                          "without --model contact")
     cfg = load_config(a.config)
     if cfg.pneumatic is None:
         raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
     progress = _progress if sys.stderr.isatty() else None
     res = pdm.pumpdown(cfg, until=a.until, duration=a.duration, rate=a.rate, rtol=a.rtol, atol=a.atol,
-                       progress=progress)
+                       progress=progress, model=a.model)
     if progress:
         print(file=sys.stderr)
     maps = fast = None

@@ -143,3 +143,94 @@ def lift_off_text(intervals, N, t_end) -> list[str]:
 
 def structure(cfg):
     return structure_of(cfg, "contact")
+
+
+# -- simulate --model contact on a config with the gas tables ------------------------------------
+CELL_COLUMNS = ("pressure", "volume", "temperature")
+VANE_COLUMNS = ("s", "sdot", "normal", "slot1", "slot2", "penetration")
+
+
+def _solution_class():
+    from ..result import Solution
+
+    class GasContactSolution(Solution):
+        """Spec §7 columns of Model 1 (penetration_i included) and the spec §8 ones: booster
+        pressure, current, per cell pressure_i, volume_i, temperature_i; lift-off per vane."""
+
+        lift_off: list = []  # LiftOff intervals
+        budgets: dict = {}  # energies [J] over the run (QUAD_NAMES and the kinetic energy change)
+
+        def column_names(self) -> list:
+            N = self.n_vanes
+            return (super().column_names() + ["booster_pressure", "current"]
+                    + [f"{c}_{i}" for i in range(N) for c in CELL_COLUMNS])
+
+        def summary(self) -> str:
+            lines = super().summary().split("\n")
+            q = self.budgets
+            if q:
+                lines.insert(4, f"work: shaft {q['shaft_work']:.4g} J = gas {q['gas_work']:.4g} J + friction "
+                                f"{q['friction_work']:.4g} J + contacts {q['contact_work']:.3g} J + kinetic "
+                                f"{q['kinetic']:.3g} J (gas forces on the vanes: {-q['load_work']:.4g} J)")
+            return "\n".join(lines[:5] + lift_off_text(self.lift_off, self.n_vanes, self.time[-1])
+                             + lines[5:])
+
+    return GasContactSolution
+
+
+def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=1e-8, atol=1e-10, initial=None,
+             progress=None, max_steps=2_000_000):
+    """Model 1 with the gas (spec §2, §8) at constant speed (operation.mode speed) or driven by the
+    motor (mode motor), from the booster's start pressure; duration default: two revolutions (speed
+    drive) or 0.1 s (motor). atol as for the mechanical models: of vane positions [m]; every other
+    state gets the same share of its nominal size (state_scale)."""
+    from ..simulate import sample_times
+
+    if method != "cvodes":
+        raise ConfigError(f"--method {method}: the contact model with gas integrates with cvodes only")
+    if cfg.mode == "torque":
+        raise ConfigError("the gas model runs at constant speed (operation.mode = \"speed\") or with "
+                          "the motor (\"motor\"), not with a given torque")
+    if duration is None:
+        duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" and cfg.speed > 0 else 0.1
+    t = sample_times(duration, rate)
+    atol_rel = atol / (VANE_POSITION_SCALE * cfg.values["vane.length"])
+    r = integrate(cfg, t[-1], rate, rtol=rtol, atol=min(atol_rel, 0.1), initial=initial or "housing",
+                  progress=progress, max_steps=max_steps)
+    return _solution(cfg, r)
+
+
+def _solution(cfg, r):
+    N = cfg.vanes
+    o = {k: (v.T if np.ndim(v) == 2 else (v[None, :] if k in VANE_COLUMNS + CELL_COLUMNS and N == 1
+                                           else v)) for k, v in r.outputs.items()}
+    i_s, i_sd = vane_slices(N)
+    vanes = {"s": r.states[:, i_s].T, "sdot": r.states[:, i_sd].T}
+    vanes.update({k: o[k] for k in ("normal", "slot1", "slot2", "penetration")})
+    o["booster_pressure"] = r.outputs["booster_pressure"]
+    o["current"] = r.states[:, 2]
+    events = []
+    for iv in r.lift_off:
+        d = iv.as_dict()
+        events.append({"time": iv.start, "kind": "lift_off", "vane": iv.vane,
+                       "message": f"vane {iv.vane} leaves the housing at {d['angle_start_deg']:.2f} deg"})
+        if iv.end is not None:
+            events.append({"time": iv.end, "kind": "housing_contact", "vane": iv.vane,
+                           "message": f"vane {iv.vane} back on the housing at {d['angle_end_deg']:.2f} deg"})
+    events.sort(key=lambda e: e["time"])
+    q = dict(zip(QUAD_NAMES, r.quad[-1]))
+    ke = o["kinetic_energy"]
+    w = r.states[:, 1]
+    q["kinetic"] = float(ke[-1] - ke[0] + 0.5 * cfg.values["rotor.inertia"] * (w[-1] ** 2 - w[0] ** 2))
+    stats = dict(r.stats)
+    warnings = []
+    from ..result import contact_warnings
+
+    contact_warnings(o, r.time, warnings)
+    cls = _solution_class()
+    res = cls("contact", cfg.mode, r.time, r.states[:, 0], w, o["torque"], vanes,
+              dict(zip([qq.name for qq in pneumatic_layout(structure(cfg))], r.p)), stats, events,
+              warnings, extra=o, config_name=cfg.name)
+    res.lift_off = r.lift_off
+    res.budgets = {k: float(v) for k, v in q.items()}
+    return res

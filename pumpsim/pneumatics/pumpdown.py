@@ -60,6 +60,7 @@ class PumpdownResult:
                  f"energy {s['energy']:.1f} J; mean speed {s['mean_speed_rpm']:.0f} rpm",
                  f"  shaft work {s['shaft_work']:.1f} J = gas {s['gas_work']:.1f} J + friction "
                  f"{s['friction_work']:.1f} J + kinetic {s['shaft_work'] - s['gas_work'] - s['friction_work']:.2f} J"]
+        lines += [f"  {line}" for line in s.get("lift_off_text", [])]
         st = s["solver"]
         lines.append(f"  CVODES: {st['nsteps']} steps, {st['nfevals']} rhs, {st['njevals']} Jacobians, "
                      f"{st['netfails']} error-test failures, {st.get('events', 0)} valve events, "
@@ -76,9 +77,12 @@ def _target(cfg, until):
 
 
 def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=1e-5, atol=1e-5,
-             progress=None) -> PumpdownResult:
+             progress=None, model="constrained") -> PumpdownResult:
     """Full-model pump-down from booster.pressure to `until` (default booster.target), at most
-    `duration` seconds (default 120 s)."""
+    `duration` seconds (default 120 s); model "contact": Model 1 (vanes free in their slots,
+    lift-off reported) instead of Model 2."""
+    if model not in ("constrained", "contact"):
+        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
     if cfg.pneumatic is None:
         raise ConfigError(f"{cfg.path or cfg.name}: pumpdown needs the gas tables [ports] and [booster] "
                           "(spec §8)")
@@ -93,7 +97,12 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=1e-5, atol=1e-5,
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
     duration = 120.0 if duration is None else duration
-    r = run.integrate(cfg, duration, rate, until=target, rtol=rtol, atol=atol, progress=progress)
+    if model == "contact":
+        from . import contact
+
+        r = contact.integrate(cfg, duration, rate, until=target, rtol=rtol, atol=atol, progress=progress)
+    else:
+        r = run.integrate(cfg, duration, rate, until=target, rtol=rtol, atol=atol, progress=progress)
     return _result(cfg, r, target)
 
 
@@ -122,6 +131,8 @@ def _result(cfg, r, target) -> PumpdownResult:
         "solver": {k: (float(v) if isinstance(v, float) else v) for k, v in r.stats.items()},
     }
     warnings = []
+    if getattr(r, "lift_off", None) is not None:  # Model 1: the vanes' columns and their lift-off
+        _contact_result(cfg, r, cols, summary)
     neg = o["normal"] < 0
     if neg.any():
         k = int(np.argmax(neg.any(axis=1)))
@@ -131,6 +142,26 @@ def _result(cfg, r, target) -> PumpdownResult:
         warnings.append(f"motor torque balance not closed to 1e-6 N m "
                         f"(max {np.max(np.abs(o['motor_residual'])):.2g})")
     return PumpdownResult(cfg.name, t, cols, summary, r, warnings)
+
+
+def _contact_result(cfg, r, cols, summary) -> None:
+    """Model 1: per vane s_i, sdot_i, normal_i, penetration_i (spec §7's contact columns) and the
+    lift-off intervals; the contact work in the budgets."""
+    from .contact import QUAD_NAMES, lift_off_text, vane_slices
+
+    N = cfg.vanes
+    i_s, i_sd = vane_slices(N)
+    pen = r.outputs["penetration"].reshape(len(r.time), N)
+    normal = r.outputs["normal"].reshape(len(r.time), N)
+    for i in range(N):
+        cols[f"s_{i}"] = r.states[:, i_s][:, i]
+        cols[f"sdot_{i}"] = r.states[:, i_sd][:, i]
+        cols[f"normal_{i}"] = normal[:, i]
+        cols[f"penetration_{i}"] = pen[:, i]
+    q = dict(zip(QUAD_NAMES, r.quad[-1]))
+    summary.update(model="contact", contact_work=q["contact_work"], load_work=q["load_work"],
+                   lift_off=[iv.as_dict() for iv in r.lift_off])
+    summary["lift_off_text"] = lift_off_text(r.lift_off, N, float(r.time[-1]))
 
 
 # -- fast path -------------------------------------------------------------------------------------
