@@ -110,7 +110,7 @@ def lift_off_intervals(t, theta, penetration) -> list[LiftOff]:
         edges = np.flatnonzero(np.diff(off.astype(int)))  # sample k: off changes between k, k+1
 
         def crossing(k):
-            f = d[k] / (d[k] - d[k + 1]) if d[k] != d[k + 1] else 0.0
+            f = min(max(d[k] / (d[k] - d[k + 1]), 0.0), 1.0) if d[k] != d[k + 1] else 0.0
             return t[k] + f * (t[k + 1] - t[k]), theta[k] + f * (theta[k + 1] - theta[k])
 
         starts = ([(t[0], theta[0])] if off[0] else []) + [crossing(k) for k in edges if not off[k]]
