@@ -43,3 +43,8 @@ DESIGN_CONSTANT_ABS = {"N·m": 1e-12, "W": 1e-9, "N": 1e-9, "m": 1e-12, "Pa·m/s
 # slowly (ratio ~0.92 per revolution): 3.5e-3 after 6, 5e-4 after 30 -- a change per revolution
 # bounds the remaining transient only up to 1/(1 - ratio), so on the rig ~0.5 % may remain.
 CONTACT_PERIODIC_REL = 1e-3
+# Model 1 with gas (pumpsim.pneumatics.contact.integrate): the vanes' penetration (~1e-7..1e-5 m) sits
+# on s ~ 5e-3 m, so the relative tolerance decides the contact force's accuracy: rtol 1e-7 puts
+# ~5e-10 m on s (< 1e-3 of a 1 um penetration); atol relative to each state's nominal size
+# (state_scale: vane positions 1e-3 x vane length).
+CONTACT_GAS_RTOL, CONTACT_GAS_ATOL = 1e-7, 1e-6

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..contact import TOUCHING
 from ..errors import ConfigError
+from ..tolerances import ATOL, CONTACT_GAS_ATOL, CONTACT_GAS_RTOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
 from .kernel import kernels, parameter_vector, structure_of
@@ -68,7 +69,7 @@ def state_scale(x0, p, cfg, kern):
     return sc
 
 
-def integrate(cfg, duration, rate, until=None, rtol=1e-7, atol=1e-6, initial="housing",
+def integrate(cfg, duration, rate, until=None, rtol=CONTACT_GAS_RTOL, atol=CONTACT_GAS_ATOL, initial="housing",
               progress=None, x0=None, p=None, max_steps=2_000_000):
     """run.integrate on the Model 1 variant; the PumpdownRun carries lift-off intervals."""
     kern, p0 = model_parts(cfg)
@@ -178,7 +179,7 @@ def _solution_class():
     return GasContactSolution
 
 
-def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=1e-8, atol=1e-10, initial=None,
+def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=ATOL, initial=None,
              progress=None, max_steps=2_000_000):
     """Model 1 with the gas (spec §2, §8) at constant speed (operation.mode speed) or driven by the
     motor (mode motor), from the booster's start pressure; duration default: two revolutions (speed
