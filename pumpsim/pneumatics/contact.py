@@ -16,6 +16,7 @@ import numpy as np
 
 from ..contact import TOUCHING
 from ..errors import ConfigError
+from ..result import Solution, contact_warnings
 from ..tolerances import ATOL, CONTACT_GAS_ATOL, CONTACT_GAS_RTOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
@@ -69,8 +70,8 @@ def state_scale(x0, p, cfg, kern):
     return sc
 
 
-def integrate(cfg, duration, rate, until=None, rtol=CONTACT_GAS_RTOL, atol=CONTACT_GAS_ATOL, initial="housing",
-              progress=None, x0=None, p=None, max_steps=2_000_000):
+def integrate(cfg, duration, rate, until=None, rtol=CONTACT_GAS_RTOL, atol=CONTACT_GAS_ATOL,
+              initial="housing", progress=None, x0=None, p=None, max_steps=2_000_000):
     """run.integrate on the Model 1 variant; the PumpdownRun carries lift-off intervals."""
     kern, p0 = model_parts(cfg)
     p = p0 if p is None else np.asarray(p, float)
@@ -151,32 +152,27 @@ CELL_COLUMNS = ("pressure", "volume", "temperature")
 VANE_COLUMNS = ("s", "sdot", "normal", "slot1", "slot2", "penetration")
 
 
-def _solution_class():
-    from ..result import Solution
+class GasContactSolution(Solution):
+    """Spec §7 columns of Model 1 (penetration_i included) and the spec §8 ones: booster
+    pressure, current, per cell pressure_i, volume_i, temperature_i; lift-off per vane."""
 
-    class GasContactSolution(Solution):
-        """Spec §7 columns of Model 1 (penetration_i included) and the spec §8 ones: booster
-        pressure, current, per cell pressure_i, volume_i, temperature_i; lift-off per vane."""
+    lift_off: list = []  # LiftOff intervals
+    budgets: dict = {}  # energies [J] over the run (QUAD_NAMES and the kinetic energy change)
 
-        lift_off: list = []  # LiftOff intervals
-        budgets: dict = {}  # energies [J] over the run (QUAD_NAMES and the kinetic energy change)
+    def column_names(self) -> list:
+        N = self.n_vanes
+        return (super().column_names() + ["booster_pressure", "current"]
+                + [f"{c}_{i}" for i in range(N) for c in CELL_COLUMNS])
 
-        def column_names(self) -> list:
-            N = self.n_vanes
-            return (super().column_names() + ["booster_pressure", "current"]
-                    + [f"{c}_{i}" for i in range(N) for c in CELL_COLUMNS])
-
-        def summary(self) -> str:
-            lines = super().summary().split("\n")
-            q = self.budgets
-            if q:
-                lines.insert(4, f"work: shaft {q['shaft_work']:.4g} J = gas {q['gas_work']:.4g} J + friction "
-                                f"{q['friction_work']:.4g} J + contacts {q['contact_work']:.3g} J + kinetic "
-                                f"{q['kinetic']:.3g} J (gas forces on the vanes: {-q['load_work']:.4g} J)")
-            return "\n".join(lines[:5] + lift_off_text(self.lift_off, self.n_vanes, self.time[-1])
-                             + lines[5:])
-
-    return GasContactSolution
+    def summary(self) -> str:
+        lines = super().summary().split("\n")
+        q = self.budgets
+        if q:
+            lines.insert(4, f"work: shaft {q['shaft_work']:.4g} J = gas {q['gas_work']:.4g} J + friction "
+                            f"{q['friction_work']:.4g} J + contacts {q['contact_work']:.3g} J + kinetic "
+                            f"{q['kinetic']:.3g} J (gas forces on the vanes: {-q['load_work']:.4g} J)")
+        return "\n".join(lines[:5] + lift_off_text(self.lift_off, self.n_vanes, self.time[-1])
+                         + lines[5:])
 
 
 def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=ATOL, initial=None,
@@ -225,11 +221,8 @@ def _solution(cfg, r):
     q["kinetic"] = float(ke[-1] - ke[0] + 0.5 * cfg.values["rotor.inertia"] * (w[-1] ** 2 - w[0] ** 2))
     stats = dict(r.stats)
     warnings = []
-    from ..result import contact_warnings
-
     contact_warnings(o, r.time, warnings)
-    cls = _solution_class()
-    res = cls("contact", cfg.mode, r.time, r.states[:, 0], w, o["torque"], vanes,
+    res = GasContactSolution("contact", cfg.mode, r.time, r.states[:, 0], w, o["torque"], vanes,
               dict(zip([qq.name for qq in pneumatic_layout(structure(cfg))], r.p)), stats, events,
               warnings, extra=o, config_name=cfg.name)
     res.lift_off = r.lift_off
