@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose clean
+.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml
@@ -16,6 +16,7 @@ $(STAMP): pyproject.toml
 codegen: install
 	$(BIN)/python -m pumpsim.kernels examples/*.toml
 	$(BIN)/python -m pumpsim.fastkernel examples/*.toml
+	$(BIN)/python -m pumpsim.kernels bench/independent/rigs/*.toml  # the independent cross-check's rigs
 
 demo: codegen
 	mkdir -p out
@@ -65,6 +66,11 @@ bench-design: codegen
 bench-diagnose: codegen
 	mkdir -p out
 	$(BIN)/python bench/diagnose_grid.py --grid $(or $(GRID),reduced) --json out/bench_diagnose.json
+
+# diagnose on records from an independent implementation of the spec (bench/independent; QUICK=1: ~20 cases)
+bench-diagnose-independent: codegen
+	mkdir -p out
+	$(BIN)/python bench/independent/run.py $(if $(QUICK),--quick) --json out/bench_independent.json
 
 clean:
 	rm -rf generated/*/ out .pytest_cache

@@ -1,0 +1,200 @@
+"""Measurement records from the independent rig model: effects as physics, disturbances, noise.
+
+Each effect is implemented in this generator's own form (not pumpsim's parametrisation):
+* rotor_eccentricity - the housing centre moved by e (0.05-0.15 mm) in any direction beta
+  (equivalently the rotor centre moved by -e); every vane's s(theta) is re-solved on the moved curve.
+* housing_out_of_round - an extra harmonic [k, A, gamma] of the housing's polar radius, k = 2..6.
+* speed_ripple - omega = w0 (1 + eps cos(k w0 t + phase)), k = 1..3, eps 0.2-3 %; the inverse
+  dynamics carries omega' (rotor and vane inertia) as well as the changed kinematics.
+* torque_offset - a constant added to the sensor signal (zero drift of the torque cell).
+* sensor_lag - the sensor as a first-order low-pass (time constant T, exact first-order-hold
+  discretisation on an 8x finer grid after a pre-roll of 12 T) or a pure delay d (the torque of
+  t - d written at t).
+* vane_friction_spread - one vane of another material: its tip AND slot COFs (static and dynamic)
+  scaled by one factor (0.6-0.75 or 1.3-1.5).
+* viscous_tip_friction - a lubricated tip: the tip COF rises with slip speed, mu_h(v) + c v
+  (c in s/m); a load-dependent form, unlike a load-independent shear force.
+Out of the library (nothing a pump effect would make): mains hum (a sinusoid at 50 Hz or at an
+arbitrary non-shaft frequency), a slow drift (a ramp plus a sinusoid slower than the record), a
+train of short pulses at a non-shaft frequency, and coloured AR(1) sensor noise on a clean record.
+Noise: Gaussian, white unless 'ar1'; its RMS is the effect's contribution RMS / SNR (for no effect:
+the torque ripple RMS / SNR, with 1 % of the mean torque as the floor for a flat torque).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .rig import RIGS, drive_torque, motion
+
+LIBRARY = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque_offset",
+           "sensor_lag", "vane_friction_spread", "viscous_tip_friction")
+OUT_OF_LIBRARY = ("hum", "drift", "impulse", "ar1_noise")
+EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY
+
+
+@dataclass
+class Record:
+    rig: str
+    effect: str
+    snr: float
+    seed: int
+    rate: float
+    duration: float
+    t: np.ndarray
+    torque: np.ndarray          # measured (with effect, disturbance and noise), N m
+    theta: np.ndarray
+    omega: np.ndarray
+    truth: dict                 # effect parameters, contribution RMS, observable share
+    noise_rms: float
+
+
+def _sample_effect(effect, rig, rng):
+    """Draw the hidden effect's parameters for this rig."""
+    if effect == "rotor_eccentricity":
+        return dict(e=rng.uniform(0.05e-3, 0.15e-3), beta=rng.uniform(0, 2 * np.pi))
+    if effect == "housing_out_of_round":
+        return dict(k=int(rng.integers(2, 7)), A=rng.uniform(6e-6, 15e-6), gamma=rng.uniform(0, np.pi))
+    if effect == "speed_ripple":
+        return dict(k=int(rng.integers(1, 4)), eps=rng.uniform(0.002, 0.03), phase=rng.uniform(0, 2 * np.pi))
+    if effect == "torque_offset":
+        return dict(offset=float(rng.choice([-1, 1]) * rng.uniform(0.02, 0.06)))   # x mean torque
+    if effect == "sensor_lag":
+        return dict(kind=str(rng.choice(["lowpass", "delay"])), frac=rng.uniform(0.15, 0.6))  # x 1/(N w)
+    if effect == "vane_friction_spread":
+        f = rng.uniform(1.3, 1.5) if rng.random() < 0.5 else rng.uniform(0.6, 0.75)
+        return dict(vane=int(rng.integers(0, rig.vanes)), factor=f)
+    if effect == "viscous_tip_friction":
+        return dict(c=rng.uniform(1.0e-3, 3.0e-3))
+    if effect == "hum":
+        shaft = rig.speed / (2 * np.pi)
+        f = 50.0 if rng.random() < 0.5 else shaft * rng.choice([0.37, 1.41, 2.63, 0.71])
+        return dict(f=float(f), phase=rng.uniform(0, 2 * np.pi))
+    if effect == "drift":
+        return dict(slope_sign=float(rng.choice([-1, 1])), phase=rng.uniform(0, 2 * np.pi))
+    if effect == "impulse":
+        return dict(f=rig.speed / (2 * np.pi) * rng.choice([0.43, 0.61, 1.27]), width=rng.uniform(1e-4, 3e-4),
+                    phase=rng.uniform(0, 1))
+    if effect == "ar1_noise":
+        return dict(phi=rng.uniform(0.8, 0.95))
+    return {}
+
+
+def _clean(rig, effect, p, t, theta0):
+    """Torque without noise, nominal model and with the effect; plus the motion."""
+    ripple = (p["k"], p["eps"], p["phase"]) if effect == "speed_ripple" else None
+    th, om, dom = motion(t, rig.speed, theta0, ripple)
+    th0, om0, dom0 = motion(t, rig.speed, theta0)
+    nominal = drive_torque(rig, th0, om0, dom0)
+    if effect == "rotor_eccentricity":
+        moved = replace(rig, center=(rig.center[0] + p["e"] * np.cos(p["beta"]),
+                                     rig.center[1] + p["e"] * np.sin(p["beta"])))
+        return nominal, drive_torque(moved, th, om, dom), th, om
+    if effect == "housing_out_of_round":
+        moved = replace(rig, harmonics=tuple(rig.harmonics) + ((p["k"], p["A"], p["gamma"]),))
+        return nominal, drive_torque(moved, th, om, dom), th, om
+    if effect == "vane_friction_spread":
+        factors = [(1.0, 1.0)] * rig.vanes
+        factors[p["vane"]] = (p["factor"], p["factor"])
+        return nominal, drive_torque(rig, th, om, dom, factors=factors), th, om
+    if effect == "viscous_tip_friction":
+        return nominal, drive_torque(rig, th, om, dom, tip_viscous=p["c"]), th, om
+    if effect == "torque_offset":
+        return nominal, nominal + p["offset"] * nominal.mean(), th, om
+    if effect == "sensor_lag":
+        return nominal, _lagged(rig, p, t, theta0), th, om
+    return nominal, drive_torque(rig, th, om, dom), th, om
+
+
+def _lagged(rig, p, t, theta0):
+    T = p["frac"] / (rig.vanes * rig.speed)
+    if p["kind"] == "delay":
+        th, om, dom = motion(t - T, rig.speed, theta0)
+        return drive_torque(rig, th, om, dom)
+    dt = (t[1] - t[0]) / 8
+    pre = int(np.ceil(12 * T / dt))
+    tf = t[0] + dt * np.arange(-pre, 8 * (len(t) - 1) + 1)
+    th, om, dom = motion(tf, rig.speed, theta0)
+    u = drive_torque(rig, th, om, dom)
+    a = np.exp(-dt / T)
+    y = np.empty_like(u)
+    y[0] = u[0]
+    c = T / dt * (1 - a)
+    for n in range(1, len(u)):          # first-order hold, exact for u linear between samples
+        y[n] = a * y[n - 1] + u[n] - a * u[n - 1] - c * (u[n] - u[n - 1])
+    return y[pre::8][: len(t)]
+
+
+def _disturbance(effect, p, t, rng):
+    """Unit-RMS waveform of an out-of-library disturbance."""
+    if effect == "hum":
+        return np.sqrt(2) * np.sin(2 * np.pi * p["f"] * t + p["phase"])
+    if effect == "drift":
+        x = (t - t[0]) / (t[-1] - t[0])
+        d = p["slope_sign"] * (x - 0.5) + 0.5 * np.sin(2 * np.pi * 0.4 * x + p["phase"])
+        d = d - d.mean()
+        return d / np.sqrt(np.mean(d ** 2))
+    if effect == "impulse":
+        period = 1 / p["f"]
+        ph = np.mod(t / period + p["phase"], 1.0) - 0.5
+        d = np.exp(-0.5 * (ph * period / p["width"]) ** 2)
+        return d / np.sqrt(np.mean(d ** 2))
+    return np.zeros_like(t)
+
+
+def _noise(rng, n, sigma, phi=None):
+    e = rng.standard_normal(n)
+    if phi is None:
+        return sigma * e
+    x = np.empty(n)
+    x[0] = e[0]
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + np.sqrt(1 - phi * phi) * e[i]
+    return sigma * x
+
+
+def observable_share(rig, t, theta0, contribution):
+    """RMS share of an effect's contribution NOT explained by a change of mu or of the phase theta0
+    (least squares on the finite-difference sensitivities): ~0 means the effect is unobservable."""
+    th, om, dom = motion(t, rig.speed, theta0)
+    base = drive_torque(rig, th, om, dom)
+    cols = []
+    d = 1e-4
+    mu_rig = replace(rig, tip=rig.tip.scaled(1 + d), slot=rig.slot_friction.scaled(1 + d))
+    cols.append((drive_torque(mu_rig, th, om, dom) - base) / d)
+    thp, _, _ = motion(t, rig.speed, theta0 + d)
+    cols.append((drive_torque(rig, thp, om, dom) - base) / d)
+    X = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(X, contribution, rcond=None)
+    rest = contribution - X @ coef
+    rms = np.sqrt(np.mean(contribution ** 2))
+    return float(np.sqrt(np.mean(rest ** 2)) / rms) if rms > 0 else 0.0
+
+
+def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
+    rig = RIGS[rig_name]
+    rng = np.random.default_rng(seed)
+    p = _sample_effect(effect, rig, rng)
+    theta0 = rng.uniform(0, 2 * np.pi)
+    t = np.arange(int(round(rate * duration))) / rate
+    nominal, clean, th, om = _clean(rig, effect, p, t, theta0)
+    ripple = nominal - nominal.mean()
+    ref = max(np.sqrt(np.mean(ripple ** 2)), 0.01 * abs(nominal.mean()))
+    truth = dict(params={k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in p.items()},
+                 theta0=float(theta0), mu=rig.tip.dynamic)
+    if effect in LIBRARY:
+        contribution = clean - nominal
+        c_rms = float(np.sqrt(np.mean(contribution ** 2)))
+        truth["observable"] = observable_share(rig, t, theta0, contribution) if c_rms > 0 else 0.0
+        sigma = c_rms / snr
+    elif effect in ("hum", "drift", "impulse"):
+        sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
+        clean = clean + snr * sigma * _disturbance(effect, p, t, rng)
+        c_rms = snr * sigma
+    else:                                           # none, ar1_noise
+        sigma = ref / snr
+        c_rms = 0.0
+    noise = _noise(rng, len(t), sigma, p.get("phi"))
+    truth["contribution_rms"] = c_rms
+    return Record(rig_name, effect, snr, seed, rate, duration, t, clean + noise, th, om, truth, float(sigma))

@@ -1,0 +1,86 @@
+"""Cross-check of pumpsim's constrained model against an independent implementation of spec §1-4
+(bench/independent/rig.py: own derivation, numpy only, no pumpsim import), on six rig families;
+plus the independent generator's own spec §4 closed forms, and the file formats it writes for the
+diagnose benchmark read back by pumpsim."""
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pumpsim
+from tests.tolerances import CLOSED_FORM_REL, INDEPENDENT_FORMAT_REL, INDEPENDENT_RIG_REL, POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))
+from bench.independent.formats import FORMATS, write  # noqa: E402
+from bench.independent.records import make_record  # noqa: E402
+from bench.independent.rig import (RIGS, Friction, closed_form_concentric, drive_torque, friction_power,  # noqa: E402
+                                   motion, to_toml, vane_kinematics)
+
+RIG_DIR = ROOT / "bench" / "independent" / "rigs"
+
+
+def _revolution(rig, n=720, theta0=0.0):
+    t = np.arange(n) * (2 * np.pi / rig.speed) / n
+    return t, *motion(t, rig.speed, theta0)
+
+
+@pytest.mark.parametrize("name", sorted(RIGS))
+def test_pumpsim_matches_the_independent_model(name):
+    """Torque and every vane's s, N, F1, F2 over a revolution agree to rounding."""
+    rig = RIGS[name]
+    res = pumpsim.simulate(pumpsim.load_config(RIG_DIR / f"{name}.toml"), duration=2 * np.pi / rig.speed,
+                           rate=rig.speed / (2 * np.pi) * 360)
+    t = np.asarray(res["time"])
+    theta, omega, domega = motion(t, rig.speed)
+    tau, vanes, paradox = drive_torque(rig, theta, omega, domega, details=True)
+    scale = np.sqrt(np.mean(np.asarray(res["torque"]) ** 2))
+    assert paradox == 0
+    assert np.max(np.abs(tau - res["torque"])) <= INDEPENDENT_RIG_REL * scale
+    for i, v in enumerate(vanes):
+        force = np.max(np.abs(v["N"]))
+        assert np.max(np.abs(v["s"] - res[f"s_{i}"])) <= INDEPENDENT_RIG_REL * rig.length
+        for mine, theirs in (("N", "normal"), ("F1", "slot1"), ("F2", "slot2")):
+            assert np.max(np.abs(v[mine] - res[f"{theirs}_{i}"])) <= INDEPENDENT_RIG_REL * force, (mine, i)
+
+
+def test_rig_configs_are_the_generators():
+    """The committed configs (built by make codegen) are exactly what the generator hands diagnose."""
+    for name, rig in RIGS.items():
+        assert (RIG_DIR / f"{name}.toml").read_text() == to_toml(rig)
+
+
+def test_independent_closed_forms():
+    """Spec §4 on the independent model: concentric torque, eccentric-circle stroke, power balance,
+    zero mean torque without friction."""
+    rig = RIGS["concentric4"]
+    _, th, om, dom = _revolution(rig)
+    assert np.allclose(drive_torque(rig, th, om, dom), closed_form_concentric(rig), rtol=CLOSED_FORM_REL, atol=0)
+    ecc = replace(RIGS["eccentric5"], center=(0.002 * np.cos(0.7), 0.002 * np.sin(0.7)))
+    _, th, om, dom = _revolution(ecc)
+    e = 0.002
+    for i in range(ecc.vanes):
+        rel = th + 2 * np.pi * i / ecc.vanes - 0.7
+        r = e * np.cos(rel) + np.sqrt(ecc.radius ** 2 - (e * np.sin(rel)) ** 2)
+        s = vane_kinematics(ecc, i, th, om, dom)["s"]
+        assert np.allclose(s, r - ecc.length - ecc.slot_radius, rtol=0, atol=CLOSED_FORM_REL * ecc.length)
+    for rig in RIGS.values():
+        _, th, om, dom = _revolution(rig, 2000)
+        tau, vanes, _ = drive_torque(rig, th, om, dom, details=True)
+        assert np.mean(tau * om) == pytest.approx(np.mean(friction_power(rig, vanes, om)), rel=POWER_BALANCE_REL)
+        still = replace(rig, tip=Friction(0.0, 0.0), slot=Friction(0.0, 0.0))
+        tau0 = drive_torque(still, th, om, dom)
+        assert abs(np.mean(tau0)) <= ZERO_MEAN_TORQUE_REL * np.sqrt(np.mean(tau ** 2))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_every_written_format_reads_back(fmt, tmp_path):
+    """Each rig-logger format the benchmark writes is read by pumpsim as the same SI torque."""
+    rec = make_record("ellipse4", "none", 5.0, 3, rate=10000.0, duration=0.05)
+    ds = pumpsim.load_data(write(rec, fmt, tmp_path / "data"))
+    assert len(ds.torque) == len(rec.t)
+    scale = np.sqrt(np.mean(rec.torque ** 2))
+    assert np.max(np.abs(np.asarray(ds.torque) - rec.torque)) <= INDEPENDENT_FORMAT_REL * scale
+    assert np.max(np.abs(np.asarray(ds.time) - rec.t)) <= INDEPENDENT_FORMAT_REL * rec.t[-1]
