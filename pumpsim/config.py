@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
-from .model_spec.parameters import (CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MODELS, REQUIRED,
-                                    DERIVED, SECTION_FALLBACK, ParameterVector, Structure, derive, layout,
-                                    section)
+from .model_spec.parameters import (CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MEASUREMENT_BY_NAME, MODELS,
+                                    REQUIRED, DERIVED, SECTION_FALLBACK, ParameterVector, Structure,
+                                    checked_tolerance, derive, layout, section)
 from .pneumatics import config as _pneumatic_config
 
 RPM = 2 * math.pi / 60
@@ -32,7 +32,7 @@ _OTHER_KEYS = {
     "operation": {"mode": ("str", False, "speed"), "speed": ("num", False, None),
                   "speed_rpm": ("num", False, None), "angle": ("num", False, 0.0),
                   "torque": ("num", False, None), "initial_vane_state": ("str", False, None),
-                  "speed_tolerance": ("num", False, 0.02)},
+                  "speed_tolerance": ("num", False, MEASUREMENT_BY_NAME["speed"].tolerance)},
     "effects": {"vane_friction_factors": ("list", False, None), "speed_ripple": ("list", False, None)},
 }
 SECTIONS = ("housing", "rotor", "vane", "friction.housing", "friction.slot", "contact.housing",
@@ -131,7 +131,7 @@ class PumpConfig:
     speed_ripple: tuple | None = None  # (order, relative amplitude, phase [rad])
     # relative band about `speed` inside which a fit may refine the speed of a measurement without
     # a speed column (the configured speed is the operating point, not a free guess)
-    speed_tolerance: float = 0.02
+    speed_tolerance: float = MEASUREMENT_BY_NAME["speed"].tolerance
     pneumatic: object = None  # spec §8 settings (pneumatics.config.PneumaticSettings) or None
     given: frozenset = frozenset()  # parameter names the file set (the others are defaults)
 
@@ -397,10 +397,7 @@ def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
 
 
 def _speed_tolerance(op: dict) -> float:
-    tol = op["speed_tolerance"]
-    if not 0 <= tol <= 0.5:
-        raise ConfigError(f"operation.speed_tolerance must be in [0, 0.5], got {tol:g}")
-    return float(tol)
+    return checked_tolerance("speed", op["speed_tolerance"], "operation.speed_tolerance")
 
 
 def as_array(pv: ParameterVector) -> np.ndarray:

@@ -291,8 +291,7 @@ def speed_band(cfg, data):
     is a disturbance, not the shaft). None when the data has a speed column or no speed is set."""
     if data.speed is not None or cfg.mode != "speed" or not cfg.speed:
         return None
-    tol = getattr(cfg, "speed_tolerance", 0.02)
-    return cfg.speed * (1 - tol), cfg.speed * (1 + tol)
+    return cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
 
 
 def following(cfg):

@@ -354,6 +354,7 @@ class MeasurementParameter:
     through_angle: bool = False  # acts through the rotor angle (sample-averaged Jacobian column)
     period: float | None = None  # periodic (theta0: 2 pi; the start is scanned over it)
     band: float | None = None  # relative band around the nominal value the start search keeps to
+    tolerance: float | None = None  # default relative band a fit may move a known nominal value in
     transient: bool = False  # a transient (run-up) fit's parameter
     plausible: tuple | None = None  # as Parameter.plausible
     plausible_why: str = ""
@@ -366,8 +367,9 @@ RIPPLE = dict(plausible=(0.0, 0.05), norm="speed ripple", plausible_why="a few p
 MEASUREMENT = (
     MeasurementParameter("theta0", "rad", in_kernel_graph=True, through_angle=True,
                          period=2 * math.pi, transient=True, doc="rotor angle at the first sample"),
-    MeasurementParameter("speed", "rad/s", in_kernel_graph=True, through_angle=True, band=0.5,
-                         doc="constant speed; its start from the torque spectrum within +-50 %"),
+    MeasurementParameter("speed", "rad/s", in_kernel_graph=True, through_angle=True, band=0.5, tolerance=0.02,
+                         doc="constant speed; its start from the torque spectrum within +-50 %; a "
+                             "configured nominal speed is refined within operation.speed_tolerance"),
     MeasurementParameter("delay", "s", in_kernel_graph=True, through_angle=True,
                          doc="time shift between torque and angle"),
     MeasurementParameter("torque_offset", "N m", in_kernel_graph=True,
@@ -383,6 +385,15 @@ MEASUREMENT = (
     MeasurementParameter("speed0", "rad/s", transient=True, doc="speed at the first sample (transient)"),
 )
 MEASUREMENT_BY_NAME = {m.name: m for m in MEASUREMENT}
+
+
+def checked_tolerance(name: str, value, key: str) -> float:
+    """A relative tolerance band for measurement parameter `name` (operation.speed_tolerance,
+    --speed-tolerance): in [0, its start-search band]; ConfigError naming `key` otherwise."""
+    upper = MEASUREMENT_BY_NAME[name].band
+    if not 0 <= value <= upper:
+        raise ConfigError(f"{key} must be in [0, {upper:g}], got {value:g}")
+    return float(value)
 KERNEL_GRAPH_INPUTS = tuple(m.name for m in MEASUREMENT if m.in_kernel_graph)
 ANGLE_ACTING = tuple(m.name for m in MEASUREMENT if m.through_angle)
 COF_ALIASES = ("mu", "mu_slot")  # fit names of the dynamic COFs (see _friction)

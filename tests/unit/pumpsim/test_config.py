@@ -27,6 +27,7 @@ REJECTIONS = [
     ({"housing.radius": 0.019}, "housing.radius must be > rotor.radius (0.0200 m), got 0.0190"),
     ({"friction.housing.dynamic": 2.5}, "friction.housing.dynamic must be in [0, 2], got 2.5"),
     ({"friction.housing.static": -0.1}, "friction.housing.static must be in [0, 2]"),
+    ({"operation.speed_tolerance": 0.7}, "operation.speed_tolerance must be in [0, 0.5], got 0.7"),
     ({"friction.slot.static": 0.2, "friction.slot.dynamic": 3.0, "friction.slot.v_static": 1e-4,
       "friction.slot.v_dynamic": 1e-3}, "friction.slot.dynamic must be in [0, 2], got 3"),
     ({"friction.housing.v_static": 2e-3}, "friction.housing.v_static must be < friction.housing.v_dynamic"),
