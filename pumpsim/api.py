@@ -131,21 +131,17 @@ class Diagnosis(dict):
     `print(d)` shows the step table."""
 
     def __init__(self, out):
-        if hasattr(out, "to_json"):  # a diagnose.DiagnosisResult
-            super().__init__(out.to_json())
-            self.history = out.history
-            return
-        public = {k: v for k, v in out.items() if not k.startswith("_")}
-        super().__init__(public)
-        self.history = out.get("_history", [])
+        """From a diagnose.DiagnosisResult."""
+        super().__init__(out.to_json())
+        self.history = out.history
 
     def __missing__(self, key):
-        if key in ("history", "_history"):  # the report reads the fits behind the steps
+        if key == "history":  # the report reads the fits behind the steps
             return self.history
         raise KeyError(key)
 
     def get(self, key, default=None):
-        return self[key] if key in self or key in ("history", "_history") else default
+        return self[key] if key in self or key == "history" else default
 
     def __str__(self):
         from .diagnose import step_table

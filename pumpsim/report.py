@@ -10,7 +10,7 @@ What the diagnosis report reads (a dict or an object with these keys/attributes)
 {rms, params}, `steps` [{effect, params, rms_before, rms_after, p_value, bic_before, bic_after,
 all_params}], `final` {rms, params, residual_white, runs_p_value, ljung_box_p_value},
 `unexplained`, `unexplained_where`, `confounded`, `notes`, `method`, optionally `verdict`,
-`screens` (the candidate ranking per step) or `ranking` (one list), and `history` / `_history`
+`screens` (the candidate ranking per step) or `ranking` (one list), and `history`
 ([{label, result}] with each model's IdentificationResult: residual, time, speed, angle,
 estimates).
 """
@@ -379,7 +379,7 @@ def _get(out, key, default=None):
 
 
 def _history(out):
-    return _get(out, "history") or _get(out, "_history") or []
+    return _get(out, "history") or []
 
 
 def bic_chain(history) -> list | None:
