@@ -13,6 +13,7 @@ import pumpsim
 from pumpsim.config import as_array, config_from_dict
 from pumpsim.geometry import check_geometry
 from pumpsim.kernels import load_kernels
+from tests.tolerances import TRUTH_ATOL, TRUTH_RTOL
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
@@ -139,7 +140,7 @@ def transient_run():
 
     truth = make_config("ellipse_4vanes", **{"friction.housing.dynamic": 0.17, "friction.housing.static": 0.18})
     return pumpsim.simulate(dataclasses.replace(truth, mode="torque", torque=0.03, speed=150.0, angle=0.2),
-                            duration=0.02, rate=2000, rtol=1e-11, atol=1e-13)
+                            duration=0.02, rate=2000, rtol=TRUTH_RTOL, atol=TRUTH_ATOL)
 
 
 def transient_start_config():

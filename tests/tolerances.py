@@ -236,3 +236,16 @@ INDEPENDENT_RIG_REL = 1e-8
 # written with >= 7 significant digits (%.9g in the ';' decimal-comma file, %.6f N mm), so 1e-6
 # of the torque RMS is what the printed digits allow.
 INDEPENDENT_FORMAT_REL = 1e-6
+# Integrator settings of test scenarios (not comparisons): each is tighter than the tolerance its
+# test compares with, by the margin given there. Synthetic "measured" runs are integrated 100x
+# tighter than the transient fit integrates (TRANSIENT_FIT_RTOL 1e-9), so the data's own
+# integration error is far below both its noise and the fit's.
+TRUTH_RTOL, TRUTH_ATOL = 1e-11, 1e-13
+# The sensitivity check integrates at 1e-12 (see SENSITIVITY_REL: truncation of the difference
+# quotient ~1e-8 must dominate the integration error).
+SENSITIVITY_RTOL, SENSITIVITY_ATOL = 1e-12, 1e-14
+# Torque drive: monotone energy at rtol 1e-9 (MONOTONE_ENERGY_REL), forward vs inverse at 1e-10
+# (FORWARD_INVERSE_REL); positions [rad, m] of size 1e-2..1e2 with absolute tolerance 1e-12.
+MONOTONE_ENERGY_RTOL, FORWARD_INVERSE_RTOL, POSITION_ATOL = 1e-9, 1e-10, 1e-12
+# The oscillator of the state-scaling test at rtol 1e-6 (OSCILLATOR_REL is its global error).
+OSCILLATOR_RTOL = 1e-6

@@ -6,8 +6,8 @@ from pumpsim.data import Dataset
 from pumpsim.errors import DataError
 from pumpsim.identification import TransientProblem, identify_transient
 from tests.conftest import transient_start_config as start_config
-from tests.tolerances import (SENSITIVITY_REL, SENSITIVITY_THETA0_REL, TRANSIENT_MU_REL,
-                              TRANSIENT_SPEED0_ABS)
+from tests.tolerances import (SENSITIVITY_ATOL, SENSITIVITY_REL, SENSITIVITY_RTOL, SENSITIVITY_THETA0_REL,
+                              TRANSIENT_MU_REL, TRANSIENT_SPEED0_ABS)
 
 
 @pytest.fixture
@@ -27,7 +27,8 @@ def test_transient_fit_recovers_cof(run):
 def test_sensitivities_match_finite_differences_in_four_directions(run):
     """casadi issue 4383: CVODES Jacobians went wrong with three or more parameter directions."""
     prob = TransientProblem(start_config(), Dataset(run.time, run.torque, run.speed),
-                            ["mu", "speed0", "theta0", "vane.mass"], initial={"theta0": 0.2}, rtol=1e-12, atol=1e-14)
+                            ["mu", "speed0", "theta0", "vane.mass"], initial={"theta0": 0.2}, rtol=SENSITIVITY_RTOL,
+                            atol=SENSITIVITY_ATOL)
     x = prob.x0
     _, J = prob.model_and_jacobian(x)
     # FD step well above the integration error (1e-12 x 150 rad/s) and below the curvature scale

@@ -3,7 +3,7 @@ import casadi as ca
 import numpy as np
 
 from pumpsim.integrate import Integrator, integrate_segmented
-from tests.tolerances import OSCILLATOR_REL, SCALING_SAME_REL
+from tests.tolerances import OSCILLATOR_REL, OSCILLATOR_RTOL, SCALING_SAME_REL
 
 
 def _oscillator(w):
@@ -19,7 +19,7 @@ def test_uniform_scale_is_the_same_as_a_scaled_atol():
     x0 = np.array([0.0, 1.0])
     runs = []
     for scale, atol in ((np.full(2, c), a), (None, a * c)):
-        integ = Integrator(_oscillator(w), 2, [], t[1], rtol=1e-6, atol=atol, scale=scale)
+        integ = Integrator(_oscillator(w), 2, [], t[1], rtol=OSCILLATOR_RTOL, atol=atol, scale=scale)
         xs, _, stats = integrate_segmented(integ, x0, t)
         runs.append((xs, stats["nsteps"]))
     (xa, na), (xb, nb) = runs
