@@ -311,6 +311,9 @@ def plausible_range(spec, context: dict | None) -> tuple | None:
 def plausibility(name: str, structure: Structure | None = None):
     """The entry (Parameter or MeasurementParameter) that declares `name`'s plausible range, or None."""
     q = MEASUREMENT_BY_NAME.get(name) or registry(structure).get(name)
+    m = re.fullmatch(r"housing\.harmonics\.(\d+)\.\w+", name)
+    if q is None and m:  # a harmonic slot beyond the structure's: every slot is declared alike
+        q = {h.name: h for h in _harmonic(int(m.group(1)))}.get(name)
     if q is None and alias_targets(name):
         q = registry(structure)[alias_targets(name)[0]]
     return q if q is not None and q.plausible is not None else None
