@@ -67,6 +67,7 @@ def workers_scaling(n=6000, repeats=3):
             "overhead_share_1": best[1].overhead_share, "overhead_share_2": b.overhead_share,
             "overhead_share_2_all_runs": shares,
             "idle_2_start": b.idle_start / W, "idle_2_between": b.idle_between / W, "idle_2_end": b.idle_end / W,
+            "cpu_share_in_tasks_2": b.compute_cpu / b.compute,
             "tasks": b.batches, "guided": b.guided, "repeats": repeats}
 
 
@@ -81,7 +82,9 @@ def end_to_end(n=10_000):
         ok = int((df["status"] == "ok").sum())
     return {"designs": n, "ok": ok, "total_s": total, "evaluation_and_parquet_s": t_eval,
             "report_s": total - t_eval, "workers": st.workers, "setup_s": st.setup,
-            "overhead_share": st.overhead_share}
+            "overhead_share": st.overhead_share, "idle_start": st.idle_start / (st.workers * st.wall),
+            "idle_between": st.between_tasks_share, "idle_end": st.idle_end / (st.workers * st.wall),
+            "cpu_share_in_tasks": st.compute_cpu / st.compute, "tasks": st.batches}
 
 
 def main():
@@ -100,12 +103,15 @@ def main():
           f"(target <= 5 %; start {100 * r['idle_2_start']:.1f} + between tasks {100 * r['idle_2_between']:.1f} "
           f"+ end {100 * r['idle_2_end']:.1f}; all runs "
           f"{', '.join(f'{100 * x:.1f}' for x in r['overhead_share_2_all_runs'])} %), {r['tasks']} tasks "
-          f"({'guided, first ' if r['guided'] else 'of '}{r['batch_size']} designs)")
+          f"({'guided, first ' if r['guided'] else 'of '}{r['batch_size']} designs); the tasks had "
+          f"{100 * r['cpu_share_in_tasks_2']:.0f} % of their wall time on a core (the rest: other processes)")
     r = end_to_end()
     res["end_to_end_10k"] = r
     print(f"  10,000-design MC end to end (cluster start, sampling, evaluation, Parquet, report): "
           f"{r['total_s']:.1f} s (target <= 60 s; report {r['report_s']:.1f} s, {r['workers']} workers, "
-          f"Dask overhead share {100 * r['overhead_share']:.1f} %)")
+          f"Dask overhead share {100 * r['overhead_share']:.1f} % = start {100 * r['idle_start']:.1f} + between "
+          f"{100 * r['idle_between']:.1f} + end {100 * r['idle_end']:.1f}, {r['tasks']} tasks, "
+          f"{100 * r['cpu_share_in_tasks']:.0f} % CPU in tasks)")
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}

@@ -36,6 +36,10 @@ from .sampling import design_matrix
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
 TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the workers finish together
+# guided_bounds: a batch is 1/(this x workers) of what remains. 2 lets the first batch hold a
+# quarter of a 2-worker study, which a worker slowed by other processes then holds up (measured:
+# 15 % idle at the end on the shared machine); 4 keeps the first to an eighth.
+GUIDED_SHARE = 4
 PILOT_DESIGNS = 6
 CONNECT_TIMEOUT = 5.0  # s: an unreachable scheduler fails this fast
 PART = "part-{:05d}.parquet"
@@ -162,16 +166,17 @@ class Plan:
 
 def guided_bounds(n: int, per_design: float, workers: int) -> list[int]:
     """Batch bounds for n designs on `workers` workers (guided self-scheduling): each batch is
-    1/(2 workers) of what remains, so the first are large (few tasks, little per-task cost) and
-    they shrink toward the end, where the last ones take ~TAIL_TASK_SECONDS and the workers finish
-    together. Batches stay >= TASK_SECONDS of work until <= 2 such batches per worker remain."""
+    1/(GUIDED_SHARE workers) of what remains, so the first are large (few tasks, little per-task
+    cost) and they shrink toward the end, where the last ones take ~TAIL_TASK_SECONDS and the
+    workers finish together. Batches stay >= TASK_SECONDS of work until <= 2 such batches per
+    worker remain."""
     big = max(1, math.ceil(TASK_SECONDS / per_design))
     small = max(1, math.ceil(TAIL_TASK_SECONDS / per_design))
     bounds, lo = [0], 0
     while lo < n:
         rem = n - lo
         floor = big if rem > 2 * workers * big else small
-        size = max(math.ceil(rem / (2 * workers)), floor)
+        size = max(math.ceil(rem / (GUIDED_SHARE * workers)), floor)
         if rem - size < small:
             size = rem
         lo += size
@@ -189,14 +194,14 @@ def study_designs(study) -> np.ndarray:
 
 def run_batch(study, ids, X):
     """The task: evaluate designs on whichever process runs it. Returns (first id, Arrow table,
-    seconds, (worker, start, stop on its wall clock))."""
+    seconds, (worker, start, stop on its wall clock, CPU seconds of its thread)))."""
     from .evaluate import evaluate_rows
 
-    w0, t0 = time.time(), time.perf_counter()
+    w0, t0, c0 = time.time(), time.perf_counter(), time.thread_time()
     rows = evaluate_rows(study, X, ids, max_vanes(study))
     table = rows_to_table(study, rows)
     sec = time.perf_counter() - t0
-    return ids[0], table, sec, (_worker_name(), w0, w0 + sec)
+    return ids[0], table, sec, (_worker_name(), w0, w0 + sec, time.thread_time() - c0)
 
 
 def _worker_name() -> str:
@@ -315,6 +320,7 @@ class RunStats:
     idle_start: float = 0.0  # evaluation phase start -> a worker's first task (scatter, submit, dispatch)
     idle_between: float = 0.0  # between a worker's tasks (result hand-off, next task's dispatch)
     idle_end: float = 0.0  # a worker's last task -> the end (the tail, the last result's transfer and write)
+    compute_cpu: float = 0.0  # CPU time of the tasks' threads: below `compute` when other processes took the cores
 
     @property
     def overhead_share(self) -> float:
@@ -323,9 +329,16 @@ class RunStats:
             return 0.0
         return max(0.0, 1.0 - self.compute / (self.workers * self.wall))
 
+    @property
+    def between_tasks_share(self) -> float:
+        """The per-task part of overhead_share: workers' idle time between their tasks (result
+        hand-off, next task's dispatch), without the run's start and end."""
+        return self.idle_between / (self.workers * self.wall) if self.wall > 0 and self.workers > 0 else 0.0
+
     def as_dict(self):
         d = dict(self.__dict__)
         d["overhead_share"] = self.overhead_share
+        d["between_tasks_share"] = self.between_tasks_share
         return d
 
 
@@ -395,10 +408,11 @@ def _plan(study, X, man, batch_size, client) -> Plan:
 
 def _idle(stats, spans, t_start, t_end) -> None:
     """Splits the workers' idle time (workers x wall - compute) by where it falls: before a
-    worker's first task, between its tasks, after its last (spans: (worker, start, stop))."""
+    worker's first task, between its tasks, after its last (spans: (worker, start, stop, cpu))."""
     by_worker: dict = {}
-    for w, a, b in spans:
+    for w, a, b, cpu in spans:
         by_worker.setdefault(w, []).append((a, b))
+        stats.compute_cpu += cpu
     for iv in by_worker.values():
         iv.sort()
         stats.idle_start += max(0.0, iv[0][0] - t_start)

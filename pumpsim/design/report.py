@@ -225,11 +225,32 @@ def _status_section(df) -> str:
             f"<th class=text>status</th></tr>{rows}</table>" + more)
 
 
+def _operating_points(df, study) -> str:
+    """Speeds, model and (gas outputs) booster pressure of a study, as a phrase."""
+    model = ("Model 1 (penalty contact), last of the simulated revolutions" if study.model == "contact"
+             else "Model 2, exactly periodic at constant speed")
+    text = f"{study.revolution_samples} samples per revolution ({model})"
+    if "speed" not in df or study.function is not None:
+        return text
+    w = df["speed"].to_numpy(dtype=float)
+    w = w[np.isfinite(w)]
+    if study.booster_pressure is not None and study.speeds is None and df["speed"].nunique() > 1 and w.size:
+        speeds = (f"speed set by each design's motor, {w.min():.4g}–{w.max():.4g} rad/s "
+                  f"({w.min() * 30 / np.pi:.0f}–{w.max() * 30 / np.pi:.0f} rpm)")
+    else:
+        u = sorted(set(w.tolist()))
+        speeds = f"{len(u)} speed(s): " + ", ".join(f"{x:.5g}" for x in u[:6]) + (" …" if len(u) > 6 else "") + " rad/s"
+    text = f"{speeds}; {text}"
+    if study.booster_pressure is not None:
+        text += (f"; gas outputs in the gas model's periodic steady state with the booster held at "
+                 f"{study.booster_pressure / 1e3:.4g} kPa (spec §8)")
+    return text
+
+
 def _sweep_parts(df, study):
     counts = status_counts(df)
     parts = [f"<p>Study <code>{html.escape(study.path)}</code>: sampler {study.sampler}, seed {study.seed}, "
-             f"{df['design'].nunique()} designs × {max(1, df['speed'].nunique()) if 'speed' in df else 1} speed(s), "
-             f"{study.revolution_samples} samples per revolution (Model 2, periodic steady state). Status: "
+             f"{df['design'].nunique()} designs, {_operating_points(df, study)}. Status: "
              + ", ".join(f"{html.escape(k)} {n}" for k, n in counts.items()) + ". Flags: "
              + ", ".join(f"{k} {n}" for k, n in flag_counts(df).items()) + ".</p>"]
     if study.limits:

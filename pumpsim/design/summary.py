@@ -105,7 +105,7 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
     fl = flag_counts(df)
     if fl:
         lines.append("flags: " + ", ".join(f"{k} {n}" for k, n in fl.items()))
-    head = f"{'output':22s} {'unit':>4s} {'n':>6s} {'mean':>11s} {'sd':>10s} {'min':>11s} {'max':>11s} {'LSL':>9s} {'USL':>9s} {'in spec':>8s} {'Cpk':>6s}"
+    head = f"{'output':22s} {'unit':>6s} {'n':>6s} {'mean':>11s} {'sd':>10s} {'min':>11s} {'max':>11s} {'LSL':>9s} {'USL':>9s} {'in spec':>8s} {'Cpk':>6s}"
     lines.append(head)
 
     def f(x, w, p=5):
@@ -113,7 +113,7 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
 
     for r in output_table(df, study_outputs, limits):
         ins = f"{100 * r['within']:7.2f}%" if "within" in r else f"{'':>8s}"
-        lines.append(f"{r['output']:22s} {r['unit']:>4s} {r['n']:6d} {f(r['mean'], 11)} {f(r['sd'], 10, 4)} "
+        lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(r['mean'], 11)} {f(r['sd'], 10, 4)} "
                      f"{f(r['min'], 11)} {f(r['max'], 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
                      f"{f(r.get('cpk'), 6, 3)}")
     if limits:

@@ -266,13 +266,15 @@ def test_simd_and_scalar_design_kernels_agree(monkeypatch):
 
 
 def test_study_on_an_existing_scheduler():
-    from dask.distributed import LocalCluster
+    from dask.distributed import Client, LocalCluster
 
     s = study(RIG, {"vane.mass": {"values": [0.001, 0.0012, 0.0014]}}, sampler="grid", batch_size=1)
     ref, _ = design.sweep(s, workers=0)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
         df, st = design.sweep(s, scheduler=cl.scheduler_address)
-    assert df.equals(ref) and st.batches == 3
+        with Client(cl) as client:  # the Python API on a cluster object (dask-jobqueue, KubeCluster)
+            df2, _ = design.sweep(s, client=client)
+    assert df.equals(ref) and df2.equals(ref) and st.batches == 3
 
 
 def test_morris_screening_gives_an_inert_key_zero():

@@ -47,6 +47,7 @@ def test_guided_layout_gives_the_same_table_resumes_and_splits_the_idle_time(tmp
     assert man["batch_bounds"][0] == 0 and man["batch_bounds"][-1] == 40 and man["batches"] == st.batches
     idle = st.idle_start + st.idle_between + st.idle_end
     assert idle == pytest.approx(st.workers * st.wall - st.compute, abs=CLOCK_ABS * st.batches)
+    assert 0 < st.compute_cpu <= st.compute + CLOCK_ABS * st.batches  # a thread's CPU time <= its wall time
     # a resumed run takes the layout from the manifest: nothing is recomputed
     (out / "manifest.json").write_text((out / "manifest.json").read_text().replace('"complete"', '"running"'))
     again, st2 = design.sweep(s, out=out, workers=2, processes=False)
