@@ -18,6 +18,12 @@ def _check_paths(**paths):
                 raise ConfigError(f"--{option}: folder '{folder}' does not exist")
 
 
+def _idle_text(stats) -> str:
+    W = max(stats.workers * stats.wall, 1e-300)
+    return (f"before their first task {100 * stats.idle_start / W:.1f} % (start-up), between tasks "
+            f"{100 * stats.idle_between / W:.1f} %, after their last {100 * stats.idle_end / W:.1f} %")
+
+
 def _workers(n):
     if n is not None and n < 1:
         raise ConfigError(f"--workers must be >= 1, got {n}")
@@ -67,7 +73,7 @@ def cmd_sweep(a) -> int:
     size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
     print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
           f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
-          f"{100 * stats.overhead_share:.1f} % of the workers' time idle)")
+          f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
     if a.csv:
         from ..io import atomic_path
 

@@ -433,7 +433,8 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                           f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
                           "choose another folder or remove it")
     plan = _plan(study, X, man, batch_size, client)
-    stats.batch_size, stats.batches, stats.guided = plan.batch_size, plan.n_batches, plan.bounds is not None
+    stats.batch_size, stats.batches = min(plan.batch_size, max(1, len(X))), plan.n_batches
+    stats.guided = plan.bounds is not None
     folder = Path(out) if out else None
     done = set()
     if folder is not None:
