@@ -17,6 +17,8 @@ Each effect is implemented in this generator's own form (not pumpsim's parametri
 Out of the library (nothing a pump effect would make): mains hum (a sinusoid at 50 Hz or at an
 arbitrary non-shaft frequency), a slow drift (a ramp plus a sinusoid slower than the record), a
 train of short pulses at a non-shaft frequency, and coloured AR(1) sensor noise on a clean record.
+No effect: the nominal rig ('none'), or the nominal rig run 0.3-1.5 % off its configured speed
+('off_speed'; the file's speed column, if any, shows the true speed).
 Noise: Gaussian, white unless 'ar1'; its RMS is the effect's contribution RMS / SNR (for no effect:
 the torque ripple RMS / SNR, with 1 % of the mean torque as the floor for a flat torque).
 """
@@ -31,7 +33,9 @@ from .rig import RIGS, drive_torque, motion
 LIBRARY = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque_offset",
            "sensor_lag", "vane_friction_spread", "viscous_tip_friction")
 OUT_OF_LIBRARY = ("hum", "drift", "impulse", "ar1_noise")
-EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY
+# no effect, but the rig runs 0.3-1.5 % off the configured (nominal) speed, as a real motor does
+NO_EFFECT = ("none", "off_speed")
+EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY + ("off_speed",)
 
 
 @dataclass
@@ -76,6 +80,8 @@ def _sample_effect(effect, rig, rng):
     if effect == "impulse":
         return dict(f=rig.speed / (2 * np.pi) * rng.choice([0.43, 0.61, 1.27]), width=rng.uniform(1e-4, 3e-4),
                     phase=rng.uniform(0, 1))
+    if effect == "off_speed":
+        return dict(factor=1 + float(rng.choice([-1, 1])) * rng.uniform(0.003, 0.015))
     if effect == "ar1_noise":
         return dict(phi=rng.uniform(0.8, 0.95))
     return {}
@@ -176,6 +182,8 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
     rig = RIGS[rig_name]
     rng = np.random.default_rng(seed)
     p = _sample_effect(effect, rig, rng)
+    if effect == "off_speed":
+        rig = replace(rig, speed=rig.speed * p["factor"])
     theta0 = rng.uniform(0, 2 * np.pi)
     t = np.arange(int(round(rate * duration))) / rate
     nominal, clean, th, om = _clean(rig, effect, p, t, theta0)
@@ -192,7 +200,7 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
         sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
         clean = clean + snr * sigma * _disturbance(effect, p, t, rng)
         c_rms = snr * sigma
-    else:                                           # none, ar1_noise
+    else:                                           # none, off_speed, ar1_noise
         sigma = ref / snr
         c_rms = 0.0
     noise = _noise(rng, len(t), sigma, p.get("phi"))

@@ -304,7 +304,7 @@ RIGS = {
     # the report's COF rig (§14): concentric cylinder, 4 vanes, 5800 rpm
     "concentric4": Rig("concentric4"),
     # an eccentric circle by design (a real pump's layout), 5 vanes, other vane dimensions
-    "eccentric5": Rig("eccentric5", radius=0.0245, center=(0.003, 0.0), vanes=5, length=0.0125,
+    "eccentric5": Rig("eccentric5", radius=0.0245, center=(0.003, 0.0), vanes=5, slot_radius=0.0085, length=0.0125,
                       thickness=0.0025, mass=0.0010, speed=520.0, tip=Friction(0.17, 0.16),
                       slot=Friction(0.15, 0.14)),
     # the report's ellipse with 1, 3 and 4 vanes

@@ -17,13 +17,14 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent))
 
 from bench.independent.formats import FORMATS, write  # noqa: E402
-from bench.independent.records import EFFECTS, LIBRARY, OUT_OF_LIBRARY, make_record  # noqa: E402
+from bench.independent.records import EFFECTS, LIBRARY, NO_EFFECT, OUT_OF_LIBRARY, make_record  # noqa: E402
 from bench.independent.rig import RIGS, to_toml  # noqa: E402
 
 # (rate Hz, duration s) cycled over the grid: 10-20 kHz, 0.5-2 s
@@ -34,20 +35,26 @@ QUICK = [("concentric4", "none"), ("concentric4", "rotor_eccentricity"), ("conce
          ("ellipse4", "vane_friction_spread"), ("ellipse4", "none"), ("ellipse4", "impulse"),
          ("ellipse4", "torque_offset"), ("tilted3", "viscous_tip_friction"), ("tilted3", "speed_ripple"),
          ("tilted3", "ar1_noise"), ("ellipse4", "rotor_eccentricity"), ("eccentric5", "vane_friction_spread"),
-         ("ellipse1", "housing_out_of_round"), ("concentric4", "torque_offset")]
+         ("ellipse1", "housing_out_of_round"), ("concentric4", "torque_offset"),
+         ("concentric4", "off_speed")]
 
 
-def grid(rigs, effects, snrs, seeds, quick):
-    pairs = QUICK if quick else [(r, e) for r in rigs for e in effects]
+def grid(rigs, effects, snrs, seeds, quick, full=False):
+    if quick:
+        pairs = [(r, e, 5.0) for r, e in QUICK]
+    elif full:
+        pairs = [(r, e, snr) for r in rigs for e in effects for snr in snrs]
+    else:   # balanced: every effect at every SNR, the rig turning so each rig meets each SNR
+        pairs = [(rigs[(i * len(snrs) + j) % len(rigs)], e, snr)
+                 for i, e in enumerate(effects) for j, snr in enumerate(snrs)]
     cases = []
-    for n, (r, e) in enumerate(pairs):
-        for snr in ((5,) if quick else snrs):
-            for seed in range(seeds):
-                k = n * 7 + int(snr) * 3 + seed
-                rate, dur = SAMPLINGS[k % len(SAMPLINGS)]
-                if dur > 1.0 and k % 3:                  # 2 s records on a third of their turns
-                    dur = 1.0
-                cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed, FORMATS[k % len(FORMATS)], rate, dur))
+    for n, (r, e, snr) in enumerate(pairs):
+        for seed in range(seeds):
+            k = n * 7 + int(snr) * 3 + seed
+            rate, dur = SAMPLINGS[k % len(SAMPLINGS)]
+            if dur > 1.0 and k % 3:                  # 2 s records on a third of their turns
+                dur = 1.0
+            cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed, FORMATS[k % len(FORMATS)], rate, dur))
     return cases
 
 
@@ -60,7 +67,7 @@ def score(truth_effect, truth, out):
     named = list(out.get("effects", []))
     unexpl = bool(out.get("unexplained"))
     absorbed = truth_effect in LIBRARY and truth.get("absorbed", False)
-    if truth_effect == "none":
+    if truth_effect in NO_EFFECT:
         right = not named and not unexpl
     elif truth_effect in OUT_OF_LIBRARY:
         right = not named and unexpl
@@ -102,6 +109,9 @@ def run_case(c, workdir, pumpsim, timeout):
     res["mu_err"] = abs(mu - rec.truth["mu"]) / rec.truth["mu"] if isinstance(mu, (int, float)) else None
     res["final"] = {k: out.get("final", {}).get(k) for k in ("rms", "residual_white")}
     res["noise_rms"] = rec.noise_rms
+    res["steps"] = [[st.get("effect"), st.get("params", {}).get("order"), st.get("p_value")] for st in out.get("steps", [])]
+    res["baseline_rms"] = out.get("baseline", {}).get("rms")
+    res["notes"] = out.get("notes")
     return res
 
 
@@ -110,7 +120,7 @@ def summarise(results):
         sel = list(sel)
         return (sum(bool(r[key]) for r in sel) / len(sel), len(sel)) if sel else (None, 0)
     lib = [r for r in results if r["effect"] in LIBRARY and not r["absorbed"]]
-    none = [r for r in results if r["effect"] == "none"]
+    none = [r for r in results if r["effect"] in NO_EFFECT]
     ool = [r for r in results if r["effect"] in OUT_OF_LIBRARY]
     mu_err = sorted(r["mu_err"] for r in results if r.get("mu_err") is not None
                     and r["effect"] not in ("vane_friction_spread", "viscous_tip_friction"))
@@ -149,46 +159,62 @@ def print_summary(s):
         print(f"  {k:34s} " + ", ".join(f"{a}: {b}" for a, b in sorted(v.items(), key=lambda x: -x[1])))
 
 
+def _write_json(path, obj):
+    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+    with open(path + ".tmp", "w") as f:
+        json.dump(obj, f, indent=1, default=str)
+    os.replace(path + ".tmp", path)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="20 hand-spread cases at SNR 5")
+    ap.add_argument("--full", action="store_true", help="every rig x effect x SNR (default: balanced, 39 cases)")
     ap.add_argument("--rigs", default=",".join(RIGS))
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--snrs", default="3,5,10")
     ap.add_argument("--seeds", type=int, default=1)
     ap.add_argument("--case", help="one case RIG:EFFECT:SNR:SEED:FORMAT:RATE:DURATION; files kept in out/independent/")
     ap.add_argument("--pumpsim", default=str(Path(sys.executable).with_name("pumpsim")))
-    ap.add_argument("--timeout", type=float, default=300.0)
+    ap.add_argument("--timeout", type=float, default=600.0)
+    ap.add_argument("--skip", type=int, default=0, help="leave out the first SKIP cases of the grid (resume)")
+    ap.add_argument("--jobs", type=int, default=1, help="cases run at once (default 1: one core)")
     ap.add_argument("--json", default="out/bench_independent.json")
     a = ap.parse_args(argv)
     if a.case:
         r, e, snr, seed, fmt, rate, dur = a.case.split(":")
         cases = [(r, e, float(snr), int(seed), fmt, float(rate), float(dur))]
     else:
-        cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick)
-    results = []
-    t_all = time.perf_counter()
-    for c in cases:
+        cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick, a.full)
+    cases = cases[a.skip:]
+    results, t_all = [], time.perf_counter()
+
+    def one(c):
         keep = Path("out/independent") / case_id(c).replace(":", "_") if a.case else None
         if keep:
             keep.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                r = run_case(c, keep or tmp, a.pumpsim, a.timeout)
+                return run_case(c, keep or tmp, a.pumpsim, a.timeout)
+            except ValueError as err:        # a drawn effect the rig's geometry cannot take
+                return dict(case=case_id(c), rig=c[0], effect=c[1], snr=c[2], format=c[4], wall=0.0, exit=-2,
+                            right=False, verdict=f"generator: {err}", named=[], unexplained=None,
+                            false_name=False, absorbed=False)
             except subprocess.TimeoutExpired:
-                r = dict(case=case_id(c), rig=c[0], effect=c[1], snr=c[2], format=c[4], wall=a.timeout, exit=-1,
-                         right=False, verdict="timeout", named=[], unexplained=None, false_name=False, absorbed=False)
-        results.append(r)
-        print(f"{'ok ' if r['right'] else 'BAD'} {r['case']:62s} {r['verdict']:44s} {r['wall']:6.1f} s", flush=True)
-    s = summarise(results)
-    s["wall_total"] = time.perf_counter() - t_all
+                return dict(case=case_id(c), rig=c[0], effect=c[1], snr=c[2], format=c[4], wall=a.timeout, exit=-1,
+                            right=False, verdict="timeout", named=[], unexplained=None, false_name=False,
+                            absorbed=False)
+
+    with ThreadPoolExecutor(max_workers=a.jobs) as pool:   # each case is its own pumpsim process
+        for r in pool.map(one, cases):
+            results.append(r)
+            print(f"{'ok ' if r['right'] else 'BAD'} {r['case']:62s} {r['verdict']:44s} {r['wall']:6.1f} s",
+                  flush=True)
+            s = summarise(results)
+            s["wall_total"] = time.perf_counter() - t_all
+            if a.json and not a.case:          # rewritten after every case: a partial run is readable
+                _write_json(a.json, {"summary": s, "cases": results})
     print_summary(s)
-    if a.json and not a.case:
-        os.makedirs(os.path.dirname(a.json) or ".", exist_ok=True)
-        tmp = a.json + ".tmp"
-        with open(tmp, "w") as f:
-            json.dump({"summary": s, "cases": results}, f, indent=1, default=str)
-        os.replace(tmp, a.json)
     return s
 
 
