@@ -159,6 +159,29 @@ def print_summary(s):
         print(f"  {k:34s} " + ", ".join(f"{a}: {b}" for a, b in sorted(v.items(), key=lambda x: -x[1])))
 
 
+def findings_markdown(results, summary, source):
+    """The failing cases, each with the command that regenerates it and what diagnose said."""
+    out = [f"# diagnose on independent records: failing cases ({source})", "",
+           f"{summary['cases']} cases, {sum(r['right'] for r in results)} right. Regenerate one case (config, data "
+           "and diag.json kept in out/independent/<case>/):", "",
+           "    .venv/bin/python bench/independent/run.py --case RIG:EFFECT:SNR:SEED:FORMAT:RATE:DURATION", "",
+           "| case (rig:effect:SNR:seed:format:rate:duration) | truth | diagnose said | steps (effect, order, p) | "
+           "final RMS / noise | wall s |", "|---|---|---|---|---|---|"]
+    for r in results:
+        if r["right"]:
+            continue
+        truth = dict(r.get("truth", {}).get("params", {}))
+        if r.get("absorbed"):
+            truth["absorbed"] = True
+        fin = (r.get("final") or {}).get("rms")
+        ratio = f"{fin / r['noise_rms']:.2f}" if fin and r.get("noise_rms") else "-"
+        steps = "; ".join(f"{e} {o if o is not None else ''} p={p:.2g}" if isinstance(p, float) else str(e)
+                          for e, o, p in r.get("steps", []))
+        out.append(f"| `{r['case']}` | {json.dumps(truth, default=str)} | {r['verdict']}"
+                   f"{' ' + r['stderr'][-160:] if r.get('stderr') else ''} | {steps} | {ratio} | {r['wall']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
 def _write_json(path, obj):
     os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
     with open(path + ".tmp", "w") as f:
@@ -180,6 +203,7 @@ def main(argv=None):
     ap.add_argument("--skip", type=int, default=0, help="leave out the first SKIP cases of the grid (resume)")
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once (default 1: one core)")
     ap.add_argument("--json", default="out/bench_independent.json")
+    ap.add_argument("--findings", help="also write the failing cases as markdown to this file")
     a = ap.parse_args(argv)
     if a.case:
         r, e, snr, seed, fmt, rate, dur = a.case.split(":")
@@ -215,6 +239,10 @@ def main(argv=None):
             if a.json and not a.case:          # rewritten after every case: a partial run is readable
                 _write_json(a.json, {"summary": s, "cases": results})
     print_summary(s)
+    if a.findings:
+        with open(a.findings + ".tmp", "w") as f:
+            f.write(findings_markdown(results, s, " ".join(sys.argv[1:])))
+        os.replace(a.findings + ".tmp", a.findings)
     return s
 
 
