@@ -249,3 +249,49 @@ SENSITIVITY_RTOL, SENSITIVITY_ATOL = 1e-12, 1e-14
 MONOTONE_ENERGY_RTOL, FORWARD_INVERSE_RTOL, POSITION_ATOL = 1e-9, 1e-10, 1e-12
 # The oscillator of the state-scaling test at rtol 1e-6 (OSCILLATOR_REL is its global error).
 OSCILLATOR_RTOL = 1e-6
+# -- pneumatic model (spec §8), moved from tests/pneumatics ------------------------------------
+# Port overlap length: PORT_NODES = 3 Gauss-Legendre nodes on the housing arc (~1e-5 accurate on
+# these arcs) against adaptive quadrature; 1e-4 relative leaves 10x room.
+PORT_ARC_REL = 1e-4
+# Budgets of the gas model integrated at rtol 1e-10 (the quadratures ride with the states): local
+# errors ~ 1e3 steps x rtol per revolution, so 1e-6 relative leaves room.
+GAS_ENERGY_REL = 1e-6
+# Equal pressures on both sides of every vane: the gas loads cancel and the gas model's torque and
+# normal force are Model 2's to rounding (same expression graph up to the cancelling loads).
+EQUAL_PRESSURE_REL = 1e-12
+# Reynolds transport: load power + gas power vanish identically; summed over ~20 pieces, rounding
+# of ~1e-16 x piece size relative to the largest power.
+LOAD_POWER_REL = 1e-11
+# Motor drive: omegadot from two Newton steps on a piecewise-affine residual (exact on one contact
+# branch); the residual left is rounding (N m).
+MOTOR_RESIDUAL_ABS = 1e-9
+# Compiled orifice law against the textbook formula: same closed form, different evaluation order.
+ORIFICE_REL = 1e-12
+# Choked flow: the kernel clamps the pressure ratio at the critical one, so the flow is identical
+# to the last bit for any lower downstream pressure (1e-14: a few ulp).
+CHOKED_FLAT_REL = 1e-14
+# Closed adiabatic cell over one revolution at rtol 1e-10: p V^gamma constant to the integrator's
+# accumulated error (~1e3 steps x 1e-10).
+ISENTROPIC_REL = 1e-7
+# Closed cell with a very large wall film coefficient: isothermal up to the finite exchange
+# (temperature lag ~ 1e-3 of the compression heating at 3e5 W/(m^2 K)).
+ISOTHERMAL_REL = 2e-3
+# Mass conservation across cells, ports, leaks and booster at rtol 1e-8: the mass rows sum to zero
+# by construction, so the total drifts only by the integrator's error on the sum.
+MASS_CONSERVATION_REL = 1e-8
+# Spec §8 closed forms, the issue's bound: ideal pump-down law and isothermal ultimate pressure
+# within 1 %.
+PUMPDOWN_LAW_REL = 0.01
+ULTIMATE_PRESSURE_REL = 0.01
+# Fast path (cycle-averaged maps, monotone cubic in log p) against the full model: time to target
+# and mean current within 2 % (map interpolation and the quasi-steady assumption).
+FAST_PATH_REL = 0.02
+# Target crossing located by Illinois root finding to 1e-10 s: the booster pressure at the located
+# time is the target to ~1e-9 relative (pressure rate x time tolerance).
+TARGET_LOCATED_REL = 1e-8
+# Reed valve: the stop is an event, the lift is set to x_max exactly there (rounding only);
+# the opening force at a located opening is zero to the event time tolerance (1e-10 s x force
+# rate), relative to the preload; the exhaust pressure there to 1e-8 relative.
+REED_STOP_REL = 1e-12
+REED_FORCE_REL = 1e-6
+REED_OPEN_REL = 1e-8

@@ -7,7 +7,8 @@ import pytest
 
 from pumpsim.pneumatics import run
 from pumpsim.pneumatics.kernel import kernels, parameter_index, parameter_vector
-from tests.pneumatics.helpers import IDEAL, speed_config
+from tests.pneumatic_helpers import IDEAL, speed_config
+from tests.tolerances import CHOKED_FLAT_REL, ISENTROPIC_REL, ISOTHERMAL_REL, MASS_CONSERVATION_REL, ORIFICE_REL, PUMPDOWN_LAW_REL, ULTIMATE_PRESSURE_REL
 
 R_AIR, GAMMA = 287.05, 1.4
 EXHAUST_WINDOW = 0.001
@@ -29,15 +30,15 @@ def test_orifice_matches_textbook_both_directions(ratio):
     expected = textbook_flow(p_up, T_up, ratio * p_up, A)
     fwd = float(k["orifice_flow"](p_up, T_up, ratio * p_up, T_down, A, p))
     back = float(k["orifice_flow"](ratio * p_up, T_down, p_up, T_up, A, p))
-    assert fwd == pytest.approx(expected, rel=1e-12)
-    assert back == pytest.approx(-expected, rel=1e-12)
+    assert fwd == pytest.approx(expected, rel=ORIFICE_REL)
+    assert back == pytest.approx(-expected, rel=ORIFICE_REL)
 
 
 def test_choked_flow_is_independent_of_downstream_pressure():
     cfg = speed_config()
     k, p = kernels(cfg), parameter_vector(cfg)
     flows = [float(k["orifice_flow"](1e5, 293.0, pd, 293.0, 1e-6, p)) for pd in (1e3, 2e4, 5.2e4)]
-    assert max(flows) - min(flows) <= 1e-14 * flows[0]
+    assert max(flows) - min(flows) <= CHOKED_FLAT_REL * flows[0]
 
 
 def _closed(**over):
@@ -56,7 +57,7 @@ def test_closed_adiabatic_cell_is_isentropic():
     cfg = _closed(**{"gas.heat_transfer": 0.0})
     r = _run_closed(cfg)
     pV = r.outputs["pressure"] * r.outputs["volume"] ** GAMMA
-    assert np.max(np.abs(pV / pV[0] - 1)) < 1e-7
+    assert np.max(np.abs(pV / pV[0] - 1)) < ISENTROPIC_REL
     # and the volumes did change: the test is not trivial
     assert np.ptp(r.outputs["volume"][:, 0]) > 0.3 * r.outputs["volume"][:, 0].max()
 
@@ -65,7 +66,7 @@ def test_closed_cell_with_strong_wall_exchange_is_isothermal():
     cfg = _closed(**{"gas.heat_transfer": 1e6})
     r = _run_closed(cfg, rtol=1e-8)
     pV = r.outputs["pressure"] * r.outputs["volume"]
-    assert np.max(np.abs(pV / pV[0] - 1)) < 2e-3
+    assert np.max(np.abs(pV / pV[0] - 1)) < ISOTHERMAL_REL
 
 
 def test_mass_is_conserved_to_integrator_tolerance():
@@ -75,7 +76,7 @@ def test_mass_is_conserved_to_integrator_tolerance():
     from_atmosphere = r.quad[:, run.QUAD_NAMES.index("atmosphere_mass")]
     # the booster exchanges mass with the pump (the test would fail without the cells' balances)
     assert abs(r.outputs["booster_pressure"][-1] - r.outputs["booster_pressure"][0]) > 10.0
-    assert np.max(np.abs(m - m[0] - from_atmosphere)) < 1e-8 * m[0]
+    assert np.max(np.abs(m - m[0] - from_atmosphere)) < MASS_CONSERVATION_REL * m[0]
 
 
 def _ideal_windows(cfg):
@@ -125,7 +126,7 @@ def test_ideal_pump_down_law_and_isothermal_ultimate_pressure():
     pb = r.outputs["booster_pressure"]
     k = int(np.argmax(pb <= p_a))
     t_a = np.interp(p_a, [pb[k], pb[k - 1]], [r.time[k], r.time[k - 1]])
-    assert r.time_to_target - t_a == pytest.approx(t_law, rel=0.01)
+    assert r.time_to_target - t_a == pytest.approx(t_law, rel=PUMPDOWN_LAW_REL)
     # ultimate pressure: a small booster pumped to its end. One exhaust window always joins the
     # cell that ends its exhaust to the one behind it (they share the vane between them), which
     # would mix the dead volume with a half-compressed cell; a short window at the end of the
@@ -142,4 +143,4 @@ def test_ideal_pump_down_law_and_isothermal_ultimate_pressure():
     # time a cell closes, the vane over the window lets a little of its dead-volume gas into the
     # next cell, which takes it out -- ~1 % of p_u with this 0.001 rad window, gone as the window
     # shrinks; the closed form assumes isolated cells.)
-    assert pb[-1] == pytest.approx(p_u, rel=0.01)
+    assert pb[-1] == pytest.approx(p_u, rel=ULTIMATE_PRESSURE_REL)
