@@ -26,8 +26,8 @@ demo: codegen
 		--json out/test_rig_fit.json --report out/test_rig_fit.html
 	$(BIN)/pumpsim diagnose examples/ellipse_4vanes.toml examples/data/ellipse_hidden_effects.csv \
 		--json out/ellipse_diagnosis.json --report out/ellipse_diagnosis.html
-	$(MAKE) --no-print-directory demo-design
 	$(MAKE) --no-print-directory demo-pumpdown
+	$(MAKE) --no-print-directory demo-design  # last step (issue 14): the design studies
 
 # the EVP example: 4 L booster, 101.3 -> 30 kPa at 13.5 V (full model, fast path, figures)
 demo-pumpdown: codegen

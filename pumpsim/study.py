@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from .io import write_text
+from .tolerances import SOLVER_STUDY_ATOL, SOLVER_STUDY_RTOL
 
 REPORT_NONLINEAR_P1 = 5.0e4 / (1.0e-3) ** 4  # report §8.1
 
@@ -62,8 +63,8 @@ def solver_study(cfg, revolutions=10.0, per_revolution=360, speed=None, rows=Non
     for row in rows or default_rows(base):
         c = _with_contact(base, row.get("contact"))
         res = simulate(c, model="contact", duration=duration, rate=rate, initial="housing",
-                       method=row.get("method", "cvodes"), rtol=row.get("rtol", 1e-6),
-                       atol=row.get("atol", 1e-10), max_step=row.get("max_step"))
+                       method=row.get("method", "cvodes"), rtol=row.get("rtol", SOLVER_STUDY_RTOL),
+                       atol=row.get("atol", SOLVER_STUDY_ATOL), max_step=row.get("max_step"))
         st = res.stats
         entry = {
             "name": row["name"], "method": row.get("method", "cvodes"),

@@ -18,11 +18,15 @@ from ..config import as_array, config_from_dict
 from ..errors import ConfigError, PumpsimError
 from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
 from ..kernels import load_kernels
+from ..model_spec import outputs as kernel_outputs
 from ..tolerances import CONTACT_PERIODIC_REL
 from .pneumatic import gas_outputs, motor_driven
 from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_revolution
 
-SAMPLE_OUTPUTS = ("torque",)
+
+def _per_sample(name: str) -> bool:
+    """One value per sample (not per vane): the contract's declared shape decides, not this module."""
+    return kernel_outputs.shape(name) == "sample"
 
 
 class _Maps(threading.local):
@@ -71,7 +75,7 @@ def _split(names, res, N, keep):
     for i, nm in enumerate(names):
         if nm in keep:
             a = np.asarray(res[i])
-            out[nm] = a.ravel() if nm in SAMPLE_OUTPUTS else a.reshape(N, -1, order="F")
+            out[nm] = a.ravel() if _per_sample(nm) else a.reshape(N, -1, order="F")
     return out
 
 
@@ -102,7 +106,7 @@ def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
     P = np.atleast_2d(np.asarray(P, dtype=float))
     theta = np.ascontiguousarray(theta, dtype=float)
     D, n, N = P.shape[0], theta.size, kern.structure.vanes
-    out = {nm: np.empty((D, n) if nm in SAMPLE_OUTPUTS else (D, N, n)) for nm in outputs}
+    out = {nm: np.empty((D, n) if _per_sample(nm) else (D, N, n)) for nm in outputs}
     fast = _fast(kern.structure)
     if fast is not None:
         buf = _MAPS.cache.setdefault(("fast-out", kern.structure, n), fast.output_array(n))
@@ -120,7 +124,7 @@ def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
         run()
         for nm in outputs:
             # per-vane outputs come vane-major within each sample: (n, N) in C order
-            out[nm][d] = res[nm] if nm in SAMPLE_OUTPUTS else res[nm].reshape(n, N).T
+            out[nm][d] = res[nm] if _per_sample(nm) else res[nm].reshape(n, N).T
     return out
 
 
