@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
 
 
 def add_pumpdown_command(sub) -> None:
@@ -25,8 +26,8 @@ def add_pumpdown_command(sub) -> None:
                     help="constrained: Model 2 (tips on the housing); contact: Model 1 (vanes free in "
                          "their slots, penalty contacts, lift-off reported; needs [contact.housing])")
     pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
-    pd.add_argument("--rtol", type=float, default=1e-5)
-    pd.add_argument("--atol", type=float, default=1e-5,
+    pd.add_argument("--rtol", type=float, default=PUMPDOWN_RTOL)
+    pd.add_argument("--atol", type=float, default=PUMPDOWN_ATOL,
                     help="absolute tolerance relative to each state's starting size")
     pd.set_defaults(func=cmd_pumpdown)
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
+from ..tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
 from . import run
 from .kernel import kernels, parameter_index, parameter_vector, structure_of
 
@@ -76,7 +77,7 @@ def _target(cfg, until):
     return target
 
 
-def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=1e-5, atol=1e-5,
+def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL,
              progress=None, model="constrained") -> PumpdownResult:
     """Full-model pump-down from booster.pressure to `until` (default booster.target), at most
     `duration` seconds (default 120 s); model "contact": Model 1 (vanes free in their slots,
@@ -196,7 +197,7 @@ def _at(arr, s):
     return arr[j] * (1 - f) + arr[min(j + 1, len(arr) - 1)] * f
 
 
-def pump_maps(cfg, pressures, rtol=1e-5, atol=1e-5) -> PumpMaps:
+def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL) -> PumpMaps:
     """Cycle-averaged maps at the booster pressures given (any order)."""
     k = kernels(cfg)
     st = structure_of(cfg)

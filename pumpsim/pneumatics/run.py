@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
+from ..tolerances import GAS_ATOL, GAS_RTOL
 from ..integrate import _illinois
 from .kernel import kernels, parameter_index, parameter_vector
 from ..model_spec.parameters import REED_MODES
@@ -54,7 +55,7 @@ class PumpdownRun:
 class PumpIntegrator:
     """x(t) of the pneumatic kernel with CVODES; `valve mode` is the one integrator parameter."""
 
-    def __init__(self, kern, p, rtol=1e-7, atol=1e-9, scale=None, max_steps=2_000_000):
+    def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000):
         self.kern, self.p = kern, np.asarray(p, dtype=float)
         nx = kern["pump_rhs"].size1_in(0)
         self.nx = nx
@@ -194,7 +195,7 @@ def _reed_switch(kern, p, X, mode):
     return o["reed_force"][:, None]
 
 
-def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=1e-7, atol=1e-9,
+def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, atol=GAS_ATOL,
               progress=None, max_steps=2_000_000, kern=None, scale=None) -> PumpdownRun:
     """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
     booster pressure falls to `until` (located to EVENT_TIME_TOL). kern, scale: another variant
@@ -228,15 +229,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=1e-7, atol=
             raise SolverError(f"pump-down failed between t = {t:.6g} s and {t + m * dt:.6g} s "
                               f"(theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
                               f"{p_booster(x):.6g} Pa): {e}") from None
-        cut = m
-        if reed:
-            g0 = _reed_switch(kern, p, x[None, :], mode)[0]
-            G = _reed_switch(kern, p, X, mode)
-            prev = np.vstack([g0[None, :], G[:-1]])
-            changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
-            rows = np.nonzero(changed.any(axis=1))[0]
-            if rows.size:
-                cut = int(rows[0])
+        cut = _first_reed_switch(kern, p, x, X, mode) if reed else m
         stop_row = None
         if until is not None:
             below = np.nonzero(p_booster(X[:cut]) <= until)[0]
@@ -275,6 +268,17 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=1e-7, atol=
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall)
     outs = evaluate_outputs(kern, X, p)
     return PumpdownRun(np.array(times), X, np.array(qs), outs, stats, events, t_target, p)
+
+
+def _first_reed_switch(kern, p, x, X, mode) -> int:
+    """Row of the first output interval (from x to X[0], then between rows of X) in which a reed
+    switch function changes sign; len(X) if none does."""
+    g0 = _reed_switch(kern, p, x[None, :], mode)[0]
+    G = _reed_switch(kern, p, X, mode)
+    prev = np.vstack([g0[None, :], G[:-1]])
+    changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
+    rows = np.nonzero(changed.any(axis=1))[0]
+    return int(rows[0]) if rows.size else len(X)
 
 
 def _reed_interval(integ, kern, p, x, q, mode, t, dt, events):
