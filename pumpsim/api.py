@@ -87,8 +87,9 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
         Time [s], torque [N m], speed [rad/s], angle [rad]. Files: CSV (units from the header, e.g.
         `torque [N*mm]`), MATLAB .mat, NI .tdms. A list is fitted jointly (one pump, several speeds).
     params : sequence of str, default ("mu", "theta0") as the command line
-        mu (vane-housing dynamic COF, slot COF tied to it), mu_slot, theta0 [rad], speed [rad/s],
-        torque_offset [N m], delay [s], or a numeric config key path (e.g. "housing.center.0").
+        mu (vane-housing dynamic COF, slot COF tied to it in the configured proportion), mu_slot,
+        theta0 [rad], speed [rad/s], torque_offset [N m], delay [s], or a numeric config key path
+        (e.g. "housing.center.0").
     method : "gauss-newton" (default), "levenberg-marquardt" or "ipopt"
     relaxation : Gauss-Newton relaxation factor in (0, 1]
     initial : {name: start value}

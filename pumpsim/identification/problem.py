@@ -57,8 +57,12 @@ class Problem:
         if len(set(self.names)) != len(self.names):
             raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
         v = self.pv.values
+        # [housing static/dynamic, slot static/dynamic, slot/housing dynamic]: mu scales the
+        # configured COFs by one factor (a rig's own [friction.slot] is a measured or chosen value,
+        # kept in proportion); with a frictionless nominal housing the slot COF equals mu
+        mu_h, mu_s = v["friction.housing.dynamic"], v["friction.slot.dynamic"]
         self._ratios = np.array([v[f"friction.{side}.static"] / max(v[f"friction.{side}.dynamic"], 1e-300)
-                                 for side in ("housing", "slot")])
+                                 for side in ("housing", "slot")] + [mu_s / mu_h if mu_h > 0 else 1.0])
         self._follow = following(cfg)
         self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"], **starts}
         self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, self.fixed, initial)
@@ -302,7 +306,8 @@ def following(cfg):
 def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
     """The runtime parameter vector with the fitted values `val` (name -> expression) put in:
     mu sets the housing COF (static scaled by the configured ratio) and, unless mu_slot is fitted,
-    the slot COF; an alias sets its targets (housing.radius: both semi-axes); any other name is a
+    the slot COF in the configured slot/housing proportion (ratios[2]); an alias sets its targets
+    (housing.radius: both semi-axes); any other name is a
     parameter path; a derived default in `follow` is recomputed from its fitted inputs."""
     p = [p0[i] for i in range(p0.shape[0])]
 
@@ -314,7 +319,7 @@ def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
         setp("friction.housing.dynamic", val["mu"])
         setp("friction.housing.static", val["mu"] * ratios[0])
         if "mu_slot" not in val:
-            mu_slot = val["mu"]  # slot COF tied to the housing COF unless mu_slot is named
+            mu_slot = val["mu"] * ratios[2]  # tied to mu in the configured proportion
     if "mu_slot" in val:
         mu_slot = val["mu_slot"]
     if "mu" in val or "mu_slot" in val:

@@ -161,3 +161,21 @@ def test_interval_coverage_and_runs_test_false_rejections_over_100_seeds():
         rejected += res.diagnostics["runs_test"]["p_value"] < 0.05
     assert covered >= 90
     assert rejected <= 12
+
+
+def slot_table(mu_slot, ratio=0.15 / 0.14):
+    return {"friction.slot.dynamic": mu_slot, "friction.slot.static": mu_slot * ratio,
+            "friction.slot.v_static": 1.0e-4, "friction.slot.v_dynamic": 1.0e-3}
+
+
+def test_mu_keeps_a_configured_slot_cof_in_proportion():
+    """A rig with its own [friction.slot] (0.14 against the housing's 0.17): fitting mu scales both
+    COFs by one factor, so a record made with both scaled by 1.2 is fitted to rounding, and its own
+    nominal record gives back the nominal (tying the slot COF equal to mu left a residual there)."""
+    nominal = make_config("ellipse_4vanes", **slot_table(0.14))
+    for factor in (1.0, 1.2):
+        truth = make_config("ellipse_4vanes", **cof(0.17 * factor), **slot_table(0.14 * factor))
+        r = pumpsim.simulate(dataclasses.replace(truth, angle=0.15), duration=0.05, rate=10000)
+        res = identify(nominal, Dataset(r.time, r.torque), ["mu", "theta0"], initial={"theta0": 0.1})
+        assert res.value("mu") == pytest.approx(0.17 * factor, rel=NOISE_FREE_MU_REL)
+        assert res.rms < NOISE_FREE_MU_REL * np.sqrt(np.mean(r.torque ** 2))
