@@ -39,6 +39,7 @@ import dataclasses
 import math
 import sys
 import time as _time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -82,27 +83,35 @@ def clearance(cfg: PumpConfig) -> float:
     return min(v["housing.a"], v["housing.b"]) - v["rotor.radius"]
 
 
-def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: float) -> list:
-    """Reasons why fitted values leave their physical range ([] = all plausible). `values` holds
-    fitted names (joint suffixes allowed) -> value. The ranges and their physics are declared once,
-    with each parameter, in the registry (model_spec.parameters: `plausible`); here only how this
-    workflow's parametrisation maps onto them: an out-of-round of one order is a pair of harmonic
-    slots (their hypot is the amplitude), and a vane's COF is mu times its factor."""
-    v = {base_name(k): x for k, x in values.items() if x is not None}
-    context = {"clearance": clearance(cfg), "speed": cfg.speed or 1.0, "vanes": cfg.vanes,
-               "housing_a": cfg.values["housing.a"], "torque_rms": torque_rms, "mean_torque": mean_torque}
-    amps, plain = {}, {}
+def _with_harmonic_pair(cfg: PumpConfig, k: int) -> PumpConfig:
+    """The config with two more housing-harmonic slots of order k, phases 0 and pi/(2k), zero
+    amplitudes a and b: a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b),
+    so the fit needs no phase wrapping and the absent defect (a = b = 0) is a regular point."""
+    return cfg.with_harmonics(cfg.harmonics + [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]])
+
+
+def _is_harmonic_amplitude(key: str) -> bool:
+    return key.startswith("housing.harmonics.") and key.endswith(".amplitude")
+
+
+def _out_of_round_implausible(cfg: PumpConfig, v: dict, context: dict) -> list:
+    """An out-of-round of one order is a pair of harmonic slots: their hypot is the amplitude."""
+    amps = {}
     for k_, x in v.items():
-        if k_.startswith("housing.harmonics.") and k_.endswith(".amplitude"):
+        if _is_harmonic_amplitude(k_):
             j = int(k_.split(".")[2])
             order = cfg.harmonics[j][0] if j < len(cfg.harmonics) else 0
             amps.setdefault(order, [k_, 0.0])[1] = math.hypot(amps.get(order, [k_, 0.0])[1], x)
-        elif k_ not in ("theta0", "speed", "delay"):
-            plain[k_] = x
-    out = implausible(plain, context=context)
+    out = []
     for order, (k_, A) in amps.items():
         out += [m.replace(k_, f"out-of-round k={order:g} amplitude", 1) for m in implausible({k_: A}, context=context)]
+    return out
+
+
+def _vane_spread_implausible(cfg: PumpConfig, v: dict, context: dict) -> list:
+    """A vane's COF is mu times its factor: checked against the COF's range."""
     mu = v.get("mu", cfg.values["friction.housing.dynamic"])
+    out = []
     for i in range(cfg.vanes):
         f = v.get(f"effects.vane_friction_factor.{i}")
         if f is not None:
@@ -111,52 +120,118 @@ def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: flo
     return out
 
 
-@dataclass
-class Candidate:
-    effect: str
-    params: list  # parameter names for Problem
-    order: int | None = None  # shaft order (out-of-round, speed ripple)
+def _out_of_round_polar(res, names, k) -> dict:
+    """A cos(k (phi - gamma)): the housing's phase gamma is the harmonic pair's phase over k."""
+    A, ph = _polar(res, names, k)
+    return {"amplitude": A, "phase": {"value": ph["value"] / k, "stderr": ph["stderr"] / k}}
+
+
+def _ripple_polar(res, names, k) -> dict:
+    """omega = omega0 (1 + A cos(k theta + phase))."""
+    A, ph = _polar(res, names, k)
+    return {"amplitude": A, "phase": ph}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect of the library, declared once: its fitted parameters (per shaft order), how it
+    enters the model, how its score test probes it and how its parameters map onto the registry's
+    plausibility ranges (model_spec.parameters). The workflow loops over these declarations."""
+    name: str
+    params: Callable[[PumpConfig, int | None], list]  # (config, order) -> fitted names for Problem
+    orders: Callable[[PumpConfig], Iterable] = lambda cfg: (None,)  # shaft orders tried (None: no order)
+    min_vanes: int = 1
+    harmonic_pair: bool = False  # enters the config as a harmonic pair of its order
+    ripple: bool = False  # its order is the drive's speed-ripple order
     # geometric defects of a pump with identical, equally spaced vanes can leave the torque
     # unchanged to first order (an eccentric housing with N >= 2: the per-vane changes at odd orders
-    # cancel in the sum); their score test then uses the second-order terms
+    # cancel in the sum); their score test then uses the second-order terms, and the one-step
+    # start is kept inside the clearance
     symmetric: bool = False
+    # step of the second-order probes (state, problem) -> h; None: first-order score test only
+    probe_step: Callable | None = None
+    one_sided: bool = False  # a parameter >= 0 at its absent value 0: one-sided probes
+    finite_probes: bool = False  # non-smooth (friction reversals move): also a grid of finite sizes
+    start_floor: tuple = ()  # (name, least start value) pairs for the refit
+    describe: Callable | None = None  # (result, names, order) -> extra JSON fields (amplitude, phase)
+    claims: Callable[[str], bool] | None = None  # names whose range `implausible` checks instead of the registry
+    implausible: Callable | None = None  # (config, values, context) -> reasons
+
+
+EFFECTS = (
+    Effect("rotor_eccentricity", lambda cfg, k: ["housing.center.0", "housing.center.1"], symmetric=True,
+           probe_step=lambda state, prob: _probe_scale(state), finite_probes=True),
+    Effect("housing_out_of_round",
+           lambda cfg, k: [f"housing.harmonics.{j}.amplitude" for j in (len(cfg.harmonics), len(cfg.harmonics) + 1)],
+           orders=lambda cfg: range(2, 9), harmonic_pair=True, symmetric=True,
+           probe_step=lambda state, prob: _probe_scale(state), describe=_out_of_round_polar,
+           claims=_is_harmonic_amplitude, implausible=_out_of_round_implausible),
+    Effect("speed_ripple", lambda cfg, k: ["ripple_cos", "ripple_sin"], orders=lambda cfg: range(1, 2 * cfg.vanes + 1),
+           ripple=True, describe=_ripple_polar),
+    Effect("torque_offset", lambda cfg, k: ["torque_offset"]),
+    # one-sided (T >= 0): probe a twentieth of a radian of lag
+    Effect("sensor_lag", lambda cfg, k: ["lag"], probe_step=lambda state, prob: 0.05 / prob.speed_of(prob.x0),
+           one_sided=True, start_floor=(("lag", 1e-6),)),
+    Effect("viscous_tip_friction", lambda cfg, k: ["effects.viscous_tip_friction"]),
+    # a vane of another material or finish: its tip and slot COFs scaled together (vane 0 is the
+    # reference; the reported mu is the mean over the vanes)
+    Effect("vane_friction_spread", lambda cfg, k: [f"effects.vane_friction_factor.{i}" for i in range(1, cfg.vanes)],
+           min_vanes=2, implausible=_vane_spread_implausible),
+)
+NOT_RANGED = ("theta0", "speed", "delay")  # measurement parameters without a plausibility range
+
+
+def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: float) -> list:
+    """Reasons why fitted values leave their physical range ([] = all plausible). `values` holds
+    fitted names (joint suffixes allowed) -> value. The ranges and their physics are declared once,
+    with each parameter, in the registry (model_spec.parameters: `plausible`); how this workflow's
+    parametrisation maps onto them is declared with each effect (an out-of-round of one order is a
+    pair of harmonic slots, a vane's COF is mu times its factor)."""
+    v = {base_name(k): x for k, x in values.items() if x is not None}
+    context = {"clearance": clearance(cfg), "speed": cfg.speed or 1.0, "vanes": cfg.vanes,
+               "housing_a": cfg.values["housing.a"], "torque_rms": torque_rms, "mean_torque": mean_torque}
+    plain = {k_: x for k_, x in v.items()
+             if k_ not in NOT_RANGED and not any(e.claims is not None and e.claims(k_) for e in EFFECTS)}
+    out = implausible(plain, context=context)
+    for e in EFFECTS:
+        if e.implausible is not None:
+            out += e.implausible(cfg, v, context)
+    return out
+
+
+@dataclass
+class Candidate:
+    kind: Effect
+    params: list  # parameter names for Problem
+    order: int | None = None  # shaft order (out-of-round, speed ripple)
+
+    @property
+    def effect(self) -> str:
+        return self.kind.name
+
+    @property
+    def symmetric(self) -> bool:
+        return self.kind.symmetric
+
+    @property
+    def ripple_order(self) -> int | None:
+        return self.order if self.kind.ripple else None
 
     @property
     def label(self):
         return f"{self.effect}(k={self.order})" if self.order else self.effect
 
     def config(self, cfg: PumpConfig) -> PumpConfig:
-        return _with_harmonic_pair(cfg, self.order) if self.effect == "housing_out_of_round" else cfg
+        return _with_harmonic_pair(cfg, self.order) if self.kind.harmonic_pair else cfg
+
+    def problem(self, state: "State"):
+        """The state's problem with this candidate's parameters added at their absent values."""
+        return state.problem(self.params, cfg=self.config(state.cfg), ripple_order=self.ripple_order)
 
 
 def candidates(cfg: PumpConfig, added: set) -> list:
-    N = cfg.vanes
-    out = []
-    if "rotor_eccentricity" not in added:
-        out.append(Candidate("rotor_eccentricity", ["housing.center.0", "housing.center.1"], symmetric=True))
-    if "housing_out_of_round" not in added:
-        j = len(cfg.harmonics)
-        out += [Candidate("housing_out_of_round", [f"housing.harmonics.{j}.amplitude",
-                                                   f"housing.harmonics.{j + 1}.amplitude"], k, symmetric=True)
-                for k in range(2, 9)]
-    if "speed_ripple" not in added:
-        out += [Candidate("speed_ripple", ["ripple_cos", "ripple_sin"], k) for k in range(1, 2 * N + 1)]
-    for name, params in (("torque_offset", ["torque_offset"]), ("sensor_lag", ["lag"]),
-                         ("viscous_tip_friction", ["effects.viscous_tip_friction"])):
-        if name not in added:
-            out.append(Candidate(name, params))
-    if N >= 2 and "vane_friction_spread" not in added:
-        # a vane of another material or finish: its tip and slot COFs scaled together (vane 0 is
-        # the reference; the reported mu is the mean over the vanes)
-        out.append(Candidate("vane_friction_spread", [f"effects.vane_friction_factor.{i}" for i in range(1, N)]))
-    return out
-
-
-def _with_harmonic_pair(cfg: PumpConfig, k: int) -> PumpConfig:
-    """The config with two more housing-harmonic slots of order k, phases 0 and pi/(2k), zero
-    amplitudes a and b: a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b),
-    so the fit needs no phase wrapping and the absent defect (a = b = 0) is a regular point."""
-    return cfg.with_harmonics(cfg.harmonics + [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]])
+    return [Candidate(e, e.params(cfg, k), k) for e in EFFECTS
+            if e.name not in added and cfg.vanes >= e.min_vanes for k in e.orders(cfg)]
 
 
 def _ar1(r):
@@ -241,7 +316,7 @@ def _probe_window(state, cand, prob, Jb):
     d = state.data
     if isinstance(d, (list, tuple)) or d.n <= PROBE_SAMPLES:
         return prob, Jb
-    pw = state.on(d.window(0, PROBE_SAMPLES)).problem(cand.params, cfg=cand.config(state.cfg))
+    pw = cand.problem(state.on(d.window(0, PROBE_SAMPLES)))
     return pw, Jb[:PROBE_SAMPLES]
 
 
@@ -300,18 +375,14 @@ def score_test(state: State, cand: Candidate, start=True):
     """LM statistic for adding `cand` at the current fit (prewhitened GLS score test). Returns the
     statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
     the refit with the nonlinear residual there."""
-    prob = state.problem(cand.params, cfg=cand.config(state.cfg),
-                         ripple_order=cand.order if cand.effect == "speed_ripple" else None)
+    prob = cand.problem(state)
     nb = len(state.names)
     m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
     rs = prob.y - m
     Jb = state.jacobian()
-    if cand.effect == "sensor_lag":  # one-sided (T >= 0), probe a twentieth of a radian of lag
-        quad = _second_order_columns(prob, prob.x0, nb, Je, 0.05 / prob.speed_of(prob.x0), Jb, one_sided=True)
-    elif cand.symmetric:
-        quad = _second_order_columns(prob, prob.x0, nb, Je, _probe_scale(state), Jb)
-    else:
-        quad = None
+    eff = cand.kind
+    quad = (_second_order_columns(prob, prob.x0, nb, Je, eff.probe_step(state, prob), Jb, one_sided=eff.one_sided)
+            if eff.probe_step is not None else None)
     if quad is not None:
         Je, pairs = quad
     rho = _ar1(rs)
@@ -367,7 +438,7 @@ def score_test(state: State, cand: Candidate, start=True):
     r1 = prob.y - prob.model(x1)
     if not np.all(np.isfinite(r1)):
         x1, r1 = prob.x0.copy(), rs
-    if quad is not None and cand.effect == "rotor_eccentricity":  # non-smooth: try finite probes
+    if quad is not None and eff.finite_probes:  # non-smooth: try finite probes
         xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
         rp = prob.y - prob.model(xp)
         if rp @ rp < r1 @ r1:
@@ -446,11 +517,8 @@ def _effect_params(cand, res, new_names, cfg):
     out = _params_json(res, new_names, cfg)
     if cand.order:
         out["order"] = cand.order
-    if cand.effect == "housing_out_of_round":  # A cos(k (phi - gamma))
-        A, ph = _polar(res, new_names, cand.order)
-        out["amplitude"], out["phase"] = A, {"value": ph["value"] / cand.order, "stderr": ph["stderr"] / cand.order}
-    if cand.effect == "speed_ripple":  # omega = omega0 (1 + A cos(k theta + phase))
-        out["amplitude"], out["phase"] = _polar(res, new_names, cand.order)
+    if cand.kind.describe is not None:  # amplitude and phase of a harmonic pair
+        out.update(cand.kind.describe(res, new_names, cand.order))
     return out
 
 
@@ -948,8 +1016,7 @@ def _separable_at_another_speed(state, effect, partner):
     for data in (Dataset(d.time, d.torque, speed=np.full(d.n, w)), other):
         held = {k: v for k, v in state.values.items() if base_name(k) != "speed"}  # the data's speed
         st = State(state.cfg, data, [partner], held, state.ripple_order)
-        prob = st.problem(cand.params, cfg=cand.config(state.cfg),
-                          ripple_order=cand.order if cand.effect == "speed_ripple" else None)
+        prob = cand.problem(st)
         cols.append(prob.model_and_jacobian(prob.x0)[1])
     J = np.vstack(cols)
     a, B = J[:, 0], J[:, 1:]
@@ -988,9 +1055,9 @@ def _refit(state: State, cand: Candidate, score):
     cfg = cand.config(state.cfg)
     values = dict(state.values)
     values.update(score.get("start", {}))  # the joint one-step estimate
-    if cand.effect == "sensor_lag":
-        values["lag"] = max(values.get("lag", 0.0), 1e-6)
-    ripple = cand.order if cand.effect == "speed_ripple" else state.ripple_order
+    for name, least in cand.kind.start_floor:
+        values[name] = max(values.get(name, 0.0), least)
+    ripple = cand.ripple_order if cand.ripple_order is not None else state.ripple_order
     names = state.names + list(score["params"])
     held = {k: v for k, v in values.items() if k not in names}
     res = identify(cfg, state.data, names, initial={n: values[n] for n in names if n in values},
