@@ -295,3 +295,18 @@ TARGET_LOCATED_REL = 1e-8
 REED_STOP_REL = 1e-12
 REED_FORCE_REL = 1e-6
 REED_OPEN_REL = 1e-8
+
+# Detectors (tests/unit/pumpsim/test_detectors.py). A correct null distribution fails a KS test of
+# its p-values at 0.1 % once in a thousand seeds (the seeds are fixed, so the test is repeatable).
+NULL_KS_P = 1e-3
+# The high-frequency noise estimate is a median of ~400 periodogram ordinates (exponential): its
+# relative spread is ~3.6 %, so 10 % is ~2.8 standard deviations.
+HF_SIGMA_REL = 0.1
+# A 30 Hz sine as large as the noise over 4000 samples: the noise-level test must reject it at a
+# level no null record reaches by chance in this suite.
+STRUCTURE_P = 1e-6
+# RMS of a non-shaft line (0.3) on unit noise, 6000 samples: the variance estimate's spread
+# (sqrt(2/n) ~ 0.018) gives ~0.03 on the RMS; 0.12 is four of those.
+SYSTEMATIC_RMS_ABS = 0.12
+# The synchronous speed scan's refined grid: the phase drift it leaves over the record [rad].
+SPEED_SCAN_DRIFT_RAD = 0.1
