@@ -8,7 +8,11 @@ import pytest
 import pumpsim
 from pumpsim.model_spec import laws
 from tests.conftest import make_config
-from tests.tolerances import (CONTACT_DRIFT_SHRINK, CONTACT_ENERGY_DRIFT, CONTACT_LAW_REL,
+from tests.tolerances import (CONTACT_BALANCE_ATOL, CONTACT_BALANCE_RTOL, CONTACT_BEHAVIOUR_ATOL,
+                              CONTACT_BEHAVIOUR_RTOL, CONTACT_CLOSED_FORM_ATOL, CONTACT_CLOSED_FORM_RTOL,
+                              CONTACT_CROSS_RTOL, CONTACT_DRIFT_ATOL_PER_RTOL, CONTACT_DRIFT_RTOLS,
+                              CONTACT_ENERGY_ATOL, CONTACT_ENERGY_RTOL, MODEL1_VS_2_ATOL, MODEL1_VS_2_RTOL,
+                              CONTACT_DRIFT_SHRINK, CONTACT_ENERGY_DRIFT, CONTACT_LAW_REL,
                               CONTACT_VS_CONSTRAINED_REL, CROSSING_REL, DAMPED_ENERGY_LOSS,
                               DAMPED_ENERGY_RISE, INTEGRATOR_CROSS_REL, QUASI_STATIC_FLOOR, QUASI_STATIC_REL,
                               STIFFNESS_CONVERGENCE_RATIO)
@@ -20,7 +24,7 @@ def _deviation(cfg, revolutions, per_rev=360, **kw):
     T = 2 * math.pi / cfg.speed
     rate = per_rev / T
     m1 = pumpsim.simulate(cfg, model="contact", duration=revolutions * T, rate=rate,
-                          initial="housing", rtol=1e-7, atol=1e-10, **kw)
+                          initial="housing", rtol=MODEL1_VS_2_RTOL, atol=MODEL1_VS_2_ATOL, **kw)
     m2 = pumpsim.simulate(cfg, duration=revolutions * T, rate=rate)
     last = slice(-per_rev, None)
     rms_t = np.sqrt(np.mean(m2.torque[last] ** 2))
@@ -64,7 +68,7 @@ def test_contact_forces_never_pull():
                                           "contact.bottom.law": "linear", "contact.bottom.stiffness": 5e4,
                                           "contact.bottom.damping": c})
     res = pumpsim.simulate(cfg, model="contact", duration=0.004, rate=400000, initial="bottom",
-                           rtol=1e-8, atol=1e-12)
+                           rtol=CONTACT_CLOSED_FORM_RTOL, atol=CONTACT_CLOSED_FORM_ATOL)
     d, dd = res.vanes["penetration"], res.extra["penetration_rate"]
     unclamped = 5e4 * d + c * dd
     assert np.any((d > 0) & (unclamped < 0))  # the clamp was needed
@@ -83,7 +87,7 @@ def test_vane_lifts_off_the_slot_bottom_when_the_analytic_condition_is_met():
     cfg = make_config("ellipse_1vane", **{"rotor.slot_tilt": beta})
     cfg = dataclasses.replace(cfg, mode="torque", torque=0.00022, speed=0.0, angle=0.5)
     res = pumpsim.simulate(cfg, model="contact", duration=0.3, rate=2000, initial="bottom",
-                           rtol=1e-9, atol=1e-13)
+                           rtol=CONTACT_BALANCE_RTOL, atol=CONTACT_BALANCE_ATOL)
     v = res.parameters
     m, rb, L = v["vane.mass"], v["rotor.slot_radius"], v["vane.length"]
     s = res.vanes["s"][0]
@@ -121,9 +125,9 @@ def test_bouncing_vane_without_friction_or_damping_conserves_energy():
     tolerance (the drift shrinks with rtol). A sharp tip uses the spec's centre-line contact point,
     whose force is not a gradient: an O(delta/R) drift, documented in the README."""
     drifts = []
-    for rtol in (1e-8, 1e-10):
+    for rtol in CONTACT_DRIFT_RTOLS:
         res = pumpsim.simulate(_conservative("ellipse_1vane"), model="contact", duration=0.05,
-                               rate=20000, initial="bottom", rtol=rtol, atol=rtol * 1e-4)
+                               rate=20000, initial="bottom", rtol=rtol, atol=rtol * CONTACT_DRIFT_ATOL_PER_RTOL)
         assert sum(e["kind"] == "housing_contact" for e in res.events) >= 4  # it really bounces
         E = total_energy(res)
         drifts.append(np.max(np.abs(E - E[0])) / E[0])
@@ -132,7 +136,7 @@ def test_bouncing_vane_without_friction_or_damping_conserves_energy():
 
 def test_with_damping_mechanical_energy_never_increases():
     res = pumpsim.simulate(_conservative("ellipse_1vane", law="impact", damping=15.0), model="contact",
-                           duration=0.05, rate=20000, initial="bottom", rtol=1e-10, atol=1e-14)
+                           duration=0.05, rate=20000, initial="bottom", rtol=CONTACT_ENERGY_RTOL, atol=CONTACT_ENERGY_ATOL)
     E = total_energy(res)
     assert E[-1] < E[0] * (1 - DAMPED_ENERGY_LOSS)
     assert np.all(np.diff(E) <= DAMPED_ENERGY_RISE * E[0])
@@ -149,7 +153,7 @@ def test_contact_start_is_located_at_the_free_flight_crossing_time():
     c = rb + L / 2
     t_star = math.acosh((R - L - rb + c) / c) / w
     res = pumpsim.simulate(cfg, model="contact", duration=2 * t_star, rate=2000, initial="bottom",
-                           rtol=1e-10, atol=1e-14)
+                           rtol=CONTACT_ENERGY_RTOL, atol=CONTACT_ENERGY_ATOL)
     hits = [e["time"] for e in res.events if e["kind"] == "housing_contact" and e["vane"] == 0]
     assert hits, res.events
     assert abs(hits[0] - t_star) < CROSSING_REL * t_star
@@ -160,7 +164,7 @@ def test_a_vane_started_on_the_housing_is_touching_not_crossing():
     is a touching start, not a contact change to locate at t ~ 1e-15 s (which restarted the
     integrator dozens of times before the first output sample)."""
     res = pumpsim.simulate(make_config("ellipse_4vanes"), model="contact", duration=0.002, rate=2000,
-                           initial="housing", rtol=1e-6, atol=1e-10)
+                           initial="housing", rtol=CONTACT_BEHAVIOUR_RTOL, atol=CONTACT_BEHAVIOUR_ATOL)
     assert np.all(res.vanes["penetration"][:, 1:] > 0)  # it stays pressed on
     assert not res.events, res.events
     assert res.stats["integrator_calls"] == 1  # one chunk, no restarts
@@ -171,7 +175,7 @@ def test_cvodes_and_idas_agree_on_the_contact_model():
     IDAS (BDF on the residual x' - f = 0): the same torque to the integrators' global error."""
     cfg = make_config("ellipse_4vanes")
     runs = [pumpsim.simulate(cfg, model="contact", duration=0.01, rate=10000, initial="housing",
-                             method=m, rtol=1e-8) for m in ("cvodes", "idas")]
+                             method=m, rtol=CONTACT_CROSS_RTOL) for m in ("cvodes", "idas")]
     a, b = runs[0].torque, runs[1].torque
     assert np.max(np.abs(a - b)) <= INTEGRATOR_CROSS_REL * np.sqrt(np.mean(a**2))
 
@@ -179,7 +183,7 @@ def test_cvodes_and_idas_agree_on_the_contact_model():
 def test_stiff_contact_completes_and_reports_statistics():
     cfg = _stiff(1e6, base="ellipse_4vanes")
     res = pumpsim.simulate(cfg, model="contact", duration=0.02, rate=10000, initial="rotor",
-                           rtol=1e-6, atol=1e-10)
+                           rtol=CONTACT_BEHAVIOUR_RTOL, atol=CONTACT_BEHAVIOUR_ATOL)
     assert res.termination == "completed"
     for key in ("nsteps", "netfails", "nfevals", "njevals", "nlinsetups", "wall_time"):
         assert key in res.stats
