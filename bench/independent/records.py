@@ -195,6 +195,8 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
         contribution = clean - nominal
         c_rms = float(np.sqrt(np.mean(contribution ** 2)))
         truth["observable"] = observable_share(rig, t, theta0, contribution) if c_rms > 0 else 0.0
+        if effect == "sensor_lag" and p["kind"] == "delay":
+            truth["observable"] = 0.0   # at constant speed a pure delay IS a theta0 shift (exactly, not to first order)
         sigma = c_rms / snr
     elif effect in ("hum", "drift", "impulse"):
         sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
