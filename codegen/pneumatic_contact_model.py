@@ -31,7 +31,7 @@ from . import pneumatic_model
 from .contact_model import contact_vane, housing_contact
 from .model import BuiltModel
 from .pneumatic_model import (_GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
-                              energy_rows, gas_flows, gas_state, implicit_rates, motor_drive,
+                              energy_rows, flat, gas_flows, gas_state, implicit_rates, motor_drive,
                               parameter_symbols)
 
 QUAD_NAMES = pneumatic_model.QUAD_NAMES + ("contact_work", "load_work")
@@ -139,7 +139,8 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
     )
     out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p],
                         [outs[k] for k in PUMP_CONTACT_OUTPUTS])
-    out_fn = ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(PUMP_CONTACT_OUTPUTS))
+    out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"],
+                              list(PUMP_CONTACT_OUTPUTS)))
     cells = cell_geometry_function(cell_geometry(b, p, phis), p)
     fns = {f.name(): f for f in (rhs, jac, out_fn, cells, _constrained_state(b, p, phis, facs))}
     return BuiltModel(structure, b.params, fns)
