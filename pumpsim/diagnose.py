@@ -438,6 +438,7 @@ def score_test(state: State, cand: Candidate, start=True):
     r1 = prob.y - prob.model(x1)
     if not np.all(np.isfinite(r1)):
         x1, r1 = prob.x0.copy(), rs
+    x1, r1 = _profiled(prob, Jb, nb, x1, r1)
     if quad is not None and eff.finite_probes:  # non-smooth: try finite probes
         xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
         rp = prob.y - prob.model(xp)
@@ -446,6 +447,31 @@ def score_test(state: State, cand: Candidate, start=True):
     out.update(start={n: v for n, v in zip(prob.names, x1) if n in state.names + params},
                one_step_rss=float(r1 @ r1))
     return out
+
+
+PROFILE_STEPS = 2  # Gauss-Newton steps of the fitted parameters at the candidate's one-step value
+
+
+def _profiled(prob, Jb, nb, x1, r1):
+    """The one-step fit profiled over the fitted parameters: with the candidate's parameters at
+    their one-step values, Gauss-Newton steps of the fitted ones on the NONLINEAR residual there
+    (Jacobian Jb of the current fit). The joint linear step cannot see what the candidate does to
+    first order inside the fitted span when its score used second-order columns: a low-pass's
+    delay part is a theta0 shift the baseline already made, so the candidate at its size needs
+    theta0 moved back; without this its one-step fit is worse than none and the candidate is
+    never refitted. Keeps the better of before and after (the step is on the model)."""
+    if not nb:
+        return x1, r1
+    best = (x1, r1, float(r1 @ r1))
+    for _ in range(PROFILE_STEPS):
+        x = best[0].copy()
+        x[:nb] += np.linalg.lstsq(Jb, best[1], rcond=None)[0]
+        x = np.clip(x, prob.lower, prob.upper)
+        r = prob.y - prob.model(x)
+        if not np.all(np.isfinite(r)) or float(r @ r) >= best[2]:
+            break
+        best = (x, r, float(r @ r))
+    return best[0], best[1]
 
 
 def _bic(rss, n, k):

@@ -15,7 +15,7 @@ from ..errors import ConfigError
 from ..kernels import load_kernels, map_samples
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
-from ..sensor import first_order_lag
+from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..simulate import ripple_motion
 from .start import phase_and_speed_start
 
@@ -183,16 +183,25 @@ class ConstantSpeedProblem(Problem):
     def _lag(self, x):
         return self._values(x)["lag"]
 
-    def _torque(self, theta, z):
+    def _torque(self, theta, z, t=None):
         f = sample_torque(self.kern, 0, theta.size)
-        return np.asarray(f(theta, self.t, z, self.ripple_order)).ravel()
+        return np.asarray(f(theta, self.t if t is None else t, z, self.ripple_order)).ravel()
 
-    def _filter(self, y, T):
-        return first_order_lag(y, self.dt, T)
+    def _grid(self, T, *per_sample):
+        """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
+        LAG_SUBSTEPS points per sample interval (angles, times and their derivatives interpolated
+        linearly: smooth on that scale) and `_sensed` filters there and keeps the samples."""
+        m = LAG_SUBSTEPS if T > 0 and self.t.size > 1 else 1
+        return m, [a if m == 1 else refine(a, m) for a in per_sample]
+
+    def _sensed(self, y, T, m):
+        return y if T <= 0 else first_order_lag(y, self.dt / m, T)[::m]
 
     def model(self, x):
         self.n_eval += 1
-        return self._filter(self._torque(self.angle(x), self.z(x)), self._lag(x))
+        T = self._lag(x)
+        m, (theta, t) = self._grid(T, self.angle(x), self.t)
+        return self._sensed(self._torque(theta, self.z(x), t), T, m)
 
     def model_and_jacobian(self, x, cols=None):
         """Torque and its Jacobian (the columns `cols` only, default all). For the angle-acting
@@ -204,25 +213,25 @@ class ConstantSpeedProblem(Problem):
         self.n_eval += 1
         cols = list(range(len(self.names))) if cols is None else list(cols)
         names = [self.names[c] for c in cols]
+        T = self._lag(x)
         theta, dtheta = self.angle_and_jacobian(x)
+        m, (theta, dtheta, t) = self._grid(T, theta, dtheta, self.t)
         z = self.z(x)
         f = sample_torque(self.kern, len(cols), theta.size)
-        tq, J = f(theta, self.t, z, self.ripple_order, self._seeds[:, cols])
+        tq, J = f(theta, t, z, self.ripple_order, self._seeds[:, cols])
         tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
-        T = self._lag(x)
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
-            h = abs(self.speed_of(x)) * self._half_step
-            slope = (self._torque(theta + h, z) - self._torque(theta - h, z)) / (2 * h)
+            h = abs(self.speed_of(x)) * self._half_step / m
+            slope = (self._torque(theta + h, z, t) - self._torque(theta - h, z, t)) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
         if T > 0:
-            y = self._filter(tq, T)
-            J = self._filter(J, T)
+            y, J = self._sensed(tq, T, m), self._sensed(J, T, m)
             if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
                 dT = 1e-6 * T
-                J[:, names.index("lag")] = (self._filter(tq, T + dT) - self._filter(tq, T - dT)) / (2 * dT)
+                J[:, names.index("lag")] = (self._sensed(tq, T + dT, m) - self._sensed(tq, T - dT, m)) / (2 * dT)
             return y, J
         if "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
             J[:, names.index("lag")] = -self.speed_of(x) * slope

@@ -11,7 +11,7 @@ from pumpsim.data import Dataset
 from pumpsim.diagnose import diagnose
 from pumpsim.sensor import measured_torque
 from tests.conftest import make_config
-from tests.tolerances import EFFECT_FINAL_RMS, EFFECT_MU_REL, EFFECT_PARAM_REL
+from tests.tolerances import EFFECT_FINAL_RMS, EFFECT_MU_REL, EFFECT_PARAM_REL, SENSOR_TRUTH_SUBSTEPS
 
 MU = 0.17
 
@@ -28,10 +28,11 @@ def measurement(nominal, truth, lag=0.0, offset=0.0, seed=1, duration=0.1, ratio
     """Torque with the effect, noise sigma = effect RMS / ratio; the effect RMS is measured against
     the nominal simulation at the same angle."""
     ref = pumpsim.simulate(dataclasses.replace(nominal, angle=truth.angle), duration=duration, rate=10000)
-    sim = pumpsim.simulate(truth, duration=duration, rate=10000)
-    y = measured_torque(sim.time, sim.torque, lag, offset)
+    m = SENSOR_TRUTH_SUBSTEPS if lag > 0 else 1  # the sensor filters the continuous torque
+    sim = pumpsim.simulate(truth, duration=duration, rate=10000 * m)
+    y = measured_torque(sim.time, sim.torque, lag, offset, every=m)[:ref.time.size]
     sigma = math.sqrt(np.mean((y - ref.torque) ** 2)) / ratio
-    return Dataset(sim.time, y + np.random.default_rng(seed).normal(0, sigma, y.size)), sigma
+    return Dataset(ref.time, y + np.random.default_rng(seed).normal(0, sigma, y.size)), sigma
 
 
 def _value(out, name):
