@@ -137,9 +137,13 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
 
         return simulate_gas_contact(cfg, duration=duration, rate=rate, method=method, rtol=rtol,
                                     atol=atol, progress=progress, max_steps=max_steps, **options)
-    if cfg.mode == "motor":
-        raise ConfigError("operation.mode = \"motor\" drives the pneumatic model: use `pumpsim pumpdown` "
-                          "(or `pumpsim simulate --model contact`)")
+    if model == "constrained" and cfg.pneumatic is not None:  # spec §8 tables: Model 2 with the gas
+        from .pneumatics.simulate import simulate as simulate_gas
+
+        if options:
+            raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
+        return simulate_gas(cfg, duration=duration, rate=rate, method=method, rtol=rtol, atol=atol,
+                            progress=progress, max_steps=max_steps)
     for name, val in (("rtol", rtol), ("atol", atol)):
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")

@@ -17,11 +17,12 @@ import numpy as np
 
 from ..contact import TOUCHING
 from ..errors import ConfigError
-from ..result import Solution, contact_warnings
+from ..result import contact_warnings
 from ..tolerances import ATOL, CONTACT_GAS_ATOL, CONTACT_GAS_RTOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
 from .kernel import kernels, parameter_vector, structure_of
+from .simulate import CELL_COLUMNS, GasSolution, gas_run_times
 
 QUAD_NAMES = run.QUAD_NAMES + ("contact_work", "load_work")
 INITIAL_STATES = ("housing", "rotor", "bottom")
@@ -149,31 +150,24 @@ def structure(cfg):
 
 
 # -- simulate --model contact on a config with the gas tables ------------------------------------
-CELL_COLUMNS = ("pressure", "volume", "temperature")
 VANE_COLUMNS = ("s", "sdot", "normal", "slot1", "slot2", "penetration")
 
 
-class GasContactSolution(Solution):
+class GasContactSolution(GasSolution):
     """Spec §7 columns of Model 1 (penetration_i included) and the spec §8 ones: booster
     pressure, current, per cell pressure_i, volume_i, temperature_i; lift-off per vane."""
 
     lift_off: list = []  # LiftOff intervals
     budgets: dict = {}  # energies [J] over the run (QUAD_NAMES and the kinetic energy change)
 
-    def column_names(self) -> list:
-        N = self.n_vanes
-        return (super().column_names() + ["booster_pressure", "current"]
-                + [f"{c}_{i}" for i in range(N) for c in CELL_COLUMNS])
-
-    def summary(self) -> str:
-        lines = super().summary().split("\n")
+    def work_line(self) -> str:
         q = self.budgets
-        if q:
-            lines.insert(4, f"work: shaft {q['shaft_work']:.4g} J = gas {q['gas_work']:.4g} J + friction "
-                            f"{q['friction_work']:.4g} J + contacts {q['contact_work']:.3g} J + kinetic "
-                            f"{q['kinetic']:.3g} J (gas forces on the vanes: {-q['load_work']:.4g} J)")
-        return "\n".join(lines[:5] + lift_off_text(self.lift_off, self.n_vanes, self.time[-1])
-                         + lines[5:])
+        return (f"work: shaft {q['shaft_work']:.4g} J = gas {q['gas_work']:.4g} J + friction "
+                f"{q['friction_work']:.4g} J + contacts {q['contact_work']:.3g} J + kinetic "
+                f"{q['kinetic']:.3g} J (gas forces on the vanes: {-q['load_work']:.4g} J)")
+
+    def summary_extra(self) -> list:
+        return lift_off_text(self.lift_off, self.n_vanes, self.time[-1])
 
 
 def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=ATOL, initial=None,
@@ -182,16 +176,7 @@ def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=
     motor (mode motor), from the booster's start pressure; duration default: two revolutions (speed
     drive) or 0.1 s (motor). atol as for the mechanical models: of vane positions [m]; every other
     state gets the same share of its nominal size (state_scale)."""
-    from ..simulate import sample_times
-
-    if method != "cvodes":
-        raise ConfigError(f"--method {method}: the contact model with gas integrates with cvodes only")
-    if cfg.mode == "torque":
-        raise ConfigError("the gas model runs at constant speed (operation.mode = \"speed\") or with "
-                          "the motor (\"motor\"), not with a given torque")
-    if duration is None:
-        duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" and cfg.speed > 0 else 0.1
-    t = sample_times(duration, rate)
+    t = gas_run_times(cfg, duration, rate, method)
     atol_rel = atol / (VANE_POSITION_SCALE * cfg.values["vane.length"])
     r = integrate(cfg, t[-1], rate, rtol=rtol, atol=min(atol_rel, 0.1), initial=initial or "housing",
                   progress=progress, max_steps=max_steps)

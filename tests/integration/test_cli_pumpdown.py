@@ -61,11 +61,6 @@ def test_mechanical_config_is_rejected(capsys):
     assert "needs the gas tables" in capsys.readouterr().err
 
 
-def test_motor_mode_is_refused_by_simulate(capsys):
-    assert main(["simulate", EVP]) == 2
-    assert "use `pumpsim pumpdown`" in capsys.readouterr().err
-
-
 def test_time_to_target_is_located_exactly():
     cfg = evp_config(**{"booster.volume": 2.0e-4, "booster.target": 90000.0})
     r = pdm.pumpdown(cfg, rate=500.0)
