@@ -48,7 +48,7 @@ demo-design: codegen
 		--report out/ellipse_optimize.html
 
 test: codegen
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q --durations=12
 
 test-all: codegen
 	$(BIN)/python -m pytest -q -m 'slow or not slow'
