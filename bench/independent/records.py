@@ -8,7 +8,8 @@ Each effect is implemented in this generator's own form (not pumpsim's parametri
   dynamics carries omega' (rotor and vane inertia) as well as the changed kinematics.
 * torque_offset - a constant added to the sensor signal (zero drift of the torque cell).
 * sensor_lag - the sensor as a first-order low-pass (time constant T, exact first-order-hold
-  discretisation on an 8x finer grid after a pre-roll of 12 T) or a pure delay d (the torque of
+  discretisation on a 64x finer grid after a pre-roll of 12 T: the Coulomb reversals fall between
+  samples, and the filter sees the continuous torque; 8x left 0.07 noise sigma at SNR 5, 64x 0.009) or a pure delay d (the torque of
   t - d written at t).
 * vane_friction_spread - one vane of another material: its tip AND slot COFs (static and dynamic)
   scaled by one factor (0.6-0.75 or 1.3-1.5).
@@ -17,8 +18,11 @@ Each effect is implemented in this generator's own form (not pumpsim's parametri
 Out of the library (nothing a pump effect would make): mains hum (a sinusoid at 50 Hz or at an
 arbitrary non-shaft frequency), a slow drift (a ramp plus a sinusoid slower than the record), a
 train of short pulses at a non-shaft frequency, and coloured AR(1) sensor noise on a clean record.
-No effect: the nominal rig ('none'), or the nominal rig run 0.3-1.5 % off its configured speed
-('off_speed'; the file's speed column, if any, shows the true speed).
+Two library effects at once ('two_effects', a pair drawn from PAIRS; each at the record's SNR).
+No effect: the nominal rig ('none'), the nominal rig run 0.3-1.5 % off its configured speed
+('off_speed'; the file's speed column, if any, shows the true speed), or a motor whose speed drifts
+slowly by 0.3-1 % over the record ('speed_drift', a battery sagging; always written with the measured
+speed column, which shows the drift).
 Noise: Gaussian, white unless 'ar1'; its RMS is the effect's contribution RMS / SNR (for no effect:
 the torque ripple RMS / SNR, with 1 % of the mean torque as the floor for a flat torque).
 """
@@ -27,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.signal import lfilter
 
 from .rig import RIGS, drive_torque, motion
 
@@ -34,8 +39,14 @@ LIBRARY = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque
            "sensor_lag", "vane_friction_spread", "viscous_tip_friction")
 OUT_OF_LIBRARY = ("hum", "drift", "impulse", "ar1_noise")
 # no effect, but the rig runs 0.3-1.5 % off the configured (nominal) speed, as a real motor does
-NO_EFFECT = ("none", "off_speed")
-EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY + ("off_speed",)
+NO_EFFECT = ("none", "off_speed", "speed_drift")
+# pairs a pump can show together (a shaft pressed off-centre with a drifting zero, a lobed bore with a
+# motor ripple, ...); 'two_effects' draws one
+PAIRS = (("rotor_eccentricity", "torque_offset"), ("housing_out_of_round", "speed_ripple"),
+         ("vane_friction_spread", "rotor_eccentricity"), ("speed_ripple", "torque_offset"),
+         ("viscous_tip_friction", "housing_out_of_round"), ("sensor_lag", "rotor_eccentricity"))
+COMBINED = ("two_effects",)
+EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY + ("off_speed",) + COMBINED + ("speed_drift",)
 
 
 @dataclass
@@ -84,52 +95,85 @@ def _sample_effect(effect, rig, rng):
         return dict(factor=1 + float(rng.choice([-1, 1])) * rng.uniform(0.003, 0.015))
     if effect == "ar1_noise":
         return dict(phi=rng.uniform(0.8, 0.95))
+    if effect == "speed_drift":
+        return dict(d=float(rng.choice([-1, 1])) * rng.uniform(0.003, 0.01))   # relative change over the record
+    if effect == "two_effects":
+        pair = PAIRS[int(rng.integers(len(PAIRS)))]
+        return dict(effects=list(pair), **{e: _sample_effect(e, rig, rng) for e in pair})
     return {}
 
 
-def _clean(rig, effect, p, t, theta0):
-    """Torque without noise, nominal model and with the effect; plus the motion."""
-    ripple = (p["k"], p["eps"], p["phase"]) if effect == "speed_ripple" else None
-    th, om, dom = motion(t, rig.speed, theta0, ripple)
-    th0, om0, dom0 = motion(t, rig.speed, theta0)
-    nominal = drive_torque(rig, th0, om0, dom0)
-    if effect == "rotor_eccentricity":
-        moved = replace(rig, center=(rig.center[0] + p["e"] * np.cos(p["beta"]),
-                                     rig.center[1] + p["e"] * np.sin(p["beta"])))
-        return nominal, drive_torque(moved, th, om, dom), th, om
-    if effect == "housing_out_of_round":
-        moved = replace(rig, harmonics=tuple(rig.harmonics) + ((p["k"], p["A"], p["gamma"]),))
-        return nominal, drive_torque(moved, th, om, dom), th, om
-    if effect == "vane_friction_spread":
-        factors = [(1.0, 1.0)] * rig.vanes
-        factors[p["vane"]] = (p["factor"], p["factor"])
-        return nominal, drive_torque(rig, th, om, dom, factors=factors), th, om
-    if effect == "viscous_tip_friction":
-        return nominal, drive_torque(rig, th, om, dom, tip_viscous=p["c"]), th, om
-    if effect == "torque_offset":
-        return nominal, nominal + p["offset"] * nominal.mean(), th, om
-    if effect == "sensor_lag":
-        return nominal, _lagged(rig, p, t, theta0), th, om
-    return nominal, drive_torque(rig, th, om, dom), th, om
+def components(effect, p):
+    """The pump and sensor effects (name, params) a record carries."""
+    if effect in COMBINED:
+        return [(e, p[e]) for e in p["effects"]]
+    return [(effect, p)] if effect in LIBRARY or effect == "speed_drift" else []
 
 
-def _lagged(rig, p, t, theta0):
-    T = p["frac"] / (rig.vanes * rig.speed)
-    if p["kind"] == "delay":
-        th, om, dom = motion(t - T, rig.speed, theta0)
-        return drive_torque(rig, th, om, dom)
-    dt = (t[1] - t[0]) / 8
+def _shaft(rig, comps, theta0, span):
+    """The shaft torque (and the motion) as a function of time with the pump effects of comps;
+    sensor effects act later, on its output."""
+    ripple = drift = factors = None
+    viscous = 0.0
+    for e, p in comps:
+        if e == "rotor_eccentricity":   # the housing centre moved by e (= the rotor by -e)
+            rig = replace(rig, center=(rig.center[0] + p["e"] * np.cos(p["beta"]),
+                                       rig.center[1] + p["e"] * np.sin(p["beta"])))
+        elif e == "housing_out_of_round":
+            rig = replace(rig, harmonics=tuple(rig.harmonics) + ((p["k"], p["A"], p["gamma"]),))
+        elif e == "speed_ripple":
+            ripple = (p["k"], p["eps"], p["phase"])
+        elif e == "speed_drift":
+            drift = (p["d"], 0.5 * span, span)
+        elif e == "vane_friction_spread":
+            factors = [(1.0, 1.0)] * rig.vanes
+            factors[p["vane"]] = (p["factor"], p["factor"])
+        elif e == "viscous_tip_friction":
+            viscous = p["c"]
+
+    def torque(t):
+        th, om, dom = motion(t, rig.speed, theta0, ripple, drift)
+        return drive_torque(rig, th, om, dom, factors=factors, tip_viscous=viscous), th, om
+    return torque
+
+
+def _measured(rig, comps, t, theta0, nominal_mean):
+    """The sensor's signal without noise (shaft torque, then lag, then zero offset) and the motion."""
+    shaft = _shaft(rig, comps, theta0, t[-1] - t[0])
+    tau, th, om = shaft(t)
+    for e, p in comps:
+        if e == "sensor_lag":
+            tau = _lagged(shaft, p["kind"], p["frac"] / (rig.vanes * rig.speed), t)
+    for e, p in comps:
+        if e == "torque_offset":
+            tau = tau + p["offset"] * nominal_mean
+    return tau, th, om
+
+
+# an effect is scored 'absorbed' (nothing to name; naming it is no error) when the part of its
+# contribution no change of mu or theta0 can mimic is below ABSORBED_Z noise sigmas over the whole
+# record, or below ABSORBED_SIZE sigma RMS per sample: a change smaller than a quarter of the noise is
+# what diagnose declares it will not name (pumpsim/diagnose.py NAMED_SIZE), and at one speed it is, for a pump
+# engineer, a COF change (e.g. lubricated tips on a near-constant slip speed)
+ABSORBED_Z = 5.0
+ABSORBED_SIZE = 0.25
+LAG_OVERSAMPLING = 64   # sub-steps per sample of the continuous low-pass (error ~ 1 / LAG_OVERSAMPLING)
+
+
+def _lagged(shaft, kind, T, t):
+    """A pure delay T, or a first-order low-pass (time constant T) of the continuous shaft torque."""
+    if kind == "delay":
+        return shaft(t - T)[0]
+    over = LAG_OVERSAMPLING
+    dt = (t[1] - t[0]) / over
     pre = int(np.ceil(12 * T / dt))
-    tf = t[0] + dt * np.arange(-pre, 8 * (len(t) - 1) + 1)
-    th, om, dom = motion(tf, rig.speed, theta0)
-    u = drive_torque(rig, th, om, dom)
+    u = shaft(t[0] + dt * np.arange(-pre, over * (len(t) - 1) + 1))[0]
     a = np.exp(-dt / T)
-    y = np.empty_like(u)
-    y[0] = u[0]
     c = T / dt * (1 - a)
-    for n in range(1, len(u)):          # first-order hold, exact for u linear between samples
-        y[n] = a * y[n - 1] + u[n] - a * u[n - 1] - c * (u[n] - u[n - 1])
-    return y[pre::8][: len(t)]
+    # first-order hold, exact for u linear between sub-steps: y[n] = a y[n-1] + (1 - c) u[n] + (c - a) u[n-1],
+    # started in steady state (y[0] = u[0])
+    y = lfilter([1 - c, c - a], [1, -a], u, zi=[c * u[0]])[0]
+    return y[pre::over][: len(t)]
 
 
 def _disturbance(effect, p, t, rng):
@@ -178,6 +222,32 @@ def observable_share(rig, t, theta0, contribution):
     return float(np.sqrt(np.mean(rest ** 2)) / rms) if rms > 0 else 0.0
 
 
+def _library_truth(rig, comps, t, theta0, nominal, snr, truth):
+    """Each library effect's own contribution (RMS, share no mu/theta0 change can mimic, absorbed
+    against the noise over the record); returns the noise sigma: the smallest contribution / SNR."""
+    rms, absorbed, observable = {}, [], {}
+    for e, p in comps:
+        contribution = _measured(rig, [(e, p)], t, theta0, nominal.mean())[0] - nominal
+        rms[e] = float(np.sqrt(np.mean(contribution ** 2)))
+        share = observable_share(rig, t, theta0, contribution) if rms[e] > 0 else 0.0
+        if e == "sensor_lag" and p["kind"] == "delay":
+            share = 0.0   # at constant speed a pure delay IS a theta0 shift (exactly, not to first order)
+        observable[e] = share
+    sigma = min(rms.values()) / snr
+    for e in rms:   # the mimic-free part: undetectable over the record, or too small to claim per sample
+        free = observable[e] * rms[e] / sigma
+        if free * len(t) ** 0.5 < ABSORBED_Z or free < ABSORBED_SIZE:
+            absorbed.append(e)
+    truth.update(effects=[e for e, _ in comps], absorbed_effects=absorbed, contribution_rms=sum(rms.values()),
+                 observable=observable[comps[0][0]] if len(comps) == 1 else observable)
+    return sigma
+
+
+def _plain(v):
+    return float(v) if isinstance(v, (float, np.floating)) else (
+        {k: _plain(x) for k, x in v.items()} if isinstance(v, dict) else v)
+
+
 def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
     rig = RIGS[rig_name]
     rng = np.random.default_rng(seed)
@@ -186,25 +256,20 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
         rig = replace(rig, speed=rig.speed * p["factor"])
     theta0 = rng.uniform(0, 2 * np.pi)
     t = np.arange(int(round(rate * duration))) / rate
-    nominal, clean, th, om = _clean(rig, effect, p, t, theta0)
+    nominal = _shaft(rig, [], theta0, t[-1] - t[0])(t)[0]
+    comps = components(effect, p)
+    clean, th, om = _measured(rig, comps, t, theta0, nominal.mean())
     ripple = nominal - nominal.mean()
     ref = max(np.sqrt(np.mean(ripple ** 2)), 0.01 * abs(nominal.mean()))
-    truth = dict(params={k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in p.items()},
-                 theta0=float(theta0), mu=rig.tip.dynamic)
-    if effect in LIBRARY:
-        contribution = clean - nominal
-        c_rms = float(np.sqrt(np.mean(contribution ** 2)))
-        truth["observable"] = observable_share(rig, t, theta0, contribution) if c_rms > 0 else 0.0
-        if effect == "sensor_lag" and p["kind"] == "delay":
-            truth["observable"] = 0.0   # at constant speed a pure delay IS a theta0 shift (exactly, not to first order)
-        sigma = c_rms / snr
+    truth = dict(params=_plain(p), theta0=float(theta0), mu=rig.tip.dynamic, effects=[], absorbed_effects=[])
+    if effect in LIBRARY or effect in COMBINED:
+        sigma = _library_truth(rig, comps, t, theta0, nominal, snr, truth)
     elif effect in ("hum", "drift", "impulse"):
         sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
         clean = clean + snr * sigma * _disturbance(effect, p, t, rng)
-        c_rms = snr * sigma
-    else:                                           # none, off_speed, ar1_noise
+        truth["contribution_rms"] = snr * sigma
+    else:                                           # none, off_speed, speed_drift, ar1_noise
         sigma = ref / snr
-        c_rms = 0.0
+        truth["contribution_rms"] = 0.0
     noise = _noise(rng, len(t), sigma, p.get("phi"))
-    truth["contribution_rms"] = c_rms
     return Record(rig_name, effect, snr, seed, rate, duration, t, clean + noise, th, om, truth, float(sigma))

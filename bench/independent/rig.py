@@ -235,16 +235,24 @@ def vane_reactions(rig, k, theta, omega, domega, tip_factor=1.0, slot_factor=1.0
                 paradox=int(np.sum(consistent == 0)), vt=vt)
 
 
-def motion(t, speed, theta0=0.0, ripple=None):
-    """theta, omega, omega' of a constant speed, or with a ripple (order k, rel. amplitude eps, phase):
-    omega = speed (1 + eps cos(k speed t + phase))."""
+def motion(t, speed, theta0=0.0, ripple=None, drift=None):
+    """theta, omega, omega' of a constant speed, optionally with a ripple (order k, rel. amplitude eps,
+    phase): + speed eps cos(k speed t + phase), and a slow linear drift (rel. change d over the time
+    span D, centred at t_mid): + speed d (t - t_mid) / D."""
     t = np.asarray(t, dtype=float)
-    if ripple is None:
-        return theta0 + speed * t, np.full_like(t, speed), np.zeros_like(t)
-    k, eps, ph = ripple
-    arg = k * speed * t + ph
-    theta = theta0 + speed * t + eps / k * (np.sin(arg) - np.sin(ph))
-    return theta, speed * (1 + eps * np.cos(arg)), -eps * k * speed ** 2 * np.sin(arg)
+    theta, omega, domega = theta0 + speed * t, np.full_like(t, speed), np.zeros_like(t)
+    if ripple is not None:
+        k, eps, ph = ripple
+        arg = k * speed * t + ph
+        theta = theta + eps / k * (np.sin(arg) - np.sin(ph))
+        omega = omega + speed * eps * np.cos(arg)
+        domega = domega - eps * k * speed ** 2 * np.sin(arg)
+    if drift is not None:
+        d, t_mid, span = drift
+        theta = theta + speed * d * ((t - t_mid) ** 2 - t_mid ** 2) / (2 * span)
+        omega = omega + speed * d * (t - t_mid) / span
+        domega = domega + speed * d / span
+    return theta, omega, domega
 
 
 def drive_torque(rig, theta, omega, domega, factors=None, tip_viscous=0.0, details=False):

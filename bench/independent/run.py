@@ -24,11 +24,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent))
 
 from bench.independent.formats import FORMATS, write  # noqa: E402
-from bench.independent.records import EFFECTS, LIBRARY, NO_EFFECT, OUT_OF_LIBRARY, make_record  # noqa: E402
+from bench.independent.records import COMBINED, EFFECTS, LIBRARY, NO_EFFECT, OUT_OF_LIBRARY, make_record  # noqa: E402
 from bench.independent.rig import RIGS, to_toml  # noqa: E402
 
-# (rate Hz, duration s) cycled over the grid: 10-20 kHz, 0.5-2 s
-SAMPLINGS = ((10000.0, 0.5), (20000.0, 0.5), (12500.0, 1.0), (16000.0, 0.5), (10000.0, 2.0))
+DIAG_DIR = Path("out/independent/diag")   # diagnose's JSON of every case run
+# (rate Hz, duration s) cycled over the grid: 5-25 kHz, 0.4-2 s (2 s on a third of their turns)
+SAMPLINGS = ((10000.0, 0.5), (20000.0, 0.5), (12500.0, 1.0), (16000.0, 0.5), (10000.0, 2.0), (5000.0, 1.0),
+             (25000.0, 0.4), (20000.0, 2.0))
+SPEED_FORMATS = ("csv_speed", "csv_speed_noisy", "csv_semicolon", "mat")   # formats with a speed column
 QUICK = [("concentric4", "none"), ("concentric4", "rotor_eccentricity"), ("concentric4", "hum"),
          ("concentric4", "speed_ripple"), ("eccentric5", "housing_out_of_round"), ("eccentric5", "none"),
          ("ellipse1", "rotor_eccentricity"), ("ellipse3", "sensor_lag"), ("ellipse3", "drift"),
@@ -36,7 +39,7 @@ QUICK = [("concentric4", "none"), ("concentric4", "rotor_eccentricity"), ("conce
          ("ellipse4", "torque_offset"), ("tilted3", "viscous_tip_friction"), ("tilted3", "speed_ripple"),
          ("tilted3", "ar1_noise"), ("ellipse4", "rotor_eccentricity"), ("eccentric5", "vane_friction_spread"),
          ("ellipse1", "housing_out_of_round"), ("concentric4", "torque_offset"),
-         ("concentric4", "off_speed")]
+         ("concentric4", "off_speed"), ("concentric4", "two_effects"), ("ellipse4", "speed_drift")]
 
 
 def grid(rigs, effects, snrs, seeds, quick, full=False):
@@ -44,8 +47,9 @@ def grid(rigs, effects, snrs, seeds, quick, full=False):
         pairs = [(r, e, 5.0) for r, e in QUICK]
     elif full:
         pairs = [(r, e, snr) for r in rigs for e in effects for snr in snrs]
-    else:   # balanced: every effect at every SNR, the rig turning so each rig meets each SNR
-        pairs = [(rigs[(i * len(snrs) + j) % len(rigs)], e, snr)
+    else:   # balanced: every effect at every SNR on three different rigs; over the effects every rig meets every SNR
+        stride = max(1, len(rigs) // len(snrs))
+        pairs = [(rigs[(i + j * stride) % len(rigs)], e, snr)
                  for i, e in enumerate(effects) for j, snr in enumerate(snrs)]
     cases = []
     for n, (r, e, snr) in enumerate(pairs):
@@ -54,7 +58,10 @@ def grid(rigs, effects, snrs, seeds, quick, full=False):
             rate, dur = SAMPLINGS[k % len(SAMPLINGS)]
             if dur > 1.0 and k % 3:                  # 2 s records on a third of their turns
                 dur = 1.0
-            cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed, FORMATS[k % len(FORMATS)], rate, dur))
+            fmt = FORMATS[k % len(FORMATS)]
+            if e == "speed_drift" and fmt not in SPEED_FORMATS:   # the drift is measured: the file shows it
+                fmt = SPEED_FORMATS[k % len(SPEED_FORMATS)]
+            cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed, fmt, rate, dur))
     return cases
 
 
@@ -63,33 +70,45 @@ def case_id(c):
 
 
 def score(truth_effect, truth, out):
-    """Verdict class of one diagnosis against the hidden truth."""
+    """Verdict class of one diagnosis against the hidden truth. `required`: the record's library
+    effects a fit of mu and theta0 cannot absorb; naming an absorbed one that is present is no error.
+    right: exactly the required effects named (a single one reported only as `confounded`, nothing
+    named, counts too, as in bench/diagnose_grid.py), or for no effect / absorbed ones nothing named and
+    no `unexplained`, or for out-of-library nothing named and `unexplained`. clean: right and (for
+    library effects) no `unexplained` remainder."""
     named = list(out.get("effects", []))
     unexpl = bool(out.get("unexplained"))
-    absorbed = truth_effect in LIBRARY and truth.get("absorbed", False)
+    present = list(truth.get("effects", []))
+    required = [e for e in present if e not in truth.get("absorbed_effects", [])]
+    conf = {e for pair in out.get("confounded", []) for e in pair}
     if truth_effect in NO_EFFECT:
         right = not named and not unexpl
     elif truth_effect in OUT_OF_LIBRARY:
         right = not named and unexpl
-    elif absorbed:
-        right = set(named) <= {truth_effect} and not unexpl
+    elif not required:
+        right = set(named) <= set(present) and not unexpl
     else:
-        right = named == [truth_effect]
+        right = (len(set(named)) == len(named) and set(required) <= set(named) <= set(present)) or (
+            not named and len(required) == 1 and required[0] in conf)
     verdict = "+".join(named) if named else "nothing"
-    return dict(named=named, unexplained=unexpl, right=right, absorbed=absorbed,
-                verdict=verdict + (" +U" if unexpl else ""),
-                false_name=any(n != truth_effect for n in named))
+    return dict(named=named, unexplained=unexpl, right=right, absorbed=bool(present) and not required,
+                clean=right and not (required and unexpl), verdict=verdict + (" +U" if unexpl else ""),
+                false_name=any(n not in present for n in named))
+
+
+def write_case(c, workdir):
+    """The nominal config and the measured record of one case, as files in workdir."""
+    rig, effect, snr, seed, fmt, rate, dur = c
+    rec = make_record(rig, effect, snr, seed, rate, dur)
+    cfg = Path(workdir) / f"{rig}.toml"
+    cfg.write_text(to_toml(RIGS[rig]))
+    return rec, cfg, write(rec, fmt, Path(workdir) / "data")
 
 
 def run_case(c, workdir, pumpsim, timeout):
     rig, effect, snr, seed, fmt, rate, dur = c
-    rec = make_record(rig, effect, snr, seed, rate, dur)
+    rec, cfg, data = write_case(c, workdir)
     n = len(rec.t)
-    if effect in LIBRARY:   # the part no mu/theta0 change can mimic, against the noise over the record
-        rec.truth["absorbed"] = rec.truth["observable"] * snr * n ** 0.5 < 5.0
-    cfg = Path(workdir) / f"{rig}.toml"
-    cfg.write_text(to_toml(RIGS[rig]))
-    data = write(rec, fmt, Path(workdir) / "data")
     js = Path(workdir) / "diag.json"
     t0 = time.perf_counter()
     p = subprocess.run([pumpsim, "diagnose", str(cfg), data, "--json", str(js)], capture_output=True,
@@ -98,10 +117,12 @@ def run_case(c, workdir, pumpsim, timeout):
     res = dict(case=case_id(c), rig=rig, effect=effect, snr=snr, seed=seed, format=fmt, rate=rate,
                duration=dur, samples=n, wall=wall, exit=p.returncode, truth=rec.truth)
     if p.returncode != 0 or not js.exists():
-        res.update(right=False, verdict=f"exit {p.returncode}", named=[], unexplained=None,
+        res.update(right=False, clean=False, verdict=f"exit {p.returncode}", named=[], unexplained=None,
                    false_name=False, absorbed=False, stderr=p.stderr.strip()[-400:])
         return res
     out = json.loads(js.read_text())
+    DIAG_DIR.mkdir(parents=True, exist_ok=True)        # every diagnosis kept: the steps, screens and notes
+    (DIAG_DIR / (case_id(c).replace(":", "_") + ".json")).write_text(js.read_text())
     res.update(score(effect, rec.truth, out))
     mu = out.get("final", {}).get("params", {}).get("mu")
     mu = mu.get("value") if isinstance(mu, dict) else mu
@@ -110,50 +131,77 @@ def run_case(c, workdir, pumpsim, timeout):
     res["final"] = {k: out.get("final", {}).get(k) for k in ("rms", "residual_white")}
     res["noise_rms"] = rec.noise_rms
     res["steps"] = [[st.get("effect"), st.get("params", {}).get("order"), st.get("p_value")] for st in out.get("steps", [])]
+    res["step_params"] = [st.get("params") for st in out.get("steps", [])]
     res["baseline_rms"] = out.get("baseline", {}).get("rms")
     res["notes"] = out.get("notes")
     return res
 
 
+def _rate(sel, key):
+    sel = list(sel)
+    return (sum(bool(r[key]) for r in sel) / len(sel), len(sel)) if sel else (None, 0)
+
+
 def summarise(results):
-    def rate(sel, key):
-        sel = list(sel)
-        return (sum(bool(r[key]) for r in sel) / len(sel), len(sel)) if sel else (None, 0)
-    lib = [r for r in results if r["effect"] in LIBRARY and not r["absorbed"]]
+    """Rates (value, count) as in bench/diagnose_grid.py: named right over observable library records
+    (single effects and pairs), clean verdicts, false names over records with nothing to name (no
+    effect, absorbed effects, out-of-library disturbances), false `unexplained` over no-effect,
+    absorbed and named-right records; per rig; wall per case."""
+    lib = [r for r in results if (r["effect"] in LIBRARY or r["effect"] in COMBINED) and not r["absorbed"]]
+    single = [r for r in lib if r["effect"] in LIBRARY]
     none = [r for r in results if r["effect"] in NO_EFFECT]
+    quiet = none + [r for r in results if r["absorbed"]]
     ool = [r for r in results if r["effect"] in OUT_OF_LIBRARY]
+    judged = quiet + [r for r in lib if r["right"]]
     mu_err = sorted(r["mu_err"] for r in results if r.get("mu_err") is not None
-                    and r["effect"] not in ("vane_friction_spread", "viscous_tip_friction"))
+                    and r["effect"] not in ("vane_friction_spread", "viscous_tip_friction", "two_effects"))
     confusion = collections.defaultdict(collections.Counter)
     for r in results:
         confusion[r["effect"] + (" (absorbed)" if r["absorbed"] else "")][r["verdict"]] += 1
+    walls = sorted(r["wall"] for r in results)
     return {
         "cases": len(results),
-        "right": rate(results, "right"),
-        "named_right_library": rate(lib, "right"),
-        "named_right_library_snr_ge5": rate([r for r in lib if r["snr"] >= 5], "right"),
-        "right_no_effect": rate(none, "right"),
-        "false_name_no_effect": rate(none, "false_name"),
-        "false_name_out_of_library": rate(ool, "false_name"),
-        "right_out_of_library": rate(ool, "right"),
-        "false_unexplained": rate(lib + none, "unexplained"),
+        "right": _rate(results, "right"),
+        "clean": _rate(results, "clean"),
+        "named_right_library": _rate(single, "right"),
+        "named_right_library_snr_ge5": _rate([r for r in single if r["snr"] >= 5], "right"),
+        "clean_library": _rate(single, "clean"),
+        "named_right_two_effects": _rate([r for r in lib if r["effect"] in COMBINED], "right"),
+        "right_no_effect": _rate(none, "right"),
+        "false_name_no_effect": _rate(quiet, "false_name"),
+        "false_name_out_of_library": _rate(ool, "false_name"),
+        "right_out_of_library": _rate(ool, "right"),
+        "false_unexplained": _rate(judged, "unexplained"),
+        "per_rig": {rig: {"right": _rate([r for r in results if r["rig"] == rig], "right"),
+                          "clean": _rate([r for r in results if r["rig"] == rig], "clean")}
+                    for rig in sorted({r["rig"] for r in results})},
         "mu_err_median": mu_err[len(mu_err) // 2] if mu_err else None,
         "mu_err_max": mu_err[-1] if mu_err else None,
-        "wall_median": sorted(r["wall"] for r in results)[len(results) // 2] if results else None,
-        "wall_max": max((r["wall"] for r in results), default=None),
+        "wall_median": walls[len(walls) // 2] if walls else None,
+        "wall_max": walls[-1] if walls else None,
         "errors": sum(r["exit"] != 0 for r in results),
         "confusion": {k: dict(v) for k, v in confusion.items()},
     }
 
 
+RATE_KEYS = ("right", "clean", "named_right_library", "named_right_library_snr_ge5", "clean_library",
+             "named_right_two_effects", "right_no_effect", "false_name_no_effect", "false_name_out_of_library",
+             "right_out_of_library", "false_unexplained")
+
+
+def _pct(v):
+    return "-" if v[0] is None else f"{100 * v[0]:5.1f} % of {v[1]}"
+
+
 def print_summary(s):
     print(f"\n{s['cases']} cases; {s['errors']} exited non-zero")
-    for k in ("right", "named_right_library", "named_right_library_snr_ge5", "right_no_effect",
-              "false_name_no_effect", "false_name_out_of_library", "right_out_of_library", "false_unexplained"):
-        v, n = s[k]
-        print(f"  {k:32s} {'-' if v is None else f'{100 * v:5.1f} %'}  (n={n})")
+    for k in RATE_KEYS:
+        print(f"  {k:32s} {_pct(s[k])}")
+    for rig, v in s["per_rig"].items():
+        print(f"  {rig:32s} right {_pct(v['right'])}, clean {_pct(v['clean'])}")
     print(f"  mu error median {s['mu_err_median']}, max {s['mu_err_max']}")
-    print(f"  wall per case median {s['wall_median']:.1f} s, max {s['wall_max']:.1f} s")
+    if s["wall_median"] is not None:
+        print(f"  wall per case median {s['wall_median']:.1f} s, max {s['wall_max']:.1f} s")
     print("\nconfusion (true effect -> verdict: count)")
     for k, v in sorted(s["confusion"].items()):
         print(f"  {k:34s} " + ", ".join(f"{a}: {b}" for a, b in sorted(v.items(), key=lambda x: -x[1])))
@@ -171,8 +219,8 @@ def findings_markdown(results, summary, source):
         if r["right"]:
             continue
         truth = dict(r.get("truth", {}).get("params", {}))
-        if r.get("absorbed"):
-            truth["absorbed"] = True
+        if r.get("truth", {}).get("absorbed_effects"):
+            truth["absorbed"] = r["truth"]["absorbed_effects"]
         fin = (r.get("final") or {}).get("rms")
         ratio = f"{fin / r['noise_rms']:.2f}" if fin and r.get("noise_rms") else "-"
         steps = "; ".join(f"{e} {o if o is not None else ''} p={p:.2g}" if isinstance(p, float) else str(e)
@@ -191,8 +239,8 @@ def _write_json(path, obj):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true", help="20 hand-spread cases at SNR 5")
-    ap.add_argument("--full", action="store_true", help="every rig x effect x SNR (default: balanced, 39 cases)")
+    ap.add_argument("--quick", action="store_true", help="23 hand-spread cases at SNR 5")
+    ap.add_argument("--full", action="store_true", help="every rig x effect x SNR (default: balanced, 45 cases)")
     ap.add_argument("--rigs", default=",".join(RIGS))
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--snrs", default="3,5,10")
@@ -204,10 +252,17 @@ def main(argv=None):
     ap.add_argument("--jobs", type=int, default=1, help="cases run at once (default 1: one core)")
     ap.add_argument("--json", default="out/bench_independent.json")
     ap.add_argument("--findings", help="also write the failing cases as markdown to this file")
+    ap.add_argument("--generate", action="store_true", help="with --case: write config and data only, no diagnose")
     a = ap.parse_args(argv)
     if a.case:
         r, e, snr, seed, fmt, rate, dur = a.case.split(":")
         cases = [(r, e, float(snr), int(seed), fmt, float(rate), float(dur))]
+        if a.generate:
+            keep = Path("out/independent") / a.case.replace(":", "_")
+            keep.mkdir(parents=True, exist_ok=True)
+            rec, cfg, data = write_case(cases[0], keep)
+            print(cfg, data, json.dumps(rec.truth, default=str), f"noise_rms {rec.noise_rms:.4g}")
+            return None
     else:
         cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick, a.full)
     cases = cases[a.skip:]
@@ -222,12 +277,12 @@ def main(argv=None):
                 return run_case(c, keep or tmp, a.pumpsim, a.timeout)
             except ValueError as err:        # a drawn effect the rig's geometry cannot take
                 return dict(case=case_id(c), rig=c[0], effect=c[1], snr=c[2], format=c[4], wall=0.0, exit=-2,
-                            right=False, verdict=f"generator: {err}", named=[], unexplained=None,
+                            right=False, clean=False, verdict=f"generator: {err}", named=[], unexplained=None,
                             false_name=False, absorbed=False)
             except subprocess.TimeoutExpired:
                 return dict(case=case_id(c), rig=c[0], effect=c[1], snr=c[2], format=c[4], wall=a.timeout, exit=-1,
-                            right=False, verdict="timeout", named=[], unexplained=None, false_name=False,
-                            absorbed=False)
+                            right=False, clean=False, verdict="timeout", named=[], unexplained=None,
+                            false_name=False, absorbed=False)
 
     with ThreadPoolExecutor(max_workers=a.jobs) as pool:   # each case is its own pumpsim process
         for r in pool.map(one, cases):

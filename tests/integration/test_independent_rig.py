@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 
 import pumpsim
-from tests.tolerances import CLOSED_FORM_REL, INDEPENDENT_FORMAT_REL, INDEPENDENT_RIG_REL, POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL
+from tests.tolerances import (CLOSED_FORM_REL, INDEPENDENT_FORMAT_REL, INDEPENDENT_LOWPASS_REL, INDEPENDENT_MOTION_REL,
+                              INDEPENDENT_RIG_REL, POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL)
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from bench.independent.formats import FORMATS, write  # noqa: E402
+import bench.independent.records as records  # noqa: E402
 from bench.independent.records import make_record  # noqa: E402
 from bench.independent.rig import (RIGS, Friction, closed_form_concentric, drive_torque, friction_power,  # noqa: E402
                                    motion, to_toml, vane_kinematics)
@@ -84,3 +86,51 @@ def test_every_written_format_reads_back(fmt, tmp_path):
     scale = np.sqrt(np.mean(rec.torque ** 2))
     assert np.max(np.abs(np.asarray(ds.torque) - rec.torque)) <= INDEPENDENT_FORMAT_REL * scale
     assert np.max(np.abs(np.asarray(ds.time) - rec.t)) <= INDEPENDENT_FORMAT_REL * rec.t[-1]
+
+
+def test_two_pump_effects_compose_as_one_config(tmp_path):
+    """A moved housing centre and an extra lobe applied together by the generator are pumpsim's
+    torque for the config that carries both (the combined record is one pump, not a sum of two)."""
+    rig = RIGS["ellipse4"]
+    comps = [("rotor_eccentricity", dict(e=1.1e-4, beta=2.2)), ("housing_out_of_round", dict(k=3, A=1.2e-5, gamma=0.4))]
+    t = np.arange(360) * (2 * np.pi / rig.speed) / 360
+    mine = records._shaft(rig, comps, 0.0, t[-1])(t)[0]
+    moved = replace(rig, center=(float(1.1e-4 * np.cos(2.2)), float(1.1e-4 * np.sin(2.2))), harmonics=((3, 1.2e-5, 0.4),))
+    (tmp_path / "pair.toml").write_text(to_toml(moved))
+    res = pumpsim.simulate(pumpsim.load_config(tmp_path / "pair.toml"), duration=2 * np.pi / rig.speed,
+                           rate=rig.speed / (2 * np.pi) * 360)
+    theirs = np.asarray(res["torque"])[:t.size]
+    assert np.max(np.abs(mine - theirs)) <= INDEPENDENT_RIG_REL * np.sqrt(np.mean(theirs ** 2))
+
+
+def test_two_effects_record_carries_both():
+    """A 'two_effects' record names both effects in its truth, each with its own observable share."""
+    rec = make_record("ellipse4", "two_effects", 5.0, 11, rate=10000.0, duration=0.1)
+    assert len(rec.truth["effects"]) == 2 and tuple(rec.truth["effects"]) in records.PAIRS
+    assert set(rec.truth["observable"]) == set(rec.truth["effects"])
+
+
+def test_ripple_and_drift_motion_is_consistent():
+    """omega = d theta / dt and omega' = d omega / dt for the ripple + slow drift motion."""
+    h = 1e-6
+    t = np.linspace(0.0, 0.5, 101)
+    args = (500.0, 0.3, (3, 0.01, 0.7), (0.008, 0.25, 0.5))
+    th_p, om_p, _ = motion(t + h, *args)
+    th_m, om_m, _ = motion(t - h, *args)
+    _, om, dom = motion(t, *args)
+    assert np.allclose((th_p - th_m) / (2 * h), om, rtol=INDEPENDENT_MOTION_REL, atol=0)
+    assert np.allclose((om_p - om_m) / (2 * h), dom, rtol=0, atol=INDEPENDENT_MOTION_REL * np.max(np.abs(om)) / h)
+
+
+def test_lowpass_sensor_converges(monkeypatch):
+    """The generator's low-pass of the continuous torque (first-order hold on sub-steps) is converged:
+    64 sub-steps per sample against 512."""
+    rig = RIGS["ellipse3"]
+    t = np.arange(1000) / 10000.0
+    shaft = records._shaft(rig, [], 1.3, t[-1])
+    T = 0.3 / (rig.vanes * rig.speed)
+    y64 = records._lagged(shaft, "lowpass", T, t)
+    monkeypatch.setattr(records, "LAG_OVERSAMPLING", 512)
+    y512 = records._lagged(shaft, "lowpass", T, t)
+    ripple = np.sqrt(np.mean((y512 - y512.mean()) ** 2))
+    assert np.sqrt(np.mean((y64 - y512) ** 2)) <= INDEPENDENT_LOWPASS_REL * ripple
