@@ -160,10 +160,13 @@ class CellGeometry:
 
     def overlap_length(self, a0, span, start, end):
         """Arc length of [a0, a0 + span] (alpha) inside the window [start, end] (mod 2 pi):
-        PORT_NODES-point Gauss-Legendre of |C'| on the overlap (a flow area, ~1e-5 accurate)."""
+        PORT_NODES-point Gauss-Legendre of |C'| on the overlap (a flow area, ~1e-5 accurate).
+        With span <= 2 pi and a window shorter than 2 pi only two of the window's copies
+        start + 2 pi k can meet the arc: the last one starting at or before a0, and the next."""
         xs, ws = _gl(PORT_NODES)
         total = 0.0
-        for k in (-1, 0, 1):
+        k0 = ca.floor((a0 - start) / TWO_PI)
+        for k in (k0, k0 + 1):
             lo = ca.fmax(a0, start + TWO_PI * k)
             hi = ca.fmin(a0 + span, end + TWO_PI * k)
             d = ca.fmax(hi - lo, 0.0)
