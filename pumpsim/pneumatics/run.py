@@ -27,6 +27,7 @@ from ..model_spec.parameters import REED_MODES
 EVENT_TIME_TOL = 1e-10  # s
 CHUNK = 50  # output intervals per integrator call
 MAX_ORDER = 3  # BDF order cap (see PumpIntegrator)
+OUTPUT_BLOCK = 4096  # rows per pump_outputs map call (evaluate_outputs)
 STAT_KEYS = {"nsteps": "nsteps", "nfevals": "nfevals", "njevals": "n_call_jacF",
              "nlinsetups": "nlinsetups", "netfails": "netfails", "nniters": "nniters",
              "nncfails": "nncfails"}
@@ -172,15 +173,25 @@ def state_scale(x0, p, st):
 
 
 def evaluate_outputs(kern, X, p, names=None):
-    """pump_outputs over the rows of X (n, nx)."""
+    """pump_outputs over the rows of X (n, nx); long runs in blocks of OUTPUT_BLOCK rows (the last
+    one padded) so that one cached map serves every run (making a map costs ~0.1 s)."""
     f = kern["pump_outputs"]
     n = X.shape[0]
-    res = kern.mapped("pump_outputs", n)(X.T, np.asarray(p).reshape(-1, 1))
+    P = np.asarray(p).reshape(-1, 1)
+    if n <= OUTPUT_BLOCK:
+        res = [np.asarray(r) for r in kern.mapped("pump_outputs", n)(X.T, P)]
+    else:
+        fm = kern.mapped("pump_outputs", OUTPUT_BLOCK)
+        parts = []
+        for i in range(0, n, OUTPUT_BLOCK):
+            B = X[i:i + OUTPUT_BLOCK]
+            B = np.vstack([B, np.repeat(B[-1:], OUTPUT_BLOCK - len(B), axis=0)])
+            parts.append([np.asarray(r)[:, :min(OUTPUT_BLOCK, n - i)] for r in fm(B.T, P)])
+        res = [np.hstack(cols) for cols in zip(*parts)]
     out = {}
-    for nm, r in zip(f.name_out(), res):
+    for nm, a in zip(f.name_out(), res):
         if names is not None and nm not in names:
             continue
-        a = np.asarray(r)
         out[nm] = a.ravel() if a.shape[0] == 1 else a.T  # per cell/vane: (n, N)
     return out
 
