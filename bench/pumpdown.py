@@ -40,8 +40,9 @@ def main():
     sim = s["duration"]
     print(f"  full model : {sim:.3f} s simulated ({revs:.0f} revolutions) in {wall_full:.2f} s wall "
           f"= {wall_full / sim:.2f} x real time (target <= 1); {st['nsteps']} steps "
-          f"({st['nsteps'] / revs:.0f}/rev), {st['nfevals']} rhs, {st['njevals']} Jacobians, "
-          f"{st['netfails']} error-test and {st['nncfails']} Newton failures")
+          f"({st['nsteps'] / revs:.0f}/rev, {wall_full / st['nsteps'] * 1e6:.1f} us/step), "
+          f"{st['nfevals']} rhs, {st['njevals']} Jacobians, {st['netfails']} error-test and "
+          f"{st['nncfails']} Newton failures; rtol {st['rtol']:g}, atol {st['atol']:g}")
     split = wall_split(cfg, full, st, wall_full)
     print(f"  where the wall goes: rhs {split['rhs_call_us']:.1f} us x {st['nfevals']} = "
           f"{split['rhs_s']:.2f} s, Jacobian {split['jac_call_us']:.1f} us x {st['njevals']} = "

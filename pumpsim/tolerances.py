@@ -54,7 +54,13 @@ SOLVER_STUDY_RTOL, SOLVER_STUDY_ATOL = 1e-6, 1e-10
 # Gas model (pumpsim.pneumatics): the integrator's states are scaled to their starting size (atol is
 # relative to it). GAS_RTOL/ATOL: single runs and periodic steady states, tight enough that the
 # mass and energy budgets close far below the tests' bounds. PUMPDOWN_RTOL/ATOL: a pump-down over
-# thousands of revolutions; against an rtol 1e-7 reference the EVP example's time to target moves
-# by 0.41 ms of 5.12 s and the booster curve by < 4 Pa (bench/pumpdown.py, issue 15 note).
+# thousands of revolutions. Measured on the EVP example against an rtol = atol = 1e-7 reference
+# (659,931 steps; README, Performance): the time to target moves by 2.6 ms of 5.12 s (5e-4) and
+# the booster curve by < 18 Pa, with 143,062 steps; rtol = atol = 1e-5 moved it by 0.6 ms with
+# 192,458 steps. atol matters more than rtol (it governs the small charges: the cell at the dead
+# volume, the exhaust port): 1e-5/1e-4 (rtol/atol) moved it by 6.9 ms, 1e-4/1e-4 by 10.7 ms.
 GAS_RTOL, GAS_ATOL = 1e-7, 1e-9
-PUMPDOWN_RTOL, PUMPDOWN_ATOL = 1e-5, 1e-5
+PUMPDOWN_RTOL, PUMPDOWN_ATOL = 1e-4, 1e-5
+# Model 1 with gas (`pumpdown --model contact`) keeps 1e-5: rtol sets the error on the vane
+# positions s_i (~5e-3 m), and 1e-4 would allow ~5e-7 m against ~1 um penetrations.
+CONTACT_PUMPDOWN_RTOL, CONTACT_PUMPDOWN_ATOL = 1e-5, 1e-5

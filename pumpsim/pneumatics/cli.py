@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
 
 
 def add_pumpdown_command(sub) -> None:
@@ -26,9 +26,12 @@ def add_pumpdown_command(sub) -> None:
                     help="constrained: Model 2 (tips on the housing); contact: Model 1 (vanes free in "
                          "their slots, penalty contacts, lift-off reported; needs [contact.housing])")
     pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
-    pd.add_argument("--rtol", type=float, default=PUMPDOWN_RTOL)
-    pd.add_argument("--atol", type=float, default=PUMPDOWN_ATOL,
-                    help="absolute tolerance relative to each state's starting size")
+    pd.add_argument("--rtol", type=float, default=None,
+                    help=f"relative tolerance (default {PUMPDOWN_RTOL:g}; {CONTACT_PUMPDOWN_RTOL:g} "
+                         "with --model contact)")
+    pd.add_argument("--atol", type=float, default=None,
+                    help=f"absolute tolerance relative to each state's starting size (default "
+                         f"{PUMPDOWN_ATOL:g}; {CONTACT_PUMPDOWN_ATOL:g} with --model contact)")
     pd.set_defaults(func=cmd_pumpdown)
 
 

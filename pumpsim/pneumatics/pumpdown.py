@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from ..tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
 from . import run
 from .kernel import kernels, parameter_index, parameter_vector, structure_of
 
@@ -77,13 +77,22 @@ def _target(cfg, until):
     return target
 
 
-def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL,
-             progress=None, model="constrained") -> PumpdownResult:
+def default_tolerances(model="constrained") -> tuple[float, float]:
+    """(rtol, atol) of a pump-down when none are given (pumpsim.tolerances: why)."""
+    if model == "contact":
+        return CONTACT_PUMPDOWN_RTOL, CONTACT_PUMPDOWN_ATOL
+    return PUMPDOWN_RTOL, PUMPDOWN_ATOL
+
+
+def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, progress=None,
+             model="constrained") -> PumpdownResult:
     """Full-model pump-down from booster.pressure to `until` (default booster.target), at most
     `duration` seconds (default 120 s); model "contact": Model 1 (vanes free in their slots,
-    lift-off reported) instead of Model 2."""
+    lift-off reported) instead of Model 2. rtol/atol: default_tolerances(model) when None."""
     if model not in ("constrained", "contact"):
         raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+    rtol = default_tolerances(model)[0] if rtol is None else rtol
+    atol = default_tolerances(model)[1] if atol is None else atol
     if cfg.pneumatic is None:
         raise ConfigError(f"{cfg.path or cfg.name}: pumpdown needs the gas tables [ports] and [booster] "
                           "(spec §8)")
@@ -104,6 +113,7 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=PUMPDOWN_RTOL, at
         r = contact.integrate(cfg, duration, rate, until=target, rtol=rtol, atol=atol, progress=progress)
     else:
         r = run.integrate(cfg, duration, rate, until=target, rtol=rtol, atol=atol, progress=progress)
+    r.stats.update(rtol=rtol, atol=atol)
     return _result(cfg, r, target)
 
 

@@ -9,7 +9,8 @@ from pumpsim.cli import main
 from pumpsim.pneumatics import pumpdown as pdm
 from tests.conftest import EXAMPLES
 from tests.pneumatic_helpers import evp_config
-from tests.tolerances import FAST_PATH_REL, ROUNDING_REL, TARGET_LOCATED_REL
+from pumpsim.tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from tests.tolerances import FAST_PATH_REL, PUMPDOWN_CONVERGED_REL, ROUNDING_REL, TARGET_LOCATED_REL
 
 EVP = str(EXAMPLES / "evp_booster.toml")
 
@@ -25,6 +26,20 @@ def test_fast_path_agrees_with_the_full_model():
     assert fast["mean_current"] == pytest.approx(full.summary["mean_current"], rel=FAST_PATH_REL)
     # the maps are physical: less flow and more current as the booster empties
     assert np.all(np.diff(maps.mass_flow) > 0) and maps.current[0] > maps.current[-1]
+
+
+def test_default_tolerances_are_converged():
+    """A 1 L booster from 101.3 to 30 kPa at the default tolerances and 100x tighter: time to
+    target, mean current and the booster pressure curve agree within PUMPDOWN_CONVERGED_REL."""
+    cfg = evp_config(**{"booster.volume": 1.0e-3})
+    default = pdm.pumpdown(cfg)
+    assert (default.summary["solver"]["rtol"], default.summary["solver"]["atol"]) == (PUMPDOWN_RTOL, PUMPDOWN_ATOL)
+    tight = pdm.pumpdown(cfg, rtol=PUMPDOWN_RTOL / 100, atol=PUMPDOWN_ATOL / 100)
+    for k in ("time_to_target", "mean_current"):
+        assert default.summary[k] == pytest.approx(tight.summary[k], rel=PUMPDOWN_CONVERGED_REL), k
+    n = min(len(default.time), len(tight.time)) - 1  # the same output grid up to the target
+    np.testing.assert_allclose(default.columns["booster_pressure"][:n], tight.columns["booster_pressure"][:n],
+                               rtol=PUMPDOWN_CONVERGED_REL)
 
 
 def test_pumpdown_command_writes_the_spec_columns_and_json(tmp_path):
