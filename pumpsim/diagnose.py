@@ -151,7 +151,9 @@ class Effect:
     # step of the second-order probes (state, problem) -> h; None: first-order score test only
     probe_step: Callable | None = None
     one_sided: bool = False  # a parameter >= 0 at its absent value 0: one-sided probes
-    finite_probes: bool = False  # non-smooth (friction reversals move): also a grid of finite sizes
+    # non-smooth (friction reversals move): also a grid of finite sizes where the first order is
+    # blind in some direction (score_test)
+    finite_probes: bool = False
     start_floor: tuple = ()  # (name, least start value) pairs for the refit
     describe: Callable | None = None  # (result, names, order) -> extra JSON fields (amplitude, phase)
     claims: Callable[[str], bool] | None = None  # names whose range `implausible` checks instead of the registry
@@ -378,6 +380,7 @@ def score_test(state: State, cand: Candidate, start=True):
     prob = cand.problem(state)
     nb = len(state.names)
     m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
+    J1 = Je
     rs = prob.y - m
     Jb = state.jacobian()
     eff = cand.kind
@@ -419,7 +422,7 @@ def score_test(state: State, cand: Candidate, start=True):
     coef = coef / scale
     q = max(int(rank), 1)
     out = {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
-           "second_order": quad is not None, "partner": partner}
+           "second_order": quad is not None, "partner": partner, "searched": False}
     if not start:
         return out
     # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
@@ -439,7 +442,12 @@ def score_test(state: State, cand: Candidate, start=True):
     if not np.all(np.isfinite(r1)):
         x1, r1 = prob.x0.copy(), rs
     x1, r1 = _profiled(prob, Jb, nb, x1, r1)
-    if quad is not None and eff.finite_probes:  # non-smooth: try finite probes
+    # non-smooth (the torque reacts through friction-reversal instants): finite probes where the
+    # first order is blind, in all directions (quad) or in one (a defect on a rig symmetric about
+    # an axis: the y shift of a centred 1-vane ellipse; the linear step then moves the other
+    # direction only)
+    if eff.finite_probes and (quad is not None or _direction_blind(J1)):
+        out["searched"] = True  # its one-step fit is the best of many: judged at the searched level
         xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
         rp = prob.y - prob.model(xp)
         if rp @ rp < r1 @ r1:
@@ -472,6 +480,16 @@ def _profiled(prob, Jb, nb, x1, r1):
             break
         best = (x, r, float(r @ r))
     return best[0], best[1]
+
+
+BLIND_DIRECTION = 0.05  # a first-order column below this fraction of its pair's largest: blind
+
+
+def _direction_blind(J) -> bool:
+    """Whether the first-order sensitivity of a defect with several directions vanishes in one of
+    them (a column's norm below BLIND_DIRECTION of the largest, or all zero)."""
+    norms = np.linalg.norm(J, axis=0)
+    return J.shape[1] > 1 and float(norms.min()) <= BLIND_DIRECTION * float(norms.max())
 
 
 def _bic(rss, n, k):
@@ -932,8 +950,12 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
     if consistent and verdict.p["family"] < UNEXPLAINED_ALPHA:
         notes.append(f"a systematic residual of {verdict.systematic:.3g} N m remains, below "
                      f"{RELEVANT:g} x the noise sigma ({verdict.sigma:.3g} N m): not claimed as a discrepancy")
-    if verdict.per[0]["kurtosis"]["p_value"] < UNEXPLAINED_ALPHA:
-        notes.append("heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise")
+    kurt = verdict.per[0]["kurtosis"]
+    # claimed like a systematic residual: significant AND relevant (the tails add at least
+    # RELEVANT x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
+    if kurt["p_value"] < UNEXPLAINED_ALPHA and kurt["excess_rms"] >= RELEVANT * kurt["mad_sigma"]:
+        notes.append(f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add "
+                     f"{kurt['excess_rms']:.3g} N m RMS above the noise sigma {kurt['mad_sigma']:.3g} N m")
     notes += _notes(run.confounded, state, run.screen_data, len(run.datasets))
     per_vane, mu_mean = vane_cofs(current, state.cfg)
     final_params = _params_json(current, state.names, state.cfg)
@@ -981,7 +1003,7 @@ def _rank(state, scored):
         rss1 = min(s.get("one_step_rss", rss0), rss0)
         lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
         lr_p = float(stats.chi2.sf(lr, max(q, 1)))
-        sig = s["p_value"] < alpha or (s["second_order"] and lr_p < alpha / SEARCHED)
+        sig = s["p_value"] < alpha or ((s["second_order"] or s.get("searched", False)) and lr_p < alpha / SEARCHED)
         out.append({"cand": c, "score": s, "bic": _bic(rss1, n, k0 + q), "significant": bool(sig)})
     out.sort(key=lambda r_: r_["bic"])
     return out
