@@ -40,9 +40,21 @@ def check_writable(path, option: str = "output", suffixes=None) -> Path:
         raise ConfigError(f"{name}: output folder '{folder}' does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ConfigError(f"{name}: no permission to write in folder '{folder}'")
+    _probe(folder, name)
     if target.exists() and not os.access(target, os.W_OK):
         raise ConfigError(f"{name}: the existing file is read-only")
     return target
+
+
+def _probe(folder: Path, name: str) -> None:
+    """Create and remove a file in `folder`: permission bits do not tell everything (root passes
+    os.access; /proc, /sys and read-only mounts refuse new files)."""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=".pumpsim-probe-", dir=folder)
+    except OSError as e:
+        raise ConfigError(f"{name}: cannot create a file in folder '{folder}' ({e.strerror})") from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 @dataclass

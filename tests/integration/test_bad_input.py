@@ -195,6 +195,7 @@ def test_bad_tolerances_are_refused_before_casadi(capsys, args, message):
     (["--out", "{d}/o.png", "--plot", "{d}/o.png"], "name the same file"),
     (["--out", "{d}/o.png", "--plot", "{d}/./o.png"], "name the same file"),
     (["--out", RIG], "is an input file"),
+    (["--out", "/proc/o.csv"], "cannot create a file in folder '/proc'"),  # even root cannot
 ])
 def test_output_paths_checked_before_work(tmp_path, capsys, extra, message):
     args = [a.replace("{d}", str(tmp_path)) for a in extra]
