@@ -4,7 +4,6 @@ from __future__ import annotations
 import json
 import math
 import sys
-from pathlib import Path
 
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
@@ -35,17 +34,17 @@ def add_pumpdown_command(sub) -> None:
     pd.set_defaults(func=cmd_pumpdown)
 
 
-def _check_outputs(a) -> None:
-    """Every output path is checked before any work starts."""
-    for opt, ext in (("out", None), ("plot", ".png"), ("json", None), ("report", ".html")):
-        path = getattr(a, opt)
-        if path is None:
-            continue
-        folder = Path(path).parent
-        if not folder.is_dir():
-            raise ConfigError(f"--{opt}: output folder '{folder}' does not exist")
-        if ext and Path(path).suffix.lower() != ext:
-            raise ConfigError(f"--{opt} must be a {ext} file, got '{path}'")
+def _outputs(a):
+    """Every output path checked before any work starts (writable, not a folder, not the config,
+    no two the same file, the right type), written together at the end (pumpsim.io.Outputs)."""
+    from ..cli import REPORT_SUFFIXES
+    from ..io import Outputs
+
+    outs = Outputs([a.config])
+    for opt, suffixes in (("out", None), ("plot", (".png",)), ("json", None), ("report", REPORT_SUFFIXES)):
+        outs.add(f"--{opt}", getattr(a, opt), suffixes)
+    outs.check()
+    return outs
 
 
 def _progress(t, pb):
@@ -57,7 +56,7 @@ def cmd_pumpdown(a) -> int:
     from ..io import write_text
     from . import pumpdown as pdm
 
-    _check_outputs(a)
+    outs = _outputs(a)
     if a.model == "contact" and (a.fast or a.plot or a.report):
         raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
                           "without --model contact")
@@ -84,17 +83,18 @@ def cmd_pumpdown(a) -> int:
               if t_f is not None else "  fast path: target not reached")
     for w in res.warnings:
         print(f"pumpsim: warning: {w}", file=sys.stderr)
-    if a.out:
-        res.to_csv(a.out)
-    if a.json:
-        write_text(a.json, json.dumps(res.summary, indent=1, default=float))
-    if a.plot or a.report:
-        from .figures import pumpdown_figure, pumpdown_report
+    with outs.staged() as tmp:
+        if a.out:
+            res.to_csv(tmp["--out"])
+        if a.json:
+            write_text(tmp["--json"], json.dumps(res.summary, indent=1, default=float))
+        if a.plot or a.report:
+            from .figures import pumpdown_figure, pumpdown_report
 
-        if a.plot:
-            pumpdown_figure(res, maps, cfg, a.plot)
-        if a.report:
-            pumpdown_report(res, maps, cfg, a.report)
+            if a.plot:
+                pumpdown_figure(res, maps, cfg, tmp["--plot"])
+            if a.report:
+                pumpdown_report(res, maps, cfg, tmp["--report"])
     return 0
 
 

@@ -96,6 +96,9 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     if cfg.pneumatic is None:
         raise ConfigError(f"{cfg.path or cfg.name}: pumpdown needs the gas tables [ports] and [booster] "
                           "(spec §8)")
+    from .simulate import check_drive
+
+    check_drive(cfg)
     target = _target(cfg, until)
     if target is None and duration is None:
         raise ConfigError("give --until PA, --duration T or booster.target in the config")

@@ -64,6 +64,14 @@ class GasSolution(Solution):
         return "\n".join(lines[:4] + work + self.summary_extra() + lines[4:])
 
 
+def check_drive(cfg) -> None:
+    """The gas model is driven at constant speed or by the motor; a given torque is refused."""
+    if cfg.mode == "torque":
+        raise ConfigError(f"{cfg.path or cfg.name}: operation.mode = \"torque\": the gas model runs at "
+                          "constant speed (operation.mode = \"speed\") or with the motor (\"motor\"), "
+                          "not with a given torque")
+
+
 def gas_run_times(cfg, duration, rate, method):
     """The output times of a gas-model simulate (both models), after checking its options: cvodes
     only, a speed or motor drive; duration default two revolutions (speed) or 0.1 s (motor)."""
@@ -71,9 +79,7 @@ def gas_run_times(cfg, duration, rate, method):
 
     if method != "cvodes":
         raise ConfigError(f"--method {method}: the gas model integrates with cvodes only")
-    if cfg.mode == "torque":
-        raise ConfigError("the gas model runs at constant speed (operation.mode = \"speed\") or with "
-                          "the motor (\"motor\"), not with a given torque")
+    check_drive(cfg)
     if duration is None:
         duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" and cfg.speed > 0 else 0.1
     return sample_times(duration, rate)

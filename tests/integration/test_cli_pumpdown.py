@@ -1,6 +1,7 @@
 """Pump-down (spec §8): fast path vs full model, and the command's contract."""
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -61,7 +62,7 @@ def test_pumpdown_command_writes_the_spec_columns_and_json(tmp_path):
 @pytest.mark.parametrize("args,message", [
     (["--until", "2e5"], "--until must be in (0, booster.pressure"),
     (["--out", "/nonexistent/x.csv"], "output folder '/nonexistent' does not exist"),
-    (["--plot", "x.svg"], "--plot must be a .png file"),
+    (["--plot", "x.svg"], "--plot 'x.svg': the file type must be one of .png"),
     (["--duration", "-1"], "--duration must be > 0"),
 ])
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, message):
@@ -69,6 +70,36 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, message):
     assert main(["pumpdown", EVP, "--json", str(js), *args]) == 2
     assert message in capsys.readouterr().err
     assert not js.exists()
+
+
+@pytest.mark.parametrize("extra,message", [
+    (["--out", "{config}"], "is an input file of this run"),  # before: the CSV replaced the config
+    (["--out", "{d}/same.json", "--json", "{d}/same.json"], "name the same file"),
+    (["--out", "{d}"], "is a folder"),
+    (["--report", "{d}/r.txt"], "the file type must be one of .htm, .html"),
+    (["--json", "/proc/pd.json"], "cannot create a file in folder '/proc'"),
+])
+def test_output_paths_are_checked_before_the_pumpdown(tmp_path, capsys, extra, message):
+    """Every output path is refused before any work (no summary printed) and nothing is written;
+    the config named as an output is left as it was."""
+    config = tmp_path / "evp.toml"
+    shutil.copy(EVP, config)
+    text = config.read_text()
+    args = [a.replace("{d}", str(tmp_path)).replace("{config}", str(config)) for a in extra]
+    before = set(tmp_path.iterdir())
+    assert main(["pumpdown", str(config), "--duration", "0.005", *args]) == 2
+    out, err = capsys.readouterr()
+    assert message in err and "pump-down of" not in out, err
+    assert set(tmp_path.iterdir()) == before and config.read_text() == text
+
+
+def test_torque_drive_is_refused(tmp_path, capsys):
+    """The gas model runs at constant speed or with the motor (before: a pump-down at rest, exit 0)."""
+    cfg = tmp_path / "torque.toml"
+    cfg.write_text(open(EVP).read().replace('mode = "motor"', 'mode = "torque"\ntorque = 0.2'))
+    js = tmp_path / "pd.json"
+    assert main(["pumpdown", str(cfg), "--duration", "0.005", "--json", str(js)]) == 2
+    assert 'operation.mode = "torque"' in capsys.readouterr().err and not js.exists()
 
 
 def test_mechanical_config_is_rejected(capsys):
