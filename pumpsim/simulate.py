@@ -132,18 +132,9 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
         res = pumpsim.simulate(cfg, duration=0.05, rate=20000)
         print(res.summary())
     """
-    if model == "contact" and cfg.pneumatic is not None:  # spec §8 tables: Model 1 with the gas
-        from .pneumatics.contact import simulate as simulate_gas_contact
-
-        return simulate_gas_contact(cfg, duration=duration, rate=rate, method=method, rtol=rtol,
-                                    atol=atol, progress=progress, max_steps=max_steps, **options)
-    if model == "constrained" and cfg.pneumatic is not None:  # spec §8 tables: Model 2 with the gas
-        from .pneumatics.simulate import simulate as simulate_gas
-
-        if options:
-            raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
-        return simulate_gas(cfg, duration=duration, rate=rate, method=method, rtol=rtol, atol=atol,
-                            progress=progress, max_steps=max_steps)
+    if cfg.pneumatic is not None:  # spec §8 tables: the gas-coupled model
+        return _simulate_gas(cfg, model, max_step, options, duration=duration, rate=rate, method=method,
+                             rtol=rtol, atol=atol, progress=progress, max_steps=max_steps)
     for name, val in (("rtol", rtol), ("atol", atol)):
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
@@ -186,6 +177,26 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
     return SimulationResult("constrained", cfg.mode, t, theta, omega, torque, vanes, dict(pv.values),
                             stats, events, warnings, extra=extra, kernel_key=kern.key,
                             config_name=cfg.name)
+
+
+def _simulate_gas(cfg, model, max_step, options, **run):
+    """simulate() on a config with the spec §8 gas tables: Model 2 (pneumatics.simulate) or Model 1
+    (pneumatics.contact) with the gas; `run` holds duration, rate, method, rtol, atol, progress,
+    max_steps."""
+    if max_step is not None:
+        raise ConfigError(f"--max-step {max_step:g}: the gas model (the config's spec §8 tables) takes "
+                          "CVODES's own steps; tighten --rtol/--atol instead")
+    if model == "contact":
+        from .pneumatics.contact import simulate as simulate_gas_contact
+
+        return simulate_gas_contact(cfg, **run, **options)
+    if model != "constrained":
+        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+    if options:
+        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
+    from .pneumatics.simulate import simulate as simulate_gas
+
+    return simulate_gas(cfg, **run)
 
 
 def switching_functions(kern, p, torque, friction_on):

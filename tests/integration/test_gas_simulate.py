@@ -59,3 +59,11 @@ def test_simulate_cli_gas_model_refuses_other_integrators(tmp_path):
     r = _cli("simulate", EVP, "--method", "idas", "--out", str(out))
     assert r.returncode == 2 and "cvodes" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+def test_simulate_cli_gas_model_refuses_max_step(tmp_path):
+    """--max-step shapes the mechanical integrators only; on a gas config it was silently ignored."""
+    out = tmp_path / "m2.csv"
+    r = _cli("simulate", EVP, "--duration", "0.002", "--max-step", "1e-6", "--out", str(out))
+    assert r.returncode == 2 and "--max-step" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()
