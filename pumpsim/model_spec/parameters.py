@@ -495,7 +495,10 @@ def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):
 
 
 GAS_PARAMETERS = (
-    _p("rotor.width", "m", positive=True, doc="axial width of rotor, vanes and housing"),
+    # a metre: wider than any vane pump (the mechanical lengths' plausibility limit); 25 for 25 mm
+    # would otherwise give a pump 1000x too large that turns at a few rpm without a word
+    Parameter("rotor.width", "m", lower=POSITIVE, upper=Bound(1.0, label="1 m (SI: a width in mm?)"),
+              doc="axial width of rotor, vanes and housing"),
     _p("gas.gas_constant", "J/(kg K)", positive=True),
     Parameter("gas.gamma", "-", lower=Bound(1.0, open=True), upper=Bound(2.0),
               doc="ratio of specific heats"),

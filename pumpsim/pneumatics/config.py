@@ -85,7 +85,7 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
             raise ConfigError("operation.mode = \"motor\" needs the [motor] table and the gas tables "
                               "([ports], [booster]; spec §8)")
         if c["rotor"]["width"] is not None:
-            _pos("rotor.width", c["rotor"]["width"])
+            _check({"rotor.width": c["rotor"]["width"]}, "rotor.")
         return None
     for t in ("ports", "booster"):
         if t not in raw:

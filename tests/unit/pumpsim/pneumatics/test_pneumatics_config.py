@@ -7,7 +7,8 @@ from tests.conftest import apply_changes, example_dict
 
 BAD = [
     ({"rotor.width": None}, "rotor.width"),
-    ({"rotor.width": -0.01}, "rotor.width must be > 0"),
+    ({"rotor.width": -0.01}, "rotor.width must be in (0, 1 m"),
+    ({"rotor.width": 25.0}, "rotor.width must be in (0, 1 m"),  # 25 mm typed as metres
     ({"ports.inlet": [1.0, 0.5]}, "ports.inlet must have 0 < end - start < 2 pi"),
     ({"ports.inlet": "wide"}, "'ports.inlet' must be a list"),
     ({"ports.inlet": [1.0]}, "ports.inlet must be [start, end]"),
@@ -38,6 +39,12 @@ def test_gas_keys_rejected_with_key_and_limit(changes, message):
     with pytest.raises(ConfigError) as e:
         config_from_dict(apply_changes(example_dict("evp_booster"), changes))
     assert message in str(e.value)
+
+
+def test_rotor_width_in_mm_is_refused_without_the_gas_tables_too():
+    """rotor.width also feeds tip PV in design studies: the same registry limit applies."""
+    with pytest.raises(ConfigError, match=r"rotor.width must be in \(0, 1 m"):
+        config_from_dict(apply_changes(example_dict("ellipse_4vanes"), {"rotor.width": 10.0}))
 
 
 def test_example_parses_and_mechanical_configs_are_unchanged():
