@@ -126,7 +126,7 @@ def pumpdown_report(res, maps, cfg, path) -> None:
             ("final booster pressure", f"{s['final_pressure'] / 1e3:.2f} kPa"),
             ("peak / mean current", f"{s['peak_current']:.1f} A / {s['mean_current']:.2f} A"),
             ("energy from the supply", f"{s['energy']:.1f} J"),
-            ("shaft work = gas + friction", f"{s['shaft_work']:.1f} J = {s['gas_work']:.1f} + {s['friction_work']:.1f} J"),
+            work_row(s),
             ("mean speed", f"{s['mean_speed_rpm']:.0f} rpm")]
     fp = s.get("fast_path")
     if fp:
@@ -142,6 +142,15 @@ def pumpdown_report(res, maps, cfg, path) -> None:
             f"<h1>Pump-down: {html.escape(res.name)}</h1>{warn}<table>{table}</table>"
             f"<img alt='pump-down figures' src='data:image/png;base64,{img}'>")
     write_text(path, text)
+
+
+def work_row(s) -> tuple[str, str]:
+    """The report's shaft-work row: every part, so that the equation closes (pumpdown.work_split)."""
+    from .pumpdown import work_split
+
+    parts = work_split(s)
+    return ("shaft work = " + " + ".join(name for name, _ in parts),
+            f"{s['shaft_work']:.1f} J = " + " + ".join(f"{v:.4g}" for _, v in parts) + " J")
 
 
 def _fmt(v, unit):

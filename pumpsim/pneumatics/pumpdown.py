@@ -59,14 +59,24 @@ class PumpdownResult:
                     else " (target not reached)"),
                  f"  current: peak {s['peak_current']:.1f} A, mean {s['mean_current']:.2f} A; "
                  f"energy {s['energy']:.1f} J; mean speed {s['mean_speed_rpm']:.0f} rpm",
-                 f"  shaft work {s['shaft_work']:.1f} J = gas {s['gas_work']:.1f} J + friction "
-                 f"{s['friction_work']:.1f} J + kinetic {s['shaft_work'] - s['gas_work'] - s['friction_work']:.2f} J"]
+                 f"  shaft work {s['shaft_work']:.1f} J = "
+                 + " + ".join(f"{name} {v:.4g} J" for name, v in work_split(s))]
         lines += [f"  {line}" for line in s.get("lift_off_text", [])]
         st = s["solver"]
         lines.append(f"  CVODES: {st['nsteps']} steps, {st['nfevals']} rhs, {st['njevals']} Jacobians, "
                      f"{st['netfails']} error-test failures, {st.get('events', 0)} valve events, "
                      f"{st['wall_time']:.2f} s wall")
         return "\n".join(lines)
+
+
+def work_split(s) -> list[tuple[str, float]]:
+    """The shaft work's parts [J] from a pump-down summary, summing to shaft_work: gas, friction,
+    valve damping (reed) and contact work (Model 1) where present, and the kinetic energy left in
+    rotor and vanes (the rest)."""
+    parts = [("gas", s["gas_work"]), ("friction", s["friction_work"])]
+    parts += [(name, s[k]) for k, name in (("valve_damping_work", "valve damping"), ("contact_work", "contacts"))
+              if s.get(k)]
+    return parts + [("kinetic", s["shaft_work"] - sum(v for _, v in parts))]
 
 
 def _target(cfg, until):
