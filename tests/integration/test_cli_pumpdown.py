@@ -29,6 +29,20 @@ def test_fast_path_agrees_with_the_full_model():
     assert np.all(np.diff(maps.mass_flow) > 0) and maps.current[0] > maps.current[-1]
 
 
+def test_fast_path_short_of_the_target_covers_the_same_time(tmp_path, capsys):
+    """--fast with a --duration that stops short of the target: the fast path runs over the same
+    time, so its final pressure and mean current compare with the full run's (before: twice the
+    time, and only 'target not reached' printed)."""
+    js = tmp_path / "pd.json"
+    assert main(["pumpdown", EVP, "--duration", "0.4", "--fast", "--json", str(js)]) == 0
+    s = json.loads(js.read_text())
+    fast = s["fast_path"]
+    assert s["time_to_target"] is None and fast["time"][-1] == pytest.approx(s["duration"], rel=ROUNDING_REL)
+    assert fast["final_pressure"] == pytest.approx(s["final_pressure"], rel=FAST_PATH_REL)
+    assert fast["mean_current"] == pytest.approx(s["mean_current"], rel=FAST_PATH_REL)
+    assert f"booster {fast['final_pressure'] / 1e3:.2f} kPa at" in capsys.readouterr().out
+
+
 def test_default_tolerances_are_converged():
     """A 1 L booster from 101.3 to 30 kPa at the default tolerances and 100x tighter: time to
     target, mean current and the booster pressure curve agree within PUMPDOWN_CONVERGED_REL."""
