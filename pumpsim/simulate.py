@@ -64,10 +64,10 @@ def inverse_dynamics(kern, p, theta, omega, omegadot, outputs=None):
 
 
 def sample_times(duration, rate):
-    if duration is None or not duration > 0:
-        raise ConfigError(f"--duration must be > 0, got {duration}")
-    if rate is None or not rate > 0:
-        raise ConfigError(f"--rate must be > 0, got {rate}")
+    if duration is None or not 0 < duration < math.inf:
+        raise ConfigError(f"--duration must be > 0 and finite, got {duration}")
+    if rate is None or not 0 < rate < math.inf:
+        raise ConfigError(f"--rate must be > 0 and finite, got {rate}")
     n = int(math.floor(duration * rate + 1e-9)) + 1
     if n < 2:
         raise ConfigError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")

@@ -26,6 +26,7 @@ from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_
 from . import run
 from .kernel import kernels, parameter_index, parameter_vector, structure_of
 
+DEFAULT_DURATION = 120.0  # s: the longest pump-down when no --duration is given
 MAP_BOOSTER_VOLUME = 1.0e3  # m^3: the booster pressure does not move during a map run
 MAP_SETTLE = 0.15  # s of motor run-up before the first map point (later points start settled)
 MAP_RESETTLE = 0.04  # s between map points (cells and manifold refill; the speed moves little)
@@ -112,14 +113,13 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     target = _target(cfg, until)
     if target is None and duration is None:
         raise ConfigError("give --until PA, --duration T or booster.target in the config")
-    if duration is not None and not duration > 0:
-        raise ConfigError(f"--duration must be > 0, got {duration:g}")
-    if not rate > 0:
-        raise ConfigError(f"--rate must be > 0, got {rate:g}")
+    from ..simulate import sample_times
+
+    sample_times(DEFAULT_DURATION if duration is None else duration, rate)  # finite, > 0, sample limit
     for name, val in (("rtol", rtol), ("atol", atol)):
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
-    duration = 120.0 if duration is None else duration
+    duration = DEFAULT_DURATION if duration is None else duration
     if model == "contact":
         from . import contact
 
