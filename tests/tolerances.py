@@ -268,6 +268,9 @@ PORT_ARC_REL = 1e-4
 # Budgets of the gas model integrated at rtol 1e-10 (the quadratures ride with the states): local
 # errors ~ 1e3 steps x rtol per revolution, so 1e-6 relative leaves room.
 GAS_ENERGY_REL = 1e-6
+# ... and the tolerances they are integrated at (atol relative to each state's nominal size,
+# pneumatics.run.state_scale): 1e-10 keeps the integration error ~1e3 x below GAS_ENERGY_REL.
+GAS_BUDGET_RTOL, GAS_BUDGET_ATOL = 1e-10, 1e-12
 # Equal pressures on both sides of every vane: the gas loads cancel and the gas model's torque and
 # normal force are Model 2's to rounding (same expression graph up to the cancelling loads).
 EQUAL_PRESSURE_REL = 1e-12

@@ -12,7 +12,7 @@ from pumpsim.pneumatics import run
 from pumpsim.pneumatics.kernel import kernels, parameter_vector
 from pumpsim.simulate import inverse_dynamics
 from tests.pneumatic_helpers import evp_config, speed_config
-from tests.tolerances import EQUAL_PRESSURE_REL, GAS_ENERGY_REL, LOAD_POWER_REL, MOTOR_RESIDUAL_ABS
+from tests.tolerances import EQUAL_PRESSURE_REL, GAS_BUDGET_ATOL, GAS_BUDGET_RTOL, GAS_ENERGY_REL, LOAD_POWER_REL, MOTOR_RESIDUAL_ABS
 
 
 
@@ -64,11 +64,11 @@ def test_load_power_is_sum_p_dV():
     assert np.max(np.abs(o["load_power"] + o["gas_power"])) <= LOAD_POWER_REL * scale
 
 
-def _one_revolution(cfg, rtol=1e-10):
+def _one_revolution(cfg, rtol=GAS_BUDGET_RTOL):
     """Constant speed: two revolutions to settle, then one revolution's budgets."""
     T = 2 * math.pi / cfg.speed
     r0 = run.integrate(cfg, 2 * T, 200 / T, rtol=1e-8, atol=1e-10)
-    r = run.integrate(cfg, T, 400 / T, x0=r0.states[-1], rtol=rtol, atol=1e-12)
+    r = run.integrate(cfg, T, 400 / T, x0=r0.states[-1], rtol=rtol, atol=GAS_BUDGET_ATOL)
     q = dict(zip(run.QUAD_NAMES, r.quad[-1]))
     ke = r.outputs["kinetic_energy"]
     return q, ke[-1] - ke[0], r
@@ -94,7 +94,7 @@ def test_motor_energy_balance_during_run_up():
     work = gas + friction work + the pump's kinetic energy."""
     cfg = evp_config()
     p = parameter_vector(cfg)
-    r = run.integrate(cfg, 0.05, 4000, p=p, rtol=1e-10, atol=1e-12)
+    r = run.integrate(cfg, 0.05, 4000, p=p, rtol=GAS_BUDGET_RTOL, atol=GAS_BUDGET_ATOL)
     q = dict(zip(run.QUAD_NAMES, r.quad[-1]))
     v = cfg.pneumatic.values
     w, i = r.states[-1, 1], r.states[-1, 2]

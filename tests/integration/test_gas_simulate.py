@@ -11,14 +11,14 @@ import pytest
 from pumpsim import simulate
 from tests.conftest import ROOT
 from tests.pneumatic_helpers import speed_config
-from tests.tolerances import EQUAL_PRESSURE_REL, GAS_ENERGY_REL
+from tests.tolerances import EQUAL_PRESSURE_REL, GAS_BUDGET_ATOL, GAS_BUDGET_RTOL, GAS_ENERGY_REL
 
 EVP = "examples/evp_booster.toml"
 
 
 def test_simulate_on_a_gas_config_runs_the_gas_model():
     cfg = speed_config(350.0, **{"gas.heat_transfer": 0.0})
-    res = simulate(cfg, duration=2 * 2 * math.pi / 350.0, rate=20000, rtol=1e-10, atol=1e-12)
+    res = simulate(cfg, duration=2 * 2 * math.pi / 350.0, rate=20000, rtol=GAS_BUDGET_RTOL, atol=GAS_BUDGET_ATOL)
     N = cfg.vanes
     names = res.column_names()
     assert names[:4] == ["time", "angle", "speed", "torque"]
