@@ -31,6 +31,9 @@ def add_pumpdown_command(sub) -> None:
     pd.add_argument("--atol", type=float, default=None,
                     help=f"absolute tolerance relative to each state's starting size (default "
                          f"{PUMPDOWN_ATOL:g}; {CONTACT_PUMPDOWN_ATOL:g} with --model contact)")
+    from ..cli import _add_force
+
+    _add_force(pd)
     pd.set_defaults(func=cmd_pumpdown)
 
 
@@ -52,7 +55,7 @@ def _progress(t, pb):
 
 
 def cmd_pumpdown(a) -> int:
-    from ..config import load_config
+    from ..cli import _load_config
     from ..io import write_text
     from . import pumpdown as pdm
 
@@ -60,7 +63,7 @@ def cmd_pumpdown(a) -> int:
     if a.model == "contact" and (a.fast or a.plot or a.report):
         raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
                           "without --model contact")
-    cfg = load_config(a.config)
+    cfg = _load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
     if cfg.pneumatic is None:
         raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
     progress = _progress if sys.stderr.isatty() else None

@@ -116,6 +116,19 @@ def test_torque_drive_is_refused(tmp_path, capsys):
     assert 'operation.mode = "torque"' in capsys.readouterr().err and not js.exists()
 
 
+def test_unit_mistake_is_refused_and_force_proceeds(tmp_path, capsys):
+    """The config's unit/plausibility checks as in simulate: refused naming the key, --force runs
+    with the warning (before: no --force, the refusal could not be overridden)."""
+    cfg = tmp_path / "grams.toml"
+    cfg.write_text(open(EVP).read().replace("mass = 0.00135", "mass = 1.35"))  # grams typed as kg
+    js = tmp_path / "pd.json"
+    assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js)]) == 2
+    err = capsys.readouterr().err
+    assert "vane.mass" in err and "--force" in err and not js.exists()
+    assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js), "--force"]) == 0
+    assert "warning: vane.mass" in capsys.readouterr().err and js.exists()
+
+
 def test_mechanical_config_is_rejected(capsys):
     assert main(["pumpdown", str(EXAMPLES / "ellipse_4vanes.toml")]) == 2
     assert "needs the gas tables" in capsys.readouterr().err
