@@ -1,6 +1,6 @@
 """Pump-down figures and HTML report (spec §8): booster pressure with the target, current and
 speed, one cell's indicator (p-V) diagram at several booster pressures, the torque split into gas
-and friction over a revolution, and the pumping speed S(p) with the ultimate pressure."""
+and friction (and inertia, the rest) over a revolution, and the pumping speed S(p) with the ultimate pressure."""
 from __future__ import annotations
 
 import base64
@@ -61,7 +61,7 @@ def _figure(res, maps, cfg):
            f"energy {s['energy']:.0f} J", transform=a.transAxes, ha="right", va="top")
     a = ax[0, 2]
     q = np.array([s["gas_work"], s["friction_work"], s["copper_loss"], s["motor_friction_work"]])
-    names = ["gas work", "vane/bearing friction", "copper loss R i²", "motor friction"]
+    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"]
     a.barh(names, q, color=["C0", "C3", "C1", "C4"])
     a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J go")
     a.grid(alpha=0.3, axis="x")
@@ -80,6 +80,9 @@ def _figure(res, maps, cfg):
         a.plot(deg, d["torque"], "k", label="shaft torque")
         a.plot(deg, d["gas_torque"], "C0", label="gas torque")
         a.plot(deg, d["friction_torque"], "C3", label="friction torque")
+        # the rest: the vanes' kinetic energy swinging in and out over a revolution (and the
+        # rotor's acceleration); without it the parts do not add up to the shaft torque
+        a.plot(deg, d["torque"] - d["gas_torque"] - d["friction_torque"], "C7:", label="inertia (the rest)")
         a.set(xlabel="rotor angle [deg]", ylabel="torque [N m]",
               title=f"Torque split over a revolution (booster {d['booster_pressure'] / 1e3:.0f} kPa)")
         a.legend()
