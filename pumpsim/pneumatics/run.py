@@ -237,8 +237,8 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
         try:
             X, Q = integ.grid(x, mode, dt, m)
         except SolverError as e:
-            raise SolverError(f"pump-down failed between t = {t:.6g} s and {t + m * dt:.6g} s "
-                              f"(theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
+            raise SolverError(f"the gas model's integration failed between t = {t:.6g} s and "
+                              f"{t + m * dt:.6g} s (theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
                               f"{p_booster(x):.6g} Pa): {e}") from None
         cut = _first_reed_switch(kern, p, x, X, mode) if reed else m
         stop_row = None

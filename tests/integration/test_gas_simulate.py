@@ -67,3 +67,13 @@ def test_simulate_cli_gas_model_refuses_max_step(tmp_path):
     r = _cli("simulate", EVP, "--duration", "0.002", "--max-step", "1e-6", "--out", str(out))
     assert r.returncode == 2 and "--max-step" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+def test_simulate_gas_numerical_failure_says_where_and_exits_1(tmp_path):
+    """A numerical failure names the time and the state; under `simulate` it is not called a
+    pump-down (the message came from the pump-down's integrator loop)."""
+    out = tmp_path / "m2.csv"
+    r = _cli("simulate", EVP, "--duration", "0.01", "--max-steps", "5", "--out", str(out))
+    assert r.returncode == 1 and "Traceback" not in r.stderr and not out.exists()
+    assert "gas model's integration failed between t = 0 s" in r.stderr and "theta" in r.stderr
+    assert "pump-down" not in r.stderr
