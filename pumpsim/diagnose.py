@@ -712,6 +712,7 @@ class _Run:
     confounded: list = field(default_factory=list)
     torque_rms: float = 0.0
     mean_torque: float = 0.0
+    added: list = field(default_factory=list)  # per named effect: the fitted names it added
 
     def implausible(self, st) -> list:
         return plausible(st.cfg, st.values, self.torque_rms, self.mean_torque)
@@ -747,6 +748,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             break
         state, current = _add_effect(run, found, state, current, steps, effects, screens)
         history.append({"label": found["accepted"]["cand"].label, "result": current})
+        state, current = _drop_superseded(run, state, current, steps, effects, history)
         verdict = _Verdict(current, datasets, len(state.names))
     return _result(run, base, state, current, verdict, steps, effects, ranking, screens, rival_pair,
                    history, wall0)
@@ -929,10 +931,82 @@ def _add_effect(run, found, state, current, steps, effects, screens):
                   "lr_p_value": accepted["lr_p"], "bic_before": found["bic0"], "bic_after": accepted["bic"],
                   "all_params": _params_json(res, new_state.names, new_state.cfg)})
     effects.append(c.effect)
+    run.added.append(new_names)
     screens[-1]["chosen"] = c.label
     if run.free and not any(base_name(n) == "speed" for n in new_state.names):
         return _try_speed(new_state, res, run.full_data, run.screen_data, run.speed_info, run.notes)
     return new_state, res
+
+
+def _drop_superseded(run, state, current, steps, effects, history):
+    """Backward check after a new effect (forward selection is greedy: an effect named first can
+    be one that a later, right effect makes unnecessary -- a speed ripple of order 1 standing in
+    for a 1-vane eccentricity). Each earlier-named effect is judged by the acceptance test's own
+    criteria given the others: its part of the final model torque (its parameters set absent, the
+    rest unchanged) must be at least NAMED_SIZE x the noise sigma, and removing it (the others
+    refitted) must fail the prewhitened LR test (p < LR_ALPHA) with a higher BIC. The least
+    needed failing one is dropped, with a note, and the check repeats. Assumes, like the
+    acceptance test, that the residual's AR(1) coefficient stands for the noise."""
+    while len(effects) >= 2:
+        sigma = _Verdict(current, run.datasets, len(state.names)).sigma
+        rho = _ar1(current.residual)
+        rss1, nw = _whitened_rss(current.residual, rho)
+        worst = None
+        for j in range(len(effects) - 1):
+            names_j = [n for n in run.added[j] if n in state.names]
+            why = _superseded(run, state, current, names_j, sigma, rho, (rss1, nw)) if names_j else None
+            if why is not None and (worst is None or why[0] > worst[0]):
+                worst = (*why, j)
+        if worst is None:
+            break
+        _, reason, state, current, j = worst
+        gone = effects.pop(j)
+        steps.pop(j)
+        run.added.pop(j)
+        history.pop(j + 1)
+        history[-1] = {"label": history[-1]["label"], "result": current}
+        run.notes.append(f"{gone} dropped once {effects[-1]} was added: {reason}")
+    return state, current
+
+
+def _superseded(run, state, current, names, sigma, rho, fit):
+    """(rank, reason, reduced state, its fit) if the effect with fitted `names` is no longer
+    needed (see _drop_superseded), else None."""
+    absent = _absent(run, names)
+    prob = make_problem(state.cfg, run.full_data, state.names, initial=state.values,
+                        extra={k: v for k, v in state.values.items() if k not in state.names},
+                        ripple_order=state.ripple_order)
+    x = prob.x0.copy()
+    for n in names:
+        x[state.names.index(n)] = absent[n]
+    size = float(np.sqrt(np.mean((prob.model(prob.x0) - prob.model(x)) ** 2)))
+    st, res = _without(run, state, names, absent)
+    if size < NAMED_SIZE * sigma:
+        return 2.0, f"its part of the torque is {size:.3g} N m RMS, below {NAMED_SIZE:g} x the noise sigma", st, res
+    rss0, _ = _whitened_rss(res.residual, rho)
+    rss1, nw = fit
+    p = float(stats.chi2.sf(nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300)), len(names)))
+    if p >= LR_ALPHA or _bic(rss0, nw, len(st.names)) <= _bic(rss1, nw, len(state.names)):
+        return p, f"without it the likelihood ratio p is {p:.2g} (or BIC no higher)", st, res
+    return None
+
+
+def _absent(run, names) -> dict:
+    """The absent values: an added harmonic pair at zero amplitude, a config key at its configured
+    value, a ripple, lag or offset at zero."""
+    return {n: 0.0 if _is_harmonic_amplitude(n) or n not in run.cfg.values else run.cfg.values[n] for n in names}
+
+
+def _without(run, state, names, absent):
+    """The state refitted on the whole record with `names` at their `absent` values."""
+    cfg = dataclasses.replace(state.cfg, values={**state.cfg.values,
+                                                 **{k: v for k, v in absent.items() if k in state.cfg.values}})
+    keep = [n for n in state.names if n not in names]
+    values = {**state.values, **absent}
+    held = {k: v for k, v in values.items() if k not in keep}
+    res = identify(cfg, run.full_data, keep, initial={n: values[n] for n in keep}, multistart=False,
+                   ripple_order=state.ripple_order, extra=held)
+    return _state_from(cfg, run.full_data, keep, values, res, state.ripple_order), res
 
 
 def _result(run, base, state, current, verdict, steps, effects, ranking, screens, rival_pair, history, wall0):
