@@ -442,16 +442,10 @@ def score_test(state: State, cand: Candidate, start=True):
     if not np.all(np.isfinite(r1)):
         x1, r1 = prob.x0.copy(), rs
     x1, r1 = _profiled(prob, Jb, nb, x1, r1)
-    # non-smooth (the torque reacts through friction-reversal instants): finite probes where the
-    # first order is blind, in all directions (quad) or in one (a defect on a rig symmetric about
-    # an axis: the y shift of a centred 1-vane ellipse; the linear step then moves the other
-    # direction only)
-    if eff.finite_probes and (quad is not None or _direction_blind(J1)):
-        out["searched"] = True  # its one-step fit is the best of many: judged at the searched level
-        xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
-        rp = prob.y - prob.model(xp)
-        if rp @ rp < r1 @ r1:
-            x1, r1 = xp, rp
+    # its one-step fit is then the best of many: judged at the searched level
+    out["searched"] = bool(eff.finite_probes and (quad is not None or _direction_blind(J1)))
+    if out["searched"]:
+        x1, r1 = _probed(state, cand, prob, Jb, nb, x1, r1)
     out.update(start={n: v for n, v in zip(prob.names, x1) if n in state.names + params},
                one_step_rss=float(r1 @ r1))
     return out
@@ -480,6 +474,16 @@ def _profiled(prob, Jb, nb, x1, r1):
             break
         best = (x, r, float(r @ r))
     return best[0], best[1]
+
+
+def _probed(state, cand, prob, Jb, nb, x1, r1):
+    """The better of the one-step fit (x1, r1) and the finite probes' best. For a non-smooth
+    effect (the torque reacts through friction-reversal instants) where the first order is blind,
+    in all directions (second-order score) or in one (a defect on a rig symmetric about an axis:
+    the y shift of a centred 1-vane ellipse, where the linear step moves the other direction only)."""
+    xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
+    rp = prob.y - prob.model(xp)
+    return (xp, rp) if rp @ rp < r1 @ r1 else (x1, r1)
 
 
 BLIND_DIRECTION = 0.05  # a first-order column below this fraction of its pair's largest: blind
