@@ -248,6 +248,11 @@ INDEPENDENT_LOWPASS_REL = 0.02
 # Motion of the independent generator (ripple + slow drift, closed form) against central
 # differences on a 1 us step (truncation ~ h^2 omega''/6 ~ 1e-9 relative, rounding ~ 1e-16 x theta / h).
 INDEPENDENT_MOTION_REL = 1e-7
+# Observable share (RMS share of an effect no mu/phase change mimics) of an exact phase shift: the scan's
+# 0.0005 rad grid plus a linear phase column leave ~1e-7 (measured 9e-8); a friction reversal crossing a
+# sample between grid point and truth would leave ~1e-3 on 2000 samples, still far below the 0.1 of a real
+# 50 um radial move (measured 0.18).
+INDEPENDENT_PHASE_SHARE = 1e-2
 # Integrator settings of test scenarios (not comparisons): each is tighter than the tolerance its
 # test compares with, by the margin given there. Synthetic "measured" runs are integrated 100x
 # tighter than the transient fit integrates (TRANSIENT_FIT_RTOL 1e-9), so the data's own

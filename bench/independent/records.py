@@ -204,30 +204,54 @@ def _noise(rng, n, sigma, phi=None):
     return sigma * x
 
 
-def observable_share(rig, t, theta0, contribution):
-    """RMS share of an effect's contribution NOT explained by a change of mu or of the phase theta0
-    (least squares on the finite-difference sensitivities): ~0 means the effect is unobservable."""
-    th, om, dom = motion(t, rig.speed, theta0)
-    base = drive_torque(rig, th, om, dom)
-    cols = []
+SHARE_WINDOW = 2000   # samples the observable share is computed on (>= 6 revolutions at 25 kHz; it is per sample)
+PHASE_COARSE = np.linspace(-0.06, 0.06, 25)   # rad; then +-1 coarse step around the best by a tenth of it
+
+
+def _unmimicked(rig, t, theta, target, mu_column=None):
+    """Residual of target - model(theta) after mu (column mu_column, default at theta) and a small
+    phase change are fitted linearly."""
+    base = _nominal(rig, t, theta)
     d = 1e-4
-    mu_rig = replace(rig, tip=rig.tip.scaled(1 + d), slot=rig.slot_friction.scaled(1 + d))
-    cols.append((drive_torque(mu_rig, th, om, dom) - base) / d)
-    thp, _, _ = motion(t, rig.speed, theta0 + d)
-    cols.append((drive_torque(rig, thp, om, dom) - base) / d)
-    X = np.column_stack(cols)
-    coef, *_ = np.linalg.lstsq(X, contribution, rcond=None)
-    rest = contribution - X @ coef
+    if mu_column is None:
+        mu_rig = replace(rig, tip=rig.tip.scaled(1 + d), slot=rig.slot_friction.scaled(1 + d))
+        mu_column = (_nominal(mu_rig, t, theta) - base) / d
+    X = np.column_stack([mu_column, (_nominal(rig, t, theta + d) - base) / d])
+    rest = target - base
+    return rest - X @ np.linalg.lstsq(X, rest, rcond=None)[0], mu_column
+
+
+def _nominal(rig, t, theta0):
+    return drive_torque(rig, *motion(t, rig.speed, theta0))
+
+
+def observable_share(rig, t, theta0, contribution):
+    """RMS share of an effect's contribution that no change of mu and of the phase theta0 explains:
+    the phase moved by finite steps too (a moved centre of an eccentric circle turns the housing about
+    the rotor axis, exactly a phase shift, but one beyond the linear range of a torque with friction
+    reversals), each with mu and the remaining phase fitted linearly; on the first SHARE_WINDOW
+    samples. ~0 means the effect is unobservable."""
+    t, contribution = t[:SHARE_WINDOW], contribution[:SHARE_WINDOW]
     rms = np.sqrt(np.mean(contribution ** 2))
-    return float(np.sqrt(np.mean(rest ** 2)) / rms) if rms > 0 else 0.0
+    if rms == 0:
+        return 0.0
+    target = _nominal(rig, t, theta0) + contribution
+    mu_column = _unmimicked(rig, t, theta0, target)[1]
+    cost = lambda dl: float(np.sum(_unmimicked(rig, t, theta0 + dl, target, mu_column)[0] ** 2))  # noqa: E731
+    step = PHASE_COARSE[1] - PHASE_COARSE[0]
+    best = min(PHASE_COARSE, key=cost)
+    best = min(best + step * np.linspace(-1, 1, 21), key=cost)
+    rest = _unmimicked(rig, t, theta0 + best, target)[0]   # mu's column at the best phase
+    return float(min(np.sqrt(np.mean(rest ** 2)), np.sqrt(np.mean(_unmimicked(rig, t, theta0, target)[0] ** 2))) / rms)
 
 
-def _library_truth(rig, comps, t, theta0, nominal, snr, truth):
+def _library_truth(rig, comps, t, theta0, nominal, clean, snr, truth):
     """Each library effect's own contribution (RMS, share no mu/theta0 change can mimic, absorbed
     against the noise over the record); returns the noise sigma: the smallest contribution / SNR."""
     rms, absorbed, observable = {}, [], {}
     for e, p in comps:
-        contribution = _measured(rig, [(e, p)], t, theta0, nominal.mean())[0] - nominal
+        alone = clean if len(comps) == 1 else _measured(rig, [(e, p)], t, theta0, nominal.mean())[0]
+        contribution = alone - nominal
         rms[e] = float(np.sqrt(np.mean(contribution ** 2)))
         share = observable_share(rig, t, theta0, contribution) if rms[e] > 0 else 0.0
         if e == "sensor_lag" and p["kind"] == "delay":
@@ -263,7 +287,7 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
     ref = max(np.sqrt(np.mean(ripple ** 2)), 0.01 * abs(nominal.mean()))
     truth = dict(params=_plain(p), theta0=float(theta0), mu=rig.tip.dynamic, effects=[], absorbed_effects=[])
     if effect in LIBRARY or effect in COMBINED:
-        sigma = _library_truth(rig, comps, t, theta0, nominal, snr, truth)
+        sigma = _library_truth(rig, comps, t, theta0, nominal, clean, snr, truth)
     elif effect in ("hum", "drift", "impulse"):
         sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
         clean = clean + snr * sigma * _disturbance(effect, p, t, rng)

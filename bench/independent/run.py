@@ -75,7 +75,7 @@ def score(truth_effect, truth, out):
     right: exactly the required effects named (a single one reported only as `confounded`, nothing
     named, counts too, as in bench/diagnose_grid.py), or for no effect / absorbed ones nothing named and
     no `unexplained`, or for out-of-library nothing named and `unexplained`. clean: right and (for
-    library effects) no `unexplained` remainder."""
+    library effects) the required effects named, not only `confounded`, and no `unexplained`."""
     named = list(out.get("effects", []))
     unexpl = bool(out.get("unexplained"))
     present = list(truth.get("effects", []))
@@ -92,8 +92,17 @@ def score(truth_effect, truth, out):
             not named and len(required) == 1 and required[0] in conf)
     verdict = "+".join(named) if named else "nothing"
     return dict(named=named, unexplained=unexpl, right=right, absorbed=bool(present) and not required,
-                clean=right and not (required and unexpl), verdict=verdict + (" +U" if unexpl else ""),
+                clean=right and not (required and (unexpl or not set(required) <= set(named))),
+                verdict=verdict + (" +U" if unexpl else ""),
                 false_name=any(n not in present for n in named))
+
+
+def rescored(r):
+    """A stored case scored again by today's score() from its kept diagnose JSON (if any)."""
+    kept = DIAG_DIR / (r["case"].replace(":", "_") + ".json")
+    if r.get("exit") == 0 and kept.exists():
+        r = {**r, **score(r["effect"], r["truth"], json.loads(kept.read_text()))}
+    return r
 
 
 def write_case(c, workdir):
@@ -207,6 +216,26 @@ def print_summary(s):
         print(f"  {k:34s} " + ", ".join(f"{a}: {b}" for a, b in sorted(v.items(), key=lambda x: -x[1])))
 
 
+def rates_markdown(s):
+    """The README's table of one run's rates (value and count per class; per rig)."""
+    names = {"right": "right verdict, all records", "clean": "clean verdict, all records",
+             "named_right_library": "library effect named right (exactly it)",
+             "named_right_library_snr_ge5": "... at SNR >= 5", "clean_library": "... and no `unexplained`",
+             "named_right_two_effects": "two effects: both named, nothing else",
+             "right_no_effect": "no effect: nothing named, no `unexplained`",
+             "false_name_no_effect": "false names (no effect + absorbed)",
+             "false_name_out_of_library": "false names (out-of-library)",
+             "right_out_of_library": "out-of-library: nothing named, `unexplained`",
+             "false_unexplained": "false `unexplained` (no effect, absorbed, named right)"}
+    rows = ["| rate | value | of |", "|---|---|---|"]
+    rows += [f"| {names[k]} | {'-' if s[k][0] is None else f'{100 * s[k][0]:.0f} %'} | {s[k][1]} |" for k in RATE_KEYS]
+    rows += [f"| rig {rig}: right / clean | {v['right'][0] * 100:.0f} % / {v['clean'][0] * 100:.0f} % | {v['right'][1]} |"
+             for rig, v in s["per_rig"].items() if v["right"][1]]
+    if s["wall_median"] is not None:
+        rows.append(f"| wall per case, median / max | {s['wall_median']:.0f} s / {s['wall_max']:.0f} s | {s['cases']} |")
+    return "\n".join(rows) + "\n"
+
+
 def findings_markdown(results, summary, source):
     """The failing cases, each with the command that regenerates it and what diagnose said."""
     out = [f"# diagnose on independent records: failing cases ({source})", "",
@@ -253,7 +282,13 @@ def main(argv=None):
     ap.add_argument("--json", default="out/bench_independent.json")
     ap.add_argument("--findings", help="also write the failing cases as markdown to this file")
     ap.add_argument("--generate", action="store_true", help="with --case: write config and data only, no diagnose")
+    ap.add_argument("--summarise", metavar="JSON", help="print the summary and README table of a finished run's JSON")
     a = ap.parse_args(argv)
+    if a.summarise:
+        s = summarise([rescored(r) for r in json.loads(Path(a.summarise).read_text())["cases"]])
+        print_summary(s)
+        print("\n" + rates_markdown(s))
+        return s
     if a.case:
         r, e, snr, seed, fmt, rate, dur = a.case.split(":")
         cases = [(r, e, float(snr), int(seed), fmt, float(rate), float(dur))]
