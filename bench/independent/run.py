@@ -6,6 +6,9 @@ formats); `pumpsim diagnose CONFIG DATA --json` runs on it as a black box with t
 
   python bench/independent/run.py [--quick] [--rigs a,b] [--effects a,b] [--snrs 3,5,10] [--seeds 1]
   python bench/independent/run.py --case RIG:EFFECT:SNR:SEED:FORMAT:RATE:DURATION   (one case, kept)
+  python bench/independent/run.py --case ... --generate      (config and data only, into out/independent/)
+  python bench/independent/run.py --summarise out/bench_independent.json   (rescore a finished run, README table)
+Every case's diagnose JSON is kept in out/independent/diag/.
 """
 from __future__ import annotations
 
