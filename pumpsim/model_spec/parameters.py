@@ -539,7 +539,9 @@ GAS_PARAMETERS = (
     _p("vane.slot_pressure.source", "-", 0.0, 3.0, doc="0 value, 1 inlet, 2 exhaust, 3 atmosphere"),
     _p("vane.slot_pressure.value", "Pa", 0.0),
     _p("operation.motor", "-", 0.0, 1.0, doc="drive: 0 constant speed, 1 DC motor"),
-    _p("motor.voltage", "V"),
+    # a reversed supply turns the pump backwards: the exhaust check valve then blocks the flow,
+    # Model 2's tips would need pulling and friction work turns negative -- not an EVP, refused
+    _p("motor.voltage", "V", positive=True, doc="supply voltage at the motor terminals"),
     _p("motor.resistance", "ohm", positive=True),
     _p("motor.inductance", "H", positive=True),
     _p("motor.constant", "N m/A", positive=True, doc="torque and back-EMF constant k"),

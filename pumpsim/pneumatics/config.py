@@ -224,7 +224,7 @@ def _parse_motor(mo: dict, raw: dict, motor: bool, v: dict) -> None:
                                                  "friction", "inertia")})
         _check(v, "motor.")
     else:
-        v.update({"motor.voltage": 0.0, "motor.resistance": 1.0, "motor.inductance": 1.0,
+        v.update({"motor.voltage": 1.0, "motor.resistance": 1.0, "motor.inductance": 1.0,
                   "motor.constant": 1.0, "motor.friction": 0.0, "motor.inertia": 0.0})
 
 

@@ -26,6 +26,7 @@ BAD = [
     ({"booster.target": 2e5}, "booster.target must be in (0, booster.pressure"),
     ({"booster.pressure": 2e5}, "booster.pressure must be <= gas.atmosphere"),
     ({"motor.resistance": 0.0}, "motor.resistance must be > 0"),
+    ({"motor.voltage": -13.5}, "motor.voltage must be > 0"),  # reversed supply: the pump turns backwards
     ({"motor.constant": None}, "missing required key 'motor.constant'"),
     ({"vane.slot_pressure": "rotor"}, "vane.slot_pressure must be"),
     ({"vane.tip_radius": 0.001}, "vane.tip_radius must be 0 or >= vane.thickness/2"),
