@@ -23,6 +23,11 @@ MAX_DENSITY = 20000.0  # kg/m^3: above tungsten (19,300)
 MAX_AXIAL_LENGTH = 1.0  # m: bounds a vane's width / the rotor's length for the mass checks
 MIN_SAMPLES_PER_REV = 8  # fewer cannot resolve even the first shaft orders
 TORQUE_MARGIN = 10.0  # a torque level 10x outside the model's COF range [0, 2] is implausible
+# Gas tables (spec §8): a vessel of a cubic metre is 250 brake boosters (2-8 L): 4 for 4 L gives
+# 4 m^3 and a pump-down that "never reaches" its target; an atmosphere below 10 kPa (the air at
+# 16 km) is a pressure in kPa or bar, not Pa
+MAX_VESSEL_VOLUME = 1.0  # m^3
+MIN_ATMOSPHERE = 1.0e4  # Pa
 
 TORQUE_FACTORS = {"N*mm (use --torque-unit N*mm or a 'torque [N*mm]' header)": 1e3,
                   "N*cm (use --torque-unit N*cm)": 1e2,
@@ -74,6 +79,22 @@ def config_problems(cfg) -> list[str]:
             out.append(f"operation.speed = {cfg.speed:g} rad/s gives a vane tip speed of {tip:.3g} m/s "
                        f"(limit {MAX_TIP_SPEED:g}): operation.speed is in rad/s (SI); for {cfg.speed:g} rpm "
                        f"write operation.speed_rpm = {cfg.speed:g} instead")
+    return out + gas_problems(cfg)
+
+
+def gas_problems(cfg) -> list[str]:
+    """Magnitudes of the spec §8 tables that are unit mistakes: a booster volume in litres, an
+    atmosphere (and so every pressure given beside it) in kPa or bar."""
+    if getattr(cfg, "pneumatic", None) is None:
+        return []
+    v, out = cfg.pneumatic.values, []
+    if v["booster.volume"] > MAX_VESSEL_VOLUME:
+        out.append(f"booster.volume = {v['booster.volume']:g} m^3 is larger than any vessel a vane pump "
+                   f"evacuates (limit {MAX_VESSEL_VOLUME:g} m^3): config values are SI (m^3); "
+                   f"{v['booster.volume']:g} L is {v['booster.volume'] / 1000:g}")
+    if v["gas.atmosphere"] < MIN_ATMOSPHERE:
+        out.append(f"gas.atmosphere = {v['gas.atmosphere']:g} Pa is below {MIN_ATMOSPHERE:g} Pa: pressures "
+                   f"are absolute in Pa (SI); {v['gas.atmosphere']:g} kPa is {v['gas.atmosphere'] * 1000:g}")
     return out
 
 

@@ -129,6 +129,23 @@ def test_unit_mistake_is_refused_and_force_proceeds(tmp_path, capsys):
     assert "warning: vane.mass" in capsys.readouterr().err and js.exists()
 
 
+@pytest.mark.parametrize("old,new,key", [
+    ("volume = 4.0e-3", "volume = 4.0", "booster.volume = 4 m^3"),  # litres typed as m^3
+    ("pressure = 101300.0\ntarget = 30000.0", "pressure = 101.3\ntarget = 30.0",
+     "gas.atmosphere = 101.325 Pa"),  # every pressure in kPa
+])
+def test_gas_unit_mistakes_are_refused(tmp_path, capsys, old, new, key):
+    cfg = tmp_path / "units.toml"
+    text = open(EVP).read().replace(old, new, 1)
+    if "101.3\n" in new:
+        text = text.replace("[gas]", "[gas]\natmosphere = 101.325", 1)
+    cfg.write_text(text)
+    js = tmp_path / "pd.json"
+    assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js)]) == 2
+    err = capsys.readouterr().err
+    assert key in err and "SI" in err and "--force" in err and not js.exists(), err
+
+
 def test_mechanical_config_is_rejected(capsys):
     assert main(["pumpdown", str(EXAMPLES / "ellipse_4vanes.toml")]) == 2
     assert "needs the gas tables" in capsys.readouterr().err
