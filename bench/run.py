@@ -178,8 +178,11 @@ def bench_identify(duration=0.5, rate=10000.0):
     sim = simulate(truth, duration=duration, rate=rate)
     y = sim.torque + np.random.default_rng(0).normal(0, 0.02 * np.sqrt(np.mean(sim.torque**2)), sim.time.size)
     data = Dataset(sim.time, y)
-    start = dataclasses.replace(base, values={**base.values, "friction.housing.dynamic": 0.1,
-                                              "friction.housing.static": 0.1 * 0.18 / 0.17})
+    # the example has no [friction.slot]: its slot COFs are the housing's, and a start COF of 0.1
+    # sets both (fitting mu scales them together, keeping the configured slot/housing ratio)
+    start = dataclasses.replace(base, values={**base.values, **{
+        f"friction.{c}.{k}": v for c in ("housing", "slot") for k, v in (("dynamic", 0.1),
+                                                                          ("static", 0.1 * 0.18 / 0.17))}})
     identify(start, data, ["mu", "theta0"], initial={"theta0": 0.3})  # warm-up (kernel load, maps)
     t0 = time.perf_counter()
     res = identify(start, data, ["mu", "theta0"], initial={"theta0": 0.3})
