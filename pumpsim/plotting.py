@@ -198,8 +198,11 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
     penetration = _column(res, "penetration_0") is not None
     extra = getattr(res, "extra", {}) or {}
     has_steps = "step" in extra and "step_time" in extra and len(extra["step"]) > 0
-    rows = ["s", "normal", "slots", "torque"] + (["speed"] if getattr(res, "mode", "speed") != "speed" else []) \
-        + (["penetration"] if penetration else []) + (["step"] if has_steps else []) + ["summary"]
+    gas = _column(res, "pressure_0") is not None  # spec §8: the gas-coupled models' cells
+    driven = getattr(res, "mode", "speed") != "speed"
+    rows = ["s", "normal", "slots", "torque"] + (["pressure"] if gas else []) + (["speed"] if driven else []) \
+        + (["current"] if gas and driven else []) + (["penetration"] if penetration else []) \
+        + (["step"] if has_steps else []) + ["summary"]
     heights = [2.0] * (len(rows) - 1) + [0.3, 2.4]  # a spacer keeps the x label off the summary
     total = sum(heights) + 1.0
     fig = plt.figure(figsize=(11.5, total))
@@ -218,6 +221,8 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
     _slot_panel(axes["slots"], d, res, colors)
     orders = torque_orders(res)
     _torque_panel(axes["torque"], d, res, orders)
+    if gas:
+        _gas_panels(axes, d, res, colors)
     if "speed" in axes:
         ax = axes["speed"]
         sp = _column(res, "speed") * RPM
@@ -262,6 +267,27 @@ def _vane_panel(ax, d, res, colors, col, label, scale):
     ax.set_ylabel(label, fontsize=8.5)
     tidy_axis(ax, curves)
     _legend(ax, [Line2D([], [], color=colors[g[0]], lw=1.4, label=group_label(g)) for g in groups])
+
+
+def _gas_panels(axes, d, res, colors):
+    """Cell pressures (cell i between vanes i and i+1, in vane i's colour) with the booster's, and
+    the motor current when the motor drives."""
+    n = len(colors)
+    ax = axes["pressure"]
+    cells = np.array([_column(res, f"pressure_{i}") * 1e-3 for i in range(n)])
+    for i in range(n):
+        d.plot(ax, cells[i], color=colors[i])
+    booster = _column(res, "booster_pressure") * 1e-3
+    d.plot(ax, booster, color="k", ls="--")
+    ax.set_ylabel("cell pressure [kPa]", fontsize=8.5)
+    tidy_axis(ax, np.vstack([cells, booster[None, :]]))
+    _legend(ax, [Line2D([], [], color=colors[i], lw=1.4, label=f"cell {i} (vanes {i}-{(i + 1) % n})")
+                 for i in range(n)] + [Line2D([], [], color="k", ls="--", label="booster")])
+    if "current" in axes:
+        cur = _column(res, "current")
+        d.plot(axes["current"], cur, color="C3")
+        axes["current"].set_ylabel("motor current [A]", fontsize=8.5)
+        tidy_axis(axes["current"], cur)
 
 
 def _slot_panel(ax, d, res, colors):

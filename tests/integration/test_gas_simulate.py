@@ -77,3 +77,26 @@ def test_simulate_gas_numerical_failure_says_where_and_exits_1(tmp_path):
     assert r.returncode == 1 and "Traceback" not in r.stderr and not out.exists()
     assert "gas model's integration failed between t = 0 s" in r.stderr and "theta" in r.stderr
     assert "pump-down" not in r.stderr
+
+
+def test_simulate_figure_of_a_gas_run_has_the_cell_pressures_and_current():
+    """The figure of a gas run adds the cell and booster pressures (and, with the motor, the
+    current); a mechanical run's figure has neither."""
+    import matplotlib.pyplot as plt
+
+    from pumpsim.plotting import simulation_figure
+    from tests.pneumatic_helpers import evp_config
+
+    def labels(res):
+        fig = simulation_figure(res)
+        out = {ax.get_ylabel() for ax in fig.axes}
+        plt.close(fig)
+        return out
+
+    gas = labels(simulate(evp_config(), duration=0.004, rate=20000))
+    assert {"cell pressure [kPa]", "motor current [A]"} <= gas
+    assert "motor current [A]" not in labels(simulate(speed_config(350.0), duration=0.004, rate=20000))
+    mech = labels(simulate(speed_config(350.0, **{t: None for t in ("gas", "ports", "valve", "leak", "booster",
+                                                                   "motor", "vane.slot_pressure")}),
+                           duration=0.004, rate=20000))
+    assert "cell pressure [kPa]" not in mech
