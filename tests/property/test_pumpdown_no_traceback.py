@@ -37,6 +37,11 @@ def test_bad_pumpdown_option_values_exit_2(tmp_path_factory, option, value):
     assert code == 2 and option in msg, msg
 
 
+# slow: in a full session (after test_any_identify_options) the 25 examples spend 116-120 s inside
+# CVODES (cProfile: casadi Function_call), 0.3 s when the file runs alone -- cause not found (the
+# pump-down after each identify option alone stays at 20 ms); `make test-all` runs it, and
+# `make test` stays within its ~10 min
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(st.tuples(st.sampled_from(GAS_KEYS), NUMBERS), min_size=1, max_size=2))
 def test_any_gas_table_values(tmp_path_factory, changes):
