@@ -224,11 +224,7 @@ def simulation_figure(res, name: str | None = None, x: str = "angle"):
     if gas:
         _gas_panels(axes, d, res, colors)
     if "speed" in axes:
-        ax = axes["speed"]
-        sp = _column(res, "speed") * RPM
-        d.plot(ax, sp, color="C2")
-        ax.set_ylabel("rotor speed [rpm]", fontsize=8.5)
-        tidy_axis(ax, sp)
+        _signal_panel(axes["speed"], d, _column(res, "speed") * RPM, "rotor speed [rpm]", "C2")
     if has_steps:
         ax = axes["step"]
         ax.semilogy(extra["step_time"], extra["step"], "k.", ms=2)
@@ -284,10 +280,14 @@ def _gas_panels(axes, d, res, colors):
     _legend(ax, [Line2D([], [], color=colors[i], lw=1.4, label=f"cell {i} (vanes {i}-{(i + 1) % n})")
                  for i in range(n)] + [Line2D([], [], color="k", ls="--", label="booster")])
     if "current" in axes:
-        cur = _column(res, "current")
-        d.plot(axes["current"], cur, color="C3")
-        axes["current"].set_ylabel("motor current [A]", fontsize=8.5)
-        tidy_axis(axes["current"], cur)
+        _signal_panel(axes["current"], d, _column(res, "current"), "motor current [A]", "C3")
+
+
+def _signal_panel(ax, d, y, label, color):
+    """One signal of the whole run (speed, current) in the layout of the vane panels."""
+    d.plot(ax, y, color=color)
+    ax.set_ylabel(label, fontsize=8.5)
+    tidy_axis(ax, y)
 
 
 def _slot_panel(ax, d, res, colors):

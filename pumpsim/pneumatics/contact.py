@@ -22,7 +22,7 @@ from ..tolerances import ATOL, CONTACT_GAS_ATOL, CONTACT_GAS_RTOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
 from .kernel import kernels, parameter_vector, structure_of
-from .simulate import CELL_COLUMNS, GasSolution, gas_run_times
+from .simulate import CELL_COLUMNS, GasSolution, cell_outputs, gas_run_times
 
 QUAD_NAMES = run.QUAD_NAMES + ("contact_work", "load_work")
 INITIAL_STATES = ("housing", "rotor", "bottom")
@@ -157,8 +157,7 @@ class GasContactSolution(GasSolution):
     """Spec §7 columns of Model 1 (penetration_i included) and the spec §8 ones: booster
     pressure, current, per cell pressure_i, volume_i, temperature_i; lift-off per vane."""
 
-    lift_off: list = []  # LiftOff intervals
-    budgets: dict = {}  # energies [J] over the run (QUAD_NAMES and the kinetic energy change)
+    lift_off: list = []  # LiftOff intervals; budgets also hold the kinetic energy change
 
     def work_line(self) -> str:
         q = self.budgets
@@ -190,8 +189,7 @@ def _solution(cfg, r):
     i_s, i_sd = vane_slices(N)
     vanes = {"s": r.states[:, i_s].T, "sdot": r.states[:, i_sd].T}
     vanes.update({k: o[k] for k in ("normal", "slot1", "slot2", "penetration")})
-    o["booster_pressure"] = r.outputs["booster_pressure"]
-    o["current"] = r.states[:, 2]
+    o.update(cell_outputs(r.outputs, r.states, N))
     events = []
     for iv in r.lift_off:
         d = iv.as_dict()

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
-from ..result import Solution
+from ..result import Solution, contact_warnings
 from ..tolerances import ATOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
@@ -105,29 +105,17 @@ def _solution(cfg, r, kern) -> GasSolution:
     N = cfg.vanes
     o, X = r.outputs, r.states
     theta, omega, omegadot = X[:, 0], X[:, 1], np.asarray(o["omegadot"]).ravel()
-    per_vane = {k: np.asarray(o[k]).reshape(len(X), N).T for k in ("s", "normal", "slot1", "slot2")}
+    per_vane = {k: np.asarray(o[k]).reshape(len(X), N).T for k in ("s", "normal", "slot1", "slot2", "n_consistent")}
     pv = cfg.parameters("constrained")
     mech = inverse_dynamics(load_kernels(pv.structure), as_array(pv), theta, omega, omegadot, ("sdot",))
     vanes = {"s": per_vane["s"], "sdot": np.asarray(mech["sdot"]).reshape(N, -1),
              "normal": per_vane["normal"], "slot1": per_vane["slot1"], "slot2": per_vane["slot2"]}
     extra = dict(o)
     extra.update(cell_outputs(o, X, N))
-    warnings = _warnings(per_vane["normal"], r.time)
+    warnings = []  # Model 2 assumes every tip on the housing: a negative reaction is reported
+    contact_warnings(per_vane, r.time, warnings, lift_off=True)
     res = GasSolution("constrained", cfg.mode, r.time, theta, omega, np.asarray(o["torque"]).ravel(),
                       vanes, dict(zip([q.name for q in pneumatic_layout(kern.structure)], r.p)),
                       dict(r.stats), list(r.events), warnings, extra=extra, config_name=cfg.name)
     res.budgets = {k: float(v) for k, v in zip(run.QUAD_NAMES, r.quad[-1])}
     return res
-
-
-def _warnings(normal, time) -> list:
-    """Model 2 assumes every tip on the housing: a negative housing reaction (the pressure under
-    or behind a vane cannot hold it on) is reported, never hidden."""
-    out = []
-    for i, row in enumerate(normal):
-        bad = row < 0
-        if bad.any():
-            k = int(np.argmax(bad))
-            out.append(f"vane {i} would lift off: housing reaction {row[k]:.4g} N < 0 at t = {time[k]:.6g} s "
-                       f"({int(bad.sum())} samples); Model 2 assumes contact, use --model contact")
-    return out
