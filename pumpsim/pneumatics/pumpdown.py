@@ -102,8 +102,8 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     lift-off reported) instead of Model 2. rtol/atol: default_tolerances(model) when None."""
     if model not in ("constrained", "contact"):
         raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
-    rtol = default_tolerances(model)[0] if rtol is None else rtol
-    atol = default_tolerances(model)[1] if atol is None else atol
+    rtol0, atol0 = default_tolerances(model)
+    rtol, atol = (rtol0 if rtol is None else rtol), (atol0 if atol is None else atol)
     if cfg.pneumatic is None:
         raise ConfigError(f"{cfg.path or cfg.name}: pumpdown needs the gas tables [ports] and [booster] "
                           "(spec §8)")
