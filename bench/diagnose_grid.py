@@ -121,8 +121,12 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
     truth = dataclasses.replace(truth, speed=nominal.speed * slip, angle=angle)
     ref = pumpsim.simulate(dataclasses.replace(nominal, speed=nominal.speed * slip, angle=angle),
                            duration=duration, rate=rate)
-    sim = pumpsim.simulate(truth, duration=duration, rate=rate)
-    y = measured_torque(sim.time, sim.torque, lag, offset)
+    # a sensor low-pass acts on the continuous torque: simulate LAG_FINE x finer and keep every
+    # LAG_FINE-th filtered sample (filtering the samples would advance the response by ~dt/2)
+    fine = LAG_FINE if lag > 0 else 1
+    sim = pumpsim.simulate(truth, duration=duration, rate=rate * fine)
+    y = measured_torque(sim.time, sim.torque, lag, offset, every=fine)
+    sim = ref if fine > 1 else sim  # the reported sample times
     effect_rms = math.sqrt(np.mean((y - ref.torque) ** 2))
     if truth_name in EFFECTS:
         sigma = effect_rms / snr
@@ -146,6 +150,7 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
                                                          "status": status}
 
 
+LAG_FINE = 16  # simulation points per reported sample interval for a lagged sensor
 PRECISION = 1e-9  # relative: below this an effect's torque change is the simulator's rounding
 
 
