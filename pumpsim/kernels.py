@@ -64,6 +64,28 @@ def map_samples(f: ca.Function, n: int, threads: int | None = None) -> ca.Functi
     return f.map(n, "thread", threads) if threads > 1 else f.map(n, "serial")
 
 
+FAST_THREADED = 20000  # samples from which a SIMD call is split over threads (below: ~1 ms, not worth it)
+_FAST: dict = {}
+
+
+def fast_kernel(structure: Structure):
+    """The SIMD inverse dynamics of a constrained variant (pumpsim.fastkernel, built beside the
+    scalar library when missing), or None where it cannot be built or PUMPSIM_FIT_KERNEL=scalar:
+    then callers use the CasADi map. Looked up once per variant and process."""
+    if os.environ.get("PUMPSIM_FIT_KERNEL", "") == "scalar" or structure.model != "constrained":
+        return None
+    memo = (structure, mf.source_fingerprint(), str(mf.generated_dir()))
+    if memo not in _FAST:
+        from .fastkernel import load_fast_kernel
+
+        try:
+            fk = load_fast_kernel(structure, fallback=True)
+        except CodegenError:  # e.g. PUMPSIM_NO_BUILD with no SIMD library: the scalar kernel runs
+            fk = None
+        _FAST[memo] = fk if fk is not None and fk.simd else None
+    return _FAST[memo]
+
+
 def _log_if_terminal(msg):
     if sys.stderr.isatty():
         print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
