@@ -766,7 +766,8 @@ def _start(cfg, datasets, progress):
     held, speed_info = {}, {"nominal": cfg.speed, "tolerance": cfg.speed_tolerance, "measurements": []}
     for i, d in enumerate(datasets):
         if i not in free:
-            speed_info["measurements"].append({"source": "speed column", "value": float(np.mean(d.speed))})
+            speed_info["measurements"].append({"source": "speed column", "value": float(np.mean(d.speed)),
+                                               **_speed_trend_info(d)})
             continue
         lo, hi = cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
         scan = synchronous_speed_scan(d.time, d.torque, lo, hi, cfg.speed)
@@ -779,7 +780,18 @@ def _start(cfg, datasets, progress):
     y_all = np.concatenate([d.torque for d in datasets])
     run = _Run(cfg, datasets, full_data, screen_data, free, progress or (lambda msg: None), speed_info,
                torque_rms=float(np.sqrt(np.mean(y_all ** 2))), mean_torque=float(np.mean(y_all)))
+    for i, m in enumerate(speed_info["measurements"]):
+        if "trend" in m:
+            run.notes.append(f"speed column of measurement {i} drifts ({100 * m['trend']['relative_change']:.2g} % "
+                             "over the record): the model's angle and speed follow its smoothed trend")
     return run, held
+
+
+def _speed_trend_info(d) -> dict:
+    """A speed column's significant slow trend (pumpsim.data.speed_trend), which the fits follow."""
+    tr = d.speed_trend()
+    return {} if tr is None else {"trend": {"degree": tr.degree, "relative_change": tr.change(),
+                                            "p_value": tr.p_value}}
 
 
 def _baseline(run, baseline_params, held):

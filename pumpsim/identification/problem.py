@@ -12,7 +12,7 @@ import numpy as np
 from ..config import PumpConfig, as_array
 from ..data import Dataset
 from ..errors import ConfigError
-from ..kernels import load_kernels, map_samples
+from ..kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels, map_samples
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
@@ -127,6 +127,11 @@ class ConstantSpeedProblem(Problem):
             self.lower[i], self.upper[i] = band
             self.x0[i] = min(max(self.x0[i], band[0]), band[1])
         self.y = data.torque
+        # the drive's own time: tau = t at a constant speed; with a drifting measured speed the
+        # angle and speed follow the column's trend (drive_kinematics)
+        self.tau, *self._rates = drive_kinematics(data, self.t)
+        if self.tau is not self.t:
+            self.NOTE = self.NOTE + drive_note(data)
         self._seeds = self._seed_matrix()
         self._half_step = 0.5 * (self.t[1] - self.t[0]) if self.t.size > 1 else 0.0
 
@@ -163,7 +168,7 @@ class ConstantSpeedProblem(Problem):
         d = self._values(x)
         th0, w0, dl, rc, rs, k = (d["theta0"], d["speed"], d["delay"], d["ripple_cos"], d["ripple_sin"],
                                   self.ripple_order)
-        t = self.t if lib is np else ca.DM(self.t)
+        t = self.tau if lib is np else ca.DM(self.tau)
         thn = th0 + w0 * (t - dl)
         theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
         if lib is not np:
@@ -183,9 +188,8 @@ class ConstantSpeedProblem(Problem):
     def _lag(self, x):
         return self._values(x)["lag"]
 
-    def _torque(self, theta, z, t=None):
-        f = sample_torque(self.kern, 0, theta.size)
-        return np.asarray(f(theta, self.t if t is None else t, z, self.ripple_order)).ravel()
+    def _torque(self, theta, z, kin):
+        return torque_at(self.kern, theta, z, self.ripple_order, *kin)
 
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
@@ -200,8 +204,8 @@ class ConstantSpeedProblem(Problem):
     def model(self, x):
         self.n_eval += 1
         T = self._lag(x)
-        m, (theta, t) = self._grid(T, self.angle(x), self.t)
-        return self._sensed(self._torque(theta, self.z(x), t), T, m)
+        m, (theta, *kin) = self._grid(T, self.angle(x), self.tau, *self._rates)
+        return self._sensed(self._torque(theta, self.z(x), kin), T, m)
 
     def model_and_jacobian(self, x, cols=None):
         """Torque and its Jacobian (the columns `cols` only, default all). For the angle-acting
@@ -215,15 +219,15 @@ class ConstantSpeedProblem(Problem):
         names = [self.names[c] for c in cols]
         T = self._lag(x)
         theta, dtheta = self.angle_and_jacobian(x)
-        m, (theta, dtheta, t) = self._grid(T, theta, dtheta, self.t)
+        m, (theta, dtheta, *kin) = self._grid(T, theta, dtheta, self.tau, *self._rates)
         z = self.z(x)
         f = sample_torque(self.kern, len(cols), theta.size)
-        tq, J = f(theta, t, z, self.ripple_order, self._seeds[:, cols])
+        tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols])
         tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step / m
-            slope = (self._torque(theta + h, z, t) - self._torque(theta - h, z, t)) / (2 * h)
+            slope = (self._torque(theta + h, z, kin) - self._torque(theta - h, z, kin)) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
@@ -242,7 +246,8 @@ class ConstantSpeedProblem(Problem):
         theta, _ = self.angle_and_jacobian([phi[i] for i in range(len(self.names))], lib=ca)
         z = ca.DM(self.z(self.x0)) + ca.mtimes(ca.DM(self._seeds), phi - ca.DM(self.x0))
         f = sample_torque(self.kern, 0, self.t.size)
-        return f(theta.T, ca.DM(self.t).T, z, self.ripple_order).T
+        tau, g, gd = (ca.DM(a).T for a in (self.tau, *self._rates))
+        return f(theta.T, tau, z, self.ripple_order, g, gd).T
 
     def speed_of(self, x):
         return self._values(x)["speed"]
@@ -258,27 +263,72 @@ _SAMPLE_FNS: dict = {}  # per (variant key, directions[, samples]): see sample_t
 
 
 def sample_torque(kern, directions: int, samples: int) -> ca.Function:
-    """One sample's drive torque at angle theta and time t given z (runtime parameters, theta0,
-    speed, delay, torque_offset, ripple_cos, ripple_sin) and the ripple order k -- the speed and
-    acceleration come from the ripple at the nominal angle -- with, for directions m > 0, its
-    derivatives along the m columns of a seed matrix S; mapped over `samples` samples."""
+    """One sample's drive torque at angle theta and drive time tau given z (runtime parameters,
+    theta0, speed, delay, torque_offset, ripple_cos, ripple_sin), the ripple order k and the drive
+    time's rates g = dtau/dt, gd = d2tau/dt2 (1 and 0 at a constant speed; see drive_kinematics):
+    the speed and acceleration come from the ripple at the nominal angle theta0 + speed (tau -
+    delay), times g (chain rule) -- with, for directions m > 0, its derivatives along the m columns
+    of a seed matrix S; mapped over `samples` samples. Inputs (theta, tau, z, k, g, gd[, S])."""
     key = (kern.key, directions)
     if key not in _SAMPLE_FNS:
         npar = len(layout(kern.structure))
-        th, t, k = ca.MX.sym("theta"), ca.MX.sym("t"), ca.MX.sym("k")
+        th, t, k, g, gd = (ca.MX.sym(s) for s in ("theta", "tau", "k", "g", "gd"))
         z = ca.MX.sym("z", npar + len(Z_SPECIAL))
         theta0, w0, delay, offset, rc, rs = (z[npar + i] for i in range(len(Z_SPECIAL)))
-        _, w, wd = ripple_motion(theta0 + w0 * (t - delay), theta0, w0, rc, rs, k, ca)
+        _, w, wd = drive_motion(theta0 + w0 * (t - delay), theta0, w0, rc, rs, k, g, gd, ca)
         tq = kern["inverse_dynamics"](th, w, wd, z[:npar])[0] + offset
         if directions == 0:
-            _SAMPLE_FNS[key] = ca.Function("torque", [th, t, z, k], [tq])
+            _SAMPLE_FNS[key] = ca.Function("torque", [th, t, z, k, g, gd], [tq])
         else:
             S = ca.MX.sym("S", z.size1(), directions)
-            _SAMPLE_FNS[key] = ca.Function("torque_dir", [th, t, z, k, S], [tq, ca.jtimes(tq, z, S)])
+            _SAMPLE_FNS[key] = ca.Function("torque_dir", [th, t, z, k, g, gd, S], [tq, ca.jtimes(tq, z, S)])
     mkey = key + (samples,)
     if mkey not in _SAMPLE_FNS:
         _SAMPLE_FNS[mkey] = map_samples(_SAMPLE_FNS[key], samples)
     return _SAMPLE_FNS[mkey]
+
+
+def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
+    """`sample_torque(kern, 0, n)` evaluated at NumPy theta, tau, g, gd (n samples), z and ripple
+    order k: through the SIMD inverse dynamics (pumpsim.fastkernel; the same model to ~1e-14 of the
+    torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map."""
+    fast = fast_kernel(kern.structure)
+    if fast is None:
+        return np.asarray(sample_torque(kern, 0, theta.size)(theta, tau, z, k, g, gd)).ravel()
+    npar = fast.n_params
+    theta0, w0, delay, offset, rc, rs = z[npar:npar + len(Z_SPECIAL)]
+    _, w, wd = drive_motion(theta0 + w0 * (tau - delay), theta0, w0, rc, rs, k, g, gd)
+    n = np.size(theta)
+    out = fast(theta, np.broadcast_to(w, (n,)), np.broadcast_to(wd, (n,)), z[:npar],
+               threads=default_threads() if n >= FAST_THREADED else 1)
+    return out["torque"] + offset
+
+
+def drive_motion(theta_n, theta_start, omega0, rc, rs, k, g, gd, lib=np):
+    """ripple_motion in the drive time tau (theta_n = theta_start + omega0 (tau - delay)), then
+    the speed and acceleration in real time: omega = (dtheta/dtau) g, omegadot = (d2theta/dtau2)
+    g^2 + (dtheta/dtau) gd. g = 1, gd = 0 (a constant speed) leave ripple_motion's values as they are."""
+    theta, w, wd = ripple_motion(theta_n, theta_start, omega0, rc, rs, k, lib)
+    return theta, w * g, wd * g * g + w * gd
+
+
+def drive_kinematics(data: Dataset, t):
+    """(tau, g, gd): the drive time and its first two rates per sample. With a speed column whose
+    slow trend is significant against its noise (data.speed_trend(): a Legendre fit, see there)
+    tau = integral of omega_s / mean(speed): the model's angle is theta0 + the integral of the
+    smoothed measured speed, its speed and acceleration those of the trend (the column's noise
+    never enters omegadot). Otherwise tau is t itself (the same array), g = 1, gd = 0 -- the
+    constant-speed model as it always was."""
+    trend = data.speed_trend()
+    if trend is None:
+        return t, np.ones_like(t), np.zeros_like(t)
+    return (trend.warped_time(t), trend.speed(t) / trend.mean, trend.acceleration(t) / trend.mean)
+
+
+def drive_note(data: Dataset) -> str:
+    tr = data.speed_trend()
+    return (f"; the speed column drifts ({100 * tr.change():.2g} % over the record, F-test p = "
+            f"{tr.p_value:.2g}): angle and speed follow its Legendre trend of degree {tr.degree}")
 
 
 def start_and_bounds(names, pv, starts, initial=None):

@@ -65,8 +65,8 @@ def _speed_start(prob, w, one_rev):
 def _phase_start(prob, one_rev, w, delay, th_init):
     """The theta0 whose model (scaled, plus an offset) fits the torque best over a 1-degree scan;
     phases the torque cannot tell apart (its angular period) cost the same: the one nearest
-    the initial guess."""
-    t, y = prob.t, prob.y
+    the initial guess. The angle runs with the problem's drive time (a drifting measured speed)."""
+    t, y = prob.tau, prob.y
     costs = []
     for th0 in np.linspace(0, 2 * math.pi, 360, endpoint=False):
         ang = np.mod(th0 + w * (t - delay), 2 * math.pi)
