@@ -48,10 +48,12 @@ from scipy import stats
 
 from .config import PumpConfig
 from .data import Dataset
-from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, order_spectrum, synchronous_speed_scan,
-                          systematic_rms)
+from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, kurtosis_test, order_spectrum,
+                          synchronous_speed_scan, systematic_rms)
 from .errors import ConfigError
-from .identification import base_name, identify, make_problem
+from .identification import base_name
+from .identification import identify as _identify_all_samples
+from .identification import make_problem as _problem_all_samples
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
@@ -72,6 +74,43 @@ SCREEN_SAMPLES = 5000  # the search's window of a long record (all measurements 
 # a fit found by searching ~150 probe configurations (the non-smooth eccentricity) is the best of
 # many: its likelihood-ratio level is divided by this (Bonferroni over the probes)
 SEARCHED = 150
+# the cost of the fits and comparisons: None = every sample; 0.0 = the reversal-aware cost
+# (identification/reversals.py: samples within 1/8 sample interval of a model's Coulomb-reversal
+# step weigh 0, the step threshold's noise sigma estimated from each residual). Every comparison
+# below is made on the samples both models keep, so either choice is consistent. Measured on the
+# reduced grid's geometric cases (notes of 2026-11-23, h11-diag): the reversal-aware cost turns
+# most wrong names into misses -- on these rigs a 10 um oval or a 0.1 mm eccentricity moves the
+# reversals by less than 1/8 of a sample and is seen ONLY through which side of a sample they
+# fall -- so the fits stay on every sample; the kurtosis note uses the reversal-aware samples.
+REVERSAL_SIGMA = None
+
+
+def identify(*args, **kw):
+    return _identify_all_samples(*args, reversals=REVERSAL_SIGMA, **kw)
+
+
+def make_problem(*args, **kw):
+    return _problem_all_samples(*args, reversals=REVERSAL_SIGMA, **kw)
+
+
+def _kept(*fits):
+    """The samples every fit (an IdentificationResult, a bool array or None) kept: the common
+    sample set on which two models are compared (the union of their masks dropped); None: all."""
+    keep = None
+    for f in fits:
+        k = getattr(f, "keep", f)
+        if k is not None:
+            keep = np.array(k, dtype=bool) if keep is None else keep & k
+    return keep
+
+
+def _on(v, keep):
+    return v if keep is None else v[keep]
+
+
+def _rss(r, keep=None) -> tuple:
+    rk = _on(r, keep)
+    return float(rk @ rk), rk.size
 SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction of the band half-width
 
 
@@ -269,11 +308,11 @@ class State:
             self._jacobian = prob.model_and_jacobian(prob.x0)[1]
         return self._jacobian
 
-    def problem(self, extra_names=(), cfg=None, ripple_order=None):
+    def problem(self, extra_names=(), cfg=None, ripple_order=None, reversals=REVERSAL_SIGMA):
         names = self.names + [n for n in extra_names if n not in self.names]
-        return make_problem(cfg or self.cfg, self.data, names, initial=self.values,
-                       extra={k: v for k, v in self.values.items() if k not in names},
-                       ripple_order=ripple_order or self.ripple_order)
+        return _problem_all_samples(cfg or self.cfg, self.data, names, initial=self.values,
+                                    extra={k: v for k, v in self.values.items() if k not in names},
+                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals)
 
 
 def _probe_scale(state: State) -> float:
@@ -327,18 +366,21 @@ def _probe_grid(prob, Jb, nb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16)):
     parameters' linear correction: the best point, refined by a pattern search in (ln r, b) with
     halving steps. Where the torque reacts to a defect through the instants of
     friction reversals (a non-analytic, sampling-dependent change), this finds what no Taylor term
-    and no Gauss-Newton step can."""
+    and no Gauss-Newton step can. The cost: the mean square over the samples that neither the
+    current model's nor the probe's reversal-aware mask drops."""
+    keep0 = prob.keep_at(prob.x0)
+
     def at(rr, b):
         x = prob.x0.copy()
         x[nb:nb + 2] = rr * math.cos(b), rr * math.sin(b)
-        r = prob.y - prob.model(x)
-        if not np.all(np.isfinite(r)):
+        r, cost, keep = _cost(prob, x, keep0)
+        if not np.isfinite(cost):
             return x, r, np.inf
         if nb:
-            d = np.linalg.lstsq(Jb, r, rcond=None)[0]
+            d = np.linalg.lstsq(_on(Jb, keep), _on(r, keep), rcond=None)[0]
             x[:nb] += d
             r = r - Jb @ d
-        return x, r, float(r @ r)
+        return x, r, float(np.mean(_on(r, keep) ** 2))
 
     best, where = (None, None, np.inf), None
     for rr in radii:
@@ -380,7 +422,9 @@ def score_test(state: State, cand: Candidate, start=True):
     prob = cand.problem(state)
     nb = len(state.names)
     m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
-    J1 = Je
+    keep0 = prob.keep_at(prob.x0)  # the current model's samples (the candidate at its absent values)
+    rows = slice(None) if keep0 is None else keep0
+    J1 = Je[rows]
     rs = prob.y - m
     Jb = state.jacobian()
     eff = cand.kind
@@ -388,8 +432,8 @@ def score_test(state: State, cand: Candidate, start=True):
             if eff.probe_step is not None else None)
     if quad is not None:
         Je, pairs = quad
-    rho = _ar1(rs)
-    r_w, Jb_w, Je_w = _prewhiten(rs, rho), _prewhiten(Jb, rho), _prewhiten(Je, rho)
+    rho = _ar1(rs[rows])
+    r_w, Jb_w, Je_w = _prewhiten(rs[rows], rho), _prewhiten(Jb[rows], rho), _prewhiten(Je[rows], rho)
     # project out the fitted directions
     Q, _ = np.linalg.qr(Jb_w) if Jb_w.shape[1] else (np.zeros((r_w.size, 0)), None)
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
@@ -434,56 +478,75 @@ def score_test(state: State, cand: Candidate, start=True):
         x1[:nb] += np.linalg.lstsq(Jb_w, r_w - Je_w @ coef, rcond=None)[0]
     x1 = np.clip(x1, prob.lower, prob.upper)
     if cand.symmetric:  # a step beyond the quadratic model's reach: back inside a tenth of the clearance
-        e = x1[nb:]
-        cap = 0.5 * clearance(state.cfg)
-        if np.linalg.norm(e) > cap:
-            x1[nb:] = e * cap / np.linalg.norm(e)
-    r1 = prob.y - prob.model(x1)
-    if not np.all(np.isfinite(r1)):
-        x1, r1 = prob.x0.copy(), rs
-    x1, r1 = _profiled(prob, Jb, nb, x1, r1)
+        x1[nb:] = _capped(x1[nb:], 0.5 * clearance(state.cfg))
+    c1 = _cost(prob, x1, keep0)
+    if not np.isfinite(c1[1]):
+        c1 = (rs, float(np.mean(rs[rows] ** 2)), keep0)
+        x1 = prob.x0.copy()
+    x1, c1 = _profiled(prob, Jb, nb, x1, c1, keep0)
     # its one-step fit is then the best of many: judged at the searched level
     out["searched"] = bool(eff.finite_probes and (quad is not None or _direction_blind(J1)))
     if out["searched"]:
-        x1, r1 = _probed(state, cand, prob, Jb, nb, x1, r1)
+        x1, c1 = _probed(state, cand, prob, Jb, nb, x1, c1, keep0)
+    common = _kept(keep0, c1[2])  # the one-step and the current model on one sample set
+    (rss1, n1), (rss0, _) = _rss(c1[0], common), _rss(rs, common)
     out.update(start={n: v for n, v in zip(prob.names, x1) if n in state.names + params},
-               one_step_rss=float(r1 @ r1))
+               one_step_rss=rss1, base_rss=rss0, n=n1, base=_rss(rs, keep0))
     return out
+
+
+def _capped(e, cap):
+    norm = np.linalg.norm(e)
+    return e * cap / norm if norm > cap else e
+
+
+def _cost(prob, x, keep0):
+    """(residual, mean square over the samples kept both by keep0 and by the model at x, that
+    common mask) -- the mean, not the sum: points of a search differ in their masks by a few
+    samples."""
+    r = prob.y - prob.model(x)
+    if not np.all(np.isfinite(r)):
+        return r, np.inf, keep0
+    keep = _kept(keep0, prob.keep_at(x))
+    return r, float(np.mean(_on(r, keep) ** 2)), keep
 
 
 PROFILE_STEPS = 2  # Gauss-Newton steps of the fitted parameters at the candidate's one-step value
 
 
-def _profiled(prob, Jb, nb, x1, r1):
+def _profiled(prob, Jb, nb, x1, c1, keep0):
     """The one-step fit profiled over the fitted parameters: with the candidate's parameters at
     their one-step values, Gauss-Newton steps of the fitted ones on the NONLINEAR residual there
     (Jacobian Jb of the current fit). The joint linear step cannot see what the candidate does to
     first order inside the fitted span when its score used second-order columns: a low-pass's
     delay part is a theta0 shift the baseline already made, so the candidate at its size needs
     theta0 moved back; without this its one-step fit is worse than none and the candidate is
-    never refitted. Keeps the better of before and after (the step is on the model)."""
+    never refitted. Keeps the better of before and after (the step is on the model). c1: the
+    (residual, cost, mask) of _cost at x1; on the reversal-aware cost with the current model's
+    mask keep0."""
     if not nb:
-        return x1, r1
-    best = (x1, r1, float(r1 @ r1))
+        return x1, c1
+    best = (x1, c1)
     for _ in range(PROFILE_STEPS):
         x = best[0].copy()
-        x[:nb] += np.linalg.lstsq(Jb, best[1], rcond=None)[0]
+        k = _kept(keep0, best[1][2])
+        x[:nb] += np.linalg.lstsq(_on(Jb, k), _on(best[1][0], k), rcond=None)[0]
         x = np.clip(x, prob.lower, prob.upper)
-        r = prob.y - prob.model(x)
-        if not np.all(np.isfinite(r)) or float(r @ r) >= best[2]:
+        c = _cost(prob, x, keep0)
+        if not c[1] < best[1][1]:
             break
-        best = (x, r, float(r @ r))
-    return best[0], best[1]
+        best = (x, c)
+    return best
 
 
-def _probed(state, cand, prob, Jb, nb, x1, r1):
+def _probed(state, cand, prob, Jb, nb, x1, c1, keep0):
     """The better of the one-step fit (x1, r1) and the finite probes' best. For a non-smooth
     effect (the torque reacts through friction-reversal instants) where the first order is blind,
     in all directions (second-order score) or in one (a defect on a rig symmetric about an axis:
     the y shift of a centred 1-vane ellipse, where the linear step moves the other direction only)."""
     xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
-    rp = prob.y - prob.model(xp)
-    return (xp, rp) if rp @ rp < r1 @ r1 else (x1, r1)
+    cp = _cost(prob, xp, keep0)
+    return (xp, cp) if cp[1] < c1[1] else (x1, c1)
 
 
 BLIND_DIRECTION = 0.05  # a first-order column below this fraction of its pair's largest: blind
@@ -500,8 +563,9 @@ def _bic(rss, n, k):
     return n * math.log(max(rss, 1e-300) / n) + k * math.log(n)
 
 
-def _whitened_rss(r, rho):
-    rw = _prewhiten(r, rho)
+def _whitened_rss(r, rho, keep=None):
+    """The prewhitened RSS over the kept samples (dropped, the rest in order) and their number."""
+    rw = _prewhiten(_on(r, keep), rho)
     return float(rw @ rw), rw.size
 
 
@@ -642,10 +706,16 @@ class _Verdict:
     """Detector results for one fit: per measurement, combined, and the systematic part."""
 
     def __init__(self, res, datasets, fitted):
+        # on the samples the fit's reversal-aware cost kept (dropped, not zero-filled): the mask
+        # follows the model, not the noise, so under the null the kept samples are still
+        # independent with one variance and every detector's null distribution holds
         rows = np.cumsum([0] + [d.n for d in datasets])
-        self.per = [detectors(r, a, fitted) for r, a in zip(_split(res.residual, rows), _split(res.angle, rows))]
+        keep = np.ones(res.residual.size, bool) if getattr(res, "keep", None) is None else res.keep
+        pieces = [(r[k], a[k]) for r, a, k in zip(_split(res.residual, rows), _split(res.angle, rows),
+                                                  _split(keep, rows))]
+        self.per = [detectors(r, a, fitted) for r, a in pieces]
         self.p = combined_p(self.per)
-        self.systematic = max(systematic_rms(r, d) for r, d in zip(_split(res.residual, rows), self.per))
+        self.systematic = max(systematic_rms(r, d) for (r, _), d in zip(pieces, self.per))
         self.sigma = max(_noise_sigma(d) for d in self.per)
 
     def searching(self):
@@ -850,85 +920,112 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
                                      if r not in sig[:CONTENDERS]]
     if not contenders:
         return {"ranking": ranking}
-    rho = _ar1(current.residual)
-    rss0, nw = _whitened_rss(current.residual, rho)
-    bic0 = _bic(rss0, nw, len(state.names))
+    rho = _ar1(_on(current.residual, current.keep))
     fits = []
     for r in contenders:
         c, s = r["cand"], r["score"]
         run.say(f"refitting with {c.label}")
         st, res = _refit(scr, c, s)
-        rss_s, n_s = _whitened_rss(res.residual, rho)
-        fits.append({"cand": c, "score": s, "screen_state": st, "screen_res": res,
-                     "bic_screen": _bic(rss_s, n_s, len(st.names))})
+        fits.append({"cand": c, "score": s, "screen_state": st, "screen_res": res})
+    base = _screen_base(scr)
+    for f in fits:  # each contender against the current model on the screen, on their common samples
+        lr, _, bic0, bic1 = _lr_bic(base, len(state.names), f["screen_res"], len(f["screen_state"].names), rho,
+                                    _kept(base, f["screen_res"]))
+        f["bic_screen"] = _bic(*_whitened_rss(base.residual, rho, base.keep), len(state.names)) + bic1 - bic0
     fits.sort(key=lambda f: f["bic_screen"])
     level0 = SCORE_ALPHA / len(scored)
-    accepted = _accept(run, fits, state, current, verdict, rho, (rss0, nw, bic0), level0)
+    accepted = _accept(run, fits, state, current, verdict, rho, level0)
     if accepted is None:
         return {"ranking": ranking}
-    pair = _rival(run, fits, accepted, state, rho, (rss0, nw, bic0))
+    pair = _rival(run, fits, accepted, state, current, rho)
     if pair is not None:
         return {"ranking": ranking, "rival_pair": pair}
-    return {"ranking": ranking, "accepted": accepted, "bic0": bic0}
+    return {"ranking": ranking, "accepted": accepted, "bic0": accepted["bic0"]}
 
 
-def _accept(run, fits, state, current, verdict, rho, base_fit, score_level):
+@dataclass
+class _Fitted:
+    """A model's residual, fitted torque and reversal-aware mask (what a comparison needs)."""
+
+    residual: np.ndarray
+    fitted: np.ndarray
+    keep: np.ndarray | None
+
+
+def _screen_base(scr) -> _Fitted:
+    """The current model on the screening window (no refit)."""
+    prob = scr.problem()
+    m = prob.model(prob.x0)
+    return _Fitted(prob.y - m, m, prob.keep_at(prob.x0))
+
+
+def _full_fit(run, f):
+    """A contender's state and fit on the whole record (refitted from its screening fit)."""
+    if run.screen_data is run.full_data:
+        return f["screen_state"], f["screen_res"]
+    return _refit_full(f["screen_state"], run.full_data, run.screen_data)
+
+
+def _lr_bic(current, k0, res, k1, rho, keep):
+    """The current fit against a larger one on the common samples `keep`: (prewhitened LR,
+    plain LR, BIC of the current, BIC of the larger)."""
+    (rss0, nw), (rss1, _) = _whitened_rss(current.residual, rho, keep), _whitened_rss(res.residual, rho, keep)
+    (p0, n), (p1, _) = _rss(current.residual, keep), _rss(res.residual, keep)
+    ratio = lambda a, b: math.log(max(a, 1e-300) / max(b, 1e-300))  # noqa: E731
+    return nw * ratio(rss0, rss1), n * ratio(p0, p1), _bic(rss0, nw, k0), _bic(rss1, nw, k1)
+
+
+def _accept(run, fits, state, current, verdict, rho, score_level):
     """The first fit (by screening BIC) that is plausible, refitted on the whole record, changes
     the torque by at least NAMED_SIZE sigma, passes the LR test (prewhitened and plain) and lowers
-    BIC; None if none does. Implausible fits go to `rejected` with their reasons."""
-    rss0, nw, bic0 = base_fit
+    BIC, each fit compared with the current one on their common samples (reversal-aware cost);
+    None if none does. Implausible fits go to `rejected` with their reasons."""
     for f in fits:
         reasons = run.implausible(f["screen_state"])
         if reasons:
             run.rejected.append({"effect": f["cand"].label, "reasons": reasons})
             run.notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
             continue
-        st, res = (f["screen_state"], f["screen_res"]) if run.screen_data is run.full_data else \
-            _refit_full(f["screen_state"], run.full_data, run.screen_data)
-        rss1, _ = _whitened_rss(res.residual, rho)
+        st, res = _full_fit(run, f)
+        keep = _kept(current, res)
         q = len(st.names) - len(state.names)
-        lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-        # and without prewhitening: an AR(1) filter fitted to a large unmodelled line amplifies
-        # high frequencies, where moved friction reversals can buy a spurious whitened gain
-        n_full = res.residual.size
-        lr_plain = n_full * math.log(max(float(current.residual @ current.residual), 1e-300)
-                                     / max(float(res.residual @ res.residual), 1e-300))
-        f.update(state=st, res=res, bic=_bic(rss1, nw, len(st.names)),
+        # the plain LR too: an AR(1) filter fitted to a large unmodelled line amplifies high
+        # frequencies, where moved friction reversals can buy a spurious whitened gain
+        lr, lr_plain, bic0, bic1 = _lr_bic(current, len(state.names), res, len(st.names), rho, keep)
+        f.update(state=st, res=res, bic=bic1, bic0=bic0,
                  lr_p=max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
         level = LR_ALPHA if f["score"]["p_value"] < score_level else LR_ALPHA / SEARCHED
         # an effect is named only if it changes the model torque by more than a quarter of the
         # noise sigma: a statistically significant but smaller change is noise fitted through moved
         # friction reversals
-        size = float(np.sqrt(np.mean((res.fitted - current.fitted) ** 2)))
+        size = float(np.sqrt(np.mean(_on(res.fitted - current.fitted, keep) ** 2)))
         if size < NAMED_SIZE * verdict.sigma:
             run.notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
                              f"below {NAMED_SIZE:g} x the noise sigma")
             continue
-        if f["lr_p"] < level and f["bic"] < bic0 and not run.implausible(st):
+        if f["lr_p"] < level and bic1 < bic0 and not run.implausible(st):
             return f
     return None
 
 
-def _rival(run, fits, accepted, state, rho, base_fit):
+def _rival(run, fits, accepted, state, current, rho):
     """Another effect (not another order of the same) within BIC_DECISIVE of the accepted one,
     significant and plausible? Then the pair (returned, else None) goes to `confounded` and
-    neither is named."""
-    rss0, nw, bic0 = base_fit
+    neither is named. The three fits (current, accepted, rival) are compared on their common
+    samples."""
     rival = next((f for f in fits if f is not accepted and "bic" not in f
                   and f["cand"].effect != accepted["cand"].effect  # another order: BIC chose
                   and f["bic_screen"] - accepted["bic_screen"] < BIC_DECISIVE
                   and not run.implausible(f["screen_state"])), None)
     if rival is None:
         return None
-    if run.screen_data is not run.full_data:
-        st, res = _refit_full(rival["screen_state"], run.full_data, run.screen_data)
-        rss1, _ = _whitened_rss(res.residual, rho)
-        lr = nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-        rival.update(bic=_bic(rss1, nw, len(st.names)),
-                     lr_p=float(stats.chi2.sf(lr, max(len(st.names) - len(state.names), 1))))
-    else:
-        rival.update(bic=rival["bic_screen"], lr_p=0.0)
-    if rival["lr_p"] < LR_ALPHA and rival["bic"] < bic0 and rival["bic"] - accepted["bic"] < BIC_DECISIVE:
+    st, res = _full_fit(run, rival)
+    keep = _kept(current, accepted["res"], res)
+    k0 = len(state.names)
+    lr, _, bic0, bic_r = _lr_bic(current, k0, res, len(st.names), rho, keep)
+    bic_a = _lr_bic(current, k0, accepted["res"], len(accepted["state"].names), rho, keep)[3]
+    rival.update(bic=bic_r, lr_p=float(stats.chi2.sf(lr, max(len(st.names) - k0, 1))))
+    if rival["lr_p"] < LR_ALPHA and bic_r < bic0 and bic_r - bic_a < BIC_DECISIVE:
         pair = [accepted["cand"].effect, rival["cand"].effect]
         if pair not in run.confounded:
             run.confounded.append(pair)
@@ -965,12 +1062,11 @@ def _drop_superseded(run, state, current, steps, effects, history):
     acceptance test, that the residual's AR(1) coefficient stands for the noise."""
     while len(effects) >= 2:
         sigma = _Verdict(current, run.datasets, len(state.names)).sigma
-        rho = _ar1(current.residual)
-        rss1, nw = _whitened_rss(current.residual, rho)
+        rho = _ar1(_on(current.residual, current.keep))
         worst = None
         for j in range(len(effects) - 1):
             names_j = [n for n in run.added[j] if n in state.names]
-            why = _superseded(run, state, current, names_j, sigma, rho, (rss1, nw)) if names_j else None
+            why = _superseded(run, state, current, names_j, sigma, rho) if names_j else None
             if why is not None and (worst is None or why[0] > worst[0]):
                 worst = (*why, j)
         if worst is None:
@@ -985,7 +1081,7 @@ def _drop_superseded(run, state, current, steps, effects, history):
     return state, current
 
 
-def _superseded(run, state, current, names, sigma, rho, fit):
+def _superseded(run, state, current, names, sigma, rho):
     """(rank, reason, reduced state, its fit) if the effect with fitted `names` is no longer
     needed (see _drop_superseded), else None."""
     absent = _absent(run, names)
@@ -995,14 +1091,13 @@ def _superseded(run, state, current, names, sigma, rho, fit):
     x = prob.x0.copy()
     for n in names:
         x[state.names.index(n)] = absent[n]
-    size = float(np.sqrt(np.mean((prob.model(prob.x0) - prob.model(x)) ** 2)))
+    size = float(np.sqrt(np.mean(_on(prob.model(prob.x0) - prob.model(x), current.keep) ** 2)))
     st, res = _without(run, state, names, absent)
     if size < NAMED_SIZE * sigma:
         return 2.0, f"its part of the torque is {size:.3g} N m RMS, below {NAMED_SIZE:g} x the noise sigma", st, res
-    rss0, _ = _whitened_rss(res.residual, rho)
-    rss1, nw = fit
-    p = float(stats.chi2.sf(nw * math.log(max(rss0, 1e-300) / max(rss1, 1e-300)), len(names)))
-    if p >= LR_ALPHA or _bic(rss0, nw, len(st.names)) <= _bic(rss1, nw, len(state.names)):
+    lr, _, bic0, bic1 = _lr_bic(res, len(st.names), current, len(state.names), rho, _kept(current, res))
+    p = float(stats.chi2.sf(lr, len(names)))
+    if p >= LR_ALPHA or bic0 <= bic1:
         return p, f"without it the likelihood ratio p is {p:.2g} (or BIC no higher)", st, res
     return None
 
@@ -1040,7 +1135,7 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
     if consistent and verdict.p["family"] < UNEXPLAINED_ALPHA:
         notes.append(f"a systematic residual of {verdict.systematic:.3g} N m remains, below "
                      f"{RELEVANT:g} x the noise sigma ({verdict.sigma:.3g} N m): not claimed as a discrepancy")
-    kurt = verdict.per[0]["kurtosis"]
+    kurt = _kurtosis_off_reversals(run, state, current)
     # claimed like a systematic residual: significant AND relevant (the tails add at least
     # RELEVANT x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
     if kurt["p_value"] < UNEXPLAINED_ALPHA and kurt["excess_rms"] >= RELEVANT * kurt["mad_sigma"]:
@@ -1081,34 +1176,48 @@ def _rank(state, scored):
     """All candidates by one criterion: the BIC of their one-step nonlinear fit (score step, or
     second-order/probe start where the first order is blind). Significant: score p or one-step
     likelihood ratio below alpha / (number of candidates)."""
-    r = state.problem()
-    r0 = r.y - r.model(r.x0)
-    n = r0.size
-    rss0 = float(r0 @ r0)
     k0 = len(state.names)
     alpha = SCORE_ALPHA / max(len(scored), 1)
     out = []
     for c, s in scored:
         q = len(s["params"])
-        rss1 = min(s.get("one_step_rss", rss0), rss0)
+        # each one-step fit against the current model on the samples both keep (reversal-aware
+        # cost); the candidates compared by that BIC difference, added to the current model's BIC
+        # on its own samples (the intersection of ~30 candidates' masks would keep few samples)
+        n, rss0 = s["n"], s["base_rss"]
+        rss1 = min(s["one_step_rss"], rss0)
         lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
         lr_p = float(stats.chi2.sf(lr, max(q, 1)))
         sig = s["p_value"] < alpha or ((s["second_order"] or s.get("searched", False)) and lr_p < alpha / SEARCHED)
-        out.append({"cand": c, "score": s, "bic": _bic(rss1, n, k0 + q), "significant": bool(sig)})
+        rss_b, n_b = s["base"]
+        out.append({"cand": c, "score": s, "bic": _bic(rss_b, n_b, k0) - lr + q * math.log(n),
+                    "significant": bool(sig)})
     out.sort(key=lambda r_: r_["bic"])
     return out
 
 
 def _screen_table(ranking, alpha, effects, state) -> dict:
     """One screen's candidates for the report, by score p-value: what was tested, how strongly."""
-    n = state.problem().y.size
     rows = [{"candidate": r["cand"].label, "effect": r["cand"].effect, "order": r["cand"].order,
              "p_value": r["score"]["p_value"], "score": r["score"]["lm"], "dof": r["score"]["dof"],
              "significant": r["significant"], "one_step_bic": r["bic"],
-             "one_step_rms": math.sqrt(r["score"]["one_step_rss"] / n) if "one_step_rss" in r["score"] else None,
+             "one_step_rms": math.sqrt(r["score"]["one_step_rss"] / r["score"]["n"])
+             if "one_step_rss" in r["score"] else None,
              "collinear_with": r["score"]["partner"]} for r in ranking]
     rows.sort(key=lambda r: (r["p_value"], -r["score"]))
     return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
+
+
+def _kurtosis_off_reversals(run, state, current) -> dict:
+    """The kurtosis test on the first measurement's residual at the samples the reversal-aware
+    cost keeps at the final fit (independent finding F8: a phase within its standard error moves
+    a few Coulomb steps across a sample, each leaving one residual sample of the step's height;
+    those samples are the ones next to a model step)."""
+    d0 = run.datasets[0]
+    prob = state.problem(reversals=0.0)
+    keep = prob.keep_at(prob.x0)
+    r = current.residual[:d0.n]
+    return kurtosis_test(r if keep is None else r[keep[:d0.n]])
 
 
 def _where(res, datasets, verdict):
@@ -1234,10 +1343,10 @@ def _try_speed(state, current, full_data, screen_data, speed_info, notes):
                    ripple_order=state.ripple_order, extra=held)
     sp = [e for n, e in res.estimates.items() if base_name(n) == "speed"]
     band = state.cfg.speed_tolerance * state.cfg.speed
-    n = current.residual.size
+    keep = _kept(current, res)
+    (rss1, n), (rss0, _) = _rss(res.residual, keep), _rss(current.residual, keep)
     if (all(e.value is not None and e.stderr is not None and e.stderr <= SPEED_DETERMINED * band for e in sp)
-            and _bic(float(res.residual @ res.residual), n, len(res.estimates))
-            < _bic(float(current.residual @ current.residual), n, len(state.names))):
+            and _bic(rss1, n, len(res.estimates)) < _bic(rss0, n, len(state.names))):
         for nm, e in res.estimates.items():
             if base_name(nm) == "speed":
                 i = int(nm.split("@")[1]) if "@" in nm else 0

@@ -364,3 +364,17 @@ LAG_MODEL_SUBSAMPLE_REL = 0.05
 # A size quoted as "~N" in the README or an example's comment is rounded to whole units (~18 for
 # 17.8): within 5 % of what the model computes (the old ~9 and ~13 cm^3/rev were 50 % and 27 % off).
 QUOTED_FIGURE_REL = 0.05
+
+# reversal-aware cost (pumpsim/identification/reversals.py): the step signature of a cubic is
+# exact up to rounding of O(1) values summed over five samples
+STEP_SIGNATURE_ABS = 1e-12
+# the robust (MAD of first differences) noise sigma on 20,000 Gaussian samples: its standard
+# error is ~1.1 % (MAD efficiency 37 %); 5 % is > 4 standard errors
+ROBUST_SIGMA_REL = 0.05
+# the reversal-aware cost's theta0 profile (n ln RSS between 0.2 mrad neighbours) is a smooth
+# parabola: its steps change linearly, their second differences below one unit of chi-square
+# (the all-samples cost's steps jump by hundreds)
+PROFILE_SMOOTH_CHI2 = 1.0
+# the kurtosis test's level in the F8 test (diagnose's UNEXPLAINED_ALPHA): the moved-reversal
+# outliers reject far below it (p ~ 1e-25); Gaussian samples pass it 99 % of the time
+KURTOSIS_SITUATION_P = 0.01

@@ -21,22 +21,29 @@ from .result import Estimate, IdentificationResult, bounds_reached, fit_estimate
 from .transient import TransientProblem
 
 
-def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, transient=False) -> Problem:
+def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, transient=False,
+                 reversals=None) -> Problem:
     """One measurement: ConstantSpeedProblem; several (a list of Datasets): JointProblem; a run-up
-    or coast-down (transient=True): TransientProblem. `extra`: values held for special names."""
+    or coast-down (transient=True): TransientProblem. `extra`: values held for special names.
+    `reversals`: None, or the noise sigma (0: estimated at each x) of the reversal-aware cost (reversals.py)."""
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
     if transient:
         if len(datasets) > 1:
             raise ConfigError("transient identification fits one measurement")
         return TransientProblem(cfg, datasets[0], names, initial, extra)
     if len(datasets) > 1:
-        return JointProblem(cfg, datasets, names, initial, extra, ripple_order)
-    return ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order)
+        prob = JointProblem(cfg, datasets, names, initial, extra, ripple_order)
+        for s in prob.subs:  # each measurement its own noise sigma
+            s.reversal_sigma = reversals
+        return prob
+    prob = ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order)
+    prob.reversal_sigma = reversals
+    return prob
 
 
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
-             ripple_order=1, extra=None, transient=False) -> IdentificationResult:
+             ripple_order=1, extra=None, transient=False, reversals=None) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
     engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
@@ -51,12 +58,12 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient)
+    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals)
 
     def reduced(active, fixed, unident):  # the identifiable names, the others held where they were
         held = {n: fixed[n] for n in unident if base_name(n) in prob.SPECIAL}
         return make_problem(cfg, data, active, {n: fixed[n] for n in active}, {**(extra or {}), **held},
-                            ripple_order, transient)
+                            ripple_order, transient, reversals)
 
     start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
     initial_model = prob.model(prob.x0)
@@ -133,16 +140,21 @@ def _result(prob, fit: _Fit, wrap_phase: bool) -> IdentificationResult:
                 x[i] = float(np.mod(x[i], 2 * math.pi))
                 x[i] = 0.0 if x[i] > 2 * math.pi - 1e-12 else x[i]
         k, w = len(fitted_prob.names), fitted_prob.speed_of(x)
-        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
+        kept = slice(None) if out.keep is None else out.keep  # the reversal-aware cost's samples
+        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r[kept],
+                                  out.jacobian[kept])
         converged, message, on_bound = out.converged, out.message + prob.NOTE, bounds_reached(fitted_prob, x)
     for name in fit.unident:
         est[name] = Estimate(name, None, None, None, None, x0[name], identifiable=False)
     if fit.unident:
         message += ("; " if message else "") + f"not identifiable from this data: {', '.join(fit.unident)}"
     n_eval = prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0)
+    keep = None if fit.outcome is None else fit.outcome.keep
+    rk = r if keep is None else r[keep]
     return IdentificationResult(
-        estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r**2))),
+        estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(rk**2))),
         converged=converged, message=message, correlation=corr,
-        diagnostics=residual_report(r, prob.dt, w, fitted=k), method="", wall_time=0.0,
+        diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
-        speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect)
+        speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
+        keep=keep)

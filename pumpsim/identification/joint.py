@@ -70,6 +70,12 @@ class JointProblem(Problem):
             m[lo:hi], J[lo:hi, [cols.index(c[i]) for i in mine]] = s.model_and_jacobian(x[c], mine)
         return m, J
 
+    def keep_at(self, x):
+        keeps = [s.keep_at(x[c]) for s, c in zip(self.subs, self.cols)]
+        if all(k is None for k in keeps):
+            return None
+        return np.concatenate([np.ones(s.y.size, bool) if k is None else k for s, k in zip(self.subs, keeps)])
+
     def symbolic_model(self, phi):
         raise NotImplementedError("IPOPT fits one measurement")  # refused before (make_problem's caller)
 

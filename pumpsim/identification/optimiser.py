@@ -29,6 +29,7 @@ class FitOutcome:
     history: list
     converged: bool
     message: str
+    keep: np.ndarray | None = None  # the samples the reversal-aware cost kept at x (None: all)
 
     def __iter__(self):  # unpacks as (x, residual, jacobian, history, converged, message)
         return iter((self.x, self.residual, self.jacobian, self.history, self.converged, self.message))
@@ -69,49 +70,61 @@ def _rms(r) -> float:
     return float(np.sqrt(np.mean(r**2)))
 
 
+def _weights(prob, x):
+    """1 per sample, 0 where the reversal-aware cost drops the sample at x (Problem.keep_at)."""
+    keep = prob.keep_at(x)
+    return None if keep is None else keep.astype(float)
+
+
+def _wrms(r, w) -> float:
+    return _rms(r) if w is None else float(np.sqrt((w * r) @ (w * r) / max(w.sum(), 1.0)))
+
+
 def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
                  start=None) -> FitOutcome:
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
     Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
     least-squares solve; bounds are enforced by projection. `start` = (model, Jacobian) at x0 when
-    the caller has them already."""
+    the caller has them already. With a reversal-aware problem the samples it drops weigh 0; that
+    mask is fixed during a step (trial points compared on it) and recomputed between steps."""
     x = np.array(x0, dtype=float)
     m, J = start if start is not None else prob.model_and_jacobian(x)
-    r = prob.y - m
-    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _rms(r)}]
+    r, w = prob.y - m, _weights(prob, x)
+    wt = (lambda v: v) if w is None else (lambda v: (w * v.T).T)  # noqa: E731
+    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)}]
     lam = 1e-3
     converged, message = False, "maximum iterations reached"
     for _ in range(max_iter):
-        scale, U, s, Vt = scaled_svd(J)
+        rw = wt(r)
+        scale, U, s, Vt = scaled_svd(wt(J))
         if s[-1] < s[0] / SINGULAR_COND:
             message = "Jacobian became singular"
             break
-        g = U.T @ r
+        g = U.T @ rw
         if lm:
             while True:
                 step = (Vt.T @ (s * g / (s**2 + lam))) / scale
                 xn = np.clip(x + step, prob.lower, prob.upper)
-                rn = prob.y - prob.model(xn)
-                if rn @ rn <= r @ r or lam > 1e12:
+                rn = wt(prob.y - prob.model(xn))
+                if rn @ rn <= rw @ rw or lam > 1e12:
                     lam = max(lam / 3, 1e-12)
-                    _, Jn = prob.model_and_jacobian(xn)
                     break
                 lam *= 4
         else:
             step = relaxation * (Vt.T @ (g / s)) / scale
             for _ in range(10):  # safeguard: halve a step that would increase the residual
                 xn = np.clip(x + step, prob.lower, prob.upper)
-                rn = prob.y - prob.model(xn)  # trial: the model only, the Jacobian once accepted
-                if rn @ rn <= r @ r:
-                    _, Jn = prob.model_and_jacobian(xn)
+                rn = wt(prob.y - prob.model(xn))  # trial: the model only, the Jacobian once accepted
+                if rn @ rn <= rw @ rw:
                     break
                 step = 0.5 * step
             else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
                 converged, message = True, "no further decrease of the residual"
                 break
+        mn, Jn = prob.model_and_jacobian(xn)
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
-        x, r, J = xn, rn, Jn
-        history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _rms(r)})
+        x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)
+        history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)})
         if log:
             log(history[-1])
         if small:
@@ -120,7 +133,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if history[-2]["rms"] - history[-1]["rms"] <= 1e-6 * history[-1]["rms"]:
             converged, message = True, "residual no longer decreases (relative change < 1e-6)"
             break
-    return FitOutcome(x, r, J, history, converged, message)
+    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0)
 
 
 def ipopt_fit(prob, x0, log=None) -> FitOutcome:

@@ -17,6 +17,7 @@ from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..simulate import ripple_motion
+from .reversals import noise_sigma, reversal_keep
 from .start import phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
@@ -42,6 +43,13 @@ class Problem:
     KIND = ""  # how an error message names the problem
     METHOD_TAG = ""  # appended to the result's method
     NOTE = ""  # appended to the result's message
+    # None: every sample weighs in the cost; a number: the reversal-aware cost (reversals.py) with
+    # this noise sigma in the step threshold (0: estimated from the residual at each x)
+    reversal_sigma: float | None = None
+
+    def keep_at(self, x):
+        """The samples the reversal-aware cost keeps at x (bool per sample), None: all."""
+        return None
 
     def _setup(self, cfg: PumpConfig, data: Dataset, names, starts: dict, initial=None):
         self.cfg, self.data = cfg, data
@@ -251,6 +259,28 @@ class ConstantSpeedProblem(Problem):
 
     def speed_of(self, x):
         return self._values(x)["speed"]
+
+    def keep_at(self, x):
+        """False at the samples next to the model's torque steps at x (reversals.py): the model
+        (unfiltered: a lag does not move a reversal) at the samples, at the interval midpoints and,
+        for the intervals with a step, at the bisection points that locate it."""
+        if self.reversal_sigma is None or self.t.size < 3:
+            return None
+        self.n_eval += 1
+        theta, z, dt = self.angle(x), self.z(x), self.dt
+        h = abs(self.speed_of(x)) * self._half_step
+        samples = self._torque(theta, z)
+        mids = self._torque(theta + h, z, self.t + self._half_step)
+
+        def evaluate(k, frac):  # intervals k at t_k + frac dt, padded to a power of two (map sizes)
+            m = 1 << int(k.size - 1).bit_length()
+            th = theta[k] + frac * (theta[k + 1] - theta[k])
+            t = self.t[k] + frac * dt
+            return self._torque(np.pad(th, (0, m - k.size), mode="edge"), z,
+                                np.pad(t, (0, m - k.size), mode="edge"))[:k.size]
+        # sigma 0: from the residual at x itself, so the mask is a function of x alone
+        sigma = self.reversal_sigma or noise_sigma(self.y - (samples if self._lag(x) <= 0 else self.model(x)))
+        return reversal_keep(samples, mids, sigma, evaluate)
 
     def start(self, x):
         return phase_and_speed_start(self, x)

@@ -57,6 +57,7 @@ class IdentificationResult:
     on_bound: list = field(default_factory=list)  # [(name, bound value)] where the fit stopped
     no_effect: list = field(default_factory=list)  # unidentifiable because they do not act at all
     warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
+    keep: np.ndarray | None = None  # samples kept by the reversal-aware cost (None: all); rms over them
 
     @property
     def residual(self):
