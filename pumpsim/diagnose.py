@@ -52,8 +52,8 @@ from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, kurtosis_tes
                           synchronous_speed_scan, systematic_rms)
 from .errors import ConfigError
 from .identification import base_name
-from .identification import identify as _identify_all_samples
-from .identification import make_problem as _problem_all_samples
+from .identification import identify as _identification_fit
+from .identification import make_problem as _identification_problem
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
@@ -74,6 +74,7 @@ SCREEN_SAMPLES = 5000  # the search's window of a long record (all measurements 
 # a fit found by searching ~150 probe configurations (the non-smooth eccentricity) is the best of
 # many: its likelihood-ratio level is divided by this (Bonferroni over the probes)
 SEARCHED = 150
+SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction of the band half-width
 # the cost of the fits and comparisons: None = every sample; 0.0 = the reversal-aware cost
 # (identification/reversals.py: samples within 1/8 sample interval of a model's Coulomb-reversal
 # step weigh 0, the step threshold's noise sigma estimated from each residual). Every comparison
@@ -86,11 +87,11 @@ REVERSAL_SIGMA = None
 
 
 def identify(*args, **kw):
-    return _identify_all_samples(*args, reversals=REVERSAL_SIGMA, **kw)
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, **kw)
 
 
 def make_problem(*args, **kw):
-    return _problem_all_samples(*args, reversals=REVERSAL_SIGMA, **kw)
+    return _identification_problem(*args, reversals=REVERSAL_SIGMA, **kw)
 
 
 def _kept(*fits):
@@ -111,7 +112,7 @@ def _on(v, keep):
 def _rss(r, keep=None) -> tuple:
     rk = _on(r, keep)
     return float(rk @ rk), rk.size
-SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction of the band half-width
+
 
 
 # --- The effect library and its physical ranges (declared once, here) -------------------------
@@ -310,7 +311,7 @@ class State:
 
     def problem(self, extra_names=(), cfg=None, ripple_order=None, reversals=REVERSAL_SIGMA):
         names = self.names + [n for n in extra_names if n not in self.names]
-        return _problem_all_samples(cfg or self.cfg, self.data, names, initial=self.values,
+        return _identification_problem(cfg or self.cfg, self.data, names, initial=self.values,
                                     extra={k: v for k, v in self.values.items() if k not in names},
                                     ripple_order=ripple_order or self.ripple_order, reversals=reversals)
 
