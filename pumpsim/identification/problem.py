@@ -267,17 +267,16 @@ class ConstantSpeedProblem(Problem):
         if self.reversal_sigma is None or self.t.size < 3:
             return None
         self.n_eval += 1
-        theta, z, dt = self.angle(x), self.z(x), self.dt
+        theta, z = self.angle(x), self.z(x)
         h = abs(self.speed_of(x)) * self._half_step
-        samples = self._torque(theta, z)
-        mids = self._torque(theta + h, z, self.t + self._half_step)
+        kin = (self.tau, *self._rates)
+        samples = self._torque(theta, z, kin)
+        mids = self._torque(theta + h, z, (self.tau + (self.tau[1] - self.tau[0]) / 2, *self._rates))
 
         def evaluate(k, frac):  # intervals k at t_k + frac dt, padded to a power of two (map sizes)
-            m = 1 << int(k.size - 1).bit_length()
-            th = theta[k] + frac * (theta[k + 1] - theta[k])
-            t = self.t[k] + frac * dt
-            return self._torque(np.pad(th, (0, m - k.size), mode="edge"), z,
-                                np.pad(t, (0, m - k.size), mode="edge"))[:k.size]
+            pad = lambda a: np.pad(a, (0, (1 << int(k.size - 1).bit_length()) - k.size), mode="edge")  # noqa: E731
+            inner = [pad(a[k] + frac * (a[k + 1] - a[k])) for a in (theta, *kin)]
+            return self._torque(inner[0], z, inner[1:])[:k.size]
         # sigma 0: from the residual at x itself, so the mask is a function of x alone
         sigma = self.reversal_sigma or noise_sigma(self.y - (samples if self._lag(x) <= 0 else self.model(x)))
         return reversal_keep(samples, mids, sigma, evaluate)
