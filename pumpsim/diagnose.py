@@ -1136,7 +1136,9 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
     if consistent and verdict.p["family"] < UNEXPLAINED_ALPHA:
         notes.append(f"a systematic residual of {verdict.systematic:.3g} N m remains, below "
                      f"{RELEVANT:g} x the noise sigma ({verdict.sigma:.3g} N m): not claimed as a discrepancy")
-    kurt = _kurtosis_off_reversals(run, state, current)
+    for m, k in zip(verdict.per, _kurtosis_off_reversals(run, state, current)):
+        m["kurtosis"] = k  # reported as tested: on the samples off the model's reversals
+    kurt = verdict.per[0]["kurtosis"]
     # claimed like a systematic residual: significant AND relevant (the tails add at least
     # RELEVANT x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
     if kurt["p_value"] < UNEXPLAINED_ALPHA and kurt["excess_rms"] >= RELEVANT * kurt["mad_sigma"]:
@@ -1209,16 +1211,16 @@ def _screen_table(ranking, alpha, effects, state) -> dict:
     return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
 
 
-def _kurtosis_off_reversals(run, state, current) -> dict:
-    """The kurtosis test on the first measurement's residual at the samples the reversal-aware
-    cost keeps at the final fit (independent finding F8: a phase within its standard error moves
-    a few Coulomb steps across a sample, each leaving one residual sample of the step's height;
-    those samples are the ones next to a model step)."""
-    d0 = run.datasets[0]
+def _kurtosis_off_reversals(run, state, current) -> list:
+    """The kurtosis test per measurement on the residual at the samples the reversal-aware cost
+    keeps at the final fit (independent finding F8: a phase within its standard error moves a few
+    Coulomb steps across a sample, each leaving one residual sample of the step's height; those
+    samples are the ones next to a model step)."""
     prob = state.problem(reversals=0.0)
     keep = prob.keep_at(prob.x0)
-    r = current.residual[:d0.n]
-    return kurtosis_test(r if keep is None else r[keep[:d0.n]])
+    keep = np.ones(current.residual.size, bool) if keep is None else keep
+    rows = np.cumsum([0] + [d.n for d in run.datasets])
+    return [kurtosis_test(r[k]) for r, k in zip(_split(current.residual, rows), _split(keep, rows))]
 
 
 def _where(res, datasets, verdict):
