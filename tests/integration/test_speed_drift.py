@@ -65,6 +65,17 @@ def test_constant_column_within_noise_is_its_mean(seed):
     np.testing.assert_array_equal(a.model(a.x0), b.model(b.x0))
 
 
+def test_white_or_rippling_columns_show_no_trend():
+    """The trend test's false alarms: none in 50 white-noise columns (level 1e-3) and none where the
+    column carries a 1 % shaft-order 1 or 2 ripple (left to the model's ripple)."""
+    t = np.arange(int(DURATION * RATE) + 1) / RATE
+    w0 = 471.0
+    for seed in range(50):
+        rng = np.random.default_rng(seed)
+        ripple = 0.01 * np.cos((1 + seed % 2) * w0 * t + rng.uniform(0, 2 * math.pi)) if seed < 20 else 0.0
+        assert speed_trend(t, w0 * (1 + ripple) + rng.normal(0, 1e-3 * w0, t.size)) is None, seed
+
+
 def test_identify_follows_a_drifting_speed_column():
     """F19: with the column reduced to its mean the residual is several noise sigmas; with its
     trend the fit is the record up to the noise and mu is the configured one."""
