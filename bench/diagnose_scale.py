@@ -3,11 +3,13 @@ worse than linear): a no-effect record and a k = 4 out-of-round record (the `mak
 case) on the 4-vane ellipse at 20 kHz, 5 % noise, each at several lengths, in one process.
 
     .venv/bin/python bench/diagnose_scale.py [--samples 10000 20000 40000] [--case none oval4]
-        [--profile out/diagnose.prof] [--json out/bench_diagnose_scale.json]
+        [--kernel simd scalar] [--profile out/diagnose.prof] [--json out/bench_diagnose_scale.json]
 
-Prints, per case and length: wall time, model evaluations (problem.n_eval summed over fits),
-the effects named and the verdict. Not a test: the machine is shared; compare within one run and
-quote `uptime` with the numbers."""
+Prints, per case, length and kernel: wall time, the process's CPU time (all threads; on a shared
+machine the less load-dependent number), the effects named and the verdict. `--kernel scalar`
+sets PUMPSIM_FIT_KERNEL=scalar (model torques on the CasADi map, as before the SIMD path); with
+both kernels each record runs back to back under the same load. Not a test: the machine is
+shared; compare within one run and quote the load with the numbers."""
 from __future__ import annotations
 
 import argparse
@@ -44,18 +46,20 @@ def record(case: str, samples: int, seed: int = 0):
     return base, Dataset(sim.time, y)
 
 
-def run_one(case: str, samples: int, profile=None) -> dict:
+def run_one(case: str, samples: int, kernel: str = "simd", profile=None) -> dict:
     base, data = record(case, samples)
-    t0 = time.perf_counter()
+    os.environ["PUMPSIM_FIT_KERNEL"] = kernel
+    t0, c0 = time.perf_counter(), time.process_time()
     if profile:
         pr = cProfile.Profile()
         out = pr.runcall(diagnose, base, data)
         pr.dump_stats(profile)
     else:
         out = diagnose(base, data)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     js = out.to_json() if hasattr(out, "to_json") else dict(out)
-    return {"case": case, "samples": int(data.n), "seconds": wall, "effects": list(js["effects"]),
+    return {"case": case, "samples": int(data.n), "kernel": kernel, "seconds": wall, "cpu_seconds": cpu,
+            "load": os.getloadavg()[0], "effects": list(js["effects"]),
             "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"]}
 
 
@@ -63,6 +67,7 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, nargs="*", default=[10000, 20000, 40000])
     ap.add_argument("--case", nargs="*", choices=list(CASES), default=list(CASES))
+    ap.add_argument("--kernel", nargs="*", choices=["simd", "scalar"], default=["simd"])
     ap.add_argument("--profile", help="cProfile output (one case and length only)")
     ap.add_argument("--json")
     a = ap.parse_args()
@@ -72,10 +77,12 @@ def main():
     rows = []
     for case in a.case:
         for n in a.samples:
-            r = run_one(case, n, a.profile)
-            rows.append(r)
-            print(f"{case:6s} {r['samples']:6d} samples  {r['seconds']:6.1f} s  effects {r['effects']}  "
-                  f"verdict {r['verdict']}", flush=True)
+            for kernel in a.kernel:
+                r = run_one(case, n, kernel, a.profile)
+                rows.append(r)
+                print(f"{case:6s} {r['samples']:6d} samples  {kernel:6s} {r['seconds']:6.1f} s wall  "
+                      f"{r['cpu_seconds']:6.1f} s CPU  load {r['load']:.1f}  effects {r['effects']}  "
+                      f"verdict {r['verdict']}", flush=True)
     print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
