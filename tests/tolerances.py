@@ -378,3 +378,8 @@ PROFILE_SMOOTH_CHI2 = 1.0
 # the kurtosis test's level in the F8 test (diagnose's UNEXPLAINED_ALPHA): the moved-reversal
 # outliers reject far below it (p ~ 1e-25); Gaussian samples pass it 99 % of the time
 KURTOSIS_SITUATION_P = 0.01
+# diagnose.homogeneity under its null (2,000 draws of white noise): the rejection rate at 5 % has a
+# binomial standard error of 0.49 %; 2 % is > 4 of them. The statistic's mean (dof 6, variance
+# 12 per draw) has a standard error of 0.08; 0.5 is > 6 of them.
+HOMOGENEITY_RATE_ABS = 0.02
+HOMOGENEITY_MEAN_ABS = 0.5
