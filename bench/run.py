@@ -197,6 +197,9 @@ def bench_identify(duration=0.5, rate=10000.0):
         def model(self, x):
             return self.p.model(x)
 
+        def keep_at(self, x):  # the optimiser's reversal-aware weights: the wrapped problem's
+            return self.p.keep_at(x)
+
         def model_and_jacobian(self, x):
             m = self.p.model(x)
             J = np.empty((m.size, x.size))
