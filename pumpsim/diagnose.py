@@ -54,6 +54,7 @@ from .errors import ConfigError
 from .identification import base_name
 from .identification import identify as _identification_fit
 from .identification import make_problem as _identification_problem
+from .identification.reversals import noise_sigma
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
@@ -107,6 +108,11 @@ def _kept(*fits):
 
 def _on(v, keep):
     return v if keep is None else v[keep]
+
+
+def _every(keep, n):
+    """The mask `keep` as a boolean array of n samples (None: all kept)."""
+    return np.ones(n, bool) if keep is None else keep
 
 
 def _rss(r, keep=None) -> tuple:
@@ -711,7 +717,7 @@ class _Verdict:
         # follows the model, not the noise, so under the null the kept samples are still
         # independent with one variance and every detector's null distribution holds
         rows = np.cumsum([0] + [d.n for d in datasets])
-        keep = np.ones(res.residual.size, bool) if getattr(res, "keep", None) is None else res.keep
+        keep = _every(getattr(res, "keep", None), res.residual.size)
         pieces = [(r[k], a[k]) for r, a, k in zip(_split(res.residual, rows), _split(res.angle, rows),
                                                   _split(keep, rows))]
         self.per = [detectors(r, a, fitted) for r, a in pieces]
@@ -1101,12 +1107,10 @@ def _stationary(run, st, res, new_names, sigma) -> dict | None:
     Jall = prob.model_and_jacobian(prob.x0)[1]
     cols = [names.index(n) for n in new_names if n in names]
     J, N = Jall[:, cols], Jall[:, [i for i in range(len(names)) if i not in cols]]
-    keep = prob.keep_at(prob.x0)
-    keep = np.ones(res.residual.size, bool) if keep is None else keep
+    keep = _every(prob.keep_at(prob.x0), res.residual.size)
     # the noise level from the median absolute first difference (robust to a pulse train, whose
     # few large samples inflate the detectors' high-frequency estimate), never above theirs
-    d = np.diff(res.residual[keep])
-    robust = float(np.median(np.abs(d))) / (math.sqrt(2) * stats.norm.ppf(0.75)) if d.size else sigma
+    robust = noise_sigma(res.residual[keep]) if keep.sum() > 1 else sigma
     args = (J[keep], res.residual[keep], seg[keep], min(sigma, robust) if robust > 0 else sigma)
     if np.sqrt(np.mean(args[1] ** 2)) < STATIONARY_GATE * args[3]:
         return None  # no large remainder: the effect explains the record (see STATIONARY_GATE)
@@ -1323,8 +1327,7 @@ def _kurtosis_off_reversals(run, state, current) -> list:
     Coulomb steps across a sample, each leaving one residual sample of the step's height; those
     samples are the ones next to a model step)."""
     prob = state.problem(reversals=0.0)
-    keep = prob.keep_at(prob.x0)
-    keep = np.ones(current.residual.size, bool) if keep is None else keep
+    keep = _every(prob.keep_at(prob.x0), current.residual.size)
     rows = np.cumsum([0] + [d.n for d in run.datasets])
     return [kurtosis_test(r[k]) for r, k in zip(_split(current.residual, rows), _split(keep, rows))]
 
@@ -1443,7 +1446,6 @@ def _refit_full(st: State, full_data, screen_data):
 def _try_speed(state, current, full_data, screen_data, speed_info, notes):
     """After an effect has made the torque depend on the angle, refine a held speed in its band if
     the data now determines it (and BIC agrees)."""
-    K = len(full_data) if isinstance(full_data, (list, tuple)) else 1
     names = state.names + ["speed"]
     held = {k: v for k, v in state.values.items() if k not in names}
     init = {n: state.values[n] for n in state.names}
