@@ -36,6 +36,7 @@ multiples of N shaft orders; other orders point to vane-to-vane differences or d
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import sys
 import time as _time
@@ -422,10 +423,41 @@ def _rank_one_start(coef, pairs, q):
     return e if e[int(np.argmax(np.abs(e)))] >= 0 else -e
 
 
+TIED_SUBSETS = 12  # at most this many equivalent parameter subsets tried by their one-step fits
+
+
+def _independent_subsets(Me) -> list:
+    """Column subsets of the projected candidate columns Me that span what they all span, the
+    pivoted QR's choice first. Parameters the data cannot tell apart to first order (on an ellipse,
+    vanes i and i + N/2 see the same housing; after mu is projected out, every vane of a 4-vane
+    ellipse has one direction) leave several such subsets: which one the pivot keeps is decided by
+    rounding, and the subsets are not equivalent fits once the model is nonlinear (a vane 30 %
+    rougher is not its opposite vane 35 % smoother with mu raised)."""
+    q = Me.shape[1]
+    if q < 2:
+        return [list(range(q))]
+    norms = np.linalg.norm(Me, axis=0)
+    A = Me / np.where(norms > 0, norms, 1.0)
+    _, R, piv = scipy.linalg.qr(A, mode="economic", pivoting=True)
+    rank = int(np.sum(np.abs(np.diag(R)) > 1e-8))
+    first = sorted(piv[:rank])
+    if rank == q:
+        return [first]
+    full = np.linalg.svd(A[:, first], compute_uv=False)[-1]
+    out = [first]
+    for subset in itertools.combinations(range(q), rank):
+        if list(subset) != first and len(out) < TIED_SUBSETS and \
+                np.linalg.svd(A[:, subset], compute_uv=False)[-1] > 0.5 * full:
+            out.append(list(subset))
+    return out
+
+
 def score_test(state: State, cand: Candidate, start=True):
     """LM statistic for adding `cand` at the current fit (prewhitened GLS score test). Returns the
     statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
-    the refit with the nonlinear residual there."""
+    the refit with the nonlinear residual there. `start` may be a column subset of the
+    candidate's parameters (one of several the data cannot tell apart): the start is then made
+    with only those moved."""
     prob = cand.problem(state)
     nb = len(state.names)
     m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
@@ -445,16 +477,14 @@ def score_test(state: State, cand: Candidate, start=True):
     Q, _ = np.linalg.qr(Jb_w) if Jb_w.shape[1] else (np.zeros((r_w.size, 0)), None)
     proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
     Me, Mr = proj(Je_w), proj(r_w)
-    params = list(cand.params)
-    if quad is None and Me.shape[1] > 1:
-        # parameters the data cannot tell apart (with an ellipse, vanes i and i + N/2 see the same
-        # housing): keep an independent subset, the others stay at their configured values
-        norms = np.linalg.norm(Me, axis=0)
-        _, R, piv = scipy.linalg.qr(Me / np.where(norms > 0, norms, 1.0), mode="economic", pivoting=True)
-        keep = sorted(piv[:int(np.sum(np.abs(np.diag(R)) > 1e-8))])
-        if len(keep) < Me.shape[1]:
-            params = [params[i] for i in keep]
-            Je, Je_w, Me = Je[:, keep], Je_w[:, keep], Me[:, keep]
+    subsets = _independent_subsets(Me) if quad is None else [list(range(Me.shape[1]))]
+    if len(subsets) > 1 and start is True:  # tied: the subset whose one-step fit is best, not the pivot's
+        tried = [score_test(state, cand, start=subset) for subset in subsets]
+        return min(tried, key=lambda o: o["one_step_rss"] / max(o["n"], 1))
+    keep = list(start) if isinstance(start, list) else subsets[0]
+    params = list(cand.params) if quad is not None else [cand.params[i] for i in keep]
+    if len(keep) < Me.shape[1]:
+        Je, Je_w, Me = Je[:, keep], Je_w[:, keep], Me[:, keep]
     # collinearity of each candidate direction with the fitted ones
     cos = [float(np.linalg.norm(Q.T @ Je_w[:, j]) / max(np.linalg.norm(Je_w[:, j]), 1e-300))
            for j in range(Je_w.shape[1])]
@@ -474,7 +504,7 @@ def score_test(state: State, cand: Candidate, start=True):
     q = max(int(rank), 1)
     out = {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
            "second_order": quad is not None, "partner": partner, "searched": False}
-    if not start:
+    if start is False:
         return out
     # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
     # cheap look past the linearisation, used to choose which candidates to refit
