@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.signal import lfilter
 
+from . import artefacts
 from .rig import RIGS, drive_torque, motion
 
 LIBRARY = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque_offset",
@@ -272,7 +273,37 @@ def _plain(v):
         {k: _plain(x) for k, x in v.items()} if isinstance(v, dict) else v)
 
 
+def _absorbed(rig, t, theta0, contribution, sigma):
+    """The records' absorbed rule for one contribution against noise sigma (see ABSORBED_Z)."""
+    rms = float(np.sqrt(np.mean(contribution ** 2)))
+    free = observable_share(rig, t, theta0, contribution) * rms / sigma if rms > 0 else 0.0
+    return free * len(t) ** 0.5 < ABSORBED_Z or free < ABSORBED_SIZE
+
+
+def artefact_record(rig_name, effect, snr, seed, rate, duration):
+    """A record of a sensor, logger or operating artefact (bench/independent/artefacts.py), its
+    right answer in truth['expected']. Noise sigma: the torque ripple RMS / SNR, as for no effect."""
+    rig = RIGS[rig_name]
+    rng = np.random.default_rng(seed)
+    p = artefacts.sample(effect, rig, rng)
+    theta0 = rng.uniform(0, 2 * np.pi)
+    t, keep = artefacts.instants(effect, p, int(round(rate * duration)), rate, rng)
+    th, om, clean = artefacts.shaft_torque(effect, p, rig, t, theta0)
+    ripple = clean - clean.mean()
+    sigma = max(np.sqrt(np.mean(ripple ** 2)), 0.01 * abs(clean.mean())) / snr
+    expected = artefacts.EXPECTED[effect]
+    if expected == "absorbed_or_unexplained":
+        expected = "quiet" if _absorbed(rig, t, theta0, p["gain"] * clean, sigma) else "unexplained"
+    y = artefacts.measured(effect, p, clean, sigma, t, rng)
+    truth = dict(params=_plain(p), theta0=float(theta0), mu=rig.tip.dynamic, effects=[], absorbed_effects=[],
+                 expected=expected, contribution_rms=0.0, samples_dropped=int((~keep).sum()))
+    return Record(rig_name, effect, snr, seed, rate, duration, t[keep], y[keep], th[keep], om[keep], truth,
+                  float(sigma))
+
+
 def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
+    if effect in artefacts.ARTEFACTS:
+        return artefact_record(rig_name, effect, snr, seed, rate, duration)
     rig = RIGS[rig_name]
     rng = np.random.default_rng(seed)
     p = _sample_effect(effect, rig, rng)

@@ -5,6 +5,7 @@ formats); `pumpsim diagnose CONFIG DATA --json` runs on it as a black box with t
 (effect hidden). Prints the confusion matrix and the rates; writes out/bench_independent.json.
 
   python bench/independent/run.py [--quick] [--rigs a,b] [--effects a,b] [--snrs 3,5,10] [--seeds 1]
+  python bench/independent/run.py --artefacts   (sensor/logger/run-up artefacts and file forms, artefacts.py)
   python bench/independent/run.py --case RIG:EFFECT:SNR:SEED:FORMAT:RATE:DURATION   (one case, kept)
   python bench/independent/run.py --case ... --generate      (config and data only, into out/independent/)
   python bench/independent/run.py --summarise out/bench_independent.json   (rescore a finished run, README table)
@@ -26,7 +27,8 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent.parent))
 
-from bench.independent.formats import FORMATS, write  # noqa: E402
+from bench.independent.artefacts import ARTEFACTS, MEASURED_SPEED  # noqa: E402
+from bench.independent.formats import BAD_FORMATS, EXTRA_FORMATS, FORMATS, write  # noqa: E402
 from bench.independent.records import COMBINED, EFFECTS, LIBRARY, NO_EFFECT, OUT_OF_LIBRARY, make_record  # noqa: E402
 from bench.independent.rig import RIGS, to_toml  # noqa: E402
 
@@ -68,6 +70,23 @@ def grid(rigs, effects, snrs, seeds, quick, full=False):
     return cases
 
 
+def artefact_grid(rigs, snrs=(3.0, 5.0, 10.0)):
+    """Every artefact kind at every SNR, each on another rig (balanced as grid()), then a no-effect
+    record in each of the EXTRA_FORMATS (read right: nothing, consistent) and BAD_FORMATS (refused:
+    exit 2)."""
+    stride = max(1, len(rigs) // len(snrs))
+    kinds = [(rigs[(i + j * stride) % len(rigs)], e, snr, None) for i, e in enumerate(ARTEFACTS)
+             for j, snr in enumerate(snrs)]
+    kinds += [(rigs[n % len(rigs)], "none", 5.0, f) for n, f in enumerate(EXTRA_FORMATS + BAD_FORMATS)]
+    cases = []
+    for n, (rig, e, snr, fmt) in enumerate(kinds):
+        rate, dur = SAMPLINGS[n % len(SAMPLINGS)]
+        if fmt is None:
+            fmt = SPEED_FORMATS[n % len(SPEED_FORMATS)] if e in MEASURED_SPEED else FORMATS[n % len(FORMATS)]
+        cases.append((rig, e, snr, 70000 + 10 * n, fmt, rate, min(dur, 1.0)))
+    return cases
+
+
 def case_id(c):
     return ":".join(str(x) for x in c)
 
@@ -81,6 +100,8 @@ def score(truth_effect, truth, out):
     library effects) the required effects named, not only `confounded`, and no `unexplained`."""
     named = list(out.get("effects", []))
     unexpl = bool(out.get("unexplained"))
+    if "expected" in truth:
+        return _score_expected(truth["expected"], named, unexpl)
     present = list(truth.get("effects", []))
     required = [e for e in present if e not in truth.get("absorbed_effects", [])]
     conf = {e for pair in out.get("confounded", []) for e in pair}
@@ -98,6 +119,26 @@ def score(truth_effect, truth, out):
                 clean=right and not (required and (unexpl or not set(required) <= set(named))),
                 verdict=verdict + (" +U" if unexpl else ""),
                 false_name=any(n not in present for n in named))
+
+
+def _score_expected(expected, named, unexpl):
+    """An artefact record against its stated right answer (bench/independent/artefacts.py EXPECTED)."""
+    if isinstance(expected, list):
+        right = sorted(named) == sorted(expected)
+    else:
+        right = not named and {"quiet": not unexpl, "unexplained": unexpl, "no_name": True}[expected]
+    verdict = ("+".join(named) if named else "nothing") + (" +U" if unexpl else "")
+    return dict(named=named, unexplained=unexpl, right=right, absorbed=False, verdict=verdict,
+                clean=right and not unexpl,
+                false_name=any(n not in (expected if isinstance(expected, list) else []) for n in named))
+
+
+def _score_refusal(res, stderr, written):
+    """A unit mistake in the file (BAD_FORMATS): right is exit 2 with a message and nothing written."""
+    right = res["exit"] == 2 and "Traceback" not in stderr and bool(stderr.strip()) and not written
+    res.update(right=right, clean=right, verdict=f"exit {res['exit']}: {stderr.strip()[-160:]}", named=[],
+               unexplained=None, false_name=False, absorbed=False)
+    return res
 
 
 def rescored(r):
@@ -128,6 +169,8 @@ def run_case(c, workdir, pumpsim, timeout):
     wall = time.perf_counter() - t0
     res = dict(case=case_id(c), rig=rig, effect=effect, snr=snr, seed=seed, format=fmt, rate=rate,
                duration=dur, samples=n, wall=wall, exit=p.returncode, truth=rec.truth)
+    if fmt in BAD_FORMATS:
+        return _score_refusal(res, p.stderr, js.exists())
     if p.returncode != 0 or not js.exists():
         res.update(right=False, clean=False, verdict=f"exit {p.returncode}", named=[], unexplained=None,
                    false_name=False, absorbed=False, stderr=p.stderr.strip()[-400:])
@@ -159,6 +202,8 @@ def summarise(results):
     (single effects and pairs), clean verdicts, false names over records with nothing to name (no
     effect, absorbed effects, out-of-library disturbances), false `unexplained` over no-effect,
     absorbed and named-right records; per rig; wall per case."""
+    art = [r for r in results if r["effect"] in ARTEFACTS or r.get("format") in EXTRA_FORMATS + BAD_FORMATS]
+    results = [r for r in results if r not in art]
     lib = [r for r in results if (r["effect"] in LIBRARY or r["effect"] in COMBINED) and not r["absorbed"]]
     single = [r for r in lib if r["effect"] in LIBRARY]
     none = [r for r in results if r["effect"] in NO_EFFECT]
@@ -170,9 +215,13 @@ def summarise(results):
     confusion = collections.defaultdict(collections.Counter)
     for r in results:
         confusion[r["effect"] + (" (absorbed)" if r["absorbed"] else "")][r["verdict"]] += 1
-    walls = sorted(r["wall"] for r in results)
+    for r in art:
+        confusion[r["effect"] + (f" ({r['format']})" if r["effect"] == "none" else "")][r["verdict"]] += 1
+    walls = sorted(r["wall"] for r in results + art)
     return {
-        "cases": len(results),
+        "right_artefacts": _rate(art, "right"),
+        "false_name_artefacts": _rate(art, "false_name"),
+        "cases": len(results) + len(art),
         "right": _rate(results, "right"),
         "clean": _rate(results, "clean"),
         "named_right_library": _rate(single, "right"),
@@ -198,7 +247,7 @@ def summarise(results):
 
 RATE_KEYS = ("right", "clean", "named_right_library", "named_right_library_snr_ge5", "clean_library",
              "named_right_two_effects", "right_no_effect", "false_name_no_effect", "false_name_out_of_library",
-             "right_out_of_library", "false_unexplained")
+             "right_out_of_library", "false_unexplained", "right_artefacts", "false_name_artefacts")
 
 
 def _pct(v):
@@ -229,7 +278,9 @@ def rates_markdown(s):
              "false_name_no_effect": "false names (no effect + absorbed)",
              "false_name_out_of_library": "false names (out-of-library)",
              "right_out_of_library": "out-of-library: nothing named, `unexplained`",
-             "false_unexplained": "false `unexplained` (no effect, absorbed, named right)"}
+             "false_unexplained": "false `unexplained` (no effect, absorbed, named right)",
+             "right_artefacts": "sensor/logger/run artefacts and file forms: the stated right answer",
+             "false_name_artefacts": "false names (artefacts and file forms)"}
     rows = ["| rate | value | of |", "|---|---|---|"]
     rows += [f"| {names[k]} | {'-' if s[k][0] is None else f'{100 * s[k][0]:.0f} %'} | {s[k][1]} |" for k in RATE_KEYS]
     rows += [f"| rig {rig}: right / clean | {v['right'][0] * 100:.0f} % / {v['clean'][0] * 100:.0f} % | {v['right'][1]} |"
@@ -273,6 +324,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="23 hand-spread cases at SNR 5")
     ap.add_argument("--full", action="store_true", help="every rig x effect x SNR (default: balanced, 45 cases)")
+    ap.add_argument("--artefacts", action="store_true",
+                    help="the artefact kinds (sensor, logger, run-up) at SNR 3/5/10 and file forms, 38 cases")
     ap.add_argument("--rigs", default=",".join(RIGS))
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--snrs", default="3,5,10")
@@ -301,6 +354,8 @@ def main(argv=None):
             rec, cfg, data = write_case(cases[0], keep)
             print(cfg, data, json.dumps(rec.truth, default=str), f"noise_rms {rec.noise_rms:.4g}")
             return None
+    elif a.artefacts:
+        cases = artefact_grid(a.rigs.split(","))
     else:
         cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick, a.full)
     cases = cases[a.skip:]

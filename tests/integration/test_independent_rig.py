@@ -15,7 +15,8 @@ from tests.tolerances import (CLOSED_FORM_REL, INDEPENDENT_FORMAT_REL, INDEPENDE
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from bench.independent.formats import FORMATS, write  # noqa: E402
+from bench.independent import artefacts  # noqa: E402
+from bench.independent.formats import BAD_FORMATS, EXTRA_FORMATS, FORMATS, write  # noqa: E402
 import bench.independent.records as records  # noqa: E402
 from bench.independent.records import make_record  # noqa: E402
 from bench.independent.rig import (RIGS, Friction, closed_form_concentric, drive_torque, friction_power,  # noqa: E402
@@ -77,15 +78,55 @@ def test_independent_closed_forms():
         assert abs(np.mean(tau0)) <= ZERO_MEAN_TORQUE_REL * np.sqrt(np.mean(tau ** 2))
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("fmt", FORMATS + EXTRA_FORMATS)
 def test_every_written_format_reads_back(fmt, tmp_path):
-    """Each rig-logger format the benchmark writes is read by pumpsim as the same SI torque."""
+    """Each rig-logger format the benchmark writes is read by pumpsim as the same SI torque (the
+    extra ones: units in the header with reordered and extra columns; tab-separated decimal
+    commas; comma-separated quoted decimal commas, which were refused: '4 values, the header has 3')."""
     rec = make_record("ellipse4", "none", 5.0, 3, rate=10000.0, duration=0.05)
     ds = pumpsim.load_data(write(rec, fmt, tmp_path / "data"))
     assert len(ds.torque) == len(rec.t)
     scale = np.sqrt(np.mean(rec.torque ** 2))
     assert np.max(np.abs(np.asarray(ds.torque) - rec.torque)) <= INDEPENDENT_FORMAT_REL * scale
     assert np.max(np.abs(np.asarray(ds.time) - rec.t)) <= INDEPENDENT_FORMAT_REL * rec.t[-1]
+
+
+@pytest.mark.parametrize("fmt", BAD_FORMATS)
+def test_unit_mistakes_in_a_written_file_are_refused_by_diagnose(fmt, tmp_path, capsys):
+    """Time in ms or speed in rpm without a unit in the header: `pumpsim diagnose` exits 2 naming
+    the column's likely unit and the fix, with nothing written and no traceback."""
+    from pumpsim.cli import main
+
+    rec = make_record("ellipse4", "none", 5.0, 3, rate=10000.0, duration=0.05)
+    (tmp_path / "c.toml").write_text(to_toml(RIGS["ellipse4"]))
+    js = tmp_path / "d.json"
+    code = main(["diagnose", str(tmp_path / "c.toml"), write(rec, fmt, tmp_path / "data"), "--json", str(js)])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err and not js.exists()
+    assert ("'time [ms]'" if fmt == "csv_ms_bare" else "'speed [rpm]'") in err, err
+
+
+@pytest.mark.parametrize("kind", artefacts.ARTEFACTS)
+def test_artefact_records_carry_their_artefact(kind):
+    """Each artefact kind's record shows what it claims (and states its right answer)."""
+    rec = make_record("ellipse3", kind, 5.0, 5, rate=10000.0, duration=0.2)
+    p, t, y = rec.truth["params"], rec.t, rec.torque
+    assert rec.truth["expected"] in ("quiet", "unexplained", "no_name") or isinstance(rec.truth["expected"], list)
+    assert np.all(np.diff(t) > 0)
+    dt = np.diff(t)
+    if kind == "jitter":
+        assert np.std(dt) > 0.05 / 10000.0
+    elif kind == "dropped":
+        assert len(t) < 2000 and rec.truth["samples_dropped"] == 2000 - len(t) and np.max(dt) > 1.5e-4
+    else:
+        assert len(t) == 2000 and np.ptp(dt) < 1e-9
+    if kind == "quantised":
+        steps = y / (p["lsb"] * rec.noise_rms)
+        assert np.max(np.abs(steps - np.round(steps))) < 1e-6
+    if kind == "clipped":
+        assert np.sum(y == y.max()) >= 0.9 * p["fraction"] * len(y)
+    if kind == "runup":
+        assert rec.omega[0] < 0.96 * rec.omega[-1] and rec.omega[-1] == RIGS["ellipse3"].speed
 
 
 def test_two_pump_effects_compose_as_one_config(tmp_path):
