@@ -7,6 +7,7 @@ uniform rate and cut out the constant-speed section of a run-up. Bad data is rej
 """
 from __future__ import annotations
 
+import csv
 import math
 import re
 from dataclasses import dataclass, field
@@ -125,7 +126,8 @@ def load_data(path, options: DataOptions | None = None, min_revolutions: float =
               nominal_speed: float | None = None) -> Dataset:
     """Read a measurement (spec \u00a76) into a `Dataset` in SI units.
 
-    path: CSV/text (`,` or `;` or tab separated, `;` files may use decimal commas, UTF-8 with or
+    path: CSV/text (`,` or `;` or tab separated, `;` and tab files may use decimal commas, as may
+    double-quoted values in `,` files ("0,5"), UTF-8 with or
     without BOM, UTF-16, `#` comments, headers with units such as `torque [N*mm]`), MATLAB `.mat`
     or NI `.tdms`. options: `DataOptions` (column names, units, resampling, steady section).
     nominal_speed [rad/s]: the data must span `min_revolutions` revolutions at it.
@@ -265,15 +267,14 @@ def decode_text(raw: bytes, error=DataError) -> str:
 
 def _read_csv(p: Path) -> dict:
     lines = _decode(p).splitlines()
-    header, rows, line_no, sep, comma_decimal = None, [], [], ",", False
+    header, rows, line_no, sep = None, [], [], ","
     for i, line in enumerate(lines, start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
         if header is None:
             sep = ";" if ";" in s else ("\t" if "\t" in s else ",")
-            comma_decimal = sep != ","
-            fields = [h.strip().strip('"').strip() for h in s.split(sep)]
+            fields = [h.strip().strip('"').strip() for h in _fields(s, sep)]
             if fields and fields[-1] == "" and len(fields) > 1:  # trailing separator
                 fields = fields[:-1]
             header = [split_header(h) for h in fields]
@@ -283,13 +284,13 @@ def _read_csv(p: Path) -> dict:
             if len(set(names)) != len(names):
                 raise DataError(f"row {i}: duplicate column names in the header")
             continue
-        parts = [x.strip().strip('"') for x in s.split(sep)]
+        parts = [x.strip().strip('"') for x in _fields(s, sep)]
         if len(parts) == len(header) + 1 and parts[-1] == "":
             parts = parts[:-1]
         if len(parts) != len(header):
             raise DataError(f"row {i}: {len(parts)} values, the header has {len(header)} columns")
-        if comma_decimal:
-            parts = [x.replace(",", ".") for x in parts]
+        # a comma inside a value is a decimal comma: with ';' or tab separators, or quoted ("0,5")
+        parts = [x.replace(",", ".") for x in parts]
         try:
             rows.append([float(x) for x in parts])
         except ValueError:
@@ -303,6 +304,13 @@ def _read_csv(p: Path) -> dict:
     cols["__rows__"] = np.array(line_no)
     cols["__units__"] = {h: u for h, u in header if u is not None}
     return cols
+
+
+def _fields(line, sep):
+    """One line split at sep; a double-quoted field may hold the separator (spreadsheet exports)."""
+    if '"' not in line:
+        return line.split(sep)
+    return next(csv.reader([line], delimiter=sep, skipinitialspace=True))
 
 
 def _is_float(x):

@@ -112,3 +112,24 @@ def test_cli_identify_rejects_bad_data_with_status_2(tmp_path):
                         "--json", str(out)], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "row 8: torque is not a finite number" in r.stderr
     assert not out.exists() and "Traceback" not in r.stderr
+
+
+def test_quoted_decimal_comma_fields_with_comma_separator(tmp_path):
+    """A spreadsheet's CSV export in a German locale: ',' separates, values are quoted and use a
+    decimal comma ("0,0701"); the header carries units. Read as the same numbers (it was refused:
+    'row 3: 4 values, the header has 2 columns')."""
+    rows = good_rows()
+    p = tmp_path / "d.csv"
+    p.write_text("# export\ntime [ms],torque [N*mm]\n" + "".join(
+        f'"{t * 1e3:.6f}","{q * 1e3:.9f}"\n'.replace(".", ",") for t, q in rows))
+    ds = load_data(p, nominal_speed=W)
+    assert ds.n == len(rows)
+    assert np.array_equal(ds.time, np.array([float(f"{t * 1e3:.6f}") for t, _ in rows]) * 1e-3)
+    assert np.array_equal(ds.torque, np.array([float(f"{q * 1e3:.9f}") for _, q in rows]) * 1e-3)
+
+
+def test_quoted_field_with_bad_number_names_the_row(tmp_path):
+    p = tmp_path / "d.csv"
+    p.write_text('time,torque\n"0,0","0,07"\n"0,0001","x,1"\n')
+    with pytest.raises(DataError, match=r"row 3: 'x.1' is not a number"):
+        load_data(p)
