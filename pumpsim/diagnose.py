@@ -754,6 +754,7 @@ class _Verdict:
         self.p = combined_p(self.per)
         self.systematic = max(systematic_rms(r, d) for (r, _), d in zip(pieces, self.per))
         self.sigma = max(_noise_sigma(d) for d in self.per)
+        self.scatter = max(_scatter(d) for d in self.per)
 
     def searching(self):
         """The residual departs from noise at the family level SEARCH_ALPHA (Bonferroni over the
@@ -770,6 +771,16 @@ class _Verdict:
                     "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
         return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
                 "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma}
+
+
+def _scatter(det):
+    """The noise's standard deviation whatever its colour: the within-angle-bin scatter (the samples
+    of one bin lie whole revolutions apart, so coloured noise keeps its full variance there, and a
+    shaft-synchronous residual none), else the high-frequency estimate. Equal to _noise_sigma for
+    white noise; for coloured noise (F17: AR(1), phi 0.85) the high-frequency estimate is a fraction
+    of it (there 0.4x)."""
+    sf = det["synchronous_f"]
+    return math.sqrt(sf["within_var"]) if sf["applicable"] else det["noise_level"]["sigma"]
 
 
 def _noise_sigma(det):
@@ -877,7 +888,12 @@ def _start(cfg, datasets, progress):
                                                **_speed_trend_info(d)})
             continue
         lo, hi = cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
-        scan = synchronous_speed_scan(d.time, d.torque, lo, hi, cfg.speed)
+        # evidence of the speed only at the orders the pump's own torque has: multiples of the vane
+        # count (identical, equally spaced vanes in a housing-fixed geometry repeat every vane
+        # passage); a disturbance that happens to repeat at another order at a speed in the band is
+        # no evidence (F16: a pulse train at 1.27 x the shaft frequency looked like order 5 at +1.6 %
+        # on the concentric 4-vane rig, whose torque has no angle dependence at all)
+        scan = synchronous_speed_scan(d.time, d.torque, lo, hi, cfg.speed, order=cfg.vanes)
         held[f"speed@{i}" if K > 1 else "speed"] = scan["speed"]
         speed_info["measurements"].append({"source": "synchronous scan" if scan["refined"] else "nominal",
                                            "value": scan["speed"], "scan_p_value": scan["p_value"]})
@@ -1034,11 +1050,19 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
         level = LR_ALPHA if f["score"]["p_value"] < score_level else LR_ALPHA / SEARCHED
         # an effect is named only if it changes the model torque by more than a quarter of the
         # noise sigma: a statistically significant but smaller change is noise fitted through moved
-        # friction reversals
-        size = float(np.sqrt(np.mean(_on(res.fitted - current.fitted, keep) ** 2)))
-        if size < NAMED_SIZE * verdict.sigma:
-            run.notes.append(f"{f['cand'].label} not named: it changes the torque by {size:.3g} N m RMS, "
-                             f"below {NAMED_SIZE:g} x the noise sigma")
+        # friction reversals. Its size is the smaller of that change's RMS and the RMS it explains
+        # (the drop of the residual's mean square): a change that moves friction reversals across
+        # samples is a step's height there but explains little (a 3.9 us lag on an independent
+        # no-effect record changed the torque by more than a quarter sigma, 9.6e-5 N m, and explained
+        # 5.2e-5). The noise sigma is its whole scatter (_scatter):
+        # coloured noise has a high-frequency level well below it, and a lobe fitted to its slow
+        # wander is not a quarter of what the noise does to each sample (F17)
+        (rss0, n), (rss1, _) = _rss(current.residual, keep), _rss(res.residual, keep)
+        size = min(float(np.sqrt(np.mean(_on(res.fitted - current.fitted, keep) ** 2))),
+                   math.sqrt(max(rss0 - rss1, 0.0) / max(n, 1)))
+        if size < NAMED_SIZE * verdict.scatter:
+            run.notes.append(f"{f['cand'].label} not named: it changes (explains) the torque by {size:.3g} N m "
+                             f"RMS, below {NAMED_SIZE:g} x the noise's scatter {verdict.scatter:.3g} N m")
             continue
         if f["lr_p"] < level and bic1 < bic0 and not run.implausible(st):
             h = _stationary(run, st, res, [n for n in st.names if n not in state.names], verdict.sigma)

@@ -201,14 +201,20 @@ def _synchronous_power(t, y, w, bins):
     return float(np.sum(s[c > 0] ** 2 / c[c > 0]))
 
 
-def synchronous_speed_scan(t, y, lower, upper, nominal, alpha=1e-3) -> dict:
+def synchronous_speed_scan(t, y, lower, upper, nominal, alpha=1e-3, order=1) -> dict:
     """The shaft speed in [lower, upper] that makes y most shaft-synchronous: the between-bin power
     of y averaged over revolutions in the angle domain, maximised over a grid fine enough that
     the phase of the highest resolved order drifts < pi/2 over the record, then refined with finer
     bins. The best speed is used only when its synchronous F-test beats alpha / (grid points)
     (Bonferroni over the scan); otherwise the nominal speed is returned. Assumes a constant speed
     over the record. A torque that does not depend on the rotor angle (concentric housing) gives
-    no evidence and keeps the nominal."""
+    no evidence and keeps the nominal.
+
+    order: only shaft orders that are multiples of it count (the average is taken over 1/order of
+    a revolution: the vane passage of `order` identical, equally spaced vanes)."""
+    if order != 1:
+        out = synchronous_speed_scan(t, y, order * lower, order * upper, order * nominal, alpha)
+        return {**out, "speed": out["speed"] / order}
     t = np.asarray(t, dtype=float) - t[0]
     y = np.asarray(y, dtype=float) - np.mean(y)
     T = max(t[-1], 1e-12)

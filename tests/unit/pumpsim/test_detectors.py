@@ -128,6 +128,28 @@ def test_speed_scan_finds_the_shaft_inside_the_band_and_ignores_a_hum():
     assert not flat["refined"] and flat["speed"] == 607.37
 
 
+def test_speed_scan_over_vane_passages_ignores_a_pulse_train_aliased_to_another_order():
+    """F16: on the concentric 4-vane rig (a constant pump torque) a pulse train at 1.27 x the shaft
+    frequency repeats exactly 5 times a revolution at +1.6 % speed, inside the band: a scan over
+    whole revolutions takes that speed; over vane passages (order=4: only the orders a 4-vane pump's
+    torque has) the alias is not taken. A vane-passing content is still found there."""
+    w0 = 607.37
+    t = np.arange(5000) / 10000.0
+    fp = 1.27 * w0 / (2 * math.pi)
+    ph = np.mod(t * fp + 0.3, 1.0) - 0.5
+    pulses = 4e-3 * np.exp(-0.5 * (ph / fp / 2e-4) ** 2)
+    noise = np.random.default_rng(0).normal(0, 2e-4, t.size)
+    alias = w0 * 1.27 * 4 / 5   # five pulses per revolution
+    whole = synchronous_speed_scan(t, 0.0142 + pulses + noise, w0 * 0.98, w0 * 1.02, w0)
+    assert whole["refined"] and abs(whole["speed"] - alias) * t[-1] < SPEED_SCAN_DRIFT_RAD
+    vane = synchronous_speed_scan(t, 0.0142 + pulses + noise, w0 * 0.98, w0 * 1.02, w0, order=4)
+    assert abs(vane["speed"] - alias) * t[-1] > 10 * SPEED_SCAN_DRIFT_RAD
+    w_true = w0 * 1.004
+    pump = 1e-3 * np.cos(4 * w_true * t + 0.2) + 4e-4 * np.cos(8 * w_true * t)
+    r = synchronous_speed_scan(t, 0.0142 + pump + noise, w0 * 0.98, w0 * 1.02, w0, order=4)
+    assert r["refined"] and abs(r["speed"] - w_true) * t[-1] < SPEED_SCAN_DRIFT_RAD
+
+
 def test_kurtosis_size_separates_a_lone_outlier_from_heavy_tails():
     """Independent finding F8: on 5000 Gaussian samples one 7-sigma outlier (a friction reversal a
     fit moved by part of a sample) makes the kurtosis test reject, but the tails add almost nothing
