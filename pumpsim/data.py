@@ -397,7 +397,7 @@ def steady_section(ds: Dataset, tolerance: float = 0.01) -> Dataset:
 
 # --- The measured speed's slow variation (a drifting motor) ---------------------------------------
 
-TREND_MAX_DEGREE = 6  # Legendre degrees tried for the speed column's trend
+TREND_MAX_DEGREE = 20  # Legendre degrees tried for the speed column's trend (BIC chooses; a run-up needs ~18)
 TREND_ALPHA = 1e-3  # F-test level at which the trend counts as significant against the column's noise
 TREND_REVOLUTIONS_PER_DEGREE = 2.0  # a degree per two revolutions at most: the trend stays below order 1
 

@@ -383,3 +383,9 @@ KURTOSIS_SITUATION_P = 0.01
 # 12 per draw) has a standard error of 0.08; 0.5 is > 6 of them.
 HOMOGENEITY_RATE_ABS = 0.02
 HOMOGENEITY_MEAN_ABS = 0.5
+# The speed column's trend (data.speed_trend) on a record that starts mid-run-up (speed 14 % low at
+# the start, constant after 21 % of the record, 97 revolutions, noise-free column): the largest
+# speed error it leaves, relative. The BIC-chosen Legendre degree (18-19) leaves 4e-4; the old cap of
+# degree 6 left 7e-3, i.e. a torque error of ~1.4 % (friction torque ~ omega^2), 0.7 noise sigma at
+# SNR 10. 1e-3 keeps the torque error below 0.1 sigma there.
+RUNUP_TREND_REL = 1e-3
