@@ -186,8 +186,13 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
     dt = np.diff(t)
     bad = np.nonzero(dt <= 0)[0]
     if bad.size:
-        raise DataError(f"{_where(row_of, bad[0] + 1, where, 'time')}: time must be strictly increasing "
-                        f"({t[bad[0] + 1]:g} s after {t[bad[0]]:g} s)")
+        b = bad[0]
+        # as many digits as tell the two apart (absolute time stamps: 1.7e9 s + fractions)
+        digits = max(6, min(17, int(math.ceil(math.log10(max(abs(t[b]), 1e-300) / max(abs(dt[b]), 1e-300)))) + 2))
+        again = (f" ({int(np.sum(dt == 0))} repeated times: written with too few digits for the sample "
+                 "rate?)" if dt[b] == 0 else "")
+        raise DataError(f"{_where(row_of, b + 1, where, 'time')}: time must be strictly increasing "
+                        f"({t[b + 1]:.{digits}g} s after {t[b]:.{digits}g} s){again}")
     si = {k: (used[k] * scale[k] if k in used else None) for k in ("torque", "speed", "angle")}
     ds = Dataset(t.astype(float), si["torque"], si["speed"], si["angle"], source=str(p))
     if o.steady:

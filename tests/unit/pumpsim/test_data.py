@@ -146,3 +146,16 @@ def test_speed_trend_follows_a_record_that_starts_mid_run_up():
     tr = speed_trend(t, omega)
     assert tr is not None
     assert np.max(np.abs(tr.speed(t) - omega)) / w < RUNUP_TREND_REL
+
+
+def test_time_errors_show_enough_digits_and_say_when_times_repeat(tmp_path):
+    """Absolute time stamps (1.7e9 s) going backwards are shown with the digits that tell them apart
+    (were '1.7e+09 s after 1.7e+09 s'); times written with too few digits for the rate repeat, and
+    the message says so."""
+    p = tmp_path / "a.csv"
+    p.write_text("time,torque\n1700000000.0001,0.1\n1700000000.0002,0.1\n1700000000.0001,0.1\n")
+    with pytest.raises(DataError, match=r"row 4: .*\(1700000000\.0001 s after 1700000000\.0002 s\)"):
+        load_data(p)
+    p.write_text("time,torque\n" + "".join(f"{k * 5e-5:.4f},0.1\n" for k in range(20)))
+    with pytest.raises(DataError, match=r"row \d+: .*repeated times: written with too few digits"):
+        load_data(p)
