@@ -126,7 +126,7 @@ def load_data(path, options: DataOptions | None = None, min_revolutions: float =
               nominal_speed: float | None = None) -> Dataset:
     """Read a measurement (spec \u00a76) into a `Dataset` in SI units.
 
-    path: CSV/text (`,` or `;` or tab separated, `;` and tab files may use decimal commas, as may
+    path: CSV/text (`,`, `;`, tab or blank separated, `;`, tab and blank files may use decimal commas, as may
     double-quoted values in `,` files ("0,5"), UTF-8 with or
     without BOM, UTF-16, `#` comments, headers with units such as `torque [N*mm]`), MATLAB `.mat`
     or NI `.tdms`. options: `DataOptions` (column names, units, resampling, steady section).
@@ -278,7 +278,7 @@ def _read_csv(p: Path) -> dict:
         if not s or s.startswith("#"):
             continue
         if header is None:
-            sep = ";" if ";" in s else ("\t" if "\t" in s else ",")
+            sep = next((c for c in (";", "\t", ",") if c in s), " " if _BLANKS.search(s) else ",")
             fields = [h.strip().strip('"').strip() for h in _fields(s, sep)]
             if fields and fields[-1] == "" and len(fields) > 1:  # trailing separator
                 fields = fields[:-1]
@@ -311,10 +311,15 @@ def _read_csv(p: Path) -> dict:
     return cols
 
 
+# blanks between columns of a blank-separated file; not those before or inside a unit ('torque [N m]')
+_BLANKS = re.compile(r"\s+(?![\[(])(?![^\[(]*[\])])")
+
+
 def _fields(line, sep):
-    """One line split at sep; a double-quoted field may hold the separator (spreadsheet exports)."""
+    """One line split at sep (' ': any run of blanks); a double-quoted field may hold the
+    separator (spreadsheet exports)."""
     if '"' not in line:
-        return line.split(sep)
+        return _BLANKS.split(line) if sep == " " else line.split(sep)
     return next(csv.reader([line], delimiter=sep, skipinitialspace=True))
 
 

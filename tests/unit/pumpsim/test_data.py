@@ -159,3 +159,14 @@ def test_time_errors_show_enough_digits_and_say_when_times_repeat(tmp_path):
     p.write_text("time,torque\n" + "".join(f"{k * 5e-5:.4f},0.1\n" for k in range(20)))
     with pytest.raises(DataError, match=r"row \d+: .*repeated times: written with too few digits"):
         load_data(p)
+
+
+def test_blank_separated_columns_with_units(tmp_path):
+    """A logger's text export with columns separated by runs of blanks and units with a blank
+    inside ('torque [N mm]'): read as the same numbers (was 'row 3: '0 70' is not a number')."""
+    rows = good_rows()
+    p = tmp_path / "d.txt"
+    p.write_text("# export\ntime [ms]   torque [N mm]\n" + "".join(f"{t * 1e3:10.4f}  {q * 1e3:.6f}\n" for t, q in rows))
+    ds = load_data(p, nominal_speed=W)
+    assert ds.n == len(rows)
+    assert np.array_equal(ds.torque, np.array([float(f"{q * 1e3:.6f}") for _, q in rows]) * 1e-3)
