@@ -770,7 +770,8 @@ class _Verdict:
         per = [{d: {"statistic": m[d]["statistic"] if "statistic" in m[d] else m[d].get("q", m[d].get("z")),
                     "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
         return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
-                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma}
+                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma,
+                "noise_scatter": self.scatter}
 
 
 def _scatter(det):
