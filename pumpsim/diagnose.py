@@ -49,8 +49,8 @@ from scipy import stats
 
 from .config import PumpConfig
 from .data import Dataset
-from .diagnostics import (VERDICT_DETECTORS, combined_p, detectors, kurtosis_test, order_spectrum,
-                          synchronous_speed_scan, systematic_rms)
+from .diagnostics import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test,
+                          order_spectrum, synchronous_speed_scan, systematic_rms)
 from .errors import ConfigError
 from .identification import base_name
 from .identification import identify as _identification_fit
@@ -754,7 +754,6 @@ class _Verdict:
         self.p = combined_p(self.per)
         self.systematic = max(systematic_rms(r, d) for (r, _), d in zip(pieces, self.per))
         self.sigma = max(_noise_sigma(d) for d in self.per)
-        self.scatter = max(_scatter(d) for d in self.per)
 
     def searching(self):
         """The residual departs from noise at the family level SEARCH_ALPHA (Bonferroni over the
@@ -770,18 +769,7 @@ class _Verdict:
         per = [{d: {"statistic": m[d]["statistic"] if "statistic" in m[d] else m[d].get("q", m[d].get("z")),
                     "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
         return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
-                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma,
-                "noise_scatter": self.scatter}
-
-
-def _scatter(det):
-    """The noise's standard deviation whatever its colour: the within-angle-bin scatter (the samples
-    of one bin lie whole revolutions apart, so coloured noise keeps its full variance there, and a
-    shaft-synchronous residual none), else the high-frequency estimate. Equal to _noise_sigma for
-    white noise; for coloured noise (F17: AR(1), phi 0.85) the high-frequency estimate is a fraction
-    of it (there 0.4x)."""
-    sf = det["synchronous_f"]
-    return math.sqrt(sf["within_var"]) if sf["applicable"] else det["noise_level"]["sigma"]
+                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma}
 
 
 def _noise_sigma(det):
@@ -1034,6 +1022,7 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
     the torque by at least NAMED_SIZE sigma, passes the LR test (prewhitened and plain) and lowers
     BIC, each fit compared with the current one on their common samples (reversal-aware cost);
     None if none does. Implausible fits go to `rejected` with their reasons."""
+    scatter = None
     for f in fits:
         reasons = run.implausible(f["screen_state"])
         if reasons:
@@ -1055,15 +1044,16 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
         # (the drop of the residual's mean square): a change that moves friction reversals across
         # samples is a step's height there but explains little (a 3.9 us lag on an independent
         # no-effect record changed the torque by more than a quarter sigma, 9.6e-5 N m, and explained
-        # 5.2e-5). The noise sigma is its whole scatter (_scatter):
-        # coloured noise has a high-frequency level well below it, and a lobe fitted to its slow
-        # wander is not a quarter of what the noise does to each sample (F17)
+        # 5.2e-5). The noise sigma is its whole standard deviation (_noise_scatter): coloured noise
+        # has a high-frequency level well below it, and a lobe fitted to its slow wander is not a
+        # quarter of what the noise does to each sample (F17)
         (rss0, n), (rss1, _) = _rss(current.residual, keep), _rss(res.residual, keep)
         size = min(float(np.sqrt(np.mean(_on(res.fitted - current.fitted, keep) ** 2))),
                    math.sqrt(max(rss0 - rss1, 0.0) / max(n, 1)))
-        if size < NAMED_SIZE * verdict.scatter:
+        scatter = scatter or _noise_scatter(run, current, verdict)
+        if size < NAMED_SIZE * scatter:
             run.notes.append(f"{f['cand'].label} not named: it changes (explains) the torque by {size:.3g} N m "
-                             f"RMS, below {NAMED_SIZE:g} x the noise's scatter {verdict.scatter:.3g} N m")
+                             f"RMS, below {NAMED_SIZE:g} x the noise's scatter {scatter:.3g} N m")
             continue
         if f["lr_p"] < level and bic1 < bic0 and not run.implausible(st):
             h = _stationary(run, st, res, [n for n in st.names if n not in state.names], verdict.sigma)
@@ -1376,15 +1366,32 @@ def _screen_table(ranking, alpha, effects, state) -> dict:
     return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
 
 
-def _kurtosis_off_reversals(run, state, current) -> list:
-    """The kurtosis test per measurement on the residual at the samples the reversal-aware cost
-    keeps at the final fit (independent finding F8: a phase within its standard error moves a few
-    Coulomb steps across a sample, each leaving one residual sample of the step's height; those
-    samples are the ones next to a model step)."""
+def _off_reversals(run, state, current) -> list:
+    """Per measurement, (residual, fitted angle) at the samples the reversal-aware cost keeps at the
+    current fit: those away from the model's friction reversals (F8: a phase within its standard
+    error moves a few Coulomb steps across a sample, each leaving one residual sample of the step's
+    height; those samples are the ones next to a model step)."""
     prob = state.problem(reversals=0.0)
     keep = _every(prob.keep_at(prob.x0), current.residual.size)
     rows = np.cumsum([0] + [d.n for d in run.datasets])
-    return [kurtosis_test(r[k]) for r, k in zip(_split(current.residual, rows), _split(keep, rows))]
+    return [(r[k], a[k]) for r, a, k in zip(_split(current.residual, rows), _split(current.angle, rows),
+                                           _split(keep, rows))]
+
+
+def _kurtosis_off_reversals(run, state, current) -> list:
+    """The kurtosis test per measurement on the residual off the model's reversals (F8)."""
+    return [kurtosis_test(r) for r, _ in _off_reversals(run, state, current)]
+
+
+def _noise_scatter(run, current, verdict) -> float:
+    """The noise's standard deviation whatever its colour: the residual's without its narrow
+    spectral lines (diagnostics.broadband_sigma), per measurement, the largest; at least the
+    detectors' noise sigma. Coloured noise keeps its full variance (under AR(1) noise, phi 0.85,
+    the high-frequency level is 0.4 x it); the misfit a named effect leaves at a few orders does
+    not count as noise (an independent two-effect record: a 2.8 % speed ripple's misfit made the
+    within-angle-bin scatter 2.3 x the noise, and the true offset was refused)."""
+    rows = np.cumsum([0] + [d.n for d in run.datasets])
+    return max([verdict.sigma] + [broadband_sigma(r) for r in _split(current.residual, rows)])
 
 
 def _where(res, datasets, verdict):

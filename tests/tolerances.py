@@ -389,3 +389,7 @@ HOMOGENEITY_MEAN_ABS = 0.5
 # degree 6 left 7e-3, i.e. a torque error of ~1.4 % (friction torque ~ omega^2), 0.7 noise sigma at
 # SNR 10. 1e-3 keeps the torque error below 0.1 sigma there.
 RUNUP_TREND_REL = 1e-3
+# diagnostics.broadband_sigma against the noise's own standard deviation: AR(1) noise with phi 0.85
+# over 8000 samples has ~8000 x 0.15 / 1.85 = 650 effective samples, so its sample sd scatters by
+# ~2.8 %; 10 % is 3.6 of those (white noise: 1.4 %, seven of them).
+BROADBAND_SIGMA_REL = 0.10

@@ -50,3 +50,12 @@ def test_an_effect_that_only_moves_reversals_is_not_named(case, tmp_path):
     rec, out = _diagnosed(case, tmp_path)
     assert rec.truth.get("expected", "quiet") == "quiet"
     assert out["effects"] == [] and not out["unexplained"], str(out)
+
+
+@pytest.mark.slow  # 100 s
+def test_a_second_effect_after_a_large_one_is_judged_against_the_noise_not_the_misfit(tmp_path):
+    """A 2.8 % speed ripple and a torque offset (ellipse3): the ripple's fit leaves lines at order
+    3 (2.3 x the noise); the offset's size is judged against the noise's standard deviation without
+    those lines (diagnostics.broadband_sigma), so it is named too."""
+    _, out = _diagnosed("ellipse3:two_effects:5.0:40050:mat:20000.0:1.0", tmp_path)
+    assert sorted(out["effects"]) == ["speed_ripple", "torque_offset"], str(out)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pumpsim.diagnostics import (combined_p, detectors, high_frequency_noise, kurtosis_test, ljung_box,
-                                 runs_test, synchronous_f_test, synchronous_speed_scan, systematic_rms)
-from tests.tolerances import HF_SIGMA_REL, NULL_KS_P, SPEED_SCAN_DRIFT_RAD, STRUCTURE_P, SYSTEMATIC_RMS_ABS
+from pumpsim.diagnostics import (broadband_sigma, combined_p, detectors, high_frequency_noise, kurtosis_test,
+                                 ljung_box, runs_test, synchronous_f_test, synchronous_speed_scan, systematic_rms)
+from tests.tolerances import BROADBAND_SIGMA_REL, HF_SIGMA_REL, NULL_KS_P, SPEED_SCAN_DRIFT_RAD, STRUCTURE_P, SYSTEMATIC_RMS_ABS
 
 TRIALS = 400
 N = 600
@@ -148,6 +148,25 @@ def test_speed_scan_over_vane_passages_ignores_a_pulse_train_aliased_to_another_
     pump = 1e-3 * np.cos(4 * w_true * t + 0.2) + 4e-4 * np.cos(8 * w_true * t)
     r = synchronous_speed_scan(t, 0.0142 + pump + noise, w0 * 0.98, w0 * 1.02, w0, order=4)
     assert r["refined"] and abs(r["speed"] - w_true) * t[-1] < SPEED_SCAN_DRIFT_RAD
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_broadband_sigma_is_the_noise_sd_without_lines_whatever_its_colour(seed):
+    """White noise: its sd; plus lines three times the noise (at a bin and between bins, as a named
+    effect's misfit at a few orders leaves): still the noise's sd; AR(1) noise (phi 0.85), whose
+    high-frequency level is well below its sd: its sd (F17)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(8000) / 16000.0
+    white = rng.normal(0, 1.0, t.size)
+    lines = 3 * np.sin(2 * math.pi * 224.0 * t) + 2 * np.sin(2 * math.pi * 675.3 * t + 1)
+    e = rng.standard_normal(t.size)
+    ar1 = np.empty(t.size)
+    ar1[0] = e[0]
+    for i in range(1, t.size):
+        ar1[i] = 0.85 * ar1[i - 1] + math.sqrt(1 - 0.85 ** 2) * e[i]
+    for x, sd in ((white, np.std(white)), (white + lines, np.std(white)), (ar1, np.std(ar1))):
+        assert abs(broadband_sigma(x) / sd - 1) < BROADBAND_SIGMA_REL
+    assert high_frequency_noise(ar1)["sigma"] < 0.6 * np.std(ar1)
 
 
 def test_kurtosis_size_separates_a_lone_outlier_from_heavy_tails():
