@@ -393,3 +393,14 @@ RUNUP_TREND_REL = 1e-3
 # over 8000 samples has ~8000 x 0.15 / 1.85 = 650 effective samples, so its sample sd scatters by
 # ~2.8 %; 10 % is 3.6 of those (white noise: 1.4 %, seven of them).
 BROADBAND_SIGMA_REL = 0.10
+
+
+# interval-average Jacobian columns of geometric defects (problem._interval_columns), 8 points per
+# sample interval, against 64: their cosine at least this much above the exact pointwise column's
+# (measured on the tilted3 oval: 0.37 / 0.9996 against 0.06 / 0.9996 -- the 8-point difference
+# resolves a reversal's motion to 1/8 interval only, a noisy but unbiased estimate)
+INTERVAL_COS_GAIN = 0.2
+# a fit in the truth's valley of a noisy record leaves the noise: RMS / sigma below this (1.008 at the
+# grid's SNR-5 tilted3 oval; n = 1001 samples, so sqrt(1 - 6/n) +- 2 % for noise alone); one stalled on
+# the reversal staircase leaves 1.5-2.4 (a reversal a sample off costs a whole Coulomb step)
+INTERVAL_VALLEY_RMS = 1.03

@@ -16,16 +16,17 @@ from ..errors import ConfigError
 from .identifiability import to_fix
 from .joint import JointProblem
 from .optimiser import FitOutcome, Optimiser
-from .problem import ConstantSpeedProblem, Problem, base_name
+from .problem import ConstantSpeedProblem, Problem, base_name, interval_geometric
 from .result import Estimate, IdentificationResult, bounds_reached, fit_estimates, provenance
 from .transient import TransientProblem
 
 
 def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, transient=False,
-                 reversals=None) -> Problem:
+                 reversals=None, interval=False) -> Problem:
     """One measurement: ConstantSpeedProblem; several (a list of Datasets): JointProblem; a run-up
     or coast-down (transient=True): TransientProblem. `extra`: values held for special names.
-    `reversals`: None, or the noise sigma (0: estimated at each x) of the reversal-aware cost (reversals.py)."""
+    `reversals`: None, or the noise sigma (0: estimated at each x) of the reversal-aware cost (reversals.py).
+    `interval`: the geometric defects' Jacobian columns from the sample-interval average (problem.py)."""
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
     if transient:
         if len(datasets) > 1:
@@ -34,16 +35,17 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
     if len(datasets) > 1:
         prob = JointProblem(cfg, datasets, names, initial, extra, ripple_order)
         for s in prob.subs:  # each measurement its own noise sigma
-            s.reversal_sigma = reversals
+            s.reversal_sigma, s.interval_geometry = reversals, interval
         return prob
     prob = ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order)
-    prob.reversal_sigma = reversals
+    prob.reversal_sigma, prob.interval_geometry = reversals, interval
     return prob
 
 
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
-             ripple_order=1, extra=None, transient=False, reversals=None) -> IdentificationResult:
+             ripple_order=1, extra=None, transient=False, reversals=None,
+             interval=False) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
     engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
@@ -58,12 +60,12 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals)
+    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals, interval)
 
     def reduced(active, fixed, unident):  # the identifiable names, the others held where they were
         held = {n: fixed[n] for n in unident if base_name(n) in prob.SPECIAL}
         return make_problem(cfg, data, active, {n: fixed[n] for n in active}, {**(extra or {}), **held},
-                            ripple_order, transient, reversals)
+                            ripple_order, transient, reversals, interval)
 
     start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
     initial_model = prob.model(prob.x0)
@@ -71,6 +73,16 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
     res = _result(prob, fit, multistart)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
+    if interval and fit.outcome is not None and any(interval_geometric(n) for n in prob.names):
+        # the interval columns lead into the valley; the exact ones polish inside it (their
+        # difference quotients resolve a reversal's motion to 1/8 interval only: noisy near the
+        # minimum), the better of the two kept
+        at = {n: e.value for n, e in res.estimates.items() if e.value is not None}
+        polished = identify(cfg, data, params, method, relaxation, {**(initial or {}), **at}, max_iter, log,
+                            False, ripple_order, extra, transient, reversals)
+        if polished.rms <= res.rms:
+            polished.wall_time = _time.perf_counter() - wall0
+            return polished
     return res
 
 

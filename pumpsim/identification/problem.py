@@ -46,6 +46,9 @@ class Problem:
     # None: every sample weighs in the cost; a number: the reversal-aware cost (reversals.py) with
     # this noise sigma in the step threshold (0: estimated from the residual at each x)
     reversal_sigma: float | None = None
+    # True: the columns of the geometric defect parameters (interval_geometric) are the derivative
+    # of the sample-interval average of the model (see ConstantSpeedProblem._interval_columns)
+    interval_geometry: bool = False
 
     def keep_at(self, x):
         """The samples the reversal-aware cost keeps at x (bool per sample), None: all."""
@@ -239,6 +242,8 @@ class ConstantSpeedProblem(Problem):
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
+        if self.interval_geometry and T == 0:
+            self._interval_columns(x, J, [i for i, n in enumerate(names) if interval_geometric(n)], cols)
         if T > 0:
             y, J = self._sensed(tq, T, m), self._sensed(J, T, m)
             if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
@@ -248,6 +253,33 @@ class ConstantSpeedProblem(Problem):
         if "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
             J[:, names.index("lag")] = -self.speed_of(x) * slope
         return tq, J
+
+    def _interval_average(self, x):
+        """The model torque averaged over each sample interval (INTERVAL_SUBPOINTS points at the
+        interval's sub-sample angles, centred on the sample): a friction reversal inside the
+        interval contributes its step times the fraction of the interval it covers."""
+        theta, z, kin = self.angle(x), self.z(x), (self.tau, *self._rates)
+        h = abs(self.speed_of(x)) * self.dt
+        offsets = (np.arange(INTERVAL_SUBPOINTS) + 0.5) / INTERVAL_SUBPOINTS - 0.5
+        return np.mean([self._torque(theta + o * h, z, kin) for o in offsets], axis=0)
+
+    def _interval_columns(self, x, J, which, cols):
+        """Replace the columns `which` of J (by the fit names of `cols`) with central differences
+        of the sample-interval average. A geometric defect moves the Coulomb friction reversals:
+        at a sample the point model then jumps by a whole step when a reversal crosses the sample
+        and is flat in between, so its exact derivative (which sees only the smooth part) leaves a
+        Gauss-Newton fit on a staircase whose valleys are ~1 um wide (F13/F14); the average's
+        derivative carries the reversals' motion at the sampling scale, as the interval slope
+        does for the angle-acting parameters. The step: INTERVAL_STEP of the housing's size."""
+        if not which:
+            return
+        v = self.pv.values
+        step = INTERVAL_STEP * max(v["housing.a"], v["housing.b"])
+        x = np.asarray(x, dtype=float)
+        for i in which:
+            e = np.zeros_like(x)
+            e[cols[i]] = step
+            J[:, i] = (self._interval_average(x + e) - self._interval_average(x - e)) / (2 * step)
 
     def symbolic_model(self, phi):
         """The (unfiltered) model torque as a CasADi expression of symbolic fitted values phi."""
@@ -286,6 +318,17 @@ class ConstantSpeedProblem(Problem):
 
     def parameter_vector(self, x):
         return self.z(x)[:self.p0.size]
+
+
+INTERVAL_SUBPOINTS = 8  # points per sample interval of the interval-average model
+INTERVAL_STEP = 5e-5  # its difference step, of the housing's larger semi-axis (~1 um on a 22 mm housing)
+
+
+def interval_geometric(name) -> bool:
+    """The housing's centre and harmonic amplitudes: defects that act through the friction
+    reversals' instants (ConstantSpeedProblem._interval_columns)."""
+    n = base_name(name)
+    return n.startswith("housing.center.") or (n.startswith("housing.harmonics.") and n.endswith(".amplitude"))
 
 
 _SAMPLE_FNS: dict = {}  # per (variant key, directions[, samples]): see sample_torque
