@@ -1519,16 +1519,28 @@ def _refit(state: State, cand: Candidate, score, polar=False):
     starts = [{n: values[n] for n in names if n in values}]
     if polar and len(score["params"]) == 2:
         starts += _polar_starts(state, cand, score["params"], values)
-    fit = lambda init, **kw: identify(cfg, state.data, names, initial=init, multistart=False,  # noqa: E731
-                                      ripple_order=ripple, extra=held, interval=cand.symmetric or INTERVAL_JACOBIAN,
-                                      **kw)
+    fit = lambda init, data=state.data, **kw: identify(  # noqa: E731
+        cfg, data, names, initial=init, multistart=False, ripple_order=ripple, extra=held,
+        interval=cand.symmetric or INTERVAL_JACOBIAN, **kw)
     if len(starts) == 1:
         res = fit(starts[0])
-    else:  # a few steps from every start, then the best one to convergence
-        res = min((fit(init, max_iter=REFIT_SCOUT_STEPS) for init in starts), key=lambda r: r.rms)
-        if not res.converged:
+    else:  # a few steps from every start (on the probe window), then the best one to convergence
+        scout = _scout_window(state.data)
+        res = min((fit(init, scout, max_iter=REFIT_SCOUT_STEPS) for init in starts), key=lambda r: r.rms)
+        if scout is not state.data or not res.converged:
             res = fit({n: res.estimates[n].value for n in names if res.estimates[n].value is not None})
     return _state_from(cfg, state.data, names, values, res, ripple), res
+
+
+SCOUT_SAMPLES = 1000  # the polar starts' window: >= 3.7 revolutions at 20 kHz and 4500 rpm
+
+
+def _scout_window(data):
+    """The first SCOUT_SAMPLES samples of one measurement (the polar starts only choose a start;
+    the reduced grid's records are this long), else the data itself."""
+    if isinstance(data, (list, tuple)) or data.n <= SCOUT_SAMPLES:
+        return data
+    return data.window(0, SCOUT_SAMPLES)
 
 
 def _polar_starts(state, cand, params, values) -> list:

@@ -232,9 +232,13 @@ class ConstantSpeedProblem(Problem):
         theta, dtheta = self.angle_and_jacobian(x)
         m, (theta, dtheta, *kin) = self._grid(T, theta, dtheta, self.tau, *self._rates)
         z = self.z(x)
-        f = sample_torque(self.kern, len(cols), theta.size)
-        tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols])
-        tq, J = np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, len(cols))
+        # the exact columns (those the interval columns replace below are not computed)
+        geo = [i for i, n in enumerate(names) if interval_geometric(n)] if self.interval_geometry and T == 0 else []
+        exact = [i for i in range(len(cols)) if i not in geo] or [0]
+        f = sample_torque(self.kern, len(exact), theta.size)
+        tq, Je = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, [cols[i] for i in exact]])
+        tq, J = np.asarray(tq).ravel(), np.zeros((theta.size, len(cols)))
+        J[:, exact] = np.asarray(Je).reshape(theta.size, len(exact))
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step / m
@@ -242,8 +246,7 @@ class ConstantSpeedProblem(Problem):
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
-        if self.interval_geometry and T == 0:
-            self._interval_columns(x, J, [i for i, n in enumerate(names) if interval_geometric(n)], cols)
+        self._interval_columns(x, J, geo, cols)
         if T > 0:
             y, J = self._sensed(tq, T, m), self._sensed(J, T, m)
             if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
