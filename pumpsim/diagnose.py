@@ -1442,9 +1442,20 @@ def _note_confounded(scored, alpha, confounded):
     significant could hide inside that parameter: report the pair."""
     for c, s in scored:
         if s["partner"] is not None and s["p_value"] >= alpha:
-            pair = [c.effect, base_name(s["partner"])]
+            pair = [c.effect, _owner(s["partner"])]
             if pair not in confounded:
                 confounded.append(pair)
+
+
+def _owner(name) -> str:
+    """A fitted name as the engineer reads it: a named effect's parameter as that effect (an
+    out-of-round's harmonic amplitude, the housing centre), a baseline parameter as itself."""
+    n = base_name(name)
+    if _is_harmonic_amplitude(n):
+        return "housing_out_of_round"
+    if n.startswith("housing.center."):
+        return "rotor_eccentricity"
+    return n
 
 
 def _separable_at_another_speed(state, effect, partner):
