@@ -86,20 +86,14 @@ SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction
 # reversals by less than 1/8 of a sample and is seen ONLY through which side of a sample they
 # fall -- so the fits stay on every sample; the kurtosis note uses the reversal-aware samples.
 REVERSAL_SIGMA = None
-# the geometric defects' (eccentricity, out-of-round) Jacobian columns: the derivative of the
-# sample-interval average of the model, which carries the friction reversals' motion, instead of
-# the exact pointwise one, which does not (identification/problem.py, _interval_columns). Every
-# fit and score test here uses them; the cost stays the point-sampled one. Measured on the reduced
-# grid (notes of 2026-11-23, h11-diag): see README, discrepancy workflow.
-INTERVAL_JACOBIAN = False
 
 
 def identify(*args, **kw):
-    return _identification_fit(*args, reversals=REVERSAL_SIGMA, **{"interval": INTERVAL_JACOBIAN, **kw})
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, **kw)
 
 
 def make_problem(*args, **kw):
-    return _identification_problem(*args, reversals=REVERSAL_SIGMA, interval=INTERVAL_JACOBIAN, **kw)
+    return _identification_problem(*args, reversals=REVERSAL_SIGMA, **kw)
 
 
 def _kept(*fits):
@@ -326,8 +320,7 @@ class State:
         names = self.names + [n for n in extra_names if n not in self.names]
         return _identification_problem(cfg or self.cfg, self.data, names, initial=self.values,
                                     extra={k: v for k, v in self.values.items() if k not in names},
-                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals,
-                                    interval=INTERVAL_JACOBIAN)
+                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals)
 
 
 def _probe_scale(state: State) -> float:
@@ -1389,21 +1382,15 @@ def _screen_table(ranking, alpha, effects, state) -> dict:
     return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
 
 
-def _off_reversals(run, state, current) -> list:
-    """Per measurement, (residual, fitted angle) at the samples the reversal-aware cost keeps at the
-    current fit: those away from the model's friction reversals (F8: a phase within its standard
-    error moves a few Coulomb steps across a sample, each leaving one residual sample of the step's
-    height; those samples are the ones next to a model step)."""
+def _kurtosis_off_reversals(run, state, current) -> list:
+    """The kurtosis test per measurement on the residual at the samples the reversal-aware cost
+    keeps at the final fit (independent finding F8: a phase within its standard error moves a few
+    Coulomb steps across a sample, each leaving one residual sample of the step's height; those
+    samples are the ones next to a model step)."""
     prob = state.problem(reversals=0.0)
     keep = _every(prob.keep_at(prob.x0), current.residual.size)
     rows = np.cumsum([0] + [d.n for d in run.datasets])
-    return [(r[k], a[k]) for r, a, k in zip(_split(current.residual, rows), _split(current.angle, rows),
-                                           _split(keep, rows))]
-
-
-def _kurtosis_off_reversals(run, state, current) -> list:
-    """The kurtosis test per measurement on the residual off the model's reversals (F8)."""
-    return [kurtosis_test(r) for r, _ in _off_reversals(run, state, current)]
+    return [kurtosis_test(r[k]) for r, k in zip(_split(current.residual, rows), _split(keep, rows))]
 
 
 def _noise_scatter(run, current, verdict) -> float:
@@ -1532,7 +1519,7 @@ def _refit(state: State, cand: Candidate, score, polar=False):
         starts += _polar_starts(state, cand, score["params"], values)
     fit = lambda init, data=state.data, **kw: identify(  # noqa: E731
         cfg, data, names, initial=init, multistart=False, ripple_order=ripple, extra=held,
-        interval=cand.symmetric or INTERVAL_JACOBIAN, **kw)
+        interval=cand.symmetric, **kw)
     if len(starts) == 1:
         res = fit(starts[0])
     else:  # a few steps from every start (on the probe window), then the best one to convergence
