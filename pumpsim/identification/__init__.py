@@ -4,8 +4,8 @@ config value) to measured data.
     Problem  -> Optimiser -> IdentificationResult
 
 - `problem.py`: the Problem interface (names, start values and bounds from the registries, model
-  and exact Jacobian) and the constant-speed problem (torque through the compiled inverse
-  dynamics, CasADi forward AD); `joint.py`: several measurements at once; `transient.py`: a
+  and Jacobian) and the constant-speed problem (torque through the compiled inverse dynamics:
+  the SIMD library's torques and their differences, else the CasADi map and forward AD); `joint.py`: several measurements at once; `transient.py`: a
   run-up or coast-down (speed under the measured torque, CVODES sensitivities); `start.py`: start
   values of the periodic parameters (phase scan, speed from the spectrum).
 - `optimiser.py`: Gauss-Newton with relaxation factor (report §12), Levenberg-Marquardt, IPOPT,
