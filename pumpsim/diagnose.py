@@ -205,6 +205,15 @@ class Effect:
     describe: Callable | None = None  # (result, names, order) -> extra JSON fields (amplitude, phase)
     claims: Callable[[str], bool] | None = None  # names whose range `implausible` checks instead of the registry
     implausible: Callable | None = None  # (config, values, context) -> reasons
+    # (config, current values) -> its parameters' absent values where they are not the config's
+    absent: Callable | None = None
+
+
+def _slot_cof_tied(cfg: PumpConfig, values: dict) -> dict:
+    """The slot COF while slot_friction is absent: mu's, in the configured slot/housing proportion
+    (what every fit of mu alone does: identification/problem.py parameter_map)."""
+    mu_h, mu_s = cfg.values["friction.housing.dynamic"], cfg.values["friction.slot.dynamic"]
+    return {"mu_slot": values.get("mu", mu_h) * (mu_s / mu_h if mu_h > 0 else 1.0)}
 
 
 EFFECTS = (
@@ -226,6 +235,9 @@ EFFECTS = (
     # reference; the reported mu is the mean over the vanes)
     Effect("vane_friction_spread", lambda cfg, k: [f"effects.vane_friction_factor.{i}" for i in range(1, cfg.vanes)],
            min_vanes=2, implausible=_vane_spread_implausible),
+    # the configured slot/tip COF ratio is off (the slot COF is the one rigs rarely measure; a tip
+    # COF rising with slip speed looks like this at one speed): mu_slot free, its range a COF's
+    Effect("slot_friction", lambda cfg, k: ["mu_slot"], absent=_slot_cof_tied),
 )
 NOT_RANGED = ("theta0", "speed", "delay")  # measurement parameters without a plausibility range
 
@@ -275,6 +287,9 @@ class Candidate:
 
     def problem(self, state: "State"):
         """The state's problem with this candidate's parameters added at their absent values."""
+        if self.kind.absent is not None:
+            state = State(state.cfg, state.data, state.names,
+                          {**self.kind.absent(state.cfg, state.values), **state.values}, state.ripple_order)
         return state.problem(self.params, cfg=self.config(state.cfg), ripple_order=self.ripple_order)
 
 

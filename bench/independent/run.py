@@ -32,6 +32,9 @@ from bench.independent.formats import BAD_FORMATS, EXTRA_FORMATS, FORMATS, write
 from bench.independent.records import COMBINED, EFFECTS, LIBRARY, NO_EFFECT, OUT_OF_LIBRARY, make_record  # noqa: E402
 from bench.independent.rig import RIGS, to_toml  # noqa: E402
 
+# library names that are also right for a true effect: at one speed a tip COF rising with slip speed
+# (mu(v) + c v) is a tip COF above the configured slot/tip proportion, i.e. the slot COF is off
+ALSO_RIGHT = {"viscous_tip_friction": ("slot_friction",)}
 DIAG_DIR = Path("out/independent/diag")   # diagnose's JSON of every case run
 # (rate Hz, duration s) cycled over the grid: 5-25 kHz, 0.4-2 s (2 s on a third of their turns)
 SAMPLINGS = ((10000.0, 0.5), (20000.0, 0.5), (12500.0, 1.0), (16000.0, 0.5), (10000.0, 2.0), (5000.0, 1.0),
@@ -97,13 +100,15 @@ def score(truth_effect, truth, out):
     right: exactly the required effects named (a single one reported only as `confounded`, nothing
     named, counts too, as in bench/diagnose_grid.py), or for no effect / absorbed ones nothing named and
     no `unexplained`, or for out-of-library nothing named and `unexplained`. clean: right and (for
-    library effects) the required effects named, not only `confounded`, and no `unexplained`."""
+    library effects) the required effects named, not only `confounded`, and no `unexplained`. A name in
+    ALSO_RIGHT of a present effect counts as present (allowed, never required)."""
     named = list(out.get("effects", []))
     unexpl = bool(out.get("unexplained"))
     if "expected" in truth:
         return _score_expected(truth["expected"], named, unexpl)
     present = list(truth.get("effects", []))
-    required = [e for e in present if e not in truth.get("absorbed_effects", [])]
+    present += [a for e in present for a in ALSO_RIGHT.get(e, ())]
+    required = [e for e in truth.get("effects", []) if e not in truth.get("absorbed_effects", [])]
     conf = {e for pair in out.get("confounded", []) for e in pair}
     if truth_effect in NO_EFFECT:
         right = not named and not unexpl

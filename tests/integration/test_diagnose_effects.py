@@ -132,6 +132,19 @@ def test_vane_friction_spread_four_vanes_names_what_is_identifiable(nominal):
     assert len(fitted) == 1
 
 
+def test_slot_friction_off_the_configured_proportion(nominal):
+    """The slot COF 0.6 x the configured one (the tip COF as configured): slot_friction named, the
+    slot COF recovered, mu (the tip COF) unchanged; not a torque offset or a viscous tip force."""
+    v = nominal.values
+    truth = _with(dataclasses.replace(nominal, angle=0.4),
+                  **{f"friction.slot.{k}": 0.6 * v[f"friction.slot.{k}"] for k in ("static", "dynamic")})
+    ds, sigma = measurement(nominal, truth)
+    out = diagnose(nominal, ds)
+    _check(out, sigma, "slot_friction")
+    assert out["effects"] == ["slot_friction"]
+    assert abs(_value(out, "mu_slot") / (0.6 * v["friction.slot.dynamic"]) - 1) < EFFECT_PARAM_REL
+
+
 def test_two_effects_both_named(nominal):
     truth = _harmonic(dataclasses.replace(nominal, angle=0.4, speed_ripple=(1, 0.003, -1.0)), 4, 2e-5, 0.3)
     ds, _ = measurement(nominal, truth)
