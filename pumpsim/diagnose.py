@@ -1533,6 +1533,11 @@ def _notes(confounded, state, screen_data, measurements):
 REFIT_STARTS = 8  # polar starts of a geometric refit, besides its one-step start
 REFIT_SCOUT_STEPS = 4  # Gauss-Newton steps from each start before the best is fitted to convergence
 REFIT_RADIUS = 2e-4  # their least radius, of the housing's larger semi-axis (~5 um on a 22 mm housing)
+# the radii of the polar starts, of that radius: the one-step estimate's size is itself read off a
+# staircase (F13/F14), so the starts also sample half of it (finding 4, eccentric5's 10 um k=2
+# oval: every start at the one-step radius, 12 um, stops at 1.49-2.7 sigma, the named oval 5.5 um
+# then an eccentricity; one at half of it reaches 1.24 sigma and the oval is named alone)
+REFIT_RADII = (0.5, 1.0)
 
 
 def _refit(state: State, cand: Candidate, score, polar=False):
@@ -1540,7 +1545,7 @@ def _refit(state: State, cand: Candidate, score, polar=False):
     state's data). A geometric defect (eccentricity, out-of-round) is fitted with the interval
     Jacobian columns (identification/problem.py: they carry the friction reversals' motion), and
     with `polar` also from REFIT_STARTS directions about its absent value at the one-step
-    estimate's radius (at least REFIT_RADIUS), a few steps each, the lowest cost fitted to
+    estimate's radius (at least REFIT_RADIUS) and at half of it, a few steps each, the lowest cost fitted to
     convergence: the cost is a staircase in its parameters (F13/F14) whose valley a fit from the
     one-step start often misses (the grid's 15 um oval on the 4-vane ellipse: 1.61 sigma from the
     one-step start, 1.02 from a polar start, the truth's valley 1.017; an eccentricity's one-step
@@ -1580,15 +1585,15 @@ def _scout_window(data):
 
 
 def _polar_starts(state, cand, params, values) -> list:
-    """REFIT_STARTS starts of a two-parameter geometric defect about its absent value (a harmonic
-    pair's zero, the configured centre), the fitted names at the current fit."""
+    """REFIT_STARTS directions x REFIT_RADII starts of a two-parameter geometric defect about its
+    absent value (a harmonic pair's zero, the configured centre), the fitted names at the current fit."""
     v = state.cfg.values
     centre = np.array([0.0 if cand.kind.harmonic_pair else v[n] for n in params])
     radius = max(REFIT_RADIUS * max(v["housing.a"], v["housing.b"]),
                  float(np.hypot(*(np.array([values.get(n, 0.0) for n in params]) - centre))))
     return [{**{n: state.values[n] for n in state.names},
-             **dict(zip(params, centre + radius * np.array([math.cos(b), math.sin(b)])))}
-            for b in np.arange(REFIT_STARTS) * 2 * math.pi / REFIT_STARTS]
+             **dict(zip(params, centre + f * radius * np.array([math.cos(b), math.sin(b)])))}
+            for b in np.arange(REFIT_STARTS) * 2 * math.pi / REFIT_STARTS for f in REFIT_RADII]
 
 
 def _state_from(cfg, data, names, values, res, ripple):
