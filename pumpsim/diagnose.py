@@ -56,6 +56,7 @@ from .identification import base_name
 from .identification import identify as _identification_fit
 from .identification import make_problem as _identification_problem
 from .identification.reversals import noise_sigma
+from .identification.problem import slot_ratio
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
 
@@ -212,8 +213,7 @@ class Effect:
 def _slot_cof_tied(cfg: PumpConfig, values: dict) -> dict:
     """The slot COF while slot_friction is absent: mu's, in the configured slot/housing proportion
     (what every fit of mu alone does: identification/problem.py parameter_map)."""
-    mu_h, mu_s = cfg.values["friction.housing.dynamic"], cfg.values["friction.slot.dynamic"]
-    return {"mu_slot": values.get("mu", mu_h) * (mu_s / mu_h if mu_h > 0 else 1.0)}
+    return {"mu_slot": values.get("mu", cfg.values["friction.housing.dynamic"]) * slot_ratio(cfg.values)}
 
 
 EFFECTS = (
@@ -1014,12 +1014,8 @@ def _rephased(st: State, res):
     contenders are compared only at their optima."""
     if not any(base_name(n) in ("theta0", "speed") for n in st.names):
         return st, res
-    held = {k: v for k, v in st.values.items() if k not in st.names}
-    again = identify(st.cfg, st.data, st.names, initial={n: st.values[n] for n in st.names}, multistart=True,
-                     ripple_order=st.ripple_order, extra=held)
-    if again.rms >= res.rms:
-        return st, res
-    return _state_from(st.cfg, st.data, st.names, st.values, again, st.ripple_order), again
+    again = _refit_on(st, st.data, multistart=True)
+    return again if again[1].rms < res.rms else (st, res)
 
 
 def _lowest_orders(sig) -> list:
@@ -1056,7 +1052,7 @@ def _full_fit(run, f):
     """A contender's state and fit on the whole record (refitted from its screening fit)."""
     if run.screen_data is run.full_data:
         return f["screen_state"], f["screen_res"]
-    return _refit_full(f["screen_state"], run.full_data, run.screen_data)
+    return _refit_on(f["screen_state"], run.full_data)
 
 
 def _lr_bic(current, k0, res, k1, rho, keep):
@@ -1607,12 +1603,13 @@ def _state_from(cfg, data, names, values, res, ripple):
     return State(dataclasses.replace(cfg, values=vals), data, [n for n in names if n in fitted], allv, ripple)
 
 
-def _refit_full(st: State, full_data, screen_data):
-    """A state fitted on the screening window, refitted on the whole record from there."""
+def _refit_on(st: State, data, multistart=False):
+    """The state's names refitted on `data` from the state's values (the others held): a screening
+    window's fit on the whole record, or (multistart) from the phase-and-speed scan start."""
     held = {k: v for k, v in st.values.items() if k not in st.names}
-    res = identify(st.cfg, full_data, st.names, initial={n: st.values[n] for n in st.names},
-                   multistart=False, ripple_order=st.ripple_order, extra=held)
-    return _state_from(st.cfg, full_data, st.names, st.values, res, st.ripple_order), res
+    res = identify(st.cfg, data, st.names, initial={n: st.values[n] for n in st.names},
+                   multistart=multistart, ripple_order=st.ripple_order, extra=held)
+    return _state_from(st.cfg, data, st.names, st.values, res, st.ripple_order), res
 
 
 def _try_speed(state, current, full_data, screen_data, speed_info, notes):

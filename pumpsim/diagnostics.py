@@ -240,9 +240,7 @@ def _vane_scan_leaked(t, y, out, nominal, bins=32) -> bool:
     order-2 speed ripple: the scan took +1.45 % from leakage, where the revolution average holds
     0.1 % of the variance against 95 % at the nominal. A true speed 0.3 % off the nominal on the
     reduced grid's rigs (1001 samples): the nominal at most 1.10 x more synchronous (sampling and
-    noise), never 2 x."""
-    t = np.asarray(t, dtype=float) - t[0]
-    y = np.asarray(y, dtype=float) - np.mean(y)
+    noise), never 2 x. t from 0, y centred (synchronous_speed_scan)."""
     at_scan = _synchronous_power(t, y, out["speed"], bins)
     return _synchronous_power(t, y, nominal, bins) > NOMINAL_SYNCHRONY_RATIO * at_scan
 
@@ -258,14 +256,14 @@ def synchronous_speed_scan(t, y, lower, upper, nominal, alpha=1e-3, order=1) -> 
 
     order: only shaft orders that are multiples of it count (the average is taken over 1/order of
     a revolution: the vane passage of `order` identical, equally spaced vanes)."""
+    t = np.asarray(t, dtype=float) - t[0]
+    y = np.asarray(y, dtype=float) - np.mean(y)
     if order != 1:
         out = synchronous_speed_scan(t, y, order * lower, order * upper, order * nominal, alpha)
         out = {**out, "speed": out["speed"] / order}
         if out["refined"] and _vane_scan_leaked(t, y, out, nominal):
             out = {**out, "speed": float(nominal), "refined": False}
         return out
-    t = np.asarray(t, dtype=float) - t[0]
-    y = np.asarray(y, dtype=float) - np.mean(y)
     T = max(t[-1], 1e-12)
     n = y.size
     spr = n / max(nominal * T / (2 * math.pi), 1e-9)  # samples per revolution

@@ -71,9 +71,8 @@ class Problem:
         # [housing static/dynamic, slot static/dynamic, slot/housing dynamic]: mu scales the
         # configured COFs by one factor (a rig's own [friction.slot] is a measured or chosen value,
         # kept in proportion); with a frictionless nominal housing the slot COF equals mu
-        mu_h, mu_s = v["friction.housing.dynamic"], v["friction.slot.dynamic"]
         self._ratios = np.array([v[f"friction.{side}.static"] / max(v[f"friction.{side}.dynamic"], 1e-300)
-                                 for side in ("housing", "slot")] + [mu_s / mu_h if mu_h > 0 else 1.0])
+                                 for side in ("housing", "slot")] + [slot_ratio(v)])
         self._follow = following(cfg)
         self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"], **starts}
         self.x0, self.lower, self.upper = start_and_bounds(self.names, self.pv, self.fixed, initial)
@@ -504,6 +503,13 @@ def speed_band(cfg, data):
 def following(cfg):
     """The derived defaults the config did not set: they follow their inputs when those are fitted."""
     return tuple(q for q in DERIVED if q.name not in cfg.given)
+
+
+def slot_ratio(v) -> float:
+    """The configured slot/housing dynamic COF ratio that ties the slot COF to mu (1 with a
+    frictionless nominal housing: the slot COF then equals mu)."""
+    mu_h, mu_s = v["friction.housing.dynamic"], v["friction.slot.dynamic"]
+    return mu_s / mu_h if mu_h > 0 else 1.0
 
 
 def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
