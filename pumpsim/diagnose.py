@@ -50,7 +50,7 @@ from scipy import stats
 from .config import PumpConfig
 from .data import Dataset
 from .diagnostics import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test,
-                          order_spectrum, synchronous_speed_scan, systematic_rms)
+                          order_lines, order_spectrum, synchronous_speed_scan, systematic_rms)
 from .errors import ConfigError
 from .identification import base_name
 from .identification import identify as _identification_fit
@@ -293,9 +293,44 @@ class Candidate:
         return state.problem(self.params, cfg=self.config(state.cfg), ripple_order=self.ripple_order)
 
 
-def candidates(cfg: PumpConfig, added: set) -> list:
-    return [Candidate(e, e.params(cfg, k), k) for e in EFFECTS
-            if e.name not in added and cfg.vanes >= e.min_vanes for k in e.orders(cfg)]
+def candidates(cfg: PumpConfig, added: set, detected: Iterable = ()) -> list:
+    """The library's candidates, plus a speed ripple at each of the `detected` orders (above the
+    library's: _detected_ripple_orders)."""
+    return [Candidate(e, e.params(cfg, k), k) for e in EFFECTS if e.name not in added and cfg.vanes >= e.min_vanes
+            for k in list(e.orders(cfg)) + (list(detected) if e.ripple else [])]
+
+
+# A speed ripple above the library's orders 1..2N -- motor cogging or commutation ripple, seen by an
+# in-line torque sensor only through the pump side's acceleration -- is tried at an order
+# 2N < k <= RIPPLE_ORDER_MAX only where the current residual holds a line of its own AT that integer
+# order (diagnostics.order_lines: significant against its non-integer neighbours, the largest within
+# half an order, its frequency at k within its standard error, and the residual's lines mostly at
+# integer orders -- a gear ripple, hum or a pulse train at 1.37 x shaft opens nothing). Trying every
+# order up to 4N instead named a ripple on the reduced grid's concentric pulse train. The bound:
+# the cogging order of a small PM motor is lcm(slots, poles) -- 12 (6 slots, 4 poles), 18 (9/6),
+# 24 (12/8) -- and a brushed motor's commutator ripple is twice its 8-12 segments.
+RIPPLE_ORDER_MAX = 24
+
+
+def _detected_ripple_orders(run, current, added: set, fixed: int) -> tuple:
+    """The speed-ripple orders above the library's that the current residual singles out (per
+    measurement, Bonferroni over them) and whether any order was examined. The detector's family
+    level is one candidate's share of the screen's, SCORE_ALPHA / (fixed + 1), and the screen counts
+    it as one more candidate: a false opening and the fixed candidates' false alarms together stay
+    within SCORE_ALPHA (union bound)."""
+    ripple = next(e for e in EFFECTS if e.ripple)
+    if ripple.name in added or current.angle is None:
+        return [], False
+    library = set(ripple.orders(run.cfg))
+    orders = [k for k in range(1, RIPPLE_ORDER_MAX + 1) if k not in library]
+    rows = np.cumsum([0] + [d.n for d in run.datasets])
+    alpha = SCORE_ALPHA / (fixed + 1) / len(run.datasets)
+    found, examined = set(), False
+    for r, a in zip(_split(current.residual, rows), _split(current.angle, rows)):
+        lines = order_lines(r, a, orders, alpha)
+        examined |= bool(lines["examined"])
+        found.update(lines["orders"])
+    return sorted(found), examined
 
 
 def _ar1(r):
@@ -963,13 +998,15 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
     accept the lowest-BIC plausible one whose LR test passes. Returns ranking and, when one is
     accepted, `accepted` and the whitened baseline `bic0`; a decisive-less rival: `rival_pair`."""
     scr = state.on(run.screen_data)
+    detected, examined = _detected_ripple_orders(run, current, set(effects), len(candidates(state.cfg, set(effects))))
     scored = []
-    for c in candidates(state.cfg, set(effects)):
+    for c in candidates(state.cfg, set(effects), detected):
         run.say(f"screening {c.label}")
         scored.append((c, score_test(scr, c)))
-    ranking = _rank(scr, scored)
-    screens.append(_screen_table(ranking, SCORE_ALPHA / len(scored), effects, scr))
-    _note_confounded(scored, SCORE_ALPHA / len(scored), run.confounded)
+    tests = len(scored) + (examined and not detected)  # the detector counts as one candidate
+    ranking = _rank(scr, scored, tests)
+    screens.append(_screen_table(ranking, SCORE_ALPHA / tests, effects, scr))
+    _note_confounded(scored, SCORE_ALPHA / tests, run.confounded)
     # the best by the one criterion, and the best by score p-value (a smooth effect whose
     # one-step fit a probe grid happened to beat)
     sig = [r for r in ranking if r["significant"]]
@@ -994,7 +1031,7 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
                                     _kept(base, f["screen_res"]))
         f["bic_screen"] = _bic(*_whitened_rss(base.residual, rho, base.keep), len(state.names)) + bic1 - bic0
     fits.sort(key=lambda f: f["bic_screen"])
-    level0 = SCORE_ALPHA / len(scored)
+    level0 = SCORE_ALPHA / tests
     accepted = _accept(run, fits, state, current, verdict, rho, level0)
     if accepted is None:
         return {"ranking": ranking}
@@ -1381,12 +1418,12 @@ METHOD = ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequenc
           f"acceptance by prewhitened likelihood ratio (p < {LR_ALPHA:g}) and BIC on the whole record")
 
 
-def _rank(state, scored):
+def _rank(state, scored, tests=None):
     """All candidates by one criterion: the BIC of their one-step nonlinear fit (score step, or
     second-order/probe start where the first order is blind). Significant: score p or one-step
-    likelihood ratio below alpha / (number of candidates)."""
+    likelihood ratio below alpha / (number of tests: the candidates, by default)."""
     k0 = len(state.names)
-    alpha = SCORE_ALPHA / max(len(scored), 1)
+    alpha = SCORE_ALPHA / max(tests or len(scored), 1)
     out = []
     for c, s in scored:
         q = len(s["params"])

@@ -95,3 +95,16 @@ def test_sensor_lag_on_the_three_vane_ellipse_is_named_lag(tmp_path):
     alone, with no unexplained remainder."""
     _, out = _diagnosed("ellipse3:sensor_lag:10.0:17100:csv_semicolon:5000.0:1.0", tmp_path)
     assert out["effects"] == ["sensor_lag"] and not out["unexplained"], str(out)
+
+
+@pytest.mark.parametrize("case", ["ellipse3:cogging:10.0:70170:csv_speed:20000.0:0.5",
+                                  "eccentric5:cogging:5.0:70160:csv:10000.0:0.5"])
+def test_motor_cogging_above_the_library_orders_is_a_speed_ripple(case, tmp_path):
+    """Motor cogging at shaft order 8 on a 3-vane ellipse and 12 on a 5-vane eccentric circle (an in-line
+    sensor sees it as a speed ripple of that order): the library's ripple orders stop at 2N (6, 10),
+    so it was `nothing +U`. The residual's order-line detector opens the order (diagnostics.order_lines)."""
+    rec, out = _diagnosed(case, tmp_path)
+    assert out["effects"] == ["speed_ripple"], str(out)
+    step = out["steps"][0]["params"]
+    assert step["order"] == rec.truth["params"]["k"]
+    assert abs(step["amplitude"]["value"] / rec.truth["params"]["eps"] - 1) < EFFECT_PARAM_REL
