@@ -923,7 +923,7 @@ def _start(cfg, datasets, progress):
     held, speed_info = {}, {"nominal": cfg.speed, "tolerance": cfg.speed_tolerance, "measurements": []}
     for i, d in enumerate(datasets):
         if i not in free:
-            speed_info["measurements"].append({"source": "speed column", "value": float(np.mean(d.speed)),
+            speed_info["measurements"].append({"source": "speed column", "value": d.mean_speed(),
                                                **_speed_trend_info(d)})
             continue
         lo, hi = cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
@@ -1524,7 +1524,7 @@ def _separable_at_another_speed(state, effect, partner):
     if cand is None or partner not in state.names or isinstance(state.data, (list, tuple)):
         return None
     d = state.data
-    w = float(np.mean(d.speed)) if d.speed is not None else state.values.get("speed", state.cfg.speed)
+    w = d.mean_speed() if d.speed is not None else state.values.get("speed", state.cfg.speed)
     other = Dataset(d.time, d.torque, speed=np.full(d.n, 0.6 * w))
     cols = []
     for data in (Dataset(d.time, d.torque, speed=np.full(d.n, w)), other):

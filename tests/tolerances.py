@@ -414,3 +414,7 @@ INTERVAL_COS_GAIN = 0.2
 # grid's SNR-5 tilted3 oval; n = 1001 samples, so sqrt(1 - 6/n) +- 2 % for noise alone); one stalled on
 # the reversal staircase leaves 1.5-2.4 (a reversal a sample off costs a whole Coulomb step)
 INTERVAL_VALLEY_RMS = 1.03
+
+# Dataset.mean_speed: the stretch of whole revolutions ends within one sample of the last whole
+# turn, so a ripple eps can bias it by at most eps x (one sample's share of the stretch)
+WHOLE_REVOLUTION_SAMPLES = 1.0

@@ -128,7 +128,7 @@ class ConstantSpeedProblem(Problem):
     def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
                  ripple_order: int = 1):
         starts = {"theta0": float(data.angle[0]) if data.angle is not None else cfg.angle,
-                  "speed": float(np.mean(data.speed)) if data.speed is not None else cfg.speed,
+                  "speed": data.mean_speed() if data.speed is not None else cfg.speed,
                   "torque_offset": 0.0, "delay": 0.0, "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0,
                   **(extra or {})}
         self._setup(cfg, data, names, starts, initial)

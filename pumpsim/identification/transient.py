@@ -76,7 +76,7 @@ class TransientProblem(Problem):
 
     def speed_of(self, x):
         """The measured mean speed (what the residual's shaft orders refer to)."""
-        return float(np.mean(self.data.speed))
+        return self.data.mean_speed()
 
     def angle(self, x):
         """The rotor angle from theta0 and the measured speed (trapezoidal integral)."""

@@ -9,7 +9,7 @@ import pytest
 from pumpsim.data import DataOptions, load_data, resample, speed_trend, steady_section
 from pumpsim.errors import DataError
 from tests.conftest import ROOT
-from tests.tolerances import RUNUP_TREND_REL, STEADY_EDGE_ABS
+from tests.tolerances import ROUNDING_REL, RUNUP_TREND_REL, STEADY_EDGE_ABS, WHOLE_REVOLUTION_SAMPLES
 
 W = 471.0
 GOOD_T = np.arange(0, 0.03, 1e-4)
@@ -170,3 +170,23 @@ def test_blank_separated_columns_with_units(tmp_path):
     ds = load_data(p, nominal_speed=W)
     assert ds.n == len(rows)
     assert np.array_equal(ds.torque, np.array([float(f"{q * 1e3:.6f}") for _, q in rows]) * 1e-3)
+
+
+@pytest.mark.parametrize("k, phase", [(3, -1.0), (1, -math.pi / 2), (6, -2.5)])
+def test_mean_speed_of_a_rippled_column_is_the_mean_over_whole_revolutions(k, phase):
+    """omega = W (1 + eps cos(k W t + phase)) over about 1 s, ending a quarter ripple period past a
+    whole one (a part revolution at the end): the plain mean carries eps W (sin(k W T + phase) - sin(phase)) / (k W T) of the unfinished ripple period;
+    the mean over whole revolutions misses at most one sample's share of the ripple."""
+    from pumpsim.data import Dataset
+    eps, rate = 0.028, 20000.0
+    m = round(k * W / (2 * math.pi))
+    t = np.arange(0, (2 * math.pi * m + math.pi / 2 - phase) / (k * W), 1 / rate)
+    w = W * (1 + eps * np.cos(k * W * t + phase))
+    ds = Dataset(t, np.zeros_like(t), speed=w)
+    bound = WHOLE_REVOLUTION_SAMPLES * eps * W / (rate * t[-1])
+    assert abs(ds.mean_speed() - W) <= bound
+    plain = eps * W * (math.sin(k * W * t[-1] + phase) - math.sin(phase)) / (k * W * t[-1])
+    assert abs(np.mean(w) - W - plain) <= bound  # the closed form of the plain mean's bias
+    assert abs(plain) > 5 * bound  # so the test can tell them apart
+    short = Dataset(t[:50], np.zeros(50), speed=w[:50])  # less than one revolution: the plain mean
+    assert short.mean_speed() == pytest.approx(float(np.mean(w[:50])), rel=ROUNDING_REL)
