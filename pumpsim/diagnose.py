@@ -227,9 +227,10 @@ EFFECTS = (
     Effect("speed_ripple", lambda cfg, k: ["ripple_cos", "ripple_sin"], orders=lambda cfg: range(1, 2 * cfg.vanes + 1),
            ripple=True, describe=_ripple_polar),
     Effect("torque_offset", lambda cfg, k: ["torque_offset"]),
-    # one-sided (T >= 0): probe a twentieth of a radian of lag
+    # one-sided (T >= 0): probe a twentieth of a radian of lag; and a line of finite lags (a lag of
+    # a sample or more, 0.3 ms at 5 kHz on an independent record, is far outside its quadratic model)
     Effect("sensor_lag", lambda cfg, k: ["lag"], probe_step=lambda state, prob: 0.05 / prob.speed_of(prob.x0),
-           one_sided=True, start_floor=(("lag", 1e-6),)),
+           one_sided=True, start_floor=(("lag", 1e-6),), finite_probes=True),
     Effect("viscous_tip_friction", lambda cfg, k: ["effects.viscous_tip_friction"]),
     # a vane of another material or finish: its tip and slot COFs scaled together (vane 0 is the
     # reference; the reported mu is the mean over the vanes)
@@ -419,21 +420,28 @@ def _probe_window(state, cand, prob, Jb):
     return pw, Jb[:PROBE_SAMPLES]
 
 
-def _probe_grid(prob, Jb, nb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16)):
+def _probe_grid(prob, Jb, nb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16), one_sided=False):
     """The model at finite defect sizes r (cos b, sin b), b in [0, 2 pi), with the fitted
     parameters' linear correction: the best point, refined by a pattern search in (ln r, b) with
     halving steps. Where the torque reacts to a defect through the instants of
     friction reversals (a non-analytic, sampling-dependent change), this finds what no Taylor term
     and no Gauss-Newton step can. The cost: the mean square over the samples that neither the
-    current model's nor the probe's reversal-aware mask drops."""
+    current model's nor the probe's reversal-aware mask drops. A one-parameter effect is probed
+    along its line (r, or +-r unless one-sided) and searched in ln r only."""
     keep0 = prob.keep_at(prob.x0)
+    line = prob.x0.size - nb == 1
+    if line:
+        directions = 1 if one_sided else 2
 
     def at(rr, b):
         x = prob.x0.copy()
-        x[nb:nb + 2] = rr * math.cos(b), rr * math.sin(b)
+        x[nb:] = (rr * math.cos(b),) if line else (rr * math.cos(b), rr * math.sin(b))
         r, cost, keep = _cost(prob, x, keep0)
         if not np.isfinite(cost):
             return x, r, np.inf
+        if line:  # the fitted parameters profiled on the model: a lag of a sample or more moves theta0
+            x, (r, cost, _) = _profiled(prob, Jb, nb, x, (r, cost, keep), keep0)  # by more than one linear step
+            return x, r, cost
         if nb:
             d = np.linalg.lstsq(_on(Jb, keep), _on(r, keep), rcond=None)[0]
             x[:nb] += d
@@ -451,8 +459,8 @@ def _probe_grid(prob, Jb, nb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16)):
     f, db = math.sqrt(2), math.pi / directions
     for _ in range(12):  # pattern search: move to a better neighbour, else halve the steps
         moved = False
-        for rr, b in ((where[0] * f, where[1]), (where[0] / f, where[1]), (where[0], where[1] + db),
-                      (where[0], where[1] - db)):
+        turns = () if line else ((where[0], where[1] + db), (where[0], where[1] - db))
+        for rr, b in ((where[0] * f, where[1]), (where[0] / f, where[1])) + turns:
             trial = at(rr, b)
             if trial[2] < best[2]:
                 best, where, moved = trial, (rr, b), True
@@ -572,7 +580,7 @@ def score_test(state: State, cand: Candidate, start=True):
         x1 = prob.x0.copy()
     x1, c1 = _profiled(prob, Jb, nb, x1, c1, keep0)
     # its one-step fit is then the best of many: judged at the searched level
-    out["searched"] = bool(eff.finite_probes and (quad is not None or _direction_blind(J1)))
+    out["searched"] = bool(eff.finite_probes and (quad is not None or len(cand.params) == 1 or _direction_blind(J1)))
     if out["searched"]:
         x1, c1 = _probed(state, cand, prob, Jb, nb, x1, c1, keep0)
     common = _kept(keep0, c1[2])  # the one-step and the current model on one sample set
@@ -631,7 +639,8 @@ def _probed(state, cand, prob, Jb, nb, x1, c1, keep0):
     effect (the torque reacts through friction-reversal instants) where the first order is blind,
     in all directions (second-order score) or in one (a defect on a rig symmetric about an axis:
     the y shift of a centred 1-vane ellipse, where the linear step moves the other direction only)."""
-    xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, _probe_scale(state))
+    xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, cand.kind.probe_step(state, prob),
+                     one_sided=cand.kind.one_sided)
     cp = _cost(prob, xp, keep0)
     return (xp, cp) if cp[1] < c1[1] else (x1, c1)
 

@@ -194,3 +194,19 @@ def test_confounded_at_one_speed_separate_at_two(nominal, effect, offset, viscou
     pooled = math.sqrt((sigma_fast**2 + sigma_slow**2) / 2)  # equal sample counts
     assert two["final"]["rms"] < EFFECT_FINAL_RMS * pooled
     assert {"theta0@0", "theta0@1"} <= set(two["final"]["params"])
+
+
+@pytest.mark.parametrize("vanes", [3, 4])
+def test_a_lag_of_several_samples_is_named_not_a_friction_law(nominal, vanes):
+    """A 0.33 ms low-pass (3.3 samples at 10 kHz, a tenth of a vane passage) is far outside its
+    quadratic model: the one-step fit from the second-order score left 0.5 sigma more than a viscous
+    tip friction's, the refits went to the three smooth friction/offset effects and a viscous COF
+    was named with mu 35 % low (independent ellipse3 record, F20). The lag's finite probes along
+    its line, each with the fitted parameters profiled (theta0 moves by the lag's phase), rank it."""
+    base = make_config("ellipse_4vanes", **{"rotor.vanes": vanes})
+    truth = dataclasses.replace(base, angle=0.4)
+    ds, sigma = measurement(base, truth, lag=3.3e-4, duration=0.2)
+    out = diagnose(base, ds)
+    _check(out, sigma, "sensor_lag")
+    assert out["effects"] == ["sensor_lag"]
+    assert abs(_value(out, "lag") / 3.3e-4 - 1) < EFFECT_PARAM_REL
