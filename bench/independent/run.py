@@ -50,7 +50,7 @@ QUICK = [("concentric4", "none"), ("concentric4", "rotor_eccentricity"), ("conce
          ("concentric4", "off_speed"), ("concentric4", "two_effects"), ("ellipse4", "speed_drift")]
 
 
-def grid(rigs, effects, snrs, seeds, quick, full=False):
+def grid(rigs, effects, snrs, seeds, quick, full=False, seed_offset=0):
     if quick:
         pairs = [(r, e, 5.0) for r, e in QUICK]
     elif full:
@@ -69,7 +69,7 @@ def grid(rigs, effects, snrs, seeds, quick, full=False):
             fmt = FORMATS[k % len(FORMATS)]
             if e == "speed_drift" and fmt not in SPEED_FORMATS:   # the drift is measured: the file shows it
                 fmt = SPEED_FORMATS[k % len(SPEED_FORMATS)]
-            cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed, fmt, rate, dur))
+            cases.append((r, e, float(snr), 1000 * n + 10 * int(snr) + seed + seed_offset, fmt, rate, dur))
     return cases
 
 
@@ -335,6 +335,8 @@ def main(argv=None):
     ap.add_argument("--effects", default=",".join(EFFECTS))
     ap.add_argument("--snrs", default="3,5,10")
     ap.add_argument("--seeds", type=int, default=1)
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="added to every case's seed: a held-out grid (new effect sizes, phases, noise) of the same design")
     ap.add_argument("--case", help="one case RIG:EFFECT:SNR:SEED:FORMAT:RATE:DURATION; files kept in out/independent/")
     ap.add_argument("--pumpsim", default=str(Path(sys.executable).with_name("pumpsim")))
     ap.add_argument("--timeout", type=float, default=600.0)
@@ -362,7 +364,8 @@ def main(argv=None):
     elif a.artefacts:
         cases = artefact_grid(a.rigs.split(","))
     else:
-        cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick, a.full)
+        cases = grid(a.rigs.split(","), a.effects.split(","), [float(x) for x in a.snrs.split(",")], a.seeds, a.quick, a.full,
+                     a.seed_offset)
     cases = cases[a.skip:]
     results, t_all = [], time.perf_counter()
 
