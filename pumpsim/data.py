@@ -88,6 +88,10 @@ class Dataset:
             self._trend = (speed_trend(self.time, self.speed),)
         return self._trend[0]
 
+    def turned(self) -> np.ndarray:
+        """The angle the speed column turns from the first sample (trapezoidal integral)."""
+        return np.concatenate([[0.0], np.cumsum(0.5 * (self.speed[1:] + self.speed[:-1]) * np.diff(self.time))])
+
     def mean_speed(self) -> float | None:
         """The speed column's mean over the longest stretch of whole revolutions from the first
         sample (None without a column): the angle it turns (trapezoidal integral) over the time it
@@ -101,7 +105,7 @@ class Dataset:
             return None
         if self.speed_trend() is not None:
             return self.speed_trend().mean
-        turned = np.concatenate([[0.0], np.cumsum(0.5 * (self.speed[1:] + self.speed[:-1]) * np.diff(self.time))])
+        turned = self.turned()
         revs = math.floor(turned[-1] / (2 * math.pi) + 1e-9)
         if revs < 1:
             return float(np.mean(self.speed))

@@ -885,7 +885,6 @@ class _Run:
     torque_rms: float = 0.0
     mean_torque: float = 0.0
     added: list = field(default_factory=list)  # per named effect: the fitted names it added
-    refinable: list = field(default_factory=list)  # measurements whose column speed may be refined in its band
 
     def implausible(self, st) -> list:
         return plausible(st.cfg, st.values, self.torque_rms, self.mean_torque)
@@ -953,16 +952,14 @@ def _start(cfg, datasets, progress):
     # speed is refined inside it as a nominal speed is inside its tolerance (baseline, and after an
     # effect makes the torque depend on the angle), and where the held mean turns a named effect's
     # phase over the record (_stationary_at_its_speed)
-    refinable = [0] if (K == 1 and cfg.mode == "speed" and datasets[0].speed is not None
-                        and speed_band(cfg, datasets[0])) else []
-    free += refinable
+    if K == 1 and cfg.mode == "speed" and datasets[0].speed is not None and speed_band(cfg, datasets[0]):
+        free = [0]
     screen = _screen(datasets)
     full_data = datasets if K > 1 else datasets[0]
     screen_data = full_data if screen is datasets else (screen if K > 1 else screen[0])
     y_all = np.concatenate([d.torque for d in datasets])
     run = _Run(cfg, datasets, full_data, screen_data, free, progress or (lambda msg: None), speed_info,
-               torque_rms=float(np.sqrt(np.mean(y_all ** 2))), mean_torque=float(np.mean(y_all)),
-               refinable=refinable)
+               torque_rms=float(np.sqrt(np.mean(y_all ** 2))), mean_torque=float(np.mean(y_all)))
     for i, m in enumerate(speed_info["measurements"]):
         if "trend" in m:
             run.notes.append(f"speed column of measurement {i} drifts ({100 * m['trend']['relative_change']:.2g} % "
@@ -1287,7 +1284,8 @@ def _stationary_at_its_speed(run, st, res, new_names, sigma):
     true 0.57 % ripple at chi2 2580 on 6 dof; at the fitted speed the ripple leaves the noise). The
     refined speed is kept only if it makes the effect stationary."""
     h = _stationary(run, st, res, new_names, sigma)
-    if (h is None or h["p_value"] >= STATIONARY_ALPHA or not run.refinable
+    column = any(run.datasets[i].speed is not None for i in run.free)  # a column's speed in its band
+    if (h is None or h["p_value"] >= STATIONARY_ALPHA or not column
             or any(base_name(n) == "speed" for n in st.names)):
         return h, st, res
     info, notes = {"measurements": [dict(m) for m in run.speed_info["measurements"]]}, []

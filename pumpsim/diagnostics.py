@@ -147,6 +147,12 @@ LINE_RATIO = 10.0  # a periodogram bin this many times its neighbourhood's media
 LINE_NEIGHBOURS = 25  # bins each side of the neighbourhood
 
 
+def _neighbourhood_median(P):
+    """Per periodogram bin, the median of its +-LINE_NEIGHBOURS bins (reflected at the ends)."""
+    pad = np.pad(P, LINE_NEIGHBOURS, mode="reflect")
+    return np.median(np.lib.stride_tricks.sliding_window_view(pad, 2 * LINE_NEIGHBOURS + 1), axis=1)
+
+
 def broadband_sigma(x) -> float:
     """Standard deviation of x without its narrow spectral lines: the periodogram bins above
     LINE_RATIO x the median of their +-LINE_NEIGHBOURS bins are removed (a line -- a synchronous
@@ -160,10 +166,7 @@ def broadband_sigma(x) -> float:
     P = np.abs(np.fft.rfft(x * win)) ** 2
     if P.size < 2 * LINE_NEIGHBOURS + 2:
         return float(np.std(x))
-    k = 2 * LINE_NEIGHBOURS + 1
-    pad = np.pad(P, LINE_NEIGHBOURS, mode="reflect")
-    local = np.median(np.lib.stride_tricks.sliding_window_view(pad, k), axis=1)
-    keep = P <= LINE_RATIO * local
+    keep = P <= LINE_RATIO * _neighbourhood_median(P)
     keep[:2] = True   # the mean was removed (the window spreads it over bins 0 and 1)
     w = np.where(np.arange(P.size) == 0, 1.0, 2.0)   # one-sided spectrum
     if n % 2 == 0:
@@ -319,8 +322,7 @@ def _synchronous_line_share(P, R) -> float:
     that median."""
     if P.size < 2 * LINE_NEIGHBOURS + 2:
         return 1.0
-    pad = np.pad(P, LINE_NEIGHBOURS, mode="reflect")
-    local = np.median(np.lib.stride_tricks.sliding_window_view(pad, 2 * LINE_NEIGHBOURS + 1), axis=1)
+    local = _neighbourhood_median(P)
     excess = np.where(P > math.log(P.size / 0.01) / math.log(2) * local, P - local, 0.0)
     excess[0] = 0.0  # the mean
     total = float(excess.sum())

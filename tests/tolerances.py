@@ -418,7 +418,7 @@ INTERVAL_VALLEY_RMS = 1.03
 # Dataset.mean_speed: the stretch of whole revolutions ends within one sample of the last whole
 # turn, so a ripple eps can bias it by at most eps x (one sample's share of the stretch)
 WHOLE_REVOLUTION_SAMPLES = 1.0
-# column_noise: a MAD estimate of sigma has relative standard error ~1.1 / sqrt(n) on independent
+# noise_sigma(order=3): a MAD estimate of sigma has relative standard error ~1.1 / sqrt(n) on independent
 # values, more on third differences (neighbours share samples): 1.7 / sqrt(n), at 5 standard errors
 MAD_SIGMA_SE = 1.7
 MAD_SIGMA_Z = 5.0

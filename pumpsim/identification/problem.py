@@ -498,7 +498,9 @@ def speed_band(cfg, data):
     """(lowest, highest) speed a fit may give a measurement. Without a speed column: the configured
     speed +- operation.speed_tolerance (the operating point is known; a spectral peak elsewhere
     is a disturbance, not the shaft). With one: its mean (over whole revolutions) +- SPEED_COLUMN_Z
-    standard errors of that mean, the column's noise taken as white (column_noise / sqrt(n)): a
+    standard errors of that mean, the column's noise taken as white (its robust sigma from third
+    differences, which an exact column's own ripple hardly enters -- a 2.8 % order-3 ripple at
+    20 kHz reads as 5e-3 rad/s where first differences read 0.7 --, / sqrt(n)): a
     0.3 % noisy column's mean over 1 s is known to ~3e-5, which over the record turns the angle by
     0.01 rad -- with a large shaft-synchronous effect the torque knows the speed far better. None
     with no speed set, with a column that has a significant slow trend (the model follows the
@@ -508,22 +510,10 @@ def speed_band(cfg, data):
     if data.speed is not None:
         if data.speed_trend() is not None:
             return None
-        se = column_noise(data.speed) / math.sqrt(max(data.n, 1))
+        se = noise_sigma(data.speed, order=3) / math.sqrt(max(data.n, 1))
         mean = data.mean_speed()
         return (mean - SPEED_COLUMN_Z * se, mean + SPEED_COLUMN_Z * se) if se > 0 else None
     return cfg.speed * (1 - cfg.speed_tolerance), cfg.speed * (1 + cfg.speed_tolerance)
-
-
-def column_noise(x) -> float:
-    """Robust white-noise sigma of a measured column from its third differences (1.4826 x their
-    median absolute deviation / sqrt(20): a third difference of white noise has 20 x its variance).
-    A speed's own shaft-periodic content (a ripple of order k sampled n times a revolution) enters
-    only as (2 pi k / n)^3 of its size: a 2.8 % order-3 ripple at 20 kHz reads as 5e-3 rad/s where
-    first differences read 0.7 -- an exact column has next to no band."""
-    d = np.diff(np.asarray(x, dtype=float), 3)
-    if d.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(20.0))
 
 
 def half_band(cfg, data) -> float:

@@ -14,6 +14,8 @@ independent with one variance: the detectors run on the kept samples (dropped, n
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 # a step is masked when its midpoint signature exceeds this fraction of the noise sigma: a step of
@@ -34,14 +36,16 @@ def step_signature(samples, mids):
     return np.asarray(mids, dtype=float)[:-1] - 0.5 * (s[:-1] + s[1:]) + (d2[:-1] + d2[1:]) / 16
 
 
-def noise_sigma(residual) -> float:
-    """Robust white-noise sigma of a residual: 1.4826 x the median absolute deviation of its first
-    differences / sqrt(2) (differences of white noise have twice its variance; a smooth systematic
-    part hardly enters them; the few step spikes do not move a median)."""
-    d = np.diff(np.asarray(residual, dtype=float))
+def noise_sigma(residual, order: int = 1) -> float:
+    """Robust white-noise sigma of a residual: 1.4826 x the median absolute deviation of its
+    differences of `order` / sqrt(binomial(2 order, order)) (a k-th difference of white noise has
+    that many times its variance: 2 for first, 20 for third differences; a smooth systematic part
+    hardly enters them -- a sinusoid n samples a period as (2 pi / n)^order of its size --; the
+    few step spikes do not move a median)."""
+    d = np.diff(np.asarray(residual, dtype=float), order)
     if d.size == 0:
         return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2))
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
 
 
 # the step's place inside its interval is found by bisection to 1/2^BISECTIONS of a sample; a

@@ -81,8 +81,7 @@ class TransientProblem(Problem):
     def angle(self, x):
         """The rotor angle from theta0 and the measured speed (trapezoidal integral)."""
         theta0 = dict(zip(self.names, x)).get("theta0", self.fixed["theta0"])
-        d = self.data
-        return theta0 + np.concatenate([[0.0], np.cumsum(0.5 * (d.speed[1:] + d.speed[:-1]) * np.diff(d.time))])
+        return theta0 + self.data.turned()
 
     def parameter_vector(self, x):
         return np.asarray(self._parameters(dict(zip(self.names, x))), dtype=float).ravel()

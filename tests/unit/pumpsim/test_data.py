@@ -193,13 +193,13 @@ def test_mean_speed_of_a_rippled_column_is_the_mean_over_whole_revolutions(k, ph
     assert short.mean_speed() == pytest.approx(float(np.mean(w[:50])), rel=ROUNDING_REL)
 
 
-def test_column_noise_reads_white_noise_and_not_a_ripple():
+def test_third_difference_noise_reads_white_noise_and_not_a_ripple():
     """Third differences: the sigma of white noise within its sampling error, a 2.8 % order-3 ripple of an exact column at 20 kHz as
     (2 pi k w / rate)^3 of its size, far below any logger's noise."""
-    from pumpsim.identification.problem import column_noise
+    from pumpsim.identification.reversals import noise_sigma
     n, rate = 20000, 20000.0
     t = np.arange(n) / rate
     noise = 1.5 * np.random.default_rng(3).standard_normal(n)
-    assert abs(column_noise(W + noise) / 1.5 - 1) < MAD_SIGMA_Z * MAD_SIGMA_SE / math.sqrt(n)
+    assert abs(noise_sigma(W + noise, order=3) / 1.5 - 1) < MAD_SIGMA_Z * MAD_SIGMA_SE / math.sqrt(n)
     ripple = W * 0.028 * np.cos(3 * W * t)
-    assert column_noise(W + ripple) < 1.1 * 0.028 * W * (3 * W / rate) ** 3
+    assert noise_sigma(W + ripple, order=3) < 1.1 * 0.028 * W * (3 * W / rate) ** 3
