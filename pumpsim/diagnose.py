@@ -89,12 +89,12 @@ SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction
 REVERSAL_SIGMA = None
 
 
-def identify(*args, **kw):
-    return _identification_fit(*args, reversals=REVERSAL_SIGMA, **kw)
+def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
 
 
 def make_problem(*args, **kw):
-    return _identification_problem(*args, reversals=REVERSAL_SIGMA, **kw)
+    return _identification_problem(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
 
 
 def _kept(*fits):

@@ -126,18 +126,20 @@ class ConstantSpeedProblem(Problem):
     SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if not m.transient or m.in_kernel_graph)
 
     def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
-                 ripple_order: int = 1):
+                 ripple_order: int = 1, speed_band: bool = False):
         starts = {"theta0": float(data.angle[0]) if data.angle is not None else cfg.angle,
                   "speed": data.mean_speed() if data.speed is not None else cfg.speed,
                   "torque_offset": 0.0, "delay": 0.0, "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0,
                   **(extra or {})}
         self._setup(cfg, data, names, starts, initial)
         self.ripple_order = int(ripple_order)
-        band = speed_band(cfg, data)
-        if band is not None and "speed" in self.names:  # the nominal speed's tolerance band
+        # a speed the user asks for is searched over the start band (start.py); only a workflow
+        # that refines a known operating point (diagnosis) confines it to the tolerance band
+        self.speed_band = speed_band(cfg, data) if speed_band and "speed" in self.names else None
+        if self.speed_band is not None:
             i = self.names.index("speed")
-            self.lower[i], self.upper[i] = band
-            self.x0[i] = min(max(self.x0[i], band[0]), band[1])
+            self.lower[i], self.upper[i] = self.speed_band
+            self.x0[i] = min(max(self.x0[i], self.speed_band[0]), self.speed_band[1])
         self.y = data.torque
         # the drive's own time: tau = t at a constant speed; with a drifting measured speed the
         # angle and speed follow the column's trend (drive_kinematics)

@@ -1,13 +1,18 @@
-"""Start values for periodic parameters: theta0 is periodic and the speed moves the phase, so a
-wrong initial phase could trap a local fit. The speed starts from shaft-synchronous evidence (in a
-tolerance band) or the torque spectrum, the phase from a scan over one revolution."""
+"""Start values for the parameters whose cost is not convex: theta0 is periodic and the speed moves
+the phase, so a local fit from a wrong phase or speed ends in a wrong valley. A fitted speed starts
+from the record's own shaft-order evidence over a wide band (or, refining a known operating point,
+from shaft-synchronous evidence in its tolerance band), the phase from a scan over one revolution
+at that speed; the local fit starts there."""
 from __future__ import annotations
 
 import math
 
 import numpy as np
 
+from scipy import stats
+
 from ..diagnostics import synchronous_speed_scan
+from ..model_spec.parameters import MEASUREMENT_BY_NAME
 from ..simulate import inverse_dynamics
 
 _GRID = np.linspace(0, 2 * math.pi, 720, endpoint=False)  # model over one revolution
@@ -37,29 +42,86 @@ def _one_revolution(prob, x, w):
 
 
 def _speed_start(prob, w, one_rev):
-    """Inside the speed's tolerance band: from shaft-synchronous evidence only. Without a band:
-    the torque spectrum's peak frequency divided by the model's dominant order (or another order
-    within +-50 % of the current speed). None when the record is too short to say."""
-    t, y, names = prob.t, prob.y, prob.names
-    i = names.index("speed")
-    if np.isfinite(prob.upper[i]):
-        return synchronous_speed_scan(t, y, prob.lower[i], prob.upper[i], w)["speed"]
-    if t.size <= 64:
+    """Inside the speed's tolerance band (a known operating point refined): from shaft-synchronous
+    evidence only. Otherwise the speed the model's orders explain best over the whole start band
+    (model_order_scan); None when nothing in the record tells (a model without shaft orders, a
+    record too short, no significant match)."""
+    i = prob.names.index("speed")
+    if prob.speed_band is not None:
+        return synchronous_speed_scan(prob.t, prob.y, prob.lower[i], prob.upper[i], w)["speed"]
+    half = MEASUREMENT_BY_NAME["speed"].band
+    lower, upper = max(w * (1 - half), prob.lower[i]), min(w * (1 + half), prob.upper[i])
+    return model_order_scan(prob.tau, prob.y, one_rev, lower, upper)
+
+
+SCAN_ALPHA = 1e-3  # family-wise false-alarm rate of the start scan (Bonferroni over its grid)
+SCAN_BUDGET = 3e7  # complex multiply-adds of the coarse stage: ~0.3 s
+SCAN_POWER = 0.999  # the model orders kept carry this share of its shaft-order power
+
+
+def model_order_scan(t, y, one_rev, lower, upper):
+    """The speed in [lower, upper] at which the record holds most of the model's shaft orders:
+    the score sum_k |c_k| |Y_k(w)|, c_k the model's order-k Fourier coefficient over one
+    revolution and Y_k(w) the record's at k w. Weighting by |c_k| and ignoring their phases keeps
+    the score blind to lines the model does not have and robust to a model whose shape is still
+    off (a COF start far from the truth moves the orders' phases, not where they lie).
+
+    Coarse to fine: the grid step keeps the highest kept order's phase drift under pi/2 over the
+    window; the first window is as long as the budget allows, each further stage four times longer
+    around the best point, the last the whole record. The best point is used only when the
+    kept orders' power there is significant (F-test against the rest, Bonferroni over the grid);
+    None otherwise. Assumes a constant speed over the record."""
+    t = np.asarray(t, dtype=float) - t[0]
+    y = np.asarray(y, dtype=float) - np.mean(y)
+    n = y.size
+    if n < 64 or not upper > lower > 0:
         return None
-    spec_y = np.abs(np.fft.rfft((y - y.mean()) * np.hanning(y.size)))
-    f = np.fft.rfftfreq(y.size, t[1] - t[0])
-    k = int(np.argmax(spec_y[1:])) + 1
-    if 1 <= k < spec_y.size - 1:  # parabolic peak interpolation
-        a, b, c = np.log(spec_y[k - 1:k + 2] + 1e-300)
-        k = k + 0.5 * (a - c) / (a - 2 * b + c)
-    f_peak = k * (f[1] - f[0])
-    orders = np.abs(np.fft.rfft(one_rev - one_rev.mean()))
-    order = int(np.argmax(orders[1:])) + 1
-    candidates = [2 * math.pi * f_peak / o for o in range(1, 4 * prob.kern.structure.vanes + 1)]
-    w_new = min(candidates, key=lambda c: abs(c - w) + (1e9 if abs(c - w) > 0.5 * w else 0))
-    if abs(2 * math.pi * f_peak / order - w) < 0.5 * w:
-        w_new = 2 * math.pi * f_peak / order
-    return w_new
+    c = np.abs(np.fft.rfft(one_rev - np.mean(one_rev)))[1:] / one_rev.size
+    dt = t[-1] / (n - 1)
+    power = np.cumsum(np.sort(c**2)[::-1])
+    if power[-1] <= 0:
+        return None  # no shaft orders: the record cannot tell the speed
+    kept = np.sort(np.argsort(c**2)[::-1][:int(np.searchsorted(power, SCAN_POWER * power[-1])) + 1])
+    orders = kept + 1
+    orders = orders[orders * upper * dt < 0.9 * math.pi][:32]  # below Nyquist
+    if orders.size == 0:
+        return None
+    weights, kmax = c[orders - 1], int(orders.max())
+    width = upper - lower
+    m = int(min(n, max(64, math.sqrt(SCAN_BUDGET * math.pi / (2 * width * kmax**2 * dt)))))
+    step = math.pi / (2 * kmax * max(t[m - 1], dt))
+    grid = np.arange(lower, upper + 0.5 * step, step)
+    first = _order_spectra(t[:m], y[:m], grid, orders)
+    score = first @ weights
+    best = float(grid[int(np.argmax(score))])
+    j = int(np.argmax(score))
+    explained = 2.0 * float(np.sum(first[j] ** 2)) / m
+    total = float(y[:m] @ y[:m])
+    dof = 2 * orders.size
+    F = (explained / dof) / max((total - explained) / max(m - dof - 1, 1), 1e-300)
+    if not stats.f.sf(F, dof, max(m - dof - 1, 1)) * grid.size < SCAN_ALPHA:
+        return None
+    while m < n:
+        m, step = min(n, 4 * m), step / 4
+        local = best + step * np.arange(-8, 9)
+        local = local[(local >= lower) & (local <= upper)]
+        best = float(local[int(np.argmax(_order_spectra(t[:m], y[:m], local, orders) @ weights))])
+    return best
+
+
+def _order_spectra(t, y, speeds, orders):
+    """|Y_k(w)| = |sum_j y_j exp(-i k w t_j)| for every speed w (rows) and order k (columns)."""
+    out = np.empty((speeds.size, orders.size))
+    for lo in range(0, speeds.size, 64):  # a block of speeds at a time: bounded memory
+        e = np.exp(-1j * np.outer(speeds[lo:lo + 64], t))
+        p = np.ones_like(e)
+        col = 0
+        for k in range(1, int(orders.max()) + 1):
+            p *= e
+            if k == orders[col]:
+                out[lo:lo + 64, col] = np.abs(p @ y)
+                col += 1
+    return out
 
 
 def _phase_start(prob, one_rev, w, delay, th_init):
