@@ -13,6 +13,7 @@ from ..config import PumpConfig
 from ..data import Dataset
 from ..diagnostics import residual_report
 from ..errors import ConfigError
+from .adequacy import VERDICTS, assess
 from .identifiability import to_fix
 from .joint import JointProblem
 from .optimiser import FitOutcome, Optimiser
@@ -165,10 +166,23 @@ def _result(prob, fit: _Fit, wrap_phase: bool) -> IdentificationResult:
     n_eval = prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0)
     keep = None if fit.outcome is None else fit.outcome.keep
     rk = r if keep is None else r[keep]
+    adequacy = _adequacy(fitted_prob, x, fitted_prob.y - r)
     return IdentificationResult(
         estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(rk**2))),
         converged=converged, message=message, correlation=corr,
         diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
-        keep=keep)
+        keep=keep, adequacy=adequacy)
+
+
+def _adequacy(prob, x, fitted):
+    """The fit's adequacy (adequacy.py): per measurement of a joint fit, the worst one kept; None
+    for a transient fit (its residual is a speed, not a torque)."""
+    if isinstance(prob, TransientProblem):
+        return None
+    if isinstance(prob, JointProblem):
+        found = [assess(s.y, fitted[a:b], s.angle(x[c]), s.dt, s.speed_of(x[c]), len(prob.names))
+                 for s, c, a, b in zip(prob.subs, prob.cols, prob.rows[:-1], prob.rows[1:])]
+        return max(found, key=lambda q: VERDICTS.index(q.verdict))
+    return assess(prob.y, fitted, prob.angle(x), prob.dt, prob.speed_of(x), len(prob.names))

@@ -9,6 +9,7 @@ import numpy as np
 from scipy import stats
 
 from ..presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe, samples_sha256, sha256
+from .adequacy import Adequacy
 from .optimiser import scaled_svd
 
 
@@ -58,6 +59,7 @@ class IdentificationResult:
     no_effect: list = field(default_factory=list)  # unidentifiable because they do not act at all
     warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
     keep: np.ndarray | None = None  # samples kept by the reversal-aware cost (None: all); rms over them
+    adequacy: Adequacy | None = None  # how well the model describes the data (adequacy.py)
 
     @property
     def residual(self):
@@ -77,6 +79,8 @@ class IdentificationResult:
         for name, bound in self.on_bound:
             out.append(f"{name} ended on its bound {bound:g} (a unit mistake, a wrong configuration or "
                        "an effect the model lacks; the interval is not valid)")
+        if self.adequacy is not None and self.adequacy.problem():
+            out.append(self.adequacy.problem())
         apart = [n for n in self.unidentifiable if n not in self.no_effect]
         if apart:  # parameters without any effect are reported, but leave the others' fit usable
             out.append(f"not identifiable from this data: {', '.join(apart)} (their effects on the torque "
@@ -109,12 +113,14 @@ class IdentificationResult:
             "diagnostics": self.diagnostics, "wall_time": self.wall_time, "provenance": self.provenance,
             "on_bound": [{"name": n, "bound": b} for n, b in self.on_bound], "no_effect": self.no_effect,
             "problems": self.problems(), "warnings": self.warnings,
+            "adequacy": None if self.adequacy is None else self.adequacy.to_json(),
         }
 
     def __str__(self):
         its = self.iterations[-1].get("iteration", len(self.iterations) - 1) if self.iterations else 0
+        usable = "" if not self.converged or not self.problems() else " but NOT a usable estimate (see below)"
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
-                 f"after {its} iterations, residual RMS {self.rms:.6g} N m"]
+                 f"after {its} iterations{usable}, residual RMS {self.rms:.6g} N m"]
         if self.provenance:
             pv = self.provenance
             lines.append(f"  from {pv['config']} and " + ", ".join(
@@ -128,6 +134,8 @@ class IdentificationResult:
         if d["spectrum_peaks"]:
             lines.append("  residual peaks at shaft orders: " + ", ".join(
                 f"{p['order']:.2f}" for p in d["spectrum_peaks"][:5]))
+        if self.adequacy is not None:
+            lines.append("  " + self.adequacy.summary().replace("\n", "\n  "))
         lines.append(f"  {PLUS_MINUS}")
         if not d["white_at_5pct"]:
             lines.append(f"  {OPTIMISTIC}")
