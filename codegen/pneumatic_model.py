@@ -148,11 +148,11 @@ class _GasBuilder(_Builder):
         flanks = []
         for i in range(N):
             o_i, o_j = c["outlines"][i], c["outlines"][(i + 1) % N]
-            flanks.append(ca.norm_2(o_i["Jp"] - o_i["Rp"]) + ca.norm_2(o_j["Jm"] - o_j["Rm"]))
+            flanks.append(exposed_flank(o_i, 1) + exposed_flank(o_j, -1))
         wall = (2 * ca.vertcat(*c["area"])
                 + W * (ca.vertcat(*c["arc"]) + ca.vertcat(*c["rotor_arc"]) + ca.vertcat(*flanks)))
         # exposed length of vane i (mean of its flanks), for the end-face leak across it
-        exposed = ca.vertcat(*[0.5 * (ca.norm_2(o["Jp"] - o["Rp"]) + ca.norm_2(o["Jm"] - o["Rm"]))
+        exposed = ca.vertcat(*[0.5 * (exposed_flank(o, 1) + exposed_flank(o, -1))
                                for o in c["outlines"]])
         vane_area = ca.vertcat(*c["vane_area"]) * W
         return ca.Function("cells", [theta, s, al, ds, dal, *([omega] if rates else []), self.p],
@@ -160,6 +160,15 @@ class _GasBuilder(_Builder):
                            ["theta", "s", "alpha", "ds", "dalpha", *(["omega"] if rates else []), "p"],
                            ["volume", "dvolume", "inlet_length", "exhaust_length", "wall_area",
                             "exposed", "vane_volume"], {"cse": True})
+
+
+def exposed_flank(o, side):
+    """Length of a vane flank (side +1: +w, -1: -w) outside the rotor: from the rotor circle (R)
+    to the flank's end at the tip (J), measured along the vane axis u. Near top dead centre the
+    flank ends inside the rotor (only the tip cap protrudes): the signed length is negative there
+    and the flank exposes nothing, so it is clamped at zero."""
+    J, R = (o["Jp"], o["Rp"]) if side > 0 else (o["Jm"], o["Rm"])
+    return ca.fmax(ca.dot(J - R, o["u"]), 0.0)
 
 
 def build_pneumatic_model(structure) -> BuiltModel:
@@ -287,8 +296,11 @@ def cell_flows(P, N, gs, lin, lex, exposed, lift_gap=None) -> dict:
 def booster_flows(P, gs) -> dict:
     """Booster -> hose and inlet check valve -> manifold; atmosphere -> booster leak."""
     T0, p_atm, p_b, p_in = gs["T0"], gs["p_atm"], gs["p_b"], gs["p_in"]
-    A_hose = P("ports.hose_area") * gas.ramp(p_b - p_in, P("ports.check_cracking"),
-                                             P("ports.check_full_open"))
+    # hose orifice and check valve in series, the valve's area growing to the hose's at full
+    # lift: the smaller effective area of the two passes the flow
+    lift = gas.ramp(p_b - p_in, P("ports.check_cracking"), P("ports.check_full_open"))
+    A_hose = P("ports.hose_area") * ca.fmin(P("ports.hose_discharge_coefficient"),
+                                            P("ports.check_discharge_coefficient") * lift)
     A_bleak = P("booster.leak") / gas.choked_flux(p_atm, T0, gs["R"], gs["g"])
     return dict(f_hose=_flow(gs, p_b, T0, p_in, T0, A_hose),
                 f_bleak=_flow(gs, p_atm, T0, p_b, T0, A_bleak))
@@ -301,7 +313,8 @@ def exhaust_valve(P, gs, xr, vr) -> dict:
     reed = P("valve.reed") > 0.5
     A_check = P("valve.area") * gas.ramp(p_ex - p_atm, P("valve.cracking"), P("valve.full_open"))
     A_reed = ca.fmin(math.pi * P("valve.diameter") * ca.fmax(xr, 0.0), P("valve.area"))
-    f_valve = _flow(gs, p_ex, T0, p_atm, T0, ca.if_else(reed, A_reed, A_check))
+    f_valve = _flow(gs, p_ex, T0, p_atm, T0,
+                    P("valve.discharge_coefficient") * ca.if_else(reed, A_reed, A_check))
     F_reed = (p_ex - p_atm) * P("valve.force_area") - P("valve.preload") - P("valve.stiffness") * xr
     free = ca.logic_and(reed, P("valve.mode") < 0.5)
     return dict(f_valve=f_valve, F_reed=F_reed, free=free, xr_dot=ca.if_else(free, vr, 0.0),
@@ -405,14 +418,16 @@ def flat(f):
 
 
 def cell_geometry_function(geometry, p):
-    """cell_geometry(theta, p): the Model 2 cells (the runtime's start state and plots)."""
+    """cell_geometry(theta, p): the Model 2 cells (the runtime's start state and plots; the
+    exposed vane lengths and wall areas for the geometry tests)."""
     th = ca.MX.sym("theta")
     gg = geometry(th)
     return ca.Function("cell_geometry", [th, p],
                        [gg["V"], gg["dV"], gg["vane_volume"], gg["lin"], gg["lex"], gg["s"].T,
-                        gg["alpha"].T, gg["residual"].T],
+                        gg["alpha"].T, gg["residual"].T, gg["exposed"], gg["wall"]],
                        ["theta", "p"], ["volume", "dvolume", "vane_volume", "inlet_length",
-                                        "exhaust_length", "s", "alpha", "position_residual"])
+                                        "exhaust_length", "s", "alpha", "position_residual",
+                                        "exposed", "wall_area"])
 
 
 def orifice_function(P, p):

@@ -88,6 +88,10 @@ OUTPUTS = _declare(
     ("inlet_length", "m", "cell", "arc length of the inlet window a cell covers"),
     ("exhaust_length", "m", "cell", "arc length of the exhaust window a cell covers"),
     ("vane_volume", "m^3", "cell", "vane volume outside the rotor (one per vane)"),
+    ("exposed", "m", "cell", "flank length of a vane outside the rotor, the end-face leak's length "
+     "(one per vane)"),
+    ("wall_area", "m^2", "cell", "cell wall area for the heat exchange (end faces, housing and rotor "
+     "arcs, exposed flanks)"),
     ("motor_residual", "N m", "sample", "motor-drive torque residual after the omegadot Newton"),
     ("mdot", "kg/s", "sample", "orifice mass flow, side 1 -> 2"),
     ("contact_power", "W", "sample", "power of the penalty contacts on their surroundings: elastic "
@@ -150,7 +154,8 @@ PUMP_OUTPUTS = (
 )
 _PNEUMATIC = {
     "cell_geometry": Signature(("theta", "p"), ("volume", "dvolume", "vane_volume", "inlet_length",
-                                                "exhaust_length", "s", "alpha", "position_residual")),
+                                                "exhaust_length", "s", "alpha", "position_residual",
+                                                "exposed", "wall_area")),
     "orifice_flow": Signature(("p1", "T1", "p2", "T2", "area", "p"), ("mdot",)),
     "pump_rhs": Signature(("x", "p"), ("xdot", "qdot")),
     "pump_rhs_jac": Signature(("x", "p"), ("jac_xdot_x", "jac_qdot_x")),

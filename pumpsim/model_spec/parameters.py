@@ -494,6 +494,12 @@ def _p(name, unit, lower=-math.inf, upper=math.inf, positive=False, doc=""):
                      doc=doc)
 
 
+def _discharge(name, opening):
+    """An opening's discharge coefficient: by default the ports' value (spec §8)."""
+    return Parameter(name, "-", lower=POSITIVE, upper=Bound(1.0), derived="ports.discharge_coefficient",
+                     doc=f"discharge coefficient of the {opening}; default: ports.discharge_coefficient")
+
+
 GAS_PARAMETERS = (
     # a metre: wider than any vane pump (the mechanical lengths' plausibility limit); 25 for 25 mm
     # would otherwise give a pump 1000x too large that turns at a few rpm without a word
@@ -504,7 +510,11 @@ GAS_PARAMETERS = (
               doc="ratio of specific heats"),
     _p("gas.temperature", "K", positive=True, doc="atmosphere, booster and plenum temperature"),
     _p("gas.wall_temperature", "K", positive=True),
-    _p("gas.heat_transfer", "W/(m^2 K)", 0.0, doc="cell-wall film coefficient, 0 = adiabatic"),
+    # above ~1e5 the cells are isothermal to 2e-3 already; the bound is where the pump-down's
+    # tolerances are shown converged (tests/integration/test_gas_limits.py)
+    Parameter("gas.heat_transfer", "W/(m^2 K)", lower=NONNEGATIVE,
+              upper=Bound(1e6, label="1e6 W/(m^2 K) (isothermal cells)"),
+              doc="cell-wall film coefficient, 0 = adiabatic"),
     _p("gas.atmosphere", "Pa", positive=True, doc="atmospheric pressure"),
     _p("ports.inlet.start", "rad", doc="inlet window start, housing polar angle (housing frame)"),
     _p("ports.inlet.end", "rad"),
@@ -513,12 +523,15 @@ GAS_PARAMETERS = (
     _p("ports.exhaust.start", "rad"),
     _p("ports.exhaust.end", "rad"),
     Parameter("ports.exhaust.width", "m", lower=POSITIVE, upper=Bound("rotor.width")),
-    Parameter("ports.discharge_coefficient", "-", lower=POSITIVE, upper=Bound(1.0)),
+    Parameter("ports.discharge_coefficient", "-", default=0.7, lower=POSITIVE, upper=Bound(1.0),
+              doc="discharge coefficient of the inlet and exhaust windows"),
     _p("ports.inlet_volume", "m^3", positive=True, doc="inlet manifold between hose and window"),
     _p("ports.exhaust_volume", "m^3", positive=True, doc="exhaust port volume under the valve"),
     _p("ports.hose_area", "m^2", positive=True, doc="booster hose orifice area"),
     _p("ports.check_cracking", "Pa", 0.0, doc="inlet check valve cracking pressure difference"),
     _p("ports.check_full_open", "Pa", positive=True, doc="inlet check valve: excess for full area"),
+    _discharge("ports.hose_discharge_coefficient", "booster hose orifice"),
+    _discharge("ports.check_discharge_coefficient", "booster check valve"),
     _p("valve.reed", "-", 0.0, 1.0, doc="exhaust valve: 0 check, 1 reed"),
     _p("valve.area", "m^2", positive=True, doc="check: full flow area; reed: port area (flow area cap)"),
     _p("valve.cracking", "Pa", 0.0, doc="check: cracking pressure difference"),
@@ -531,9 +544,10 @@ GAS_PARAMETERS = (
     _p("valve.diameter", "m", positive=True, doc="reed: port diameter d (curtain area pi d x)"),
     _p("valve.force_area", "m^2", positive=True, doc="reed: area the pressure difference acts on"),
     _p("valve.mode", "-", 0.0, 2.0, doc="reed contact mode (runtime): 0 free, 1 seated, 2 on the stop"),
+    _discharge("valve.discharge_coefficient", "exhaust valve (check or reed)"),
     Parameter("leak.tip_gap", "m", lower=NONNEGATIVE, upper=Bound(1e-3, label="1 mm")),
     Parameter("leak.end_gap", "m", lower=NONNEGATIVE, upper=Bound(1e-3, label="1 mm")),
-    Parameter("leak.discharge_coefficient", "-", lower=POSITIVE, upper=Bound(1.0)),
+    _discharge("leak.discharge_coefficient", "tip and end-face leak gaps"),
     _p("booster.volume", "m^3", positive=True),
     _p("booster.leak", "kg/s", 0.0, doc="booster leak mass flow at full atmospheric difference"),
     _p("vane.slot_pressure.source", "-", 0.0, 3.0, doc="0 value, 1 inlet, 2 exhaust, 3 atmosphere"),

@@ -11,9 +11,12 @@ from dataclasses import dataclass, field
 
 from ..errors import ConfigError
 from ..model_spec.parameters import (GAS_CONFIG_KEYS, GAS_ENCODED, GAS_PARAMETERS, SLOT_SOURCES,
-                                      VALVE_TYPES)
+                                      VALVE_TYPES, derive)
 
 TABLES = ("gas", "ports", "valve", "leak", "booster", "motor")
+
+
+_GAS = {q.name: q for q in GAS_PARAMETERS}
 
 
 def _num(default=None, required=False):
@@ -25,14 +28,16 @@ SCHEMA = {
             "wall_temperature": _num(None), "heat_transfer": _num(0.0), "atmosphere": _num(101325.0)},
     "ports": {"inlet": ("list", False, None), "exhaust": ("list", False, None),
               "width": _num(None), "inlet_width": _num(None), "exhaust_width": _num(None),
-              "discharge_coefficient": _num(0.7), "inlet_volume": _num(2.0e-6),
-              "exhaust_volume": _num(2.0e-7), "hose_diameter": _num(4.0e-3),
-              "check_cracking": _num(0.0), "check_full_open": _num(500.0)},
+              "discharge_coefficient": _num(_GAS["ports.discharge_coefficient"].default),
+              "hose_discharge_coefficient": _num(None), "check_discharge_coefficient": _num(None),
+              "inlet_volume": _num(2.0e-6), "exhaust_volume": _num(2.0e-7),
+              "hose_diameter": _num(4.0e-3), "check_cracking": _num(0.0), "check_full_open": _num(500.0)},
     "valve": {"type": ("str", False, "check"), "area": _num(None), "cracking": _num(0.0),
               "full_open": _num(2000.0), "mass": _num(None), "stiffness": _num(None),
               "damping": _num(0.0), "preload": _num(0.0), "lift_max": _num(None),
-              "diameter": _num(None), "force_area": _num(None), "port_area": _num(None)},
-    "leak": {"tip_gap": _num(0.0), "end_gap": _num(0.0), "discharge_coefficient": _num(0.7)},
+              "diameter": _num(None), "force_area": _num(None), "port_area": _num(None),
+              "discharge_coefficient": _num(None)},
+    "leak": {"tip_gap": _num(0.0), "end_gap": _num(0.0), "discharge_coefficient": _num(None)},
     "booster": {"volume": _num(None), "pressure": _num(None), "target": _num(None),
                 "leak": _num(0.0)},
     "motor": {"voltage": _num(None), "resistance": _num(None),
@@ -50,6 +55,12 @@ class PneumaticSettings:
     valve_type: str
     motor: bool
     present: tuple = field(default_factory=tuple)
+
+
+def _or_derived(name: str, given, v: dict) -> float:
+    """A key's value, or its registry default derived from entries already in v (the openings'
+    discharge coefficients: the ports' value)."""
+    return given if given is not None else float(derive(_GAS[name].derived, v))
 
 
 def _pos(path, v):
@@ -131,6 +142,8 @@ def _parse_ports(pt: dict, W: float, v: dict) -> None:
     v.update({f"ports.{k}": pt[k] for k in ("discharge_coefficient", "inlet_volume", "exhaust_volume",
                                             "check_cracking", "check_full_open")})
     v["ports.hose_area"] = math.pi * pt["hose_diameter"] ** 2 / 4
+    for k in ("hose_discharge_coefficient", "check_discharge_coefficient"):
+        v[f"ports.{k}"] = _or_derived(f"ports.{k}", pt[k], v)
     _check(v, "ports.")
 
 
@@ -143,6 +156,8 @@ def _parse_valve(vl: dict, v: dict) -> str:
                      "valve.preload": 0.0, "valve.lift_max": 1.0, "valve.diameter": 1.0,
                      "valve.force_area": 1.0, "valve.mode": 1.0}
     v.update(reed_defaults)
+    v["valve.discharge_coefficient"] = _or_derived("valve.discharge_coefficient",
+                                                   vl["discharge_coefficient"], v)
     if vt == "check":
         _parse_check_valve(vl, v)
     else:
@@ -177,7 +192,9 @@ def _parse_reed_valve(vl: dict, v: dict) -> None:
 
 def _parse_leak(lk: dict, v: dict) -> None:
     """Checks the [leak] table (gaps at most 1 mm) and adds its values to v."""
-    v.update({f"leak.{k}": lk[k] for k in ("tip_gap", "end_gap", "discharge_coefficient")})
+    v.update({f"leak.{k}": lk[k] for k in ("tip_gap", "end_gap")})
+    v["leak.discharge_coefficient"] = _or_derived("leak.discharge_coefficient",
+                                                  lk["discharge_coefficient"], v)
     _check(v, "leak.")
 
 

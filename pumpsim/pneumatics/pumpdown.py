@@ -145,7 +145,7 @@ def _result(cfg, r, target) -> PumpdownResult:
     mean_i = q["electrical_energy"] / (volt * t_end) if volt else float(np.mean(X[:, 2]))
     summary = {
         "time_to_target": r.time_to_target, "final_pressure": float(o["booster_pressure"][-1]),
-        "energy": q["electrical_energy"], "peak_current": float(np.max(np.abs(X[:, 2]))),
+        "energy": q["electrical_energy"], "peak_current": float(r.peak_current),
         "mean_current": mean_i, "start_pressure": float(o["booster_pressure"][0]),
         "target_pressure": target, "duration": t_end,
         "mean_speed_rpm": float((X[-1, 0] - X[0, 0]) / t_end * 30 / math.pi),
@@ -244,7 +244,7 @@ def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL) -> PumpMap
             volt = v["motor.voltage"] if cfg.pneumatic.motor else 0.0
             runup = {"time": settle, "mass": float(r0.states[0, i_bm] - r0.states[-1, i_bm]),
                      "charge": float(r0.quad[-1, 0] / volt) if volt else 0.0,
-                     "peak_current": float(np.max(np.abs(r0.states[:, 2])))}
+                     "peak_current": float(r0.peak_current)}
         x = r0.states[-1]
         T_rev = 2 * math.pi / max(x[1], 1.0)
         r = run.integrate(cfg, (MAP_REVOLUTIONS + 0.5) * T_rev, MAP_RATE, p=p, x0=x, rtol=rtol, atol=atol)

@@ -51,6 +51,7 @@ class PumpdownRun:
     events: list = field(default_factory=list)
     time_to_target: float | None = None
     p: np.ndarray | None = None
+    peak_current: float = 0.0  # A, |current| at its located maximum (peak_current)
 
 
 class PumpIntegrator:
@@ -222,7 +223,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     integ = PumpIntegrator(kern, p, rtol, atol, scale, max_steps)
     dt = 1.0 / rate
     n_total = int(math.floor(duration * rate + 1e-9))
-    times, xs, qs = [0.0], [x0], [np.zeros(integ.nq)]
+    times, xs, qs, modes = [0.0], [x0], [np.zeros(integ.nq)], [mode]
     events = []
     t, x, q = 0.0, x0.copy(), np.zeros(integ.nq)
     ib = 3 + 2 * N + 2
@@ -251,6 +252,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             times.append(t + (r + 1) * dt)
             xs.append(X[r])
             qs.append(q + Q[r])
+            modes.append(mode)
         if cut:
             t, x, q = t + cut * dt, X[cut - 1].copy(), q + Q[cut - 1]
             k += cut
@@ -263,6 +265,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             times.append(t_target)
             xs.append(xe)
             qs.append(q + qe)
+            modes.append(mode)
             break
         if cut < m:  # a reed event inside [t, t + dt]
             x, q, mode = _reed_interval(integ, kern, p, x, q, mode, t, dt, events)
@@ -271,6 +274,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             times.append(t)
             xs.append(x.copy())
             qs.append(q.copy())
+            modes.append(None)  # an event inside the interval before: no single mode there
         if progress:
             progress(t, p_booster(x))
     X = np.array(xs)
@@ -278,7 +282,31 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     stats.update(integrator_calls=integ.calls, events=len(events),
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall)
     outs = evaluate_outputs(kern, X, p)
-    return PumpdownRun(np.array(times), X, np.array(qs), outs, stats, events, t_target, p)
+    peak = peak_current(integ, np.array(times), X, modes)
+    return PumpdownRun(np.array(times), X, np.array(qs), outs, stats, events, t_target, p, peak)
+
+
+def peak_current(integ, times, X, modes) -> float:
+    """|current| at its maximum, located between the output samples: the largest sample brackets
+    the maximum with a neighbour where di/dt (the kernel's rate) changes sign, and the root of
+    di/dt there is found by Illinois on re-integrations from the interval's start, as the target
+    is. The largest sample itself where nothing brackets (a maximum at the run's ends, a valve
+    event inside the interval, constant speed)."""
+    i = X[:, 2]
+    k = int(np.argmax(np.abs(i)))
+    sign = 1.0 if i[k] >= 0 else -1.0
+    rate = lambda x: sign * float(integ.kern["pump_rhs"](x, integ.p)[0][2])  # noqa: E731
+    g_k = rate(X[k])
+    j = k + 1 if g_k > 0 else k - 1  # the neighbour on the side the maximum lies
+    if g_k == 0.0 or not 0 <= j < len(X):
+        return abs(i[k])
+    a = min(j, k)
+    g_a, g_b = (g_k, rate(X[j])) if a == k else (rate(X[j]), g_k)
+    if not (g_a > 0 > g_b) or modes[a + 1] is None:
+        return abs(i[k])
+    x_a, mode, d = X[a], modes[a + 1], times[a + 1] - times[a]
+    root = _illinois(lambda s: rate(integ.step(x_a, mode, s)[0]), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
+    return max(abs(i[k]), abs(integ.step(x_a, mode, root)[0][2]))
 
 
 def _first_reed_switch(kern, p, x, X, mode) -> int:

@@ -58,7 +58,7 @@ def test_volume_identity_every_angle(name):
     annulus = (housing_area - math.pi * v["rotor.radius"] ** 2) * W
     N = cfg.vanes
     for theta in np.linspace(0, 2 * math.pi, 17):
-        (V, dV, vv, lin, lex, s, al, res), _ = _geometry(cfg, theta)
+        (V, dV, vv, lin, lex, s, al, res, *_), _ = _geometry(cfg, theta)
         assert np.all(V > 0)
         assert V.sum() + vv.sum() == pytest.approx(annulus, rel=CELL_IDENTITY_REL)
         for i in range(N):
