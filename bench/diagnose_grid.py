@@ -159,7 +159,7 @@ def _absorbed(nominal, clean, sigma, speed_column):
     noise-free measurement leave less than a quarter of the noise sigma? Then one measurement
     cannot tell the effect from a change of the baseline parameters."""
     names = ["mu", "theta0"] + ([] if speed_column else ["speed"])
-    res = identify(nominal, clean, names, multistart=True)
+    res = identify(nominal, clean, names, multistart=True, speed_band=True, adequacy=False)
     return bool(res.rms < 0.25 * sigma)
 
 

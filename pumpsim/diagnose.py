@@ -89,8 +89,9 @@ SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction
 REVERSAL_SIGMA = None
 
 
-def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band
-    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
+def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band;
+    # its own detectors and verdict judge the fits (no per-fit adequacy)
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_band=True, adequacy=False, **kw)
 
 
 def make_problem(*args, **kw):
