@@ -372,7 +372,8 @@ class State:
         names = self.names + [n for n in extra_names if n not in self.names]
         return _identification_problem(cfg or self.cfg, self.data, names, initial=self.values,
                                     extra={k: v for k, v in self.values.items() if k not in names},
-                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals)
+                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals,
+                                    speed_band=True)
 
 
 def _probe_scale(state: State) -> float:
