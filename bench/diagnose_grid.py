@@ -8,7 +8,7 @@ SNR = effect RMS (against the nominal simulation at the same angle) / noise sigm
 disturbed records: sigma = 2 % of the nominal torque's standard deviation (0.5 % of the mean
 torque on the concentric rig, whose nominal torque is constant), a disturbance RMS = SNR x sigma.
 Without a speed column the pump runs 0.3 % above its nominal speed (motor slip); with one, the
-column holds the true speed.
+column holds the true instantaneous speed (a speed ripple shows in it).
 
 Every case draws its own noise (seed from the case's key): with one realisation shared by all
 cases, one unusual draw (a 1 % tail event for the detector family) would repeat as a "rate".
@@ -136,7 +136,7 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
         y = y + disturbance(truth_name, sim.time, truth.speed, snr * sigma)
     key = zlib.crc32(f"{family}|{truth_name}|{snr:g}|{int(speed_column)}".encode())
     rng = np.random.default_rng([seed, key])
-    speed = np.full(y.size, truth.speed) if speed_column else None
+    speed = sim.speed.copy() if speed_column else None  # an encoder's instantaneous speed (a ripple shows)
     status = "in_library" if truth_name in EFFECTS else "none_or_disturbance"
     if truth_name in EFFECTS:
         if effect_rms < PRECISION * math.sqrt(np.mean(ref.torque ** 2)):
@@ -159,7 +159,7 @@ def _absorbed(nominal, clean, sigma, speed_column):
     noise-free measurement leave less than a quarter of the noise sigma? Then one measurement
     cannot tell the effect from a change of the baseline parameters."""
     names = ["mu", "theta0"] + ([] if speed_column else ["speed"])
-    res = identify(nominal, clean, names, multistart=True, speed_band=True, adequacy=False)
+    res = identify(nominal, clean, names, multistart=True, speed_in_band=True, adequacy=False)
     return bool(res.rms < 0.25 * sigma)
 
 

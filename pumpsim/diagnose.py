@@ -55,7 +55,7 @@ from .errors import ConfigError
 from .identification import base_name, half_band, speed_band
 from .identification import identify as _identification_fit
 from .identification import make_problem as _identification_problem
-from .identification.reversals import noise_sigma
+from .diagnostics import noise_sigma, speed_column_disagreement
 from .identification.problem import SPEED_COLUMN_Z, slot_ratio
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
@@ -91,11 +91,11 @@ REVERSAL_SIGMA = None
 
 def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band;
     # its own detectors and verdict judge the fits (no per-fit adequacy)
-    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_band=True, adequacy=False, **kw)
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_in_band=True, adequacy=False, **kw)
 
 
 def make_problem(*args, **kw):
-    return _identification_problem(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
+    return _identification_problem(*args, reversals=REVERSAL_SIGMA, speed_in_band=True, **kw)
 
 
 def _kept(*fits):
@@ -373,7 +373,7 @@ class State:
         return _identification_problem(cfg or self.cfg, self.data, names, initial=self.values,
                                     extra={k: v for k, v in self.values.items() if k not in names},
                                     ripple_order=ripple_order or self.ripple_order, reversals=reversals,
-                                    speed_band=True)
+                                    speed_in_band=True)
 
 
 def _probe_scale(state: State) -> float:
@@ -1137,6 +1137,11 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
             run.notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
             continue
         st, res = _full_fit(run, f)
+        disagreement = _speed_column_disagrees(run, st, res)
+        if disagreement:
+            run.rejected.append({"effect": f["cand"].label, "reasons": [disagreement]})
+            run.notes.append(f"{f['cand'].label} rejected: {disagreement}")
+            continue
         keep = _kept(current, res)
         q = len(st.names) - len(state.names)
         # the plain LR too: an AR(1) filter fitted to a large unmodelled line amplifies high
@@ -1179,6 +1184,32 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
                 continue
             return f
     return None
+
+
+SPEED_COLUMN_ALPHA = LR_ALPHA / MAX_EFFECTS  # a speed hypothesis against a measured speed column
+
+
+def _speed_column_disagrees(run, st, res) -> str | None:
+    """Why a fit that moves the shaft speed (a speed ripple) cannot be this measurement's, when a
+    measured speed column shows a different ripple (None when they agree, or nothing to compare:
+    no column, a column the model follows, several measurements). The speed is evidence, not
+    only a mean (diagnostics.speed_column_disagreement)."""
+    d = run.datasets[0]
+    if len(run.datasets) > 1 or d.speed is None or d.speed_trend() is not None or "ripple_cos" not in st.names:
+        return None
+    v = {**{"theta0": st.cfg.angle, "speed": d.mean_speed(), "delay": 0.0}, **st.values}
+    e = [res.estimates[n] for n in ("ripple_cos", "ripple_sin")]
+    if any(x.value is None for x in e):
+        return None
+    theta = v["theta0"] + v["speed"] * (d.time - d.time[0] - v["delay"])
+    test = speed_column_disagreement(d.speed, d.time, theta, v["speed"], st.ripple_order, [x.value for x in e],
+                                     np.diag([(x.stderr or 0.0) ** 2 for x in e]))
+    if test is None or test["p_value"] >= SPEED_COLUMN_ALPHA:
+        return None
+    need, seen = (100 * math.hypot(*test["hypothesis"]), 100 * math.hypot(*test["column"]))
+    return (f"the measured speed column disagrees: the fit needs an order-{st.ripple_order} speed ripple of "
+            f"{need:.3g} %, the column shows {seen:.3g} % (chi2 {test['statistic']:.3g} on 2 dof, p "
+            f"{test['p_value']:.2g} < {SPEED_COLUMN_ALPHA:g}; column noise {test['column_sigma']:.3g} rad/s)")
 
 
 # Stationarity of an accepted effect (F16). A pump effect is stationary: the same parameter values
