@@ -316,13 +316,14 @@ def _resolution(t) -> float:
     """The decimal resolution the time stamps were written with (1e-4 for '0.0123'), in the
     column's unit, or 0.0 when they are not on a decimal grid (binary time channels)."""
     t = np.asarray(t, dtype=float)
+
+    def on_grid(values, d):
+        x = values * 10.0 ** d
+        return bool(np.all(np.abs(x - np.round(x)) <= 1e-6 + 1e-14 * np.abs(x)))
+
     probe = t[:: max(1, t.size // 10000)]
-    for d in range(0, 13):
-        for values in (probe, t):
-            x = values * 10.0 ** d
-            if not np.all(np.abs(x - np.round(x)) <= 1e-6 + 1e-14 * np.abs(x)):
-                break
-        else:
+    for d in range(0, 13):  # a probe first, then all in blocks (no temporaries the size of the column)
+        if on_grid(probe, d) and all(on_grid(t[i:i + 65536], d) for i in range(0, t.size, 65536)):
             return 10.0 ** -d
     return 0.0
 
@@ -538,6 +539,9 @@ class _Body:
         f.seek(self.start)
         return f
 
+    def size(self) -> int:
+        return len(self.raw) - self.start if self.raw is not None else max(0, self.p.stat().st_size - self.start)
+
     def has(self, *needles) -> set:
         return {n for n in needles if any(n in c for c in self.chunks())}
 
@@ -602,7 +606,10 @@ def _arrow_columns(body: _Body, sep: str, names, keep):
     marks = body.has(b"#", b'"', b",")
     if sep == " " or b"#" in marks:
         return None
-    first = next((s.strip() for s in next(body.chunks(), b"")[:_HEAD].splitlines() if s.strip()), b"")
+    sample = next(body.chunks(), b"")[:_HEAD]
+    first = next((s.strip() for s in sample.splitlines() if s.strip()), b"")
+    # the rows the file holds, from the length of its first lines, with 10 % to spare
+    rows = int(1.1 * body.size() / max(1.0, len(sample) / max(1, sample.count(b"\n")))) + 16
     cols = list(names) + (["\0trailing"] if first.endswith(sep.encode()) else [])
     if b'"' in marks:
         points = [".", ","]  # quoted values of a ',' file may use decimal commas ("0,5")
@@ -612,7 +619,7 @@ def _arrow_columns(body: _Body, sep: str, names, keep):
     types.update({c: pa.string() for c in cols[len(names):]})
     include = [names[j] for j in keep] + cols[len(names):]
     for point in points:
-        parts = {j: [] for j in keep}
+        out = _Columns(len(keep), rows)
         try:
             with pacsv.open_csv(
                     body.stream(), read_options=pacsv.ReadOptions(column_names=cols, block_size=_BLOCK),
@@ -625,14 +632,33 @@ def _arrow_columns(body: _Body, sep: str, names, keep):
                     # a trailing separator: its column must be empty on every row
                     if len(cols) > len(names) and any(len(s) for s in batch.column(len(keep)).to_pylist()):
                         return None
-                    for k, j in enumerate(keep):
-                        parts[j].append(_float_array(batch.column(k)))
+                    out.append([_float_array(batch.column(k)) for k in range(len(keep))])
         except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
             continue
-        if not parts[keep[0]] or sum(a.size for a in parts[keep[0]]) == 0:
+        if out.n == 0:
             return None
-        return {names[j]: np.concatenate(parts[j]) for j in keep}
+        return {names[j]: a for j, a in zip(keep, out.arrays())}
     return None
+
+
+class _Columns:
+    """Float columns filled batch by batch into arrays sized for `rows` (grown by half when short),
+    so that the kept samples are held once and no batch outlives its copy."""
+
+    def __init__(self, count, rows):
+        self.n, self.cols = 0, [np.empty(rows) for _ in range(count)]
+
+    def append(self, arrays):
+        m = len(arrays[0])
+        if self.n + m > self.cols[0].size:
+            grown = max(self.n + m, int(1.5 * self.cols[0].size))
+            self.cols = [np.concatenate([c[:self.n], np.empty(grown - self.n)]) for c in self.cols]
+        for c, a in zip(self.cols, arrays):
+            c[self.n:self.n + m] = a
+        self.n += m
+
+    def arrays(self):
+        return [c[:self.n] for c in self.cols]
 
 
 def _float_array(array) -> np.ndarray:

@@ -314,4 +314,4 @@ def test_a_million_rows_load_in_seconds_with_memory_for_the_columns_kept(tmp_pat
     assert ds.n == n
     np.testing.assert_array_equal(ds.torque, np.loadtxt(p, delimiter=",", skiprows=1, usecols=1))
     kept = 3 * 8 * n
-    assert seconds < 10 and peak < 4 * kept, (seconds, peak / 2**20)
+    assert seconds < 10 and peak < 3 * kept, (seconds, peak / 2**20)
