@@ -351,6 +351,8 @@ def cmd_identify(a) -> int:
 
 # --- diagnose -------------------------------------------------------------------------------
 
+BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
+
 def register_diagnose(sub):
     dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model",
                         formatter_class=_Help,
@@ -361,6 +363,9 @@ def register_diagnose(sub):
     dg.add_argument("--speed-tolerance", type=float, dest="speed_tolerance",
                     help="relative band about the configured speed inside which a measurement without a "
                          "speed column may refine it (default: operation.speed_tolerance, 0.02)")
+    dg.add_argument("--budget", type=float, default=None, metavar="SECONDS",
+                    help=f"wall time after which no further search step starts; what it cuts is reported "
+                         f"(default: {BUDGET_PER_5000:g} s per 5,000 samples; 0: no limit)")
     _add_fit_outputs(dg)
     dg.set_defaults(func=cmd_diagnose)
 
@@ -373,7 +378,12 @@ def cmd_diagnose(a) -> int:
     cfg = _load_config(a)
     # several files: measurements of one pump at different speeds, fitted together
     data = [_read_data(a, d, cfg.speed if cfg.mode == "speed" else None) for d in a.data]
-    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance)
+    if a.budget is not None and not a.budget >= 0:
+        raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
+    samples = sum(d.n for d in data)
+    budget = BUDGET_PER_5000 * max(1.0, samples / 5000) if a.budget is None else (a.budget or None)
+    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance,
+                   budget=budget)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     print(out)
