@@ -1504,7 +1504,11 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
     final_params = _params_json(current, state.names, state.cfg)
     if "mu" in final_params and final_params["mu"]["value"] is not None:
         final_params["mu"] = mu_mean
-    label = ("consistent with noise" + (" after the named effects" if effects else "")) if consistent else \
+    # never "consistent with noise" while a detector rejects: a remainder below the relevance bar is
+    # still said, with its size
+    quiet = ("consistent with noise" if verdict.p["family"] >= UNEXPLAINED_ALPHA else
+             f"a systematic remainder of {verdict.systematic:.3g} N m below the relevance bar")
+    label = (quiet + (" after the named effects" if effects else "")) if consistent else \
         ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
     if drifts:
         label += "; " + ", ".join(d.text() for d in drifts)
