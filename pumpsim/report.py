@@ -294,7 +294,8 @@ def _status(res) -> str:
             f" ({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
             f"{nb(format(res.rms, '.4g') + ' ' + signal_of(res)[1])}, residual "
             f"{'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
-            f"{res.wall_time:.2f} s.</p>")
+            f"{res.wall_time:.2f} s.</p>") + "".join(
+        f"<p class=warn><b>Not a usable estimate</b>: {html.escape(p)}</p>" for p in res.problems())
 
 
 # -- identification --------------------------------------------------------------------------------
@@ -317,8 +318,9 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
                                   res.residual))
     if res.adequacy is not None:
         cls = {"adequate": "ok", "systematic": "note", "inadequate": "warn"}[res.adequacy.verdict]
-        parts.append(f"<h2>Model adequacy: {res.adequacy.verdict}</h2><pre class={cls}>"
-                     f"{html.escape(res.adequacy.summary())}</pre>")
+        parts.append(f"<h2>Model adequacy: {res.adequacy.verdict}</h2><p class={cls}>"
+                     + "<br>".join(html.escape(line.strip()) for line in res.adequacy.summary().splitlines())
+                     + "</p>")
     rows = []
     for e in res.estimates.values():
         rows.append(param_row(e.name, e.value, e.stderr, e.lower95, e.upper95, e.initial, harmonics))
