@@ -156,6 +156,10 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
         y = measured_torque(sim.time, sim.torque, lag, offset, every=fine)
     sim = ref if fine > 1 else sim  # the reported sample times
     effect_rms = math.sqrt(np.mean((y - ref.torque) ** 2))
+    if truth_name == "two_effects":  # the SNR is the weaker effect's: both must be there to be seen
+        effect_rms = min(math.sqrt(np.mean((pumpsim.simulate(
+            dataclasses.replace(truth_of(nominal, e, dt)[0], speed=nominal.speed * slip, angle=angle),
+            duration=duration, rate=rate).torque - ref.torque) ** 2)) for e in TWO_EFFECTS)
     if truth_name in EFFECTS + ("two_effects", "drifting_cof"):
         sigma = effect_rms / snr
     else:
