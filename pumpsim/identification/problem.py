@@ -19,7 +19,7 @@ from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..simulate import ripple_motion
 from .reversals import reversal_keep
-from .start import phase_and_speed_start
+from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
 
@@ -106,8 +106,9 @@ class Problem:
         return np.array(x, dtype=float)
 
     def moves_phase(self) -> bool:
-        """Whether a fitted name shifts the model along the angle (a phase scan may find a better start)."""
-        return any(base_name(n) in ("theta0", "speed") for n in self.names)
+        """Whether a fitted name has a non-convex cost (the phase, the speed, a harmonic's phase):
+        its start is scanned (start.py) before the local fit."""
+        return any(base_name(n) in ("theta0", "speed") for n in self.names) or bool(periodic_config_names(self))
 
 
 class ConstantSpeedProblem(Problem):
