@@ -4,8 +4,8 @@ The runtime finds a variant's library by the contract's rules (`model_spec.manif
 manifest of the same variant, schema and CasADi version whose key matches its recorded contents,
 whose library has the recorded hash and which lists this tree's source fingerprint. No compiler
 and no SymPy is involved in that check. A missing or stale variant is built through one entry
-point, `codegen.build.build_library`, imported only then (set PUMPSIM_NO_BUILD=1 to refuse
-instead). Loaded kernels are cached in memory per variant and source.
+point, `pumpsim.codegen.build.build_library`, imported only then (set PUMPSIM_NO_BUILD=1 to
+refuse instead). Loaded kernels are cached in memory per variant and source.
 
 `python -m pumpsim.kernels [CONFIG ...] [--model contact]` loads (building when needed) the
 variants of configuration files; `make codegen` runs it on the bundled examples.
@@ -99,7 +99,7 @@ def building_allowed(build: bool | None) -> bool:
 def build_library(structure: Structure, log=None, simd: bool = False):
     """The one way the runtime builds a library -- the variant's, or with simd=True its SIMD
     inverse dynamics -- through codegen's one entry point, imported here and nowhere else."""
-    from codegen.build import build_library as build
+    from .codegen.build import build_library as build
 
     return build(structure, simd=simd, log=log or _log_if_terminal)
 

@@ -50,8 +50,9 @@ def content_key(c_source_sha256: str, casadi_version: str, options: dict) -> str
 
 
 def codegen_dir() -> Path | None:
-    """The codegen package's folder, found without importing it (None when not installed)."""
-    spec = importlib.util.find_spec("codegen")
+    """The folder of pumpsim.codegen (a checkout's codegen/ or the installed subpackage), found
+    without importing it (None when absent)."""
+    spec = importlib.util.find_spec("pumpsim.codegen")
     if spec is None or not spec.submodule_search_locations:
         return None
     return Path(list(spec.submodule_search_locations)[0])
