@@ -1,4 +1,4 @@
-"""The installable package: its layout, the kernel folder and `pumpsim kernels`.
+"""The installable package: its layout, the kernel folder and `pumpsim kernels`, the bundled examples.
 (.ci/wheel-check builds a wheel and runs it from a read-only site-packages.)"""
 import json
 import os
@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import pumpsim
-from pumpsim import kernels
+from pumpsim import bundled, kernels
 from pumpsim.model_spec import manifest as mf
 from tests.conftest import ROOT
 
@@ -141,3 +141,28 @@ def test_kernels_build_covers_a_study_and_a_gas_config():
     assert grid == [f"constrained-n{n}-h0" for n in range(2, 7)]
     gas = [st.variant for st in kernels.structures_of(ROOT / "examples" / "evp_booster.toml")]
     assert gas[0] == "constrained-n4-h0" and "pneumatic-n4-h0" in gas
+
+
+def test_example_copies_config_data_and_studies(tmp_path):
+    r = _cli("example", "test_rig", tmp_path / "ex")
+    assert r.returncode == 0, r.stderr
+    for rel in ("test_rig.toml", "data/test_rig_measurement.csv", "studies/test_rig_tolerances.toml"):
+        assert (tmp_path / "ex" / rel).read_bytes() == (ROOT / "examples" / rel).read_bytes()
+    from pumpsim.design.study import load_study
+
+    study = load_study(tmp_path / "ex" / "studies" / "test_rig_tolerances.toml")  # its ../test_rig.toml resolves
+    assert study.variables
+    assert _cli("example", "test_rig", tmp_path / "ex").returncode == 0  # identical files: nothing to do
+    (tmp_path / "ex" / "test_rig.toml").write_text("# my edits\n")
+    r = _cli("example", "test_rig", tmp_path / "ex")
+    assert r.returncode == 2 and f"{tmp_path / 'ex' / 'test_rig.toml'} exists and differs" in r.stderr
+    assert (tmp_path / "ex" / "test_rig.toml").read_text() == "# my edits\n"
+
+
+def test_every_bundled_file_belongs_to_an_example():
+    claimed = {rel for name in bundled.names() for rel in bundled.files(name)}
+    shipped = {f.relative_to(ROOT / "examples").as_posix() for f in (ROOT / "examples").rglob("*")
+               if f.suffix in (".toml", ".csv")}
+    assert claimed == shipped
+    r = _cli("example", "--list")
+    assert r.returncode == 0 and all(f"{name}: " in r.stdout for name in bundled.names())
