@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 .PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
 
 install: $(STAMP)
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'

@@ -35,8 +35,8 @@ def bench_inverse_dynamics(n=100_000):
     """Inverse dynamics at constant speed, 4 vanes, ellipse, n angle samples."""
     import casadi as ca
 
-    from codegen.model import build_model
-    from codegen.numpy_model import NumpyConstrainedModel
+    from pumpsim.codegen.model import build_model
+    from pumpsim.codegen.numpy_model import NumpyConstrainedModel
 
     cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
     pv = cfg.parameters()
@@ -82,7 +82,7 @@ COMPILE_TARGET_S = 60.0  # one variant, model build + C compile
 
 def bench_compile():
     """Fresh compile of each bundled variant into a temporary cache."""
-    from codegen.build import build_variant
+    from pumpsim.codegen.build import build_variant
 
     res = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -119,7 +119,7 @@ def bench_contact(duration=0.5, scipy_span=0.1):
     understates the ratio (0.005 s: 15x; 0.1 s and 0.5 s: > 100x)."""
     from scipy.integrate import solve_ivp
 
-    from codegen.numpy_model import NumpyContactModel
+    from pumpsim.codegen.numpy_model import NumpyContactModel
     from pumpsim.contact import initial_state, state_scale
     from pumpsim.simulate import simulate
 
