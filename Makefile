@@ -14,9 +14,9 @@ $(STAMP): pyproject.toml setup.py
 	touch $(STAMP)
 
 codegen: install
-	$(BIN)/python -m pumpsim.kernels examples/*.toml
+	$(BIN)/python -m pumpsim.variants examples/*.toml
 	$(BIN)/python -m pumpsim.fastkernel examples/*.toml
-	$(BIN)/python -m pumpsim.kernels bench/independent/rigs/*.toml  # the independent cross-check's rigs
+	$(BIN)/python -m pumpsim.variants bench/independent/rigs/*.toml  # the independent cross-check's rigs
 
 demo: codegen
 	mkdir -p out

@@ -469,7 +469,9 @@ def cmd_kernels(a) -> int:
     from .model_spec.manifest import GENERATED_ENV, generated_dir
 
     if a.action == "build":
-        kernels.build_for(a.files, a.model, log=lambda m: print(m, flush=True))
+        from .variants import build_for
+
+        build_for(a.files, a.model, log=lambda m: print(m, flush=True))
     elif a.action == "clear":
         gone = kernels.clear(stale_only=a.stale)
         print(f"removed {len(gone)} kernel folder(s), {_megabytes(sum(k['size'] for k in gone))}, "

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import pumpsim
-from pumpsim import bundled, kernels
+from pumpsim import bundled, kernels, variants
 from pumpsim.model_spec import manifest as mf
 from tests.conftest import ROOT
 
@@ -137,9 +137,9 @@ def test_kernels_list_and_clear(kernel_cache, tmp_path):
 
 
 def test_kernels_build_covers_a_study_and_a_gas_config():
-    grid = [st.variant for st in kernels.structures_of(ROOT / "examples" / "studies" / "ellipse_grid.toml")]
+    grid = [st.variant for st in variants.structures_of(ROOT / "examples" / "studies" / "ellipse_grid.toml")]
     assert grid == [f"constrained-n{n}-h0" for n in range(2, 7)]
-    gas = [st.variant for st in kernels.structures_of(ROOT / "examples" / "evp_booster.toml")]
+    gas = [st.variant for st in variants.structures_of(ROOT / "examples" / "evp_booster.toml")]
     assert gas[0] == "constrained-n4-h0" and "pneumatic-n4-h0" in gas
 
 
