@@ -70,6 +70,19 @@ SEPARATING = (
 CORRELATED = 0.95  # |correlation| above which two estimates are named as hard to separate
 
 
+def fit_map(cfg):
+    """What parameter_map needs for the pneumatic layout: (index by name, the config's parameter
+    vector, the COF ratios mu keeps, the slot COF, the derived defaults that follow their inputs)."""
+    from ..pneumatics.kernel import parameter_vector, structure_of
+
+    p0 = parameter_vector(cfg)
+    names = [q.name for q in pneumatic_layout(structure_of(cfg))]
+    v = dict(zip(names, p0))
+    ratios = np.array([v[f"friction.{s}.static"] / max(v[f"friction.{s}.dynamic"], 1e-300)
+                       for s in ("housing", "slot")] + [slot_ratio(v)])
+    return {n: i for i, n in enumerate(names)}, p0, ratios, v["friction.slot.dynamic"], following(cfg)
+
+
 class BenchLogProblem(Problem):
     """The pump-down model at a bench log's samples (pressure, interval-mean current and speed),
     each channel divided by its noise sigma; Jacobian by central differences."""
@@ -80,16 +93,14 @@ class BenchLogProblem(Problem):
 
     def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
                  atol=BENCH_FIT_ATOL):
-        from ..pneumatics.kernel import kernels, parameter_vector, structure_of
+        from ..pneumatics.kernel import kernels
 
         if cfg.pneumatic is None or not cfg.pneumatic.motor:
             raise ConfigError(f"{cfg.path or cfg.name}: a bench log is fitted with the pump-down model: the config "
                               "needs the gas tables and operation.mode = \"motor\" (spec §8, §10)")
         self.cfg, self.data, self.rtol, self.atol = cfg, log, rtol, atol
         self.kern = kernels(cfg)
-        self.p0 = parameter_vector(cfg)
-        layout_names = [q.name for q in pneumatic_layout(structure_of(cfg))]
-        self._index = {n: i for i, n in enumerate(layout_names)}
+        self._index, self.p0, self._ratios, mu_slot, self._follow = fit_map(cfg)
         self.names = list(names)
         if not self.names:
             raise ConfigError("--params names no parameter to fit")
@@ -97,11 +108,8 @@ class BenchLogProblem(Problem):
             self._check_name(n)
         if len(set(self.names)) != len(self.names):
             raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
-        v = dict(zip(layout_names, self.p0))
-        self._ratios = np.array([v[f"friction.{s}.static"] / max(v[f"friction.{s}.dynamic"], 1e-300)
-                                 for s in ("housing", "slot")] + [slot_ratio(v)])
-        self._follow = following(cfg)
-        self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": v["friction.slot.dynamic"]}
+        v = dict(zip(self._index, self.p0))
+        self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": mu_slot}
         self.hold = dict(hold or {})
         initial = initial or {}
         self.x0 = np.array([float(initial.get(n, self.fixed.get(n, v.get(n, 0.0)))) for n in self.names])
@@ -286,18 +294,10 @@ def twin_log(cfg, duration, rate, values=None, noise=0.005, seed=0, voltage=None
     config key paths), for twin experiments: the config's motor.voltage (or `voltage(t)`, an array
     function of time) drives it, and each channel gets white Gaussian noise of `noise` times its
     range (the voltage of its mean)."""
-    from ..pneumatics.kernel import parameter_vector, structure_of
-    from .problem import following, parameter_map, slot_ratio
-
     t = np.arange(int(round(duration * rate)) + 1) / rate
     volt = np.full_like(t, cfg.pneumatic.values["motor.voltage"]) if voltage is None else np.asarray(voltage(t), float)
-    p0 = parameter_vector(cfg)
-    names = [q.name for q in pneumatic_layout(structure_of(cfg))]
-    v = dict(zip(names, p0))
-    ratios = np.array([v[f"friction.{s}.static"] / max(v[f"friction.{s}.dynamic"], 1e-300)
-                       for s in ("housing", "slot")] + [slot_ratio(v)])
-    p = np.asarray(parameter_map({n: i for i, n in enumerate(names)}, p0, dict(values or {}),
-                                 v["friction.slot.dynamic"], ratios, following(cfg)), float).ravel()
+    index, p0, ratios, mu_slot, follow = fit_map(cfg)
+    p = np.asarray(parameter_map(index, p0, dict(values or {}), mu_slot, ratios, follow), float).ravel()
     ch = BenchModel(cfg, t, volt, cfg.pneumatic.booster_start).samples(p)
     rng = np.random.default_rng(seed)
     noisy = {k: a + noise * np.ptp(a) * rng.standard_normal(a.size) for k, a in ch.items()}
