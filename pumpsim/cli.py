@@ -300,9 +300,11 @@ def register_identify(sub):
                         description="Fit model parameters to a measured drive torque at constant speed.")
     ip.add_argument("config", help="TOML configuration (SI units)")
     ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
-    ip.add_argument("--params", default="mu,theta0",
+    ip.add_argument("--params", default=None,
                     help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
-                         "numeric config key path (e.g. housing.center.0)")
+                         "numeric config key path (e.g. housing.center.0); default mu,theta0 -- for a "
+                         "bench log (columns voltage, current, booster_pressure; spec §10) "
+                         f"{','.join(BENCH_DEFAULT_PARAMS)}")
     ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
                     help="least-squares solver")
     ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
@@ -315,12 +317,21 @@ def register_identify(sub):
     ip.set_defaults(func=cmd_identify)
 
 
+BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
+
+
 def cmd_identify(a) -> int:
     from .api import identify
+    from .benchlog import is_bench_log
 
     outs = _outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)
-    params = _parse_params(a.params)
+    if is_bench_log(a.data, a.time_column, a.speed_column):
+        from .identification.pumpdown_fit import cmd_identify_bench
+
+        return cmd_identify_bench(a, cfg, outs, _parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS)),
+                                  _parse_initial(a.start), _write_fit_outputs, _fit_log())
+    params = _parse_params(a.params or "mu,theta0")
     initial = _parse_initial(a.start)
     data = _read_data(a, a.data, None if ("speed" in params or a.transient) else
                       (cfg.speed if cfg.mode == "speed" else None))
