@@ -334,6 +334,8 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
     elif effect == "heavy_vane":                    # a pump effect out of the library: SNR = its RMS / noise
         truth["contribution_rms"] = float(np.sqrt(np.mean((clean - nominal) ** 2)))
         sigma = truth["contribution_rms"] / snr
+        # on a concentric rig a heavier vane only raises the mean torque: a mu change (quiet is right)
+        truth["expected"] = "quiet" if _absorbed(rig, t, theta0, clean - nominal, sigma) else "no_name"
     else:                                           # none, off_speed, speed_drift, ar1_noise
         sigma = ref / snr
         truth["contribution_rms"] = 0.0
