@@ -71,5 +71,5 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
-html_sidebars = {"index": [], "reference/config": []}
+html_sidebars = {"index": [], **{page: [] for page in WIDE_PAGES}}
 html_show_sourcelink = False

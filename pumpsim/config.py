@@ -161,6 +161,7 @@ class PumpConfig:
         return Structure("constrained", self.vanes, slots)
 
     def parameters(self, model: str = "constrained") -> ParameterVector:
+        """The compiled model's run-time parameter values by name (of `model`'s variant)."""
         st = self.structure_for(model)
         pv = ParameterVector(st, {})
         for q in layout(st):
@@ -182,7 +183,7 @@ def harmonic_values(j, k, A, gamma) -> dict:
 
 
 def load_config(path, check_geometry: bool = True, force: bool = False) -> PumpConfig:
-    """Read and validate a TOML configuration (spec \u00a75); values are SI (m, kg, s, rad, N).
+    """Read and validate a TOML configuration; values are SI (m, kg, s, rad, N).
 
     path: the .toml file (UTF-8, a BOM allowed). check_geometry: reject vanes that cannot reach or
     fit the housing. force: accept magnitudes that look like a unit mistake (a length in mm, a mass

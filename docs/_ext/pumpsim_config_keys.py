@@ -5,19 +5,14 @@ units, allowed ranges, derived defaults and descriptions from the parameter regi
 (``pumpsim.model_spec.parameters``). Keys that are not registry numbers (shapes, lists, the operating
 point) and registry entries without a description get theirs from ``EXTRA`` below. A key with no
 description at all is a build warning, so the page cannot fall behind the code (``make docs``
-treats warnings as errors).
+treats warnings as errors). The tables are plain reStructuredText from `rst_lines`, which needs no
+Sphinx (the test suite checks it).
 """
 from __future__ import annotations
 
 import math
 
-from docutils import nodes
-from docutils.statemachine import StringList
-from sphinx.util import logging
-from sphinx.util.docutils import SphinxDirective
-from sphinx.util.nodes import nested_parse_with_titles
-
-logger = logging.getLogger(__name__)
+from pathlib import Path
 
 # key -> (unit, description) for what the registry does not describe. A unit of "" keeps the
 # registry's. Choices are spelled out here; the registry holds numbers only.
@@ -233,57 +228,65 @@ def rows():
     return out, missing
 
 
-class ConfigKeys(SphinxDirective):
-    """One table per config section: key, unit, default, range, description."""
-
-    has_content = False
-    option_spec = {"sections": lambda s: s}  # "mechanical" or "gas"
-
-    def run(self):
-        import pumpsim.config
-        import pumpsim.model_spec.parameters
-        import pumpsim.pneumatics.config
-
-        for module in (pumpsim.config, pumpsim.model_spec.parameters, pumpsim.pneumatics.config):
-            self.env.note_dependency(module.__file__)  # the page follows the registry and schema
-        self.env.note_dependency(__file__)
-        table, missing = rows()
-        for key in missing:
-            logger.warning(f"config key {key} has no description (registry doc or EXTRA in {__file__})",
-                           location=self.get_location())
-        which = self.options.get("sections", "mechanical")
-        lines = []
-        for section in dict.fromkeys(r[0] for r in table):
-            if (section in GAS_SECTIONS) != (which == "gas"):
-                keys = [r for r in table if r[0] == section]
-                if which == "gas" and section in ("rotor", "vane"):  # the gas model's keys there
-                    keys = [r for r in keys if r[1] in ("width", "slot_pressure")]
-                else:
-                    continue
-            else:
-                keys = [r for r in table if r[0] == section]
-                if which == "mechanical":
-                    keys = [r for r in keys if r[1] not in ("width", "slot_pressure")]
-            if not keys:
-                continue
-            lead = FIRST.get(section, ())
-            keys.sort(key=lambda r: lead.index(r[1]) if r[1] in lead else len(lead))
-            title = SECTION_TITLES.get(section, f"[{section}]")
-            if which == "gas" and section in ("rotor", "vane"):
-                title = f"[{section}]: the gas model's keys"
-            lines += [title, "~" * len(title), "", ".. list-table::", "   :header-rows: 1",
-                      "   :widths: 16 9 12 20 43", "   :class: config-keys", "",
-                      "   * - key", "     - unit", "     - default", "     - allowed", "     - description"]
-            for _, key, _kind, unit, default, allowed, doc in keys:
-                lines += [f"   * - ``{key}``", f"     - {unit if unit not in ('', '-') else EMPTY}",
-                          f"     - {default}", f"     - {allowed or EMPTY}", f"     - {doc}"]
-            lines.append("")
-        node = nodes.section()
-        node.document = self.state.document
-        nested_parse_with_titles(self.state, StringList(lines, source="pumpsim-config-keys"), node)
-        return node.children
+def rst_lines(which: str) -> list[str]:
+    """The tables of the "mechanical" or the "gas" configuration sections, as reStructuredText."""
+    table, _ = rows()
+    lines = []
+    for section in dict.fromkeys(r[0] for r in table):
+        keys = [r for r in table if r[0] == section]
+        if section in ("rotor", "vane"):  # their gas-model keys go with the gas tables
+            keys = [r for r in keys if (r[1] in ("width", "slot_pressure")) == (which == "gas")]
+        elif (section in GAS_SECTIONS) != (which == "gas"):
+            continue
+        if not keys:
+            continue
+        lead = FIRST.get(section, ())
+        keys.sort(key=lambda r: lead.index(r[1]) if r[1] in lead else len(lead))
+        title = SECTION_TITLES.get(section, f"[{section}]")
+        if which == "gas" and section in ("rotor", "vane"):
+            title = f"[{section}]: the gas model's keys"
+        lines += [title, "~" * len(title), "", ".. list-table::", "   :header-rows: 1",
+                  "   :widths: 16 9 12 20 43", "   :class: config-keys", "",
+                  "   * - key", "     - unit", "     - default", "     - allowed", "     - description"]
+        for _, key, _kind, unit, default, allowed, doc in keys:
+            lines += [f"   * - ``{key}``", f"     - {unit if unit not in ('', '-') else EMPTY}",
+                      f"     - {default}", f"     - {allowed or EMPTY}", f"     - {doc}"]
+        lines.append("")
+    return lines
 
 
 def setup(app):
+    from docutils import nodes
+    from docutils.statemachine import StringList
+    from sphinx.util import logging
+    from sphinx.util.docutils import SphinxDirective
+    from sphinx.util.nodes import nested_parse_with_titles
+
+    logger = logging.getLogger(__name__)
+
+    class ConfigKeys(SphinxDirective):
+        """One table per config section: key, unit, default, allowed range, description."""
+
+        has_content = False
+        option_spec = {"sections": lambda s: s}  # "mechanical" or "gas"
+
+        def run(self):
+            import pumpsim.config
+            import pumpsim.model_spec.parameters
+            import pumpsim.pneumatics.config
+
+            # the page follows the registry and the schema
+            for module in (pumpsim.config, pumpsim.model_spec.parameters, pumpsim.pneumatics.config):
+                self.env.note_dependency(module.__file__)
+            self.env.note_dependency(__file__)
+            for key in rows()[1]:
+                logger.warning(f"config key {key} has no description (registry doc, or EXTRA in "
+                               f"{Path(__file__).name})", location=self.get_location())
+            node = nodes.section()
+            node.document = self.state.document
+            lines = rst_lines(self.options.get("sections", "mechanical"))
+            nested_parse_with_titles(self.state, StringList(lines, source="pumpsim-config-keys"), node)
+            return node.children
+
     app.add_directive("pumpsim-config-keys", ConfigKeys)
     return {"parallel_read_safe": True, "parallel_write_safe": True}

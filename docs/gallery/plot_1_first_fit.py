@@ -56,7 +56,8 @@ print(f"{data.time.size} samples over {data.time[-1] - data.time[0]:.3f} s, "
 
 fig, ax = plt.subplots(figsize=(8, 3.2))
 ax.plot(data.time * 1e3, data.torque * 1e3, lw=0.6, label="measured")
-ax.plot(sim.time * 1e3, sim["torque"] * 1e3, lw=1.5, label=f"model, COF {cfg.values['friction.housing.dynamic']:g}")
+mu0 = cfg.values["friction.housing.dynamic"]
+ax.plot(sim.time * 1e3, sim["torque"] * 1e3, lw=1.5, label=f"model, COF {mu0:g}")
 ax.set(xlabel="time [ms]", ylabel="drive torque [mN·m]", xlim=(0, 20))
 ax.legend(loc="lower right")
 fig.tight_layout()

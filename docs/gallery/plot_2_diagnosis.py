@@ -22,9 +22,13 @@ import pumpsim
 from pumpsim.bundled import copy_example
 
 examples = Path(tempfile.mkdtemp()) / "examples"  # any folder you like
-copy_example("ellipse_4vanes", examples)  # shell: pumpsim example ellipse_4vanes examples
+copy_example("ellipse_4vanes", examples)  # pumpsim example ellipse_4vanes examples
 cfg = pumpsim.load_config(examples / "ellipse_4vanes.toml")
-record = examples / "data/ellipse_hidden_effects.csv"
+data = pumpsim.load_data(examples / "data/ellipse_hidden_effects.csv")
+# the first 1000 samples (0.1 s, about 7.5 revolutions) keep this page quick; the command line
+# at the end runs the whole record
+n = 1000
+record = {"time": data.time[:n], "torque": data.torque[:n], "speed": data.speed[:n]}
 
 # %%
 # First, the plain fit
@@ -62,28 +66,30 @@ print(d)
 #
 # * **baseline**: the nominal model's fit (COF and phase); its RMS is what the effects must reduce;
 # * each further row is an effect that was accepted: its parameters with one standard error, the
-#   RMS before and after, and the p-value of its likelihood-ratio test. Here a speed ripple at
-#   shaft order 1 (0.2 % of the speed: the drive's speed pulses once a revolution) and an
-#   out-of-round bore at order 4 with a 15 µm amplitude;
+#   RMS before and after, and the p-value of its likelihood-ratio test. A speed ripple at shaft
+#   order 1 is the drive's speed pulsing once a revolution; an out-of-round at order 4 is a bore
+#   with four lobes;
 # * **verdict**: consistent with noise after these two effects -- nothing else is left to explain;
-# * **confounded**: two explanations the data cannot tell apart. Here viscous tip friction looks
-#   like a higher COF at a single speed; a second speed separates them (see
+# * **confounded**: pairs of explanations the data cannot tell apart, such as viscous tip friction
+#   and a higher COF at a single speed; a second speed separates them (see
 #   :doc:`/how-to/several-speeds`). Confounded pairs are reported, never named as findings.
 #
-# The record was made with exactly these two defects (a 0.2 % order-1 ripple and a 15 µm order-4
-# lobe), so the diagnosis found what was built in and nothing else.
+# The record was made with two defects: a speed ripple of 0.2 % at order 1 and a 15 µm lobe at
+# order 4 (``examples/make_measurements.py`` in the source tree). Compare them with the table.
 #
 # The result is a dictionary with the JSON's fields:
 print("effects:", d["effects"])
 print("verdict:", d["verdict"])
-print("final mu:", d["final"]["params"]["mu"])
+mu = d["final"]["params"]["mu"]
+print(f"final mu (mean over the vanes): {mu['value']:.4f} ± {mu['stderr']:.4f}")
 
 # %%
 # The named effects, in the model
 # -------------------------------
-# The final model's torque against the record over one revolution, beside the nominal model's:
-base = d.history[0]["result"]  # the fits behind the steps: the baseline, then one per named effect
-final = d.history[-1]["result"]
+# The final model's torque against the record over the first revolution, beside the nominal
+# model's:
+base = d.history[0]["result"]  # the fits behind the steps: first the baseline,
+final = d.history[-1]["result"]  # last the fit with every named effect
 rev = 2 * np.pi / fit.speed
 keep = fit.time - fit.time[0] < rev
 fig, ax = plt.subplots(figsize=(8, 3.6))
@@ -91,7 +97,7 @@ deg = (fit.time[keep] - fit.time[0]) * fit.speed * 180 / np.pi
 ax.plot(deg, fit.measured[keep] * 1e3, ".", ms=3, color="0.6", label="measured")
 ax.plot(deg, base.fitted[keep] * 1e3, lw=1.2, label="nominal model")
 ax.plot(deg, final.fitted[keep] * 1e3, lw=1.2, label="with the named effects")
-ax.set(xlabel="rotor angle over the first revolution [deg]", ylabel="drive torque [mN·m]")
+ax.set(xlabel="rotor angle, first revolution [deg]", ylabel="drive torque [mN·m]")
 ax.legend(loc="upper right", fontsize="small")
 fig.tight_layout()
 

@@ -40,10 +40,12 @@ print(open(examples / "studies/test_rig_tolerances.toml").read())
 # 1024 are enough to see the picture. ``workers=0`` evaluates them in this process; by default a
 # study runs on a local Dask cluster with one worker per core (or on a cluster you name, see
 # :doc:`/how-to/run-a-study-on-a-cluster`).
-study = dataclasses.replace(design.load_study(examples / "studies/test_rig_tolerances.toml"), samples=1024)
+study = design.load_study(examples / "studies/test_rig_tolerances.toml")
+study = dataclasses.replace(study, samples=1024)
 df, stats = design.sweep(study, workers=0)
-print(df[["design", "housing.radius", "vane.mass", "friction.housing.dynamic", "mean_torque",
-          "min_normal_force", "max_tip_pv", "status"]].head().to_string())
+columns = ["design", "housing.radius", "vane.mass", "friction.housing.dynamic",
+           "mean_torque", "min_normal_force", "max_tip_pv", "status"]
+print(df[columns].head().to_string())
 print(f"{len(df)} designs, status: {df['status'].value_counts().to_dict()}")
 
 # %%
@@ -62,8 +64,9 @@ for ax, (name, (label, scale, lower, upper)) in zip(axes, limits.items()):
     for limit, side in ((lower, "LSL"), (upper, "USL")):
         if limit is not None:
             ax.axvline(limit * scale, color="C3", lw=1.5)
-            ax.annotate(side, (limit * scale, 1), xycoords=("data", "axes fraction"), xytext=(3, -12),
-                        textcoords="offset points", color="C3", fontsize="small")
+            ax.annotate(side, (limit * scale, 1), xycoords=("data", "axes fraction"),
+                        xytext=(3, -12), textcoords="offset points", color="C3",
+                        fontsize="small")
             inside &= (x >= limit) if side == "LSL" else (x <= limit)
     ax.set(xlabel=label, yticks=[], title=f"{100 * inside.mean():.1f} % in spec", )
 fig.tight_layout()

@@ -28,7 +28,8 @@ examples = Path(tempfile.mkdtemp()) / "examples"  # any folder you like
 copy_example("evp_booster", examples)  # shell: pumpsim example evp_booster examples
 cfg = pumpsim.load_config(examples / "evp_booster.toml")
 p = cfg.pneumatic
-print(f"{cfg.name}: {cfg.vanes} vanes, booster {p.values['booster.volume'] * 1e3:g} L from "
+volume = p.values["booster.volume"]
+print(f"{cfg.name}: {cfg.vanes} vanes, booster {volume * 1e3:g} L from "
       f"{p.booster_start / 1e3:.1f} kPa to {p.booster_target / 1e3:.1f} kPa, "
       f"supply {p.values['motor.voltage']:g} V")
 
@@ -72,14 +73,14 @@ maps = pump_maps(cfg, pressures)
 fast = fast_pumpdown(cfg, maps)
 print(f"time to {p.booster_target / 1e3:.0f} kPa: {fast['time_to_target']:.2f} s, "
       f"mean current {fast['mean_current']:.1f} A, energy {fast['energy']:.0f} J "
-      f"(maps {maps.wall_time:.1f} s, pump-down {fast['wall_time'] * 1e3:.1f} ms of computing)")
+      f"(maps {maps.wall_time:.1f} s, pump-down {fast['wall_time'] * 1e3:.1f} ms)")
 
 # %%
 fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.6))
 a1.plot(fast["time"], np.array(fast["booster_pressure"]) / 1e3, color="C0")
 a1.axhline(p.booster_target / 1e3, color="k", ls="--", lw=0.8)
-a1.annotate("target", (0.02, p.booster_target / 1e3), xycoords=("axes fraction", "data"),
-            xytext=(0, 4), textcoords="offset points", fontsize="small")
+a1.annotate("target", (0.02, p.booster_target / 1e3), xytext=(0, 4),
+            xycoords=("axes fraction", "data"), textcoords="offset points", fontsize="small")
 a1.set(xlabel="time [s]", ylabel="booster pressure [kPa abs.]", title="pump-down")
 a2.plot(maps.pressure / 1e3, maps.pumping_speed * 6e4, "o-", color="C2", ms=4)
 a2.set(xlabel="booster pressure [kPa abs.]", ylabel="pumping speed [L/min]",
