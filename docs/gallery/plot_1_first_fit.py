@@ -7,7 +7,9 @@ sensor logs the drive torque. On such a rig the torque is almost all vane-tip fr
 record tells the coefficient of friction (COF) between vane and housing. This tutorial fits it.
 
 You need a configuration (the pump, in SI units) and a measurement (time and torque, optionally
-speed). pumpsim ships both for this rig; in a shell::
+speed). pumpsim ships both for this rig; in a shell:
+
+.. code-block:: sh
 
     pumpsim example test_rig examples
 
@@ -105,7 +107,9 @@ fig.tight_layout()
 # %%
 # The command line
 # ----------------
-# The same fit, with a JSON file of every figure and a self-contained HTML report::
+# The same fit, with a JSON file of every figure and a self-contained HTML report:
+#
+# .. code-block:: sh
 #
 #     pumpsim identify examples/test_rig.toml examples/data/test_rig_measurement.csv \
 #         --json fit.json --report fit.html

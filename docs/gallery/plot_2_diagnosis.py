@@ -103,7 +103,9 @@ fig.tight_layout()
 
 # %%
 # The command line writes the same result as JSON and as an HTML report with the residual
-# figures and the ranking of every candidate at every step::
+# figures and the ranking of every candidate at every step:
+#
+# .. code-block:: sh
 #
 #     pumpsim diagnose examples/ellipse_4vanes.toml examples/data/ellipse_hidden_effects.csv \
 #         --json diagnosis.json --report diagnosis.html

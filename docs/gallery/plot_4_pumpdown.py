@@ -57,15 +57,15 @@ print(f"peak current {start.summary['peak_current']:.1f} A; speed after 0.3 s "
       f"{c['speed'][-1] * 30 / np.pi:.0f} rpm")
 
 # %%
-# The current peaks at the stall current, about V/R (13.5 V over 0.25 Ω) and falls as the
-# back-EMF builds with the speed; after some 50 ms the pump turns at its running speed.
+# The current peaks near the stall current V/R (13.5 V over 0.25 Ω) and falls as the back-EMF
+# builds with the speed, to the running current of a pump at speed.
 #
 # The whole pump-down: the fast path
 # ----------------------------------
 # A full pump-down of this pump is about 5 s of simulated time and some 140,000 integrator
-# steps. The *fast path* gets its answer in well under a second: at ten booster pressures the full
-# model runs with the booster held until motor and cells are periodic, and averages the gas drawn,
-# the current and the speed over four revolutions. The booster pressure then follows
+# steps. The *fast path* needs a few seconds once, for its maps, and then milliseconds per
+# pump-down: at ten booster pressures the full model runs with the booster held until motor and
+# cells are periodic, and averages the gas drawn, the current and the speed over four revolutions. The booster pressure then follows
 # V_b/(R T) dp/dt = leak − ṁ(p) with those maps interpolated. It agrees with the full model within
 # 2 % in time to target and mean current (the tests hold it to that).
 pressures = np.geomspace(0.05 * p.booster_start, p.booster_start, 10)
@@ -93,8 +93,11 @@ fig.tight_layout()
 # end-face leaks carry gas back. Where S(p) reaches zero lies the pump's ultimate pressure.
 #
 # The command line runs the full model to the target and, with ``--report``, adds the maps, the
-# energy split and the p–V diagram of a cell::
+# energy split and the p–V diagram of a cell:
 #
-#     pumpsim pumpdown examples/evp_booster.toml --out pumpdown.csv --json pumpdown.json --report pumpdown.html
+# .. code-block:: sh
+#
+#     pumpsim pumpdown examples/evp_booster.toml --out pumpdown.csv --json pumpdown.json \
+#         --report pumpdown.html
 #
 # ``--fast`` prints the fast path beside the full result; ``--until PA`` sets another target.
