@@ -54,6 +54,7 @@ sphinx_gallery_conf = {
     "image_scrapers": ("matplotlib",),
     "matplotlib_animations": False,
     "reset_modules": ("matplotlib",),
+    "run_stale_examples": True,  # every build runs them: their output is the code's of this build
 }
 
 WIDE_PAGES = ["tutorials/plot_1_first_fit", "tutorials/plot_2_diagnosis", "tutorials/plot_3_tolerance_study",
@@ -71,5 +72,5 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
-html_sidebars = {"index": [], **{page: [] for page in WIDE_PAGES}}
+html_sidebars = {"index": [], "getting-started": [], **{page: [] for page in WIDE_PAGES}}
 html_show_sourcelink = False

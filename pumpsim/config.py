@@ -114,6 +114,10 @@ def _walk(raw: dict, schema: dict, prefix: str) -> dict:
 
 @dataclass
 class PumpConfig:
+    """A validated configuration (from `load_config`): the structure that selects a compiled variant
+    (shape, vanes, harmonics, contact laws), the operating point (mode, speed, angle, torque) and
+    every registry value by its key path in `values` (SI units)."""
+
     name: str
     shape: str
     vanes: int
