@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
+.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml setup.py
@@ -12,6 +12,12 @@ $(STAMP): pyproject.toml setup.py
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
+
+# the documentation's tools (pyproject.toml's docs extra), on top of the runtime
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP)
+	$(BIN)/pip install --quiet -e '.[test,docs]'
+	touch $(DOCS_STAMP)
 
 codegen: install
 	$(BIN)/python -m pumpsim.variants examples/*.toml
@@ -47,6 +53,10 @@ demo-design: codegen
 	$(BIN)/pumpsim optimize examples/studies/ellipse_optimize.toml --json out/ellipse_optimize.json \
 		--report out/ellipse_optimize.html
 
+# the documentation site: warnings are errors, the gallery's examples run (docs/_build/html/index.html)
+docs: codegen $(DOCS_STAMP)
+	$(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
+
 test: codegen
 	$(BIN)/python -m pytest -q --durations=12
 
@@ -73,4 +83,4 @@ bench-diagnose-independent: codegen
 	$(BIN)/python bench/independent/run.py $(if $(QUICK),--quick) --json out/bench_independent.json
 
 clean:
-	rm -rf generated/*/ out .pytest_cache
+	rm -rf generated/*/ out .pytest_cache docs/_build docs/auto_examples docs/reference/generated

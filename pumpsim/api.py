@@ -77,7 +77,7 @@ def as_datasets(data, options: DataOptions | None = None, nominal_speed=None) ->
 
 def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", relaxation=1.0,
              initial=None, max_iter=50, options: DataOptions | None = None, force=False, log=None):
-    """Fit model parameters to measured drive torque at constant speed (report §12-14).
+    """Fit model parameters to measured drive torque at constant speed.
 
     Parameters
     ----------
@@ -127,8 +127,8 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
 
 
 class Diagnosis(dict):
-    """The discrepancy workflow's result: the spec §7 JSON keys (baseline, steps, effects, final,
-    unexplained, confounded, ...) as a dict; `.history` holds the fits behind each step;
+    """The discrepancy workflow's result: the JSON output's keys (baseline, steps, effects, final,
+    verdict, unexplained, confounded, ...) as a dict; `.history` holds the fits behind each step;
     `print(d)` shows the step table."""
 
     def __init__(self, out):
@@ -158,7 +158,8 @@ class Diagnosis(dict):
 def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None,
              speed_tolerance=None, budget=None) -> Diagnosis:
     """The discrepancy workflow: fit the baseline (mu, theta0 and the speed when the data has none),
-    test the residual, then name and add the effects the model lacks (see README).
+    test the residual, then name and add the effects the model lacks (the discrepancy workflow
+    of the documentation's explanation section).
 
     Parameters
     ----------
@@ -175,7 +176,7 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
 
     Returns
     -------
-    Diagnosis: a dict with the spec §7 keys; `print(d)` shows the step table.
+    Diagnosis: a dict with the JSON output's keys; `print(d)` shows the step table.
 
     Example::
 

@@ -24,6 +24,7 @@ def examples_dir() -> Path:
 
 
 def names() -> list[str]:
+    """The bundled examples' names (`pumpsim example --list`)."""
     return sorted(p.stem for p in examples_dir().glob("*.toml"))
 
 

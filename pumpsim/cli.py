@@ -175,7 +175,7 @@ def _data_options(a):
 
 def _add_fit_outputs(p):
     """What identify and diagnose share: JSON, HTML report, data options and --force."""
-    p.add_argument("--json", help="write the result as JSON (spec §7)")
+    p.add_argument("--json", help="write the result as JSON")
     p.add_argument("--report", help="self-contained HTML report (.html)")
     _add_force(p)
     _add_data_options(p)
@@ -237,7 +237,7 @@ def register_simulate(sub):
                    help="simulated time [s] (default: two revolutions at the configured speed for a "
                         "speed drive, 0.5 s for a torque drive)")
     s.add_argument("--rate", type=_positive_float, default=10000.0, help="output sample rate [Hz]")
-    s.add_argument("--out", help="CSV file for the spec §7 columns")
+    s.add_argument("--out", help="CSV file: time, angle, speed, torque and the per-vane columns")
     s.add_argument("--plot", help="figure file (.png, .svg or .pdf)")
     s.add_argument("--plot-x", dest="plot_x", choices=["angle", "time"], default="angle",
                    help="figure x axis: rotor angle in degrees with revolutions overlaid, or time")
@@ -408,7 +408,7 @@ def cmd_diagnose(a) -> int:
 # --- study ----------------------------------------------------------------------------------
 
 def register_study(sub):
-    st = sub.add_parser("study", help="contact-model solver study (report §7-8)", formatter_class=_Help)
+    st = sub.add_parser("study", help="contact-model solver study: tolerances, contact stiffness, integrators", formatter_class=_Help)
     st.add_argument("config", help="TOML configuration with [contact.housing]")
     st.add_argument("--revolutions", type=_positive_float, default=10.0, help="revolutions simulated per setting")
     st.add_argument("--speed", type=_positive_float, help="constant speed [rad/s] (default: the config's)")

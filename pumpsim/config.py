@@ -114,6 +114,10 @@ def _walk(raw: dict, schema: dict, prefix: str) -> dict:
 
 @dataclass
 class PumpConfig:
+    """A validated configuration (from `load_config`): the structure that selects a compiled variant
+    (shape, vanes, harmonics, contact laws), the operating point (mode, speed, angle, torque) and
+    every registry value by its key path in `values` (SI units)."""
+
     name: str
     shape: str
     vanes: int
@@ -161,6 +165,7 @@ class PumpConfig:
         return Structure("constrained", self.vanes, slots)
 
     def parameters(self, model: str = "constrained") -> ParameterVector:
+        """The compiled model's run-time parameter values by name (of `model`'s variant)."""
         st = self.structure_for(model)
         pv = ParameterVector(st, {})
         for q in layout(st):
@@ -182,7 +187,7 @@ def harmonic_values(j, k, A, gamma) -> dict:
 
 
 def load_config(path, check_geometry: bool = True, force: bool = False) -> PumpConfig:
-    """Read and validate a TOML configuration (spec \u00a75); values are SI (m, kg, s, rad, N).
+    """Read and validate a TOML configuration; values are SI (m, kg, s, rad, N).
 
     path: the .toml file (UTF-8, a BOM allowed). check_geometry: reject vanes that cannot reach or
     fit the housing. force: accept magnitudes that look like a unit mistake (a length in mm, a mass

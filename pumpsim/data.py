@@ -150,7 +150,7 @@ class DataOptions:
 
 def load_data(path, options: DataOptions | None = None, min_revolutions: float = 1.0,
               nominal_speed: float | None = None) -> Dataset:
-    """Read a measurement (spec \u00a76) into a `Dataset` in SI units.
+    """Read a measurement into a `Dataset` in SI units.
 
     path: CSV/text (`,`, `;`, tab or blank separated, `;`, tab and blank files may use decimal commas, as may
     double-quoted values in `,` files ("0,5"), UTF-8 with or without BOM, UTF-16, Windows-1252,

@@ -1,4 +1,4 @@
-"""Design studies (spec §9): sweeps, tolerance Monte Carlo, global sensitivity and optimisation.
+"""Design studies: sweeps, tolerance Monte Carlo, global sensitivity and optimisation.
 
     from pumpsim import design
     study = design.load_study("examples/studies/test_rig_tolerances.toml")
@@ -21,12 +21,19 @@ def sweep(study, out=None, **kw):
 
 
 def sensitivity(study, **kw):
+    """Sobol' (S1, ST with 95 % bootstrap intervals) or Morris indices of every output for every varied
+    key: {"indices": {output: {key: {"S1", "S1_conf", "ST", "ST_conf"}}}, ...}. Keywords: method
+    ("sobol" or "morris"), samples (base samples N; Sobol' evaluates N(D + 2) designs), seed,
+    resamples, and those of `sweep` (workers, scheduler, out, progress)."""
     from .indices import sensitivity as _s
 
     return _s(_study(study), **kw)
 
 
 def optimize(study, **kw):
+    """Minimise the study's [objective] under its [constraints] over the varied keys' bounds (SLSQP
+    or trust-constr with exact kernel gradients; NSGA-II for several objectives). Returns the design
+    found, the objective and constraint values and the iterations."""
     from .optimiser import optimize as _o
 
     return _o(_study(study), **kw)

@@ -177,7 +177,7 @@ def add_design_commands(sub) -> None:
         g.add_argument("--workers", type=int, help="local workers (default: one per core)")
 
     sw = sub.add_parser("sweep", help="evaluate a study's designs (grid, Monte Carlo)")
-    sw.add_argument("study", help="study file (TOML, spec §9)")
+    sw.add_argument("study", help="study file (TOML)")
     sw.add_argument("--out", metavar="DIR", help="results folder: Parquet parts + manifest.json (resumes)")
     sw.add_argument("--csv", help="the result table as CSV")
     sw.add_argument("--report", help="self-contained HTML report")

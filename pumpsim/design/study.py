@@ -249,6 +249,8 @@ def _read_toml(path, what) -> dict:
 
 
 def load_study(path) -> Study:
+    """Read and check a study file (TOML): its base config (relative to the file), the varied keys,
+    sampler, limits, objective and method settings. Every rejection is a `ConfigError` naming the key."""
     p = Path(path)
     return study_from_dict(_read_toml(p, "study"), base_dir=p.parent, path=str(p))
 

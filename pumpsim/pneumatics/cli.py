@@ -10,11 +10,11 @@ from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_
 
 
 def add_pumpdown_command(sub) -> None:
-    pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy (spec §8)")
+    pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy")
     pd.add_argument("config")
     pd.add_argument("--until", type=float, help="target booster pressure [Pa] (default booster.target)")
     pd.add_argument("--duration", type=float, help="longest simulated time [s] (default 120)")
-    pd.add_argument("--out", help="CSV file for the spec §8 columns")
+    pd.add_argument("--out", help="CSV file: time, angle, speed, torque, booster_pressure, current and per cell pressure, volume, temperature")
     pd.add_argument("--plot", help="PNG file for the pump-down figures")
     pd.add_argument("--json", help="JSON file for the summary and the solver statistics")
     pd.add_argument("--report", help="HTML report (figures and tables)")

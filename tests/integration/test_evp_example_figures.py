@@ -1,4 +1,4 @@
-"""The bundled EVP example's swept volume as its comment and the README quote it: N (V_max - V_min)
+"""The bundled EVP example's swept volume as its comment and the documentation quote it: N (V_max - V_min)
 of one cell over a revolution, from the compiled cell geometry (spec §8)."""
 import re
 
@@ -20,7 +20,7 @@ def _swept_cm3():
 
 @pytest.mark.parametrize("path,pattern", [
     (EXAMPLES / "evp_booster.toml", r"~(\d+(?:\.\d+)?) cm\^3/rev"),
-    (ROOT / "README.md", r"25 mm wide: ~(\d+(?:\.\d+)?) cm³/rev"),
+    (ROOT / "docs" / "getting-started.md", r"25 mm wide: ~(\d+(?:\.\d+)?) cm³/rev"),
 ])
 def test_quoted_swept_volume_is_the_models(path, pattern):
     quoted = float(re.search(pattern, path.read_text(encoding="utf-8")).group(1))
