@@ -1052,16 +1052,34 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
     ranking = _rank(scr, scored, tests)
     screens.append(_screen_table(ranking, SCORE_ALPHA / tests, effects, scr))
     _note_confounded(scored, SCORE_ALPHA / tests, run.confounded, state.cfg)
-    # the best by the one criterion, and the best by score p-value (a smooth effect whose
-    # one-step fit a probe grid happened to beat)
     sig = [r for r in ranking if r["significant"]]
+    rho = _ar1(_on(current.residual, current.keep))
+    refuted = set()
+    while True:  # a contender a measured speed column refutes gives the next ones their chance
+        fits = _contender_fits(run, scr, state, [r for r in sig if r["cand"].label not in refuted], rho)
+        if not fits:
+            return {"ranking": ranking}
+        accepted = _accept(run, fits, state, current, verdict, rho, SCORE_ALPHA / tests)
+        now = {f["cand"].label for f in fits if f.get("column_refuted")} - refuted
+        if accepted is not None or not now:
+            break
+        refuted |= now
+    if accepted is None:
+        return {"ranking": ranking}
+    pair = _rival(run, [f for f in fits if not f.get("column_refuted")], accepted, state, current, rho)
+    if pair is not None:
+        return {"ranking": ranking, "rival_pair": pair}
+    return {"ranking": ranking, "accepted": accepted, "bic0": accepted["bic0"]}
+
+
+def _contender_fits(run, scr, state, sig, rho) -> list:
+    """The contenders among the significant candidates `sig` -- the best by the one-step BIC,
+    the best by score p-value (a smooth effect whose one-step fit a probe grid happened to beat)
+    and the lowest significant orders -- refitted on the screen, sorted by their BIC there."""
     contenders = sig[:CONTENDERS] + [r for r in sorted(sig, key=lambda r_: r_["score"]["p_value"])[:2]
                                      if r not in sig[:CONTENDERS]]
     lowest = _lowest_orders(sig)
     contenders += [r for r in lowest if not any(r is c_ for c_ in contenders)]
-    if not contenders:
-        return {"ranking": ranking}
-    rho = _ar1(_on(current.residual, current.keep))
     fits = []
     for r in contenders:
         c, s = r["cand"], r["score"]
@@ -1078,14 +1096,7 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
                                     _kept(base, f["screen_res"]))
         f["bic_screen"] = _bic(*_whitened_rss(base.residual, rho, base.keep), len(state.names)) + bic1 - bic0
     fits.sort(key=lambda f: f["bic_screen"])
-    level0 = SCORE_ALPHA / tests
-    accepted = _accept(run, fits, state, current, verdict, rho, level0)
-    if accepted is None:
-        return {"ranking": ranking}
-    pair = _rival(run, fits, accepted, state, current, rho)
-    if pair is not None:
-        return {"ranking": ranking, "rival_pair": pair}
-    return {"ranking": ranking, "accepted": accepted, "bic0": accepted["bic0"]}
+    return fits
 
 
 def _rephased(st: State, res):
@@ -1162,6 +1173,7 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
         st, res = _full_fit(run, f)
         disagreement = _speed_column_disagrees(run, st, res)
         if disagreement:
+            f["column_refuted"] = True
             run.rejected.append({"effect": f["cand"].label, "reasons": [disagreement]})
             run.notes.append(f"{f['cand'].label} rejected: {disagreement}")
             continue
