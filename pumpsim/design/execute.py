@@ -16,6 +16,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata
 import json
 import logging
@@ -29,10 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from .. import interrupt
+from ..errors import ConfigError, SolverError
+from ..fsfaults import guard, probe_folder
 from ..io import atomic_path, write_text
+from ..locks import LOCK_FILES, study_folder
 from .outputs import BOOL_OUTPUTS, per_vane_name
 from .sampling import design_matrix
+from .summary import coverage, coverage_text
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
 TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the workers finish together
@@ -239,13 +244,14 @@ def check_out_dir(out, study_hash) -> dict | None:
     d = Path(out)
     if not d.parent.is_dir():
         raise ConfigError(f"--out: folder '{d.parent}' does not exist")
+    if d.exists() and not d.is_dir():
+        raise ConfigError(f"--out '{d}' exists and is not a folder")
+    probe_folder(d, "--out", create=True)
     if not d.exists():
         return None
-    if not d.is_dir():
-        raise ConfigError(f"--out '{d}' exists and is not a folder")
     mpath = d / MANIFEST
     if not mpath.exists():
-        if any(d.iterdir()):
+        if any(p.name not in LOCK_FILES for p in d.iterdir()):
             raise ConfigError(f"--out '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
         return None
     try:
@@ -350,19 +356,23 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     scheduler = scheduler or study.scheduler
     workers = study.workers if workers is None else workers
     X = study_designs(study) if X is None else np.asarray(X, dtype=float)
-    man = check_out_dir(out, study.study_hash())
-    t0 = time.perf_counter()
-    own = None
-    if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
-        client, own = connect(scheduler, workers, processes)
-    try:
-        return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
-                    client, t0)
-    finally:
-        if own is not None:
-            client.close()
-            if own is not client:
-                own.close()
+    check_out_dir(out, study.study_hash())
+    # one run at a time per folder (a second one fails here, before any work); the manifest is
+    # read again under the lock: a run that just ended may have changed it
+    with study_folder(out) if out is not None else contextlib.nullcontext():
+        man = check_out_dir(out, study.study_hash())
+        t0 = time.perf_counter()
+        own = None
+        if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
+            client, own = connect(scheduler, workers, processes)
+        try:
+            return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
+                        client, t0)
+        finally:
+            if own is not None:
+                client.close()
+                if own is not client:
+                    own.close()
 
 
 def _warm_workers(study, X, workers, client) -> list:
@@ -392,6 +402,10 @@ def _plan(study, X, man, batch_size, client) -> Plan:
     from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
     guided_bounds on several."""
     bs = batch_size or study.batch_size
+    if man and bs and (man.get("batch_bounds") or int(man.get("batch_size") or 0) != int(bs)):
+        raise ConfigError(f"the results folder holds batches laid out as {_layout(man)}, not of {int(bs)} "
+                          "designs; resume it without --batch-size (and study.batch_size), or choose "
+                          "another folder")
     if bs:
         return Plan(study, X, int(bs))
     if man and man.get("batch_bounds"):
@@ -404,6 +418,12 @@ def _plan(study, X, man, batch_size, client) -> Plan:
         bounds = guided_bounds(len(X), per, n_workers)
         return Plan(study, X, bounds[1] - bounds[0], bounds=bounds)
     return Plan(study, X, max(1, math.ceil(TASK_SECONDS / per)))
+
+
+def _layout(man) -> str:
+    if man.get("batch_bounds"):
+        return f"guided batches ({man['batch_bounds'][1]} designs first, shrinking)"
+    return f"batches of {man.get('batch_size')} designs"
 
 
 def _idle(stats, spans, t_start, t_end) -> None:
@@ -446,6 +466,8 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     tables = {}
     bar = _bar(progress, len(todo))
     written = [0]
+    done_designs = [sum(len(plan.batch(b)[0]) for b in done)]
+    interrupt.progress(_how_far(done_designs[0], len(X), folder))
 
     spans = []
 
@@ -455,10 +477,13 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         if folder is not None:
             import pyarrow.parquet as pq
 
-            with atomic_path(folder / PART.format(b)) as tmp:
-                pq.write_table(table, tmp)
+            with guard("writing the results part", folder / PART.format(b), "--out"):
+                with atomic_path(folder / PART.format(b)) as tmp:
+                    pq.write_table(table, tmp)
         tables[b] = table
         written[0] += 1
+        done_designs[0] += len(table.column("design").unique()) if len(table) else 0
+        interrupt.progress(_how_far(done_designs[0], len(X), folder))
         if bar is not None:
             bar.update(1)
         if on_batch is not None:
@@ -489,11 +514,23 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         if bar is not None:
             bar.close()
     if folder is not None:
-        write_manifest(folder, study, plan, "complete", stats)
-        return read_results(folder), stats
+        df = read_results(folder)
+        gaps = coverage_text(coverage(df, len(X)))
+        write_manifest(folder, study, plan, "complete" if gaps is None else "incomplete", stats)
+        if gaps:  # parts from elsewhere (another layout, a copied file): the table is not this study
+            raise SolverError(f"the results folder '{folder}' does not hold every design once: {gaps}; "
+                              "remove it and run the study again")
+        return df, stats
     parts = [tables[b].to_pandas() for b in sorted(tables)]
     df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c for c, _ in columns(study)])
     return _ordered(df), stats
+
+
+def _how_far(done, total, folder) -> str:
+    if folder is None:
+        return f"with {done} of {total} designs evaluated (not kept: no --out folder)"
+    return (f"with {done} of {total} designs done and kept in '{folder}' (the same command resumes "
+            "there)")
 
 
 def _bar(progress, total):
@@ -518,7 +555,8 @@ def write_manifest(folder, study, plan, status, stats=None):
     }
     if stats is not None:
         man["run"] = stats.as_dict()
-    write_text(folder / MANIFEST, json.dumps(man, indent=1))
+    with guard("writing the study manifest", folder / MANIFEST, "--out"):
+        write_text(folder / MANIFEST, json.dumps(man, indent=1))
 
 
 def _ordered(df):
