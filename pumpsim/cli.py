@@ -480,6 +480,10 @@ def main(argv=None) -> int:
             status = a.func(a)
             interrupt.check()  # a signal that native code reported as its own failure, then went on
             return status
+    except BrokenPipeError:  # the reader of our output went away (`| head`): stop quietly
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except Exception as e:
         if interrupt.pending():  # the failure is the signal's doing (a solver callback's, say)
             return _report_interrupt(interrupt.Interrupted())

@@ -306,8 +306,10 @@ def connect(scheduler=None, workers=None, processes=True):
 
     # its HTTP endpoint moves to a free port when another cluster holds the default one
     warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
+    # the workers' own logs: a failing task reaches the client as its exception, and a cluster
+    # torn down by an interruption would print lost-connection tracebacks from every worker
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=None, silence_logs=logging.CRITICAL)
     return Client(cluster), cluster
 
 
@@ -368,6 +370,10 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
         try:
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                         client, t0)
+        except BaseException:
+            # a cluster torn down mid-run complains of lost tasks and data: not news to the user
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            raise
         finally:
             if own is not None:
                 client.close()
@@ -492,24 +498,14 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     try:
         stats.setup = time.perf_counter() - t0
         t1, w1 = time.perf_counter(), time.time()
-        if workers == 0 or not todo:
-            stats.workers = 1
-            for b in todo:
-                ids, Xb = plan.batch(b)
-                finish(b, *run_batch(study, ids, Xb)[1:])
-        else:
-            from dask.distributed import as_completed
-
-            stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
-            sfut = client.scatter(study, broadcast=True)
-            futs = {}
-            for b in todo:
-                ids, Xb = plan.batch(b)
-                futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
-            for fut in as_completed(futs):
-                finish(futs[fut], *fut.result()[1:])
+        _evaluate(study, plan, todo, workers, client, stats, finish)
         stats.wall = time.perf_counter() - t1
         _idle(stats, spans, w1, w1 + stats.wall)
+    except interrupt.Interrupted as e:
+        if folder is not None and done_designs[0]:
+            e.notes.append(f"the {done_designs[0]} designs done are kept in '{folder}' (the same command "
+                           "resumes there)")
+        raise
     finally:
         if bar is not None:
             bar.close()
@@ -527,10 +523,28 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
 
 
 def _how_far(done, total, folder) -> str:
-    if folder is None:
-        return f"with {done} of {total} designs evaluated (not kept: no --out folder)"
-    return (f"with {done} of {total} designs done and kept in '{folder}' (the same command resumes "
-            "there)")
+    return f"with {done} of {total} designs done" + ("" if folder is not None else " (none kept: no --out folder)")
+
+
+def _evaluate(study, plan, todo, workers, client, stats, finish) -> None:
+    """The batches `todo`, here (workers=0) or on the cluster; finish(b, table, seconds, span)
+    takes each as it completes."""
+    if workers == 0 or not todo:
+        stats.workers = 1
+        for b in todo:
+            ids, Xb = plan.batch(b)
+            finish(b, *run_batch(study, ids, Xb)[1:])
+        return
+    from dask.distributed import as_completed
+
+    stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+    sfut = client.scatter(study, broadcast=True)
+    futs = {}
+    for b in todo:
+        ids, Xb = plan.batch(b)
+        futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
+    for fut in as_completed(futs):  # a batch a lost worker held is run again elsewhere: once here
+        finish(futs[fut], *fut.result()[1:])
 
 
 def _bar(progress, total):
