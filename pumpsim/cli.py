@@ -478,7 +478,10 @@ def main(argv=None) -> int:
     try:
         with interrupt.handling(), locks.session():
             status = a.func(a)
-            interrupt.check()  # a signal that native code reported as its own failure, then went on
+            if interrupt.pending():  # a signal some native code took for its own failure, then went on
+                late = interrupt.Interrupted()
+                late.notes.append("the run had ended: its outputs are written, complete")
+                raise late
             return status
     except BrokenPipeError:  # the reader of our output went away (`| head`): stop quietly
         with contextlib.suppress(OSError):
