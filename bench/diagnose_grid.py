@@ -8,7 +8,7 @@ SNR = effect RMS (against the nominal simulation at the same angle) / noise sigm
 disturbed records: sigma = 2 % of the nominal torque's standard deviation (0.5 % of the mean
 torque on the concentric rig, whose nominal torque is constant), a disturbance RMS = SNR x sigma.
 Without a speed column the pump runs 0.3 % above its nominal speed (motor slip); with one, the
-column holds the true speed.
+column holds the true instantaneous speed (a speed ripple shows in it).
 
 Every case draws its own noise (seed from the case's key): with one realisation shared by all
 cases, one unusual draw (a 1 % tail event for the detector family) would repeat as a "rate".
@@ -55,6 +55,12 @@ RIGS = {  # family -> (example, dotted-key changes)
 EFFECTS = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque_offset", "sensor_lag",
            "vane_friction_spread", "viscous_tip_friction")
 DISTURBANCES = ("non_shaft_lines", "slow_drift", "non_shaft_impulses")
+# what a rig shows beyond the reduced grid (--grid rig): two library effects at once (an eccentric
+# rotor on a motor whose speed ripples), a gear mesh line at a non-integer order (out of the library),
+# every COF rising 7 % over the record (a pump warming up: a drift to be named, nothing else)
+RIG_TRUTHS = ("two_effects", "gear_line", "drifting_cof")
+TWO_EFFECTS = ("rotor_eccentricity", "speed_ripple")
+DRIFT_RISE, DRIFT_LEVELS, DRIFT_DURATION = 0.07, 15, 0.4
 # effects that one speed cannot tell from a fitted parameter on some rigs: `confounded` naming the
 # true effect is a right answer there
 CONFOUNDABLE = ("torque_offset", "viscous_tip_friction")
@@ -90,6 +96,9 @@ def truth_of(nominal, effect, dt):
         truth = _with(nominal, **{"effects.vane_friction_factor.1": 1.3})
     elif effect == "viscous_tip_friction":
         truth = _with(nominal, **{"effects.viscous_tip_friction": 0.004})
+    elif effect == "two_effects":
+        truth, _, _ = truth_of(nominal, "rotor_eccentricity", dt)
+        truth = dataclasses.replace(truth, speed_ripple=(1, 0.005, 0.5))
     else:
         truth = nominal
     return truth, lag, offset
@@ -105,9 +114,22 @@ def disturbance(kind, t, speed, rms):
         period = 1 / (1.37 * shaft_hz)
         d = (np.mod(t, period) < 3 * (t[1] - t[0])).astype(float)
         d = d - d.mean()
+    elif kind == "gear_line":  # a gear mesh at 7.3 x the shaft frequency
+        d = np.sin(2 * math.pi * 7.3 * shaft_hz * t + 0.3)
     else:
         return np.zeros_like(t)
     return rms * d / math.sqrt(np.mean(d**2))
+
+
+def _warming(cfg, duration, rate):
+    """Every COF rising by DRIFT_RISE over the record in DRIFT_LEVELS steps (a pump warming up)."""
+    keys = [k for k in cfg.values if k.startswith("friction.") and k.rsplit(".", 1)[1] in ("static", "dynamic")]
+    parts = [pumpsim.simulate(_with(cfg, **{k: cfg.values[k] * (1 + DRIFT_RISE * (j + 0.5) / DRIFT_LEVELS)
+                                            for k in keys}), duration=duration, rate=rate)
+             for j in range(DRIFT_LEVELS)]
+    n = parts[0].time.size
+    level = np.minimum((np.arange(n) * DRIFT_LEVELS) // n, DRIFT_LEVELS - 1)
+    return parts[0], np.array([parts[i].torque[k] for k, i in enumerate(level)])
 
 
 def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10000.0):
@@ -124,11 +146,21 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
     # a sensor low-pass acts on the continuous torque: simulate LAG_FINE x finer and keep every
     # LAG_FINE-th filtered sample (filtering the samples would advance the response by ~dt/2)
     fine = LAG_FINE if lag > 0 else 1
-    sim = pumpsim.simulate(truth, duration=duration, rate=rate * fine)
-    y = measured_torque(sim.time, sim.torque, lag, offset, every=fine)
+    if truth_name == "drifting_cof":
+        duration = DRIFT_DURATION
+        ref = pumpsim.simulate(dataclasses.replace(nominal, speed=nominal.speed * slip, angle=angle),
+                               duration=duration, rate=rate)
+        sim, y = _warming(truth, duration, rate)
+    else:
+        sim = pumpsim.simulate(truth, duration=duration, rate=rate * fine)
+        y = measured_torque(sim.time, sim.torque, lag, offset, every=fine)
     sim = ref if fine > 1 else sim  # the reported sample times
     effect_rms = math.sqrt(np.mean((y - ref.torque) ** 2))
-    if truth_name in EFFECTS:
+    if truth_name == "two_effects":  # the SNR is the weaker effect's: both must be there to be seen
+        effect_rms = min(math.sqrt(np.mean((pumpsim.simulate(
+            dataclasses.replace(truth_of(nominal, e, dt)[0], speed=nominal.speed * slip, angle=angle),
+            duration=duration, rate=rate).torque - ref.torque) ** 2)) for e in TWO_EFFECTS)
+    if truth_name in EFFECTS + ("two_effects", "drifting_cof"):
         sigma = effect_rms / snr
     else:
         sd = float(np.std(ref.torque))
@@ -136,7 +168,7 @@ def make_case(family, truth_name, snr, seed, speed_column, duration=0.1, rate=10
         y = y + disturbance(truth_name, sim.time, truth.speed, snr * sigma)
     key = zlib.crc32(f"{family}|{truth_name}|{snr:g}|{int(speed_column)}".encode())
     rng = np.random.default_rng([seed, key])
-    speed = np.full(y.size, truth.speed) if speed_column else None
+    speed = sim.speed.copy() if speed_column else None  # an encoder's instantaneous speed (a ripple shows)
     status = "in_library" if truth_name in EFFECTS else "none_or_disturbance"
     if truth_name in EFFECTS:
         if effect_rms < PRECISION * math.sqrt(np.mean(ref.torque ** 2)):
@@ -159,7 +191,7 @@ def _absorbed(nominal, clean, sigma, speed_column):
     noise-free measurement leave less than a quarter of the noise sigma? Then one measurement
     cannot tell the effect from a change of the baseline parameters."""
     names = ["mu", "theta0"] + ([] if speed_column else ["speed"])
-    res = identify(nominal, clean, names, multistart=True)
+    res = identify(nominal, clean, names, multistart=True, speed_in_band=True, adequacy=False)
     return bool(res.rms < 0.25 * sigma)
 
 
@@ -168,6 +200,16 @@ def classify(truth_name, out, status="in_library"):
     clean (no effect, nothing claimed)."""
     named = out["effects"]
     conf = {e for pair in out["confounded"] for e in pair}
+    if truth_name == "two_effects":
+        if set(named) == set(TWO_EFFECTS):
+            return "right"
+        if set(named) < set(TWO_EFFECTS):
+            return "partial" if named else "missed"
+        return "wrong_name"
+    if truth_name == "drifting_cof":
+        if named:
+            return "wrong_name"
+        return "right" if [d["parameter"] for d in out.get("drift", [])] == ["mu"] else "missed"
     if truth_name in EFFECTS and status == "absorbed":
         if named:
             return "wrong_name"
@@ -241,7 +283,13 @@ def summarise(cases):
     mu_err = [c["mu_rel_error"] for c in cases if c["mu_rel_error"] is not None and c["outcome"] in
               ("right", "clean", "right_unexplained")]
     walls = [c["wall_time"] for c in cases]
+    single = [c for c in cases if c["truth"] != "two_effects"]
+    rig = {t: [c for c in cases if c["truth"] == t] for t in RIG_TRUTHS}
     return {
+        "false_stack_rate": sum(len(c["effects"]) >= 2 for c in single) / max(len(single), 1),
+        "false_stack_cases": len(single),
+        "rig_truths": {t: {o: sum(c["outcome"] == o for c in cs) for o in sorted({c["outcome"] for c in cs})}
+                       for t, cs in rig.items() if cs},
         "cases": len(cases), "unobservable": len(skipped), "absorbed": sum(c["status"] == "absorbed" for c in cases),
         "named_right_rate": right(eff) / max(len(eff), 1), "named_right_cases": len(eff),
         "named_right_rate_snr_ge_5": right(hi) / max(len(hi), 1), "named_right_cases_snr_ge_5": len(hi),
@@ -271,10 +319,16 @@ def print_summary(s):
     if s["mu_rel_error_median"] is not None:
         print(f"mu relative error: median {s['mu_rel_error_median']:.2e}, 95th percentile {s['mu_rel_error_p95']:.2e}")
     print(f"wall time per case: median {s['wall_time_median']:.1f} s, max {s['wall_time_max']:.1f} s")
+    print(f"false stacks (two or more names where at most one effect is true): {s['false_stack_rate']:.1%} "
+          f"of {s['false_stack_cases']}")
+    for t, outcomes in s["rig_truths"].items():
+        print(f"  {t}: " + ", ".join(f"{o} {k}" for o, k in outcomes.items()))
 
 
 REDUCED = dict(rigs=("concentric4", "eccentric5", "ellipse4", "tilted3"), truths=EFFECTS + ("none",) + DISTURBANCES,
                snrs=(5, 10), seeds=(0,), speed_columns=(False, True))
+RIG = dict(rigs=("concentric4", "eccentric5", "ellipse4", "tilted3"), truths=RIG_TRUTHS, snrs=(5, 10), seeds=(0,),
+           speed_columns=(False, True))
 FULL = dict(rigs=tuple(RIGS), truths=EFFECTS + ("none",) + DISTURBANCES, snrs=(3, 5, 10), seeds=(0, 1, 2),
             speed_columns=(False, True))
 
@@ -296,14 +350,14 @@ def run(spec, log=print):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--grid", choices=["reduced", "full"], default="reduced")
+    ap.add_argument("--grid", choices=["reduced", "rig", "full"], default="reduced")
     ap.add_argument("--json", default="out/bench_diagnose.json")
     ap.add_argument("--rigs", help="comma-separated subset of " + ",".join(RIGS))
     ap.add_argument("--truths", help="comma-separated subset of the effects/none/disturbances")
     ap.add_argument("--seeds", type=int, help="number of noise seeds")
     ap.add_argument("--snrs", help="comma-separated SNRs")
     a = ap.parse_args(argv)
-    spec = dict(REDUCED if a.grid == "reduced" else FULL)
+    spec = dict({"reduced": REDUCED, "rig": RIG, "full": FULL}[a.grid])
     if a.rigs:
         spec["rigs"] = tuple(a.rigs.split(","))
     if a.truths:

@@ -259,8 +259,68 @@ def bench_diagnose(duration=0.5, rate=10000.0):
             "final_rms": out["final"]["rms"]}
 
 
+LOAD_ROWS = 1_000_000
+LOAD_TARGET_S = 5.0  # "a 10^6-row file loads in a few seconds"
+# each reader in its own process, so that its peak resident memory is its own: the maximum RSS
+# after the reader less the RSS once the modules are imported
+_LOAD_PROBE = """
+import resource, sys, time
+sys.path.insert(0, {root!r})
+import numpy as np
+import pyarrow, pyarrow.csv
+from pumpsim.data import _read_csv, load_data
+def rss(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+path, how = sys.argv[1], sys.argv[2]
+before = rss()
+t0 = time.perf_counter()
+if how == "load_data":
+    n = load_data(path).n
+elif how in ("pyarrow_reader", "row_by_row"):
+    src = _read_csv(__import__("pathlib").Path(path), lambda names: {{k: k for k in names}}, fast=how != "row_by_row")
+    n = len(src.cols["time"])
+else:
+    n = np.loadtxt(path, delimiter=",", skiprows=1).shape[0]
+print(time.perf_counter() - t0, rss() - before, n)
+"""
+
+
+def bench_load(rows=LOAD_ROWS):
+    """Load a 10^6-row CSV (time, torque, speed at 20 kHz): load_data (pyarrow, streamed, then every
+    check: units, gaps, finiteness) and its reader alone, against the line-by-line reader it falls
+    back to and numpy.loadtxt (no dialects, no checks) on the same file; wall time and the peak
+    memory each adds (ru_maxrss in a subprocess)."""
+    import subprocess
+
+    t = np.arange(rows) / 20000.0
+    cols = np.column_stack([t, 0.07 + 1e-3 * np.sin(1884.0 * t), 471.0 + 0.0 * t])
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "big.csv")
+        np.savetxt(path, cols, fmt=["%.6f", "%.9g", "%.7g"], delimiter=",", header="time,torque,speed",
+                   comments="")
+        size = os.path.getsize(path)
+        for how in ("load_data", "pyarrow_reader", "row_by_row", "numpy.loadtxt"):
+            r = subprocess.run([sys.executable, "-c", _LOAD_PROBE.format(root=str(ROOT)), path, how],
+                               capture_output=True, text=True, check=True)
+            seconds, peak, n = r.stdout.split()
+            assert int(n) == rows, (how, n)
+            out[how] = {"seconds": float(seconds), "peak_mb": int(peak) / 2**20}
+    kept = 3 * 8 * rows / 2**20
+    print(f"\nLoad a {rows:,}-row CSV ({size / 2**20:.0f} MB; the three columns kept are {kept:.0f} MB)")
+    print(f"{'reader':<18}{'seconds':>10}{'peak MB':>10}")
+    for how, r in out.items():
+        print(f"{how:<18}{r['seconds']:>10.2f}{r['peak_mb']:>10.0f}")
+    fast = out["load_data"]
+    reader = out["pyarrow_reader"]
+    print(f"pyarrow reader {out['row_by_row']['seconds'] / reader['seconds']:.1f}x faster than row by row, "
+          f"{out['numpy.loadtxt']['seconds'] / reader['seconds']:.2f}x numpy.loadtxt's speed; load_data {fast['seconds']:.2f} s (target <= "
+          f"{LOAD_TARGET_S:g} s: {'met' if fast['seconds'] <= LOAD_TARGET_S else 'MISSED'})")
+    return {"rows": rows, "file_mb": size / 2**20, "kept_mb": kept, "readers": out,
+            "target_seconds": LOAD_TARGET_S, "target_met": fast["seconds"] <= LOAD_TARGET_S}
+
+
 BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile, "contact": bench_contact,
-           "identify": bench_identify, "diagnose": bench_diagnose}
+           "identify": bench_identify, "diagnose": bench_diagnose, "load": bench_load}
 
 
 def main():

@@ -156,7 +156,7 @@ class Diagnosis(dict):
 
 
 def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None,
-             speed_tolerance=None) -> Diagnosis:
+             speed_tolerance=None, budget=None) -> Diagnosis:
     """The discrepancy workflow: fit the baseline (mu, theta0 and the speed when the data has none),
     test the residual, then name and add the effects the model lacks (see README).
 
@@ -170,6 +170,8 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     progress : callable(message) for progress lines
     speed_tolerance : relative band about the configured speed for data without a speed column
         (default: operation.speed_tolerance, 0.02)
+    budget : wall seconds after which no further search step starts (None: no limit); what it cut
+        is listed in `d["budget"]` and the notes
 
     Returns
     -------
@@ -192,4 +194,4 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     for w in warnings:  # accepted under force: say so where the user looks
         if progress:
             progress(f"warning: {w}")
-    return Diagnosis(_diagnose(cfg, datasets, progress=progress, speed_tolerance=speed_tolerance))
+    return Diagnosis(_diagnose(cfg, datasets, progress=progress, speed_tolerance=speed_tolerance, budget=budget))

@@ -169,9 +169,26 @@ def _add_data_options(p):
     g.add_argument("--time-unit", help="s, ms or us (default: the header's unit, else s)")
     g.add_argument("--torque-unit", help="N*m, N*mm, mN*m or N*cm (default: the header's unit, else N*m)")
     g.add_argument("--speed-unit", help="rad/s, rpm or rev/s (default: the header's unit, else rad/s)")
-    g.add_argument("--resample", type=_positive_float, help="resample to this rate [Hz]")
+    g.add_argument("--resample", type=_rate_or_auto, metavar="HZ|auto",
+                   help="interpolate onto a uniform grid at this rate [Hz] ('auto': the measured sample "
+                        "rate), also across gaps in time, which are refused otherwise")
     g.add_argument("--steady", action="store_true",
                    help="fit only the constant-speed section (needs a speed column)")
+
+
+def _rate_or_auto(text):
+    return "auto" if text.strip().lower() == "auto" else _positive_float(text)
+
+
+def _read_data(a, path, nominal_speed):
+    """load_data with the command's data options; what it did to the data (resampled, time from a
+    sample rate, jittered steps) is said on stderr."""
+    from .data import load_data
+
+    ds = load_data(path, _data_options(a), nominal_speed=nominal_speed)
+    for note in ds.notes:
+        print(f"pumpsim: {ds.name}: {note}", file=sys.stderr)
+    return ds
 
 
 def _data_options(a):
@@ -335,15 +352,13 @@ def register_identify(sub):
 
 def cmd_identify(a) -> int:
     from .api import identify
-    from .data import load_data
 
     outs = _outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)
     params = _parse_params(a.params)
     initial = _parse_initial(a.start)
-    data = load_data(a.data, _data_options(a),
-                     nominal_speed=None if ("speed" in params or a.transient) else
-                     (cfg.speed if cfg.mode == "speed" else None))
+    data = _read_data(a, a.data, None if ("speed" in params or a.transient) else
+                      (cfg.speed if cfg.mode == "speed" else None))
     if a.transient:
         from .identification import identify_transient
 
@@ -371,6 +386,8 @@ def cmd_identify(a) -> int:
 
 # --- diagnose -------------------------------------------------------------------------------
 
+BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
+
 def register_diagnose(sub):
     dg = sub.add_parser("diagnose", help="find, name and add the effect missing from the model",
                         formatter_class=_Help,
@@ -381,21 +398,27 @@ def register_diagnose(sub):
     dg.add_argument("--speed-tolerance", type=float, dest="speed_tolerance",
                     help="relative band about the configured speed inside which a measurement without a "
                          "speed column may refine it (default: operation.speed_tolerance, 0.02)")
+    dg.add_argument("--budget", type=float, default=None, metavar="SECONDS",
+                    help=f"wall time after which no further search step starts; what it cuts is reported "
+                         f"(default: {BUDGET_PER_5000:g} s per 5,000 samples; 0: no limit)")
     _add_fit_outputs(dg)
     dg.set_defaults(func=cmd_diagnose)
 
 
 def cmd_diagnose(a) -> int:
     from .api import diagnose
-    from .data import load_data
     from .diagnose import tty_progress
 
     outs = _outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)
     # several files: measurements of one pump at different speeds, fitted together
-    data = [load_data(d, _data_options(a), nominal_speed=cfg.speed if cfg.mode == "speed" else None)
-            for d in a.data]
-    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance)
+    data = [_read_data(a, d, cfg.speed if cfg.mode == "speed" else None) for d in a.data]
+    if a.budget is not None and not a.budget >= 0:
+        raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
+    samples = sum(d.n for d in data)
+    budget = BUDGET_PER_5000 * max(1.0, samples / 5000) if a.budget is None else (a.budget or None)
+    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance,
+                   budget=budget)
     if sys.stderr.isatty():
         print(file=sys.stderr)
     print(out)

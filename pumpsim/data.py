@@ -143,7 +143,7 @@ class DataOptions:
     speed_unit: str | None = None
     time_unit: str | None = None
     angle_unit: str | None = None
-    resample: float | None = None  # Hz
+    resample: float | str | None = None  # Hz, or 'auto': the measured sample interval's rate
     steady: bool = False  # keep only the constant-speed section
     steady_tolerance: float = 0.01  # relative speed band of the constant-speed section
 
@@ -153,11 +153,14 @@ def load_data(path, options: DataOptions | None = None, min_revolutions: float =
     """Read a measurement (spec \u00a76) into a `Dataset` in SI units.
 
     path: CSV/text (`,`, `;`, tab or blank separated, `;`, tab and blank files may use decimal commas, as may
-    double-quoted values in `,` files ("0,5"), UTF-8 with or
-    without BOM, UTF-16, `#` comments, headers with units such as `torque [N*mm]`), MATLAB `.mat`
-    or NI `.tdms`. options: `DataOptions` (column names, units, resampling, steady section).
+    double-quoted values in `,` files ("0,5"), UTF-8 with or without BOM, UTF-16, Windows-1252,
+    `#` comments, headers with units such as `torque [N*mm]`), MATLAB `.mat` (v4-v7) or NI `.tdms`:
+    signals are picked by name, other columns, scalars and text are ignored, and without a time
+    signal a sample-rate scalar (`Fs`, `SampleRate`, `dt`, TDMS `wf_increment`) gives the time.
+    options: `DataOptions` (column names, units, resampling, steady section).
     nominal_speed [rad/s]: the data must span `min_revolutions` revolutions at it.
-    Every rejection is a `DataError` naming the file and the row, column or channel.
+    Every rejection is a `DataError` naming the file and the row, column or channel; a gap in time
+    (see `time_gaps`) is one unless `options.resample` asks to interpolate across it.
 
     Example::
 
@@ -177,38 +180,49 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
     for q in UNITS:  # option units are checked before the file is read
         if getattr(o, f"{q}_unit", None) is not None:
             unit_factor(q, getattr(o, f"{q}_unit"), "")
+    if o.resample is not None and o.resample != "auto":
+        _check_rate(o.resample)
     if p.is_dir():
         raise DataError("is a folder, not a data file")
     if not p.exists():
         raise DataError("cannot read data: no such file")
-    suffix = p.suffix.lower()
-    if suffix == ".mat":
-        cols, where = _read_mat(p), "variable"
-    elif suffix == ".tdms":
-        cols, where = _read_tdms(p), "channel"
+    reader = {".mat": _read_mat, ".tdms": _read_tdms}.get(p.suffix.lower(), _read_csv)
+    src = reader(p, lambda names: _pick(o, names))
+    where, cols = src.where, src.cols
+    name = _pick(o, list(cols))
+    notes = []
+    if "time" not in name and src.interval(name.get("torque")) is None:
+        rate_hint = "" if where == "column" else " and no sample rate (a scalar Fs, SampleRate or dt)"
+        raise DataError(f"has no {where} '{o.time}'{rate_hint} (found: {src.found()})")
+    if "torque" not in name:
+        raise DataError(f"has no {where} '{o.torque}' (found: {src.found()})")
+    if "time" in name:
+        t = cols[name["time"]]
     else:
-        cols, where = _read_csv(p), "column"
-    row_of = cols.pop("__rows__", None)
-    header_units = cols.pop("__units__", {})
-    name = {k: _column(getattr(o, k), cols) for k in ("time", "torque", "speed", "angle")}
-    for key in ("time", "torque"):
-        if name[key] not in cols:
-            raise DataError(f"has no {where} '{getattr(o, key)}' (found: {', '.join(sorted(cols)) or 'none'})")
-    t = cols[name["time"]]
+        dt, t0, origin = src.interval(name["torque"])
+        t = t0 + dt * np.arange(cols[name["torque"]].size)
+        notes.append(f"time from {origin} (no {where} '{o.time}')")
     n = t.size
     if n == 0:
         raise DataError("has a header but no data rows")
-    for col, arr in cols.items():
+    used = {k: cols[name[k]] for k in ("torque", "speed", "angle") if k in name}
+    first = name.get("time", name["torque"])
+    for key, arr in used.items():
         if arr.size != n:
-            raise DataError(f"{where} '{col}' has {arr.size} samples, {where} '{name['time']}' has {n}")
-    used = {k: cols[name[k]] for k in ("time", "torque", "speed", "angle") if name[k] in cols}
+            raise DataError(f"{where} '{name[key]}' has {arr.size} samples, {where} '{first}' has {n}")
+    if "time" in name:
+        used = {"time": t, **used}
+    row_of = src.rows
     for key, arr in used.items():
         bad = np.nonzero(~np.isfinite(arr))[0]
         if bad.size:
             raise DataError(f"{_where(row_of, bad[0], where, key)}: {key} is not a finite number")
-    scale = {key: _unit_of(key, name[key], header_units, getattr(o, f"{key}_unit"), where)
-             for key in used}
-    t = t * scale["time"]
+    scale = {key: _unit_of(key, name[key], src.units, getattr(o, f"{key}_unit"), where) for key in used}
+    if "time" in name:
+        resolution = _resolution(t) * scale["time"]
+        t = t * scale["time"] if scale["time"] != 1.0 else t
+    else:
+        resolution = 0.0
     dt = np.diff(t)
     bad = np.nonzero(dt <= 0)[0]
     if bad.size:
@@ -219,12 +233,20 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
                  "rate?)" if dt[b] == 0 else "")
         raise DataError(f"{_where(row_of, b + 1, where, 'time')}: time must be strictly increasing "
                         f"({t[b + 1]:.{digits}g} s after {t[b]:.{digits}g} s){again}")
-    si = {k: (used[k] * scale[k] if k in used else None) for k in ("torque", "speed", "angle")}
-    ds = Dataset(t.astype(float), si["torque"], si["speed"], si["angle"], source=str(p))
+    si = {k: (used[k] * scale[k] if scale[k] != 1.0 else used[k]) if k in used else None
+          for k in ("torque", "speed", "angle")}
+    ds = Dataset(t, si["torque"], si["speed"], si["angle"], source=str(p), notes=notes)
+    lo = 0
     if o.steady:
         ds = steady_section(ds, o.steady_tolerance)
+        lo = int(np.searchsorted(t, ds.time[0]))
+    gaps = time_gaps(ds.time, resolution)
+    if gaps.gaps.size and o.resample is None:
+        raise DataError(gaps.message(lambda i: _where(row_of, lo + i, where, "time")))
+    if gaps.jitter:
+        ds.notes.append(gaps.jitter)
     if o.resample is not None:
-        ds = resample(ds, o.resample)
+        ds = resample(ds, 1.0 / gaps.step if o.resample == "auto" else o.resample, gaps)
     speed = nominal_speed or (float(np.mean(ds.speed)) if ds.speed is not None else None)
     if ds.n < 10:
         raise DataError(f"has {ds.n} samples; at least 10 are needed")
@@ -235,6 +257,12 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
             raise DataError(f"spans {span:.4g} s ({ds.n} samples): too few samples for "
                             f"one revolution ({need:.4g} s at {speed:.4g} rad/s)")
     return ds
+
+
+def _pick(o: DataOptions, names) -> dict:
+    """{quantity: the file's column} for the options' names that the file has."""
+    found = {k: _column(getattr(o, k), names) for k in ("time", "torque", "speed", "angle")}
+    return {k: v for k, v in found.items() if v and v in names}
 
 
 def _column(wanted, cols):
@@ -270,71 +298,404 @@ def _where(row_of, index, where, key):
     return f"sample {index} of {where} '{key}'"
 
 
+# --- Sampling: gaps, jitter and quantised time stamps -----------------------------------------------
+
+# A step longer than 1.5 regular steps is a gap: midway between one step (T) and two (one sample
+# missing), so jitter up to +-T/2 passes and a single missing sample is caught. Time stamps written
+# with resolution q put a regular step anywhere in (T - q, T + q) and a one-sample gap in
+# (2T - q, 2T + q): the limit is T + max(T/2, q), which keeps every record whose time stamps
+# increase (q < T) and still catches each missing sample that q leaves detectable (q <= T/2).
+GAP_STEPS = 1.5
+# a regular step is one below 2.5 median steps (a gap of 1.5 samples or more is surely not one): the
+# mean over them is the sample interval, also when quantised steps alternate (3e-4, 4e-4 s at 3 kHz)
+REGULAR_STEPS = 2.5
+JITTER_NOTE = 0.01  # steps that vary by more than 1 % of the interval are named in a note
+
+
+def _resolution(t) -> float:
+    """The decimal resolution the time stamps were written with (1e-4 for '0.0123'), in the
+    column's unit, or 0.0 when they are not on a decimal grid (binary time channels)."""
+    t = np.asarray(t, dtype=float)
+
+    def on_grid(values, d):
+        x = values * 10.0 ** d
+        return bool(np.all(np.abs(x - np.round(x)) <= 1e-6 + 1e-14 * np.abs(x)))
+
+    probe = t[:: max(1, t.size // 10000)]
+    for d in range(0, 13):  # a probe first, then all in blocks (no temporaries the size of the column)
+        if on_grid(probe, d) and all(on_grid(t[i:i + 65536], d) for i in range(0, t.size, 65536)):
+            return 10.0 ** -d
+    return 0.0
+
+
+@dataclass
+class TimeGaps:
+    """The sampling of a time column: the regular step (s), the steps longer than `limit` (their
+    indices i: a gap between samples i and i + 1) and a note on jitter ('' when steady)."""
+
+    time: np.ndarray
+    step: float
+    limit: float
+    gaps: np.ndarray
+    jitter: str
+
+    def message(self, row) -> str:
+        """The refusal: the first gap by row (row(i) names sample i), time and size, and the fix."""
+        i = int(self.gaps[0])
+        size = self.time[i + 1] - self.time[i]
+        more = f" ({self.gaps.size - 1} more after it)" if self.gaps.size > 1 else ""
+        return (f"{row(i + 1)}: a gap of {size:.6g} s in time after {self.time[i]:.10g} s, "
+                f"{size / self.step:.3g} times the sample interval {self.step:.6g} s (about "
+                f"{max(1, round(size / self.step) - 1)} samples missing){more}; cut the record at the gap, or "
+                "pass --resample HZ (or --resample auto) to interpolate onto a uniform grid across it")
+
+    def bridged(self) -> str:
+        if not self.gaps.size:
+            return ""
+        sizes = self.time[self.gaps + 1] - self.time[self.gaps]
+        return (f" across {self.gaps.size} gap{'s' if self.gaps.size > 1 else ''} in time (the longest "
+                f"{sizes.max():.6g} s after {self.time[self.gaps[np.argmax(sizes)]]:.10g} s)")
+
+
+def time_gaps(time, resolution: float = 0.0) -> TimeGaps:
+    """Gaps and jitter of a strictly increasing time column (see GAP_STEPS); resolution [s]: the
+    time stamps' (see `_resolution`)."""
+    dt = np.diff(time)
+    if dt.size == 0:
+        return TimeGaps(time, 1.0, math.inf, np.zeros(0, int), "")
+    regular = dt[dt <= REGULAR_STEPS * np.median(dt)]
+    step = float(np.mean(regular))
+    limit = step + max((GAP_STEPS - 1) * step, resolution)
+    jitter = ""
+    lo, hi = float(regular.min()), float(regular.max())
+    if hi - lo > JITTER_NOTE * step:
+        quantised = 0 < hi - lo <= resolution * (1 + 1e-6)
+        cause = f"time stamps written to {resolution:.3g} s" if quantised else "jitter"
+        jitter = (f"time steps vary between {lo:.6g} and {hi:.6g} s about the interval {step:.6g} s "
+                  f"({cause}); accepted as measured")
+    return TimeGaps(time, step, limit, np.flatnonzero(dt > limit), jitter)
+
+
+def _read_bytes(p: Path) -> bytes:
+    try:
+        return p.read_bytes()
+    except OSError as e:
+        raise DataError(f"cannot read: {e.strerror}") from None
+
+
 def _decode(p: Path) -> str:
     """Text of a data or config file: UTF-8 (BOM or not), UTF-16 with BOM (spreadsheet 'Unicode
     text'), else Windows-1252; binary files are refused."""
-    try:
-        raw = p.read_bytes()
-    except OSError as e:
-        raise DataError(f"cannot read: {e.strerror}") from None
-    return decode_text(raw, DataError)
+    return decode_text(_read_bytes(p), DataError)
+
+
+_UTF8_BOM = b"\xef\xbb\xbf"
+# a character of two to four bytes in UTF-8: cp1252 text almost never holds one (it would read 'Ã¼')
+_UTF8_MULTIBYTE = re.compile(rb"[\xc2-\xdf][\x80-\xbf]|[\xe0-\xef][\x80-\xbf]{2}|[\xf0-\xf4][\x80-\xbf]{3}")
+
+
+def _refuse_binary(raw: bytes, error) -> None:
+    if raw.startswith(b"PK\x03\x04"):
+        raise error("is a ZIP archive (an Excel .xlsx workbook?), not text; save it as CSV")
+    if b"\x00" in raw[:4096]:
+        raise error("is a binary file, not text (UTF-8 or UTF-16 with BOM)")
 
 
 def decode_text(raw: bytes, error=DataError) -> str:
+    """UTF-16 with BOM, else UTF-8 (a BOM stripped), else Windows-1252 (also with a UTF-8 BOM in
+    front, as some exporters write). Bytes that fit neither are refused naming the byte, its offset
+    and line, never decoded to look-alike characters."""
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         try:
             return raw.decode("utf-16")
         except UnicodeDecodeError:
             raise error("is not readable UTF-16 text") from None
-    if raw.startswith(b"PK\x03\x04"):
-        raise error("is a ZIP archive (an Excel .xlsx workbook?), not text; save it as CSV")
-    if b"\x00" in raw[:4096]:
-        raise error("is a binary file, not text (UTF-8 or UTF-16 with BOM)")
+    _refuse_binary(raw, error)
+    skip = len(_UTF8_BOM) if raw.startswith(_UTF8_BOM) else 0
+    body = raw[skip:]
     try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("cp1252", errors="replace")
+        return body.decode("utf-8")
+    except UnicodeDecodeError as e:
+        utf8_bad = e.start
+
+    def at(i):
+        line = body.count(b"\n", 0, i) + 1
+        return f"byte 0x{body[i]:02x} at byte offset {i + skip} (line {line})"
+
+    if _UTF8_MULTIBYTE.search(body):
+        raise error(f"is UTF-8 text with an invalid {at(utf8_bad)}: the file is damaged or mixes "
+                    "encodings; save it again as UTF-8")
+    try:
+        return body.decode("cp1252")
+    except UnicodeDecodeError as e:
+        raise error(f"is neither UTF-8 ({at(utf8_bad)} is not UTF-8) nor Windows-1252 ({at(e.start)} "
+                    "is undefined there); save it as UTF-8") from None
 
 
-def _read_csv(p: Path) -> dict:
-    lines = _decode(p).splitlines()
-    header, rows, line_no, sep = None, [], [], ","
-    for i, line in enumerate(lines, start=1):
+@dataclass
+class _Source:
+    """What a reader found: numeric signals by name, header or channel units, the row number of
+    each sample (CSV) and what it left aside, for messages."""
+
+    where: str  # 'column', 'variable' or 'channel'
+    cols: dict
+    units: dict = field(default_factory=dict)
+    rows: object = None
+    ignored: dict = field(default_factory=dict)  # name -> why it is not a signal ('scalar', 'text', ...)
+    scalars: dict = field(default_factory=dict)  # name -> value, for a sample rate
+    waveforms: dict = field(default_factory=dict)  # channel -> (dt, t0): TDMS waveform properties
+    names: list | None = None  # every column of the file (a CSV reader keeps only those used)
+
+    def found(self) -> str:
+        names = sorted(self.names or self.cols) + [f"{k} ({v})" for k, v in sorted(self.ignored.items())]
+        return ", ".join(names) or "none"
+
+    def interval(self, channel):
+        """(dt [s], t0 [s], where it came from) of a channel without a time column, or None."""
+        if channel in self.waveforms:
+            dt, t0 = self.waveforms[channel]
+            return dt, t0, f"the waveform properties of {self.where} '{channel}' (wf_increment = {dt:.6g} s)"
+        rates = {}
+        for k, v in self.scalars.items():
+            key = re.sub(r"[\s_\-]", "", k.rsplit(".", 1)[-1].rsplit("/", 1)[-1].lower())
+            if key in RATE_NAMES and v > 0:
+                rates[k] = (1.0 / v, f"{k} = {v:.6g} Hz")
+            elif key in INTERVAL_NAMES and v > 0:
+                rates[k] = (float(v), f"{k} = {v:.6g} s")
+        if not rates:
+            return None
+        values = list(rates.values())
+        if any(not math.isclose(dt, values[0][0], rel_tol=1e-9) for dt, _ in values):
+            raise DataError(f"has no {self.where} time and sample rates that disagree: "
+                            f"{', '.join(w for _, w in values)}; add a time {self.where} or keep one rate")
+        return values[0][0], 0.0, "the sample rate " + values[0][1]
+
+
+# metadata scalars that give the sample rate [Hz] or interval [s], compared lower case without
+# blanks, '_' and '-'
+RATE_NAMES = {"fs", "samplerate", "samplingrate", "samplefrequency", "samplingfrequency", "rate", "srate"}
+INTERVAL_NAMES = {"dt", "ts", "sampleinterval", "samplinginterval", "sampletime", "samplingtime",
+                  "wfincrement", "increment"}
+
+
+def _header(s: str, i: int):
+    """The separator and [(name, unit)] of header line `s` (line number i)."""
+    sep = next((c for c in (";", "\t", ",") if c in s), " " if _BLANKS.search(s) else ",")
+    fields = [h.strip().strip('"').strip() for h in _fields(s, sep)]
+    if fields and fields[-1] == "" and len(fields) > 1:  # trailing separator
+        fields = fields[:-1]
+    header = [split_header(h) for h in fields]
+    names = [h for h, _ in header]
+    if any(not h for h in names):
+        raise DataError(f"row {i}: empty column name in the header")
+    if len(set(names)) != len(names):
+        raise DataError(f"row {i}: duplicate column names in the header")
+    return sep, header
+
+
+_HEAD = 1 << 16  # the header is looked for in the first 64 KB (a longer preamble: the whole file)
+_BLOCK = 1 << 20  # bytes per read when scanning the data and per pyarrow block
+
+
+def _header_end(raw: bytes):
+    """(line number, end offset) of the header line, the first neither blank nor a comment; None
+    when `raw` has none."""
+    pos, line = (len(_UTF8_BOM) if raw.startswith(_UTF8_BOM) else 0), 0
+    while pos <= len(raw):
+        nl = raw.find(b"\n", pos)
+        end = len(raw) if nl < 0 else nl
+        line += 1
+        s = raw[pos:end].strip()
+        if s and not s.startswith(b"#"):
+            return line, end
+        if nl < 0:
+            return None
+        pos = end + 1
+    return None
+
+
+class _Body:
+    """The data rows of a text file after its header: from the file itself (no copy of a large
+    file in memory) or from bytes already read (UTF-16 re-encoded, old Mac line ends)."""
+
+    def __init__(self, p: Path, raw: bytes | None, start: int):
+        self.p, self.raw, self.start = p, raw, start
+
+    def chunks(self):
+        if self.raw is not None:
+            yield self.raw[self.start:]
+            return
+        with open(self.p, "rb") as f:
+            f.seek(self.start)
+            while block := f.read(_BLOCK):
+                yield block
+
+    def stream(self):
+        import pyarrow as pa
+
+        if self.raw is not None:
+            return pa.BufferReader(pa.py_buffer(self.raw)[self.start:])
+        f = pa.OSFile(str(self.p))
+        f.seek(self.start)
+        return f
+
+    def size(self) -> int:
+        return len(self.raw) - self.start if self.raw is not None else max(0, self.p.stat().st_size - self.start)
+
+    def has(self, *needles) -> set:
+        return {n for n in needles if any(n in c for c in self.chunks())}
+
+
+def _read_csv(p: Path, pick, fast: bool = True) -> _Source:
+    """A text file's columns that `pick(names)` uses: streamed through pyarrow's CSV reader where
+    the dialect allows (the common case, and the one a 10^6-row record needs), else line by line,
+    which also gives every refusal its row."""
+    try:
+        with open(p, "rb") as f:
+            head = f.read(_HEAD)
+    except OSError as e:
+        raise DataError(f"cannot read: {e.strerror}") from None
+    raw = None
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raw = decode_text(_read_bytes(p)).encode("utf-8")
+    else:
+        _refuse_binary(head, DataError)
+    if raw is None and b"\n" not in head and b"\r" in head:  # old Mac line ends
+        raw = _read_bytes(p).replace(b"\r", b"\n")
+    found = _header_end(raw if raw is not None else head)
+    if found is None and raw is None and len(head) == _HEAD:
+        raw = _read_bytes(p)
+        found = _header_end(raw)
+    if found is None:
+        raise DataError("has no header line")
+    line, end = found
+    text = raw if raw is not None else head
+    sep, header = _header(decode_text(text[:end]).splitlines()[-1].strip(), line)
+    names = [h for h, _ in header]
+    keep = [j for j, h in enumerate(names) if h in set(pick(names).values())]
+    body = _Body(p, raw, end + 1)
+    cols = _arrow_columns(body, sep, names, keep) if fast and keep else None
+    if cols is not None:
+        rows = _RowNumbers(body, line + 1)
+    else:
+        cols, rows = _python_columns(_decode(p) if raw is None else raw.decode("utf-8"), header, keep)
+    return _Source("column", cols, {h: u for h, u in header if u is not None}, rows, names=names)
+
+
+class _RowNumbers:
+    """The line number (as an editor shows it) of each data row read by pyarrow, counted only when a
+    message needs one: the data holds no comments there, so the rows are its non-blank lines."""
+
+    def __init__(self, body: _Body, first_line: int):
+        self._body, self._first, self._rows = body, first_line, None
+
+    def __getitem__(self, index):
+        if self._rows is None:
+            lines = b"".join(self._body.chunks()).splitlines()
+            self._rows = np.array([self._first + k for k, s in enumerate(lines) if s.strip()])
+        return int(self._rows[index])
+
+
+def _arrow_columns(body: _Body, sep: str, names, keep):
+    """{name: float array} of columns `keep` read by pyarrow block by block, or None where its
+    dialect is not the file's (blank-separated, comments among the rows) or anything is refused:
+    the line-by-line reader then finds and names it."""
+    import pyarrow as pa
+    from pyarrow import csv as pacsv
+
+    marks = body.has(b"#", b'"', b",")
+    if sep == " " or b"#" in marks:
+        return None
+    sample = next(body.chunks(), b"")[:_HEAD]
+    first = next((s.strip() for s in sample.splitlines() if s.strip()), b"")
+    # the rows the file holds, from the length of its first lines, with 10 % to spare
+    rows = int(1.1 * body.size() / max(1.0, len(sample) / max(1, sample.count(b"\n")))) + 16
+    cols = list(names) + (["\0trailing"] if first.endswith(sep.encode()) else [])
+    if b'"' in marks:
+        points = [".", ","]  # quoted values of a ',' file may use decimal commas ("0,5")
+    else:
+        points = ["," if sep != "," and b"," in marks else "."]
+    types = {n: pa.float64() for n in names}
+    types.update({c: pa.string() for c in cols[len(names):]})
+    include = [names[j] for j in keep] + cols[len(names):]
+    for point in points:
+        out = _Columns(len(keep), rows)
+        try:
+            with pacsv.open_csv(
+                    body.stream(), read_options=pacsv.ReadOptions(column_names=cols, block_size=_BLOCK),
+                    parse_options=pacsv.ParseOptions(delimiter=sep),
+                    convert_options=pacsv.ConvertOptions(column_types=types, include_columns=include,
+                                                         decimal_point=point, null_values=[],
+                                                         strings_can_be_null=False,
+                                                         quoted_strings_can_be_null=False)) as reader:
+                for batch in reader:
+                    # a trailing separator: its column must be empty on every row
+                    if len(cols) > len(names) and any(len(s) for s in batch.column(len(keep)).to_pylist()):
+                        return None
+                    out.append([_float_array(batch.column(k)) for k in range(len(keep))])
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            continue
+        if out.n == 0:
+            return None
+        return {names[j]: a for j, a in zip(keep, out.arrays())}
+    return None
+
+
+class _Columns:
+    """Float columns filled batch by batch into arrays sized for `rows` (grown by half when short),
+    so that the kept samples are held once and no batch outlives its copy."""
+
+    def __init__(self, count, rows):
+        self.n, self.cols = 0, [np.empty(rows) for _ in range(count)]
+
+    def append(self, arrays):
+        m = len(arrays[0])
+        if self.n + m > self.cols[0].size:
+            grown = max(self.n + m, int(1.5 * self.cols[0].size))
+            self.cols = [np.concatenate([c[:self.n], np.empty(grown - self.n)]) for c in self.cols]
+        for c, a in zip(self.cols, arrays):
+            c[self.n:self.n + m] = a
+        self.n += m
+
+    def arrays(self):
+        return [c[:self.n] for c in self.cols]
+
+
+def _float_array(array) -> np.ndarray:
+    """A float64 array without nulls as a NumPy view of its data buffer (to_numpy would import
+    pandas, 0.7 s)."""
+    if array.null_count:
+        raise ValueError("nulls in a float column")
+    return np.frombuffer(array.buffers()[1], dtype=np.float64, count=len(array), offset=8 * array.offset)
+
+
+def _python_columns(text: str, header, keep):
+    """{name: float array} of the columns `keep`, line by line, and the line number of each row."""
+    sep, width, values, line_no = None, len(header), [], []
+    header_seen = False
+    for i, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
-        if header is None:
-            sep = next((c for c in (";", "\t", ",") if c in s), " " if _BLANKS.search(s) else ",")
-            fields = [h.strip().strip('"').strip() for h in _fields(s, sep)]
-            if fields and fields[-1] == "" and len(fields) > 1:  # trailing separator
-                fields = fields[:-1]
-            header = [split_header(h) for h in fields]
-            names = [h for h, _ in header]
-            if any(not h for h in names):
-                raise DataError(f"row {i}: empty column name in the header")
-            if len(set(names)) != len(names):
-                raise DataError(f"row {i}: duplicate column names in the header")
+        if not header_seen:
+            header_seen = True
+            sep = _header(s, i)[0]
             continue
         parts = [x.strip().strip('"') for x in _fields(s, sep)]
-        if len(parts) == len(header) + 1 and parts[-1] == "":
+        if len(parts) == width + 1 and parts[-1] == "":
             parts = parts[:-1]
-        if len(parts) != len(header):
-            raise DataError(f"row {i}: {len(parts)} values, the header has {len(header)} columns")
+        if len(parts) != width:
+            raise DataError(f"row {i}: {len(parts)} values, the header has {width} columns")
         # a comma inside a value is a decimal comma: with ';' or tab separators, or quoted ("0,5")
-        parts = [x.replace(",", ".") for x in parts]
+        parts = [parts[j].replace(",", ".") for j in keep]
         try:
-            rows.append([float(x) for x in parts])
+            values.append([float(x) for x in parts])
         except ValueError:
             bad = next(x for x in parts if not _is_float(x))
             raise DataError(f"row {i}: '{bad.strip()}' is not a number") from None
         line_no.append(i)
-    if header is None:
-        raise DataError("has no header line")
-    arr = np.array(rows, dtype=float).reshape(-1, len(header))
-    cols = {h: arr[:, j] for j, (h, _) in enumerate(header)}
-    cols["__rows__"] = np.array(line_no)
-    cols["__units__"] = {h: u for h, u in header if u is not None}
-    return cols
+    arr = np.array(values, dtype=float).reshape(len(values), len(keep))
+    return {header[j][0]: arr[:, k].copy() for k, j in enumerate(keep)}, np.array(line_no)
 
 
 # blanks between columns of a blank-separated file; not those before or inside a unit ('torque [N m]')
@@ -357,51 +718,134 @@ def _is_float(x):
         return False
 
 
-def _read_mat(p: Path) -> dict:
+def _sort_value(src: _Source, name: str, value) -> None:
+    """File a MATLAB variable or TDMS channel: a numeric vector is a signal (its name's unit
+    annotation, 'Torque [N*mm]', split off as in a CSV header), a numeric scalar metadata (maybe
+    the sample rate); anything else is named as ignored."""
+    if isinstance(value, (str, bytes)):
+        src.ignored[name] = "text"
+        return
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "fiub":
+        src.ignored[name] = "text" if arr.dtype.kind in "USO" else f"{arr.dtype.kind} data"
+        return
+    shape = [s for s in arr.shape if s != 1]
+    if len(shape) > 1:
+        src.ignored[name] = f"matrix {'x'.join(str(s) for s in arr.shape)}"
+    elif arr.size == 1:
+        src.scalars[name] = float(arr.ravel()[0])
+        src.ignored[name] = f"scalar {float(arr.ravel()[0]):.6g}"
+    elif arr.size == 0:
+        src.ignored[name] = "empty"
+    else:
+        base, unit = split_header(name)
+        src.cols[base] = arr.astype(float).ravel()
+        if unit:
+            src.units[base] = unit
+
+
+MAT73 = b"MATLAB 7.3 MAT-file"
+
+
+def _read_mat(p: Path, pick=None) -> _Source:
+    """A MATLAB v4-v7 file: numeric vectors are signals, also the fields of a struct (as
+    'struct.field' and, where no other has that name, 'field'); scalars, text, matrices and cells
+    are left aside (a scalar 'Fs', 'SampleRate' or 'dt' gives the time when no variable does)."""
     from scipy.io import loadmat
 
+    with open(p, "rb") as f:
+        if f.read(len(MAT73)) == MAT73:
+            raise DataError("is a MATLAB v7.3 (HDF5) file, which pumpsim cannot read; save it in "
+                            "MATLAB with save(FILE, ..., '-v7') or export it as CSV")
     try:
-        m = loadmat(str(p), squeeze_me=True)
+        m = loadmat(str(p), simplify_cells=True)
     except Exception as e:  # scipy raises several types for corrupt files
         raise DataError(f"cannot read MATLAB file '{p.name}': {e}") from None
-    return {k: np.asarray(v, dtype=float).ravel() for k, v in m.items()
-            if not k.startswith("__") and np.asarray(v).dtype.kind in "fiub"}
+    src = _Source("variable", {})
+    fields: dict = {}
+    for k, v in m.items():
+        if k.startswith("__"):
+            continue
+        if isinstance(v, dict):
+            for fk, fv in v.items():
+                if isinstance(fv, dict):
+                    src.ignored[f"{k}.{fk}"] = "struct"
+                    continue
+                _sort_value(src, f"{k}.{fk}", fv)
+                fields.setdefault(split_header(fk)[0], []).append(f"{k}.{fk}")
+        else:
+            _sort_value(src, k, v)
+    for short, full in fields.items():  # a field's own name when it is the only one of that name
+        if len(full) == 1 and short not in src.cols and full[0] in src.cols:
+            src.cols[short] = src.cols[full[0]]
+            if full[0] in src.units:
+                src.units[short] = src.units[full[0]]
+    return src
 
 
-def _read_tdms(p: Path) -> dict:
+def _read_tdms(p: Path, pick=None) -> _Source:
+    """An NI TDMS file: numeric channels by name (also 'group/name'; a bare name in several groups
+    only with its group), waveform properties (wf_increment, wf_start_offset) and numeric file or
+    group properties as sample-rate candidates."""
     from nptdms import TdmsFile
 
     try:
         f = TdmsFile.read(str(p))
     except Exception as e:  # npTDMS raises several types for corrupt files
         raise DataError(f"cannot read TDMS file '{p.name}': {e}") from None
-    cols, units = {}, {}
+    src = _Source("channel", {})
+    for owner, prefix in [(f, "")] + [(g, f"{g.name}/") for g in f.groups()]:
+        for k, v in owner.properties.items():
+            if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool):
+                src.scalars[f"{prefix}{k}"] = float(v)
+    groups_of: dict = {}
     for group in f.groups():
         for ch in group.channels():
+            full = f"{group.name}/{ch.name}"
             try:
                 data = np.asarray(ch[:], dtype=float).ravel()
             except (TypeError, ValueError):
-                continue  # a text or timestamp channel: not a signal
-            unit = str(ch.properties.get("unit_string", "") or "").strip()
-            for name in (ch.name, f"{group.name}/{ch.name}"):
-                cols[name] = data
-                if unit:
-                    units[name] = unit
-    cols["__units__"] = units
-    return cols
+                src.ignored[full] = "text or time stamps"
+                continue
+            base, head_unit = split_header(ch.name)
+            unit = str(ch.properties.get("unit_string", "") or "").strip() or head_unit
+            if data.size < 2:
+                src.ignored[full] = "scalar" if data.size else "empty"
+                continue
+            src.cols[f"{group.name}/{base}"] = data
+            groups_of.setdefault(base, []).append(group.name)
+            if unit:
+                src.units[f"{group.name}/{base}"] = unit
+            inc = ch.properties.get("wf_increment")
+            if inc is not None and float(inc) > 0:
+                src.waveforms[f"{group.name}/{base}"] = (float(inc), float(ch.properties.get("wf_start_offset", 0.0)))
+    for base, groups in groups_of.items():
+        if len(groups) == 1:
+            g = groups[0]
+            for d in (src.cols, src.units, src.waveforms):
+                if f"{g}/{base}" in d:
+                    d[base] = d[f"{g}/{base}"]
+    return src
 
 
-def resample(ds: Dataset, rate: float) -> Dataset:
-    if not (rate > 0 and math.isfinite(rate)):
-        raise DataError(f"--resample must be a rate > 0 [Hz], got {rate}")
+def _check_rate(rate) -> None:
+    if not (isinstance(rate, (int, float)) and rate > 0 and math.isfinite(rate)):
+        raise DataError(f"--resample must be a rate > 0 [Hz] or 'auto', got {rate}")
+
+
+def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
+    """`ds` linearly interpolated onto a uniform grid at `rate` [Hz] from its first sample; the note
+    says so, and names the gaps bridged (`gaps`: from `time_gaps`)."""
+    _check_rate(rate)
     if (ds.time[-1] - ds.time[0]) * rate > 5_000_000:
         raise DataError(f"--resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
                         "5,000,000 samples")
     t = np.arange(ds.time[0], ds.time[-1] + 0.5 / rate, 1.0 / rate)
-    t = t[t <= ds.time[-1]]
+    t = t[t <= ds.time[-1] + 1e-6 / rate]  # the last sample also when rounding puts it a hair beyond
     f = lambda a: None if a is None else np.interp(t, ds.time, a)  # noqa: E731
+    note = f"resampled to {rate:.6g} Hz (linear interpolation){gaps.bridged() if gaps else ''}"
     out = Dataset(t, f(ds.torque), f(ds.speed), f(np.unwrap(ds.angle)) if ds.angle is not None else None,
-                  ds.source, ds.notes + [f"resampled to {rate:g} Hz (linear interpolation)"])
+                  ds.source, ds.notes + [note])
     return out
 
 

@@ -55,7 +55,8 @@ from .errors import ConfigError
 from .identification import base_name, half_band, speed_band
 from .identification import identify as _identification_fit
 from .identification import make_problem as _identification_problem
-from .identification.reversals import noise_sigma
+from .diagnostics import noise_sigma, speed_column_disagreement
+from .identification.drift import parameter_drift
 from .identification.problem import SPEED_COLUMN_Z, slot_ratio
 from .model_spec.parameters import implausible
 from .presentation import OPTIMISTIC, PLUS_MINUS, parameter_text, step_parameters
@@ -89,12 +90,13 @@ SPEED_DETERMINED = 1 / 3  # a refined speed's stderr must be below this fraction
 REVERSAL_SIGMA = None
 
 
-def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band
-    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
+def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band;
+    # its own detectors and verdict judge the fits (no per-fit adequacy)
+    return _identification_fit(*args, reversals=REVERSAL_SIGMA, speed_in_band=True, adequacy=False, **kw)
 
 
 def make_problem(*args, **kw):
-    return _identification_problem(*args, reversals=REVERSAL_SIGMA, speed_band=True, **kw)
+    return _identification_problem(*args, reversals=REVERSAL_SIGMA, speed_in_band=True, **kw)
 
 
 def _kept(*fits):
@@ -371,7 +373,8 @@ class State:
         names = self.names + [n for n in extra_names if n not in self.names]
         return _identification_problem(cfg or self.cfg, self.data, names, initial=self.values,
                                     extra={k: v for k, v in self.values.items() if k not in names},
-                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals)
+                                    ripple_order=ripple_order or self.ripple_order, reversals=reversals,
+                                    speed_in_band=True)
 
 
 def _probe_scale(state: State) -> float:
@@ -777,9 +780,12 @@ class DiagnosisResult:
     method: str
     wall_time: float
     history: list = field(default_factory=list, repr=False)  # per step: label, IdentificationResult
+    drift: list = field(default_factory=list)  # identification.drift.Drift.to_json() per drifting parameter
+    budget: dict = field(default_factory=dict)  # {"seconds", "bound", "cut"}: what the time budget cut
 
     JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
-            "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected", "method", "wall_time")
+            "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected", "method", "wall_time",
+            "drift", "budget")
 
     def to_json(self) -> dict:
         return {k: getattr(self, k) for k in self.JSON}
@@ -885,18 +891,31 @@ class _Run:
     torque_rms: float = 0.0
     mean_torque: float = 0.0
     added: list = field(default_factory=list)  # per named effect: the fitted names it added
+    deadline: float | None = None  # perf_counter() after which no new step or refit starts
+    budget: dict = field(default_factory=dict)
 
     def implausible(self, st) -> list:
         return plausible(st.cfg, st.values, self.torque_rms, self.mean_torque)
 
+    def out_of_time(self, what: str) -> bool:
+        """True (and `what` listed as cut) once the time budget is spent."""
+        if self.deadline is None or _time.perf_counter() < self.deadline:
+            return False
+        self.budget["bound"] = True
+        self.budget["cut"].append(what)
+        return True
+
 
 def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, progress=None,
-             baseline_params=None, speed_tolerance: float | None = None) -> DiagnosisResult:
+             baseline_params=None, speed_tolerance: float | None = None,
+             budget: float | None = None) -> DiagnosisResult:
     """Find, name and add the effects missing from the model of `cfg` that the measurement(s)
     `data` (a Dataset or a list: several speeds fitted together) show.
 
     speed_tolerance: relative band about the configured speed for measurements without a speed
-    column (default: the config's operation.speed_tolerance, 0.02). Returns a DiagnosisResult."""
+    column (default: the config's operation.speed_tolerance, 0.02).
+    budget: wall seconds after which no further search step or contender refit starts (None: no
+    limit); what it cut is in the result's `budget` and notes. Returns a DiagnosisResult."""
     wall0 = _time.perf_counter()
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
     if speed_tolerance is not None:
@@ -904,6 +923,8 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
             raise ConfigError(f"--speed-tolerance must be in [0, 0.5], got {speed_tolerance:g}")
         cfg = dataclasses.replace(cfg, speed_tolerance=float(speed_tolerance))
     run, held = _start(cfg, datasets, progress)
+    run.deadline = None if budget is None else wall0 + budget
+    run.budget = {"seconds": budget, "bound": False, "cut": []}
     base, state = _baseline(run, baseline_params, held)
     current = base
     history = [{"label": "baseline", "result": base}]
@@ -912,6 +933,8 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int = MAX_EFFECTS, pro
     rival_pair = None
     for _ in range(max_effects):
         if not verdict.searching():
+            break
+        if run.out_of_time("the search for a further effect"):
             break
         found = _search_step(run, state, current, verdict, effects, screens)
         ranking = found["ranking"]
@@ -1042,6 +1065,8 @@ def _search_step(run, state, current, verdict, effects, screens) -> dict:
     fits = []
     for r in contenders:
         c, s = r["cand"], r["score"]
+        if fits and run.out_of_time(f"the refit of {c.label}"):
+            continue
         run.say(f"refitting with {c.label}")
         st, res = _refit(scr, c, s, polar=any(r is r_ for r_ in lowest) or (c.symmetric and not c.kind.harmonic_pair))
         if not c.symmetric:
@@ -1135,6 +1160,11 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
             run.notes.append(f"{f['cand'].label} rejected: " + "; ".join(reasons))
             continue
         st, res = _full_fit(run, f)
+        disagreement = _speed_column_disagrees(run, st, res)
+        if disagreement:
+            run.rejected.append({"effect": f["cand"].label, "reasons": [disagreement]})
+            run.notes.append(f"{f['cand'].label} rejected: {disagreement}")
+            continue
         keep = _kept(current, res)
         q = len(st.names) - len(state.names)
         # the plain LR too: an AR(1) filter fitted to a large unmodelled line amplifies high
@@ -1177,6 +1207,32 @@ def _accept(run, fits, state, current, verdict, rho, score_level):
                 continue
             return f
     return None
+
+
+SPEED_COLUMN_ALPHA = LR_ALPHA / MAX_EFFECTS  # a speed hypothesis against a measured speed column
+
+
+def _speed_column_disagrees(run, st, res) -> str | None:
+    """Why a fit that moves the shaft speed (a speed ripple) cannot be this measurement's, when a
+    measured speed column shows a different ripple (None when they agree, or nothing to compare:
+    no column, a column the model follows, several measurements). The speed is evidence, not
+    only a mean (diagnostics.speed_column_disagreement)."""
+    d = run.datasets[0]
+    if len(run.datasets) > 1 or d.speed is None or d.speed_trend() is not None or "ripple_cos" not in st.names:
+        return None
+    v = {**{"theta0": st.cfg.angle, "speed": d.mean_speed(), "delay": 0.0}, **st.values}
+    e = [res.estimates[n] for n in ("ripple_cos", "ripple_sin")]
+    if any(x.value is None for x in e):
+        return None
+    theta = v["theta0"] + v["speed"] * (d.time - d.time[0] - v["delay"])
+    test = speed_column_disagreement(d.speed, d.time, theta, v["speed"], st.ripple_order, [x.value for x in e],
+                                     np.diag([(x.stderr or 0.0) ** 2 for x in e]))
+    if test is None or test["p_value"] >= SPEED_COLUMN_ALPHA:
+        return None
+    need, seen = (100 * math.hypot(*test["hypothesis"]), 100 * math.hypot(*test["column"]))
+    return (f"the measured speed column disagrees: the fit needs an order-{st.ripple_order} speed ripple of "
+            f"{need:.3g} %, the column shows {seen:.3g} % (chi2 {test['statistic']:.3g} on 2 dof, p "
+            f"{test['p_value']:.2g} < {SPEED_COLUMN_ALPHA:g}; column noise {test['column_sigma']:.3g} rad/s)")
 
 
 # Stationarity of an accepted effect (F16). A pump effect is stationary: the same parameter values
@@ -1438,12 +1494,24 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
         notes.append(f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add "
                      f"{kurt['excess_rms']:.3g} N m RMS above the noise sigma {kurt['mad_sigma']:.3g} N m")
     notes += _notes(run.confounded, state, run.screen_data, len(run.datasets))
+    drifts = _drifts(run, state)
+    notes += [f"{d.text()} (a straight line through {len(d.segments)} segment fits, p {d.p_value:.2g}): the "
+              "model's constant value is its mean over the record" for d in drifts]
+    if run.budget.get("bound"):
+        notes.append(f"time budget of {run.budget['seconds']:g} s reached: not done -- "
+                     + "; ".join(run.budget["cut"]) + " (a larger --budget does them)")
     per_vane, mu_mean = vane_cofs(current, state.cfg)
     final_params = _params_json(current, state.names, state.cfg)
     if "mu" in final_params and final_params["mu"]["value"] is not None:
         final_params["mu"] = mu_mean
-    label = ("consistent with noise" + (" after the named effects" if effects else "")) if consistent else \
+    # never "consistent with noise" while a detector rejects: a remainder below the relevance bar is
+    # still said, with its size
+    quiet = ("consistent with noise" if verdict.p["family"] >= UNEXPLAINED_ALPHA else
+             f"a systematic remainder of {verdict.systematic:.3g} N m below the relevance bar")
+    label = (quiet + (" after the named effects" if effects else "")) if consistent else \
         ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
+    if drifts:
+        label += "; " + ", ".join(d.text() for d in drifts)
     return DiagnosisResult(
         baseline={"rms": base.rms, "params": _params_json(base, list(base.estimates), run.cfg)},
         steps=steps, effects=effects,
@@ -1458,7 +1526,25 @@ def _result(run, base, state, current, verdict, steps, effects, ranking, screens
         ranking=[{"effect": r["cand"].label, "score_p_value": r["score"]["p_value"],
                   "one_step_bic": r["bic"], "significant": r["significant"]} for r in ranking],
         screens=screens, rejected=run.rejected, method=METHOD,
-        wall_time=_time.perf_counter() - wall0, history=history)
+        wall_time=_time.perf_counter() - wall0, history=history, drift=[d.to_json() for d in drifts],
+        budget=run.budget)
+
+
+def _drifts(run, state) -> list:
+    """The COF's drift over a single measurement's record (identification.drift), at the final
+    model's other values; [] with several measurements or no fitted mu."""
+    if len(run.datasets) > 1 or "mu" not in state.names or run.out_of_time("the drift test"):
+        return []
+    data = run.datasets[0]
+    speed = state.values.get("speed", data.mean_speed() if data.speed is not None else state.cfg.speed)
+
+    def fit(seg, names, init):
+        held = {k: v for k, v in state.values.items() if k not in names}
+        return identify(state.cfg, seg, names, initial=init, multistart=False, ripple_order=state.ripple_order,
+                        extra=held)
+
+    found = parameter_drift(fit, data, "mu", state.values, speed)
+    return [found] if found is not None else []
 
 
 METHOD = ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "

@@ -383,3 +383,38 @@ def order_lines(x, angle, orders, alpha) -> dict:
         if f is not None and abs(f - k) <= tol:
             out["orders"].append(k)
     return out
+
+
+def noise_sigma(residual, order: int = 1) -> float:
+    """Robust white-noise sigma of a residual: 1.4826 x the median absolute deviation of its
+    differences of `order` / sqrt(binomial(2 order, order)) (a k-th difference of white noise has
+    that many times its variance: 2 for first, 20 for third differences; a smooth systematic part
+    hardly enters them -- a sinusoid n samples a period as (2 pi / n)^order of its size --; the
+    few step spikes do not move a median)."""
+    d = np.diff(np.asarray(residual, dtype=float), order)
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
+
+
+def speed_column_disagreement(column, time, theta, speed, order, ripple, ripple_cov) -> dict | None:
+    """Does a measured speed column agree with a hypothesised shaft-speed ripple? The ripple
+    (rc, rs) makes omega = speed (1 + rc cos(k theta) - rs sin(k theta)) (theta the nominal angle
+    at the samples); the column's own order-k coefficients come from a least-squares fit of its
+    deviation from its mean, with the column noise taken as white (robust sigma of its third
+    differences, which a smooth ripple hardly enters). chi-square of the difference on 2 dof with
+    both covariances (the torque fit's and the column's). None without a usable column."""
+    s = np.asarray(column, dtype=float)
+    if s.size < 16 or not np.all(np.isfinite(s)):
+        return None
+    d = s - s.mean()
+    kth = order * np.asarray(theta, dtype=float)
+    X = speed * np.column_stack([np.cos(kth), -np.sin(kth)])
+    X = X - X.mean(axis=0)
+    beta, *_ = np.linalg.lstsq(X, d, rcond=None)
+    sigma = noise_sigma(s, order=3)
+    cov = sigma**2 * np.linalg.pinv(X.T @ X) + np.asarray(ripple_cov, dtype=float)
+    delta = np.asarray(ripple, dtype=float) - beta
+    chi2 = float(delta @ np.linalg.pinv(cov) @ delta) if np.any(cov) else (math.inf if np.any(delta) else 0.0)
+    return {"statistic": chi2, "p_value": float(stats.chi2.sf(chi2, 2)), "column": beta.tolist(),
+            "column_sigma": float(sigma), "hypothesis": list(map(float, ripple))}

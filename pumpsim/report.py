@@ -294,7 +294,8 @@ def _status(res) -> str:
             f" ({html.escape(res.message)}), {len(res.iterations) - 1} iterations, residual RMS "
             f"{nb(format(res.rms, '.4g') + ' ' + signal_of(res)[1])}, residual "
             f"{'white' if d['white_at_5pct'] else '<b>not white</b>'} at 5 %, "
-            f"{res.wall_time:.2f} s.</p>")
+            f"{res.wall_time:.2f} s.</p>") + "".join(
+        f"<p class=warn><b>Not a usable estimate</b>: {html.escape(p)}</p>" for p in res.problems())
 
 
 # -- identification --------------------------------------------------------------------------------
@@ -315,6 +316,11 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
     d = res.diagnostics
     parts.append(interval_warning(d["white_at_5pct"], d["runs_test"]["p_value"], d["ljung_box"]["p_value"],
                                   res.residual))
+    if res.adequacy is not None:
+        cls = {"adequate": "ok", "systematic": "note", "inadequate": "warn"}[res.adequacy.verdict]
+        parts.append(f"<h2>Model adequacy: {res.adequacy.verdict}</h2><p class={cls}>"
+                     + "<br>".join(html.escape(line.strip()) for line in res.adequacy.summary().splitlines())
+                     + "</p>")
     rows = []
     for e in res.estimates.values():
         rows.append(param_row(e.name, e.value, e.stderr, e.lower95, e.upper95, e.initial, harmonics))
@@ -455,6 +461,8 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
                      "by BIC. ΔBIC &lt; 0 favours the candidate.</p>")
         for i, sc in enumerate(screens):
             parts.append(_ranking_table(i, sc))
+    for d in _get(out, "drift", []) or []:
+        parts.append(f"<h2>{html.escape(d['text'])}</h2>" + _drift_figure(d))
     notes = _get(out, "notes", [])
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
@@ -598,3 +606,20 @@ def _ranking_table(i, screen) -> str:
             f"{'chose ' + html.escape(chosen) if chosen else 'nothing accepted'}"
             + (f"; Bonferroni level {screen['alpha']:.2g}" if screen.get("alpha") else "") + "</h3>")
     return head + visible
+
+
+def _drift_figure(d) -> str:
+    """A drifting parameter's segment fits (value +- 1 s.e.) and their straight line over time."""
+    seg = d["segments"]
+    t = np.array([x["time"] for x in seg])
+    v = np.array([x["value"] for x in seg])
+    e = np.array([x["stderr"] or 0.0 for x in seg])
+    fig, ax = plt.subplots(figsize=(6.4, 2.8))
+    ax.errorbar(t, v, yerr=e, fmt="o", capsize=3, label="segment fits (± 1 s.e.)")
+    slope, intercept = np.polyfit(t, v, 1)
+    ax.plot([0, d["over"]], [intercept, intercept + slope * d["over"]], "-", label="trend")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel(d["parameter"])
+    ax.legend(loc="best", fontsize=8)
+    tidy_axis(ax)
+    return figure_html(fig)

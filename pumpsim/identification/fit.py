@@ -23,12 +23,12 @@ from .transient import TransientProblem
 
 
 def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, transient=False,
-                 reversals=None, interval=False, speed_band=False) -> Problem:
+                 reversals=None, interval=False, speed_in_band=False) -> Problem:
     """One measurement: ConstantSpeedProblem; several (a list of Datasets): JointProblem; a run-up
     or coast-down (transient=True): TransientProblem. `extra`: values held for special names.
     `reversals`: None, or the noise sigma (0: estimated at each x) of the reversal-aware cost (reversals.py).
     `interval`: the geometric defects' Jacobian columns from the sample-interval average (problem.py).
-    `speed_band`: a fitted speed stays in the measurement's tolerance band (problem.speed_band) --
+    `speed_in_band`: a fitted speed stays in the measurement's tolerance band (problem.speed_band) --
     for refining a known operating point; otherwise its start is searched over a wide band."""
     datasets = list(data) if isinstance(data, (list, tuple)) else [data]
     if transient:
@@ -36,11 +36,11 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
             raise ConfigError("transient identification fits one measurement")
         return TransientProblem(cfg, datasets[0], names, initial, extra)
     if len(datasets) > 1:
-        prob = JointProblem(cfg, datasets, names, initial, extra, ripple_order, speed_band)
+        prob = JointProblem(cfg, datasets, names, initial, extra, ripple_order, speed_in_band)
         for s in prob.subs:  # each measurement its own noise sigma
             s.reversal_sigma, s.interval_geometry = reversals, interval
         return prob
-    prob = ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order, speed_band)
+    prob = ConstantSpeedProblem(cfg, datasets[0], names, initial, extra, ripple_order, speed_in_band)
     prob.reversal_sigma, prob.interval_geometry = reversals, interval
     return prob
 
@@ -48,7 +48,7 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
              ripple_order=1, extra=None, transient=False, reversals=None,
-             interval=False, speed_band=False) -> IdentificationResult:
+             interval=False, speed_in_band=False, adequacy=True) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
     engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
@@ -63,17 +63,17 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
                           "speed column in the data, or 'speed' in --params")
     wall0 = _time.perf_counter()
-    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals, interval, speed_band)
+    prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals, interval, speed_in_band)
 
     def reduced(active, fixed, unident):  # the identifiable names, the others held where they were
         held = {n: fixed[n] for n in unident if base_name(n) in prob.SPECIAL}
         return make_problem(cfg, data, active, {n: fixed[n] for n in active}, {**(extra or {}), **held},
-                            ripple_order, transient, reversals, interval, speed_band)
+                            ripple_order, transient, reversals, interval, speed_in_band)
 
     start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
     initial_model = prob.model(prob.x0)
     fit = _fit_identifiable(prob, start, optimiser, reduced)
-    res = _result(prob, fit, multistart)
+    res = _result(prob, fit, multistart, adequacy)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
     if interval and fit.outcome is not None and any(interval_geometric(n) for n in prob.names):
@@ -82,7 +82,8 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         # minimum), the better of the two kept
         at = {n: e.value for n, e in res.estimates.items() if e.value is not None}
         polished = identify(cfg, data, params, method, relaxation, {**(initial or {}), **at}, max_iter, log,
-                            False, ripple_order, extra, transient, reversals, speed_band=speed_band)
+                            False, ripple_order, extra, transient, reversals, speed_in_band=speed_in_band,
+                            adequacy=adequacy)
         if polished.rms <= res.rms:
             polished.wall_time = _time.perf_counter() - wall0
             return polished
@@ -138,7 +139,7 @@ def _fit_identifiable(prob, start, optimiser, reduced) -> _Fit:
         start_fit = out.x  # flat at the fit: the loop's head fixes those parameters and refits
 
 
-def _result(prob, fit: _Fit, wrap_phase: bool) -> IdentificationResult:
+def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> IdentificationResult:
     """The result in the names asked for (`prob`): estimates of the identifiable ones, no number
     for the others; residual diagnostics at the fit (or at the start when nothing was fitted)."""
     x0 = dict(zip(prob.names, prob.x0))
@@ -166,7 +167,7 @@ def _result(prob, fit: _Fit, wrap_phase: bool) -> IdentificationResult:
     n_eval = prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0)
     keep = None if fit.outcome is None else fit.outcome.keep
     rk = r if keep is None else r[keep]
-    adequacy = _adequacy(fitted_prob, x, fitted_prob.y - r)
+    adequacy = _adequacy(fitted_prob, x, fitted_prob.y - r) if adequacy else None
     return IdentificationResult(
         estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(rk**2))),
         converged=converged, message=message, correlation=corr,

@@ -20,7 +20,7 @@ class JointProblem(Problem):
     SPECIAL = ConstantSpeedProblem.SPECIAL
 
     def __init__(self, cfg, datasets, names, initial=None, extra=None, ripple_order: int = 1,
-                 speed_band: bool = False):
+                 speed_in_band: bool = False):
         initial, extra = initial or {}, extra or {}
         K = len(datasets)
         self.names = []
@@ -34,7 +34,7 @@ class JointProblem(Problem):
             local = [n for n in self.names if n.endswith(f"@{i}")]
             mine = lambda d: {base_name(k): v for k, v in d.items() if "@" not in k or k.endswith(f"@{i}")}  # noqa: E731
             self.subs.append(ConstantSpeedProblem(cfg, ds, self.shared + [base_name(n) for n in local],
-                                                  mine(initial), mine(extra), ripple_order, speed_band))
+                                                  mine(initial), mine(extra), ripple_order, speed_in_band))
             self.cols.append(np.array([self.names.index(n) for n in self.shared + local]))
         self.cfg, self.data, self.kern, self.fixed = cfg, datasets, self.subs[0].kern, self.subs[0].fixed
         self.x0, self.lower, self.upper = (self._gather(lambda s: s.x0), self._gather(lambda s: s.lower),

@@ -11,14 +11,15 @@ import numpy as np
 
 from ..config import PumpConfig, as_array
 from ..data import Dataset
+from ..diagnostics import noise_sigma
 from ..errors import ConfigError
 from ..kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels, map_samples
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..simulate import ripple_motion
-from .reversals import noise_sigma, reversal_keep
-from .start import phase_and_speed_start
+from .reversals import reversal_keep
+from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
 
@@ -105,8 +106,9 @@ class Problem:
         return np.array(x, dtype=float)
 
     def moves_phase(self) -> bool:
-        """Whether a fitted name shifts the model along the angle (a phase scan may find a better start)."""
-        return any(base_name(n) in ("theta0", "speed") for n in self.names)
+        """Whether a fitted name has a non-convex cost (the phase, the speed, a harmonic's phase):
+        its start is scanned (start.py) before the local fit."""
+        return any(base_name(n) in ("theta0", "speed") for n in self.names) or bool(periodic_config_names(self))
 
 
 class ConstantSpeedProblem(Problem):
@@ -126,7 +128,7 @@ class ConstantSpeedProblem(Problem):
     SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if not m.transient or m.in_kernel_graph)
 
     def __init__(self, cfg: PumpConfig, data: Dataset, names, initial=None, extra=None,
-                 ripple_order: int = 1, speed_band: bool = False):
+                 ripple_order: int = 1, speed_in_band: bool = False):
         starts = {"theta0": float(data.angle[0]) if data.angle is not None else cfg.angle,
                   "speed": data.mean_speed() if data.speed is not None else cfg.speed,
                   "torque_offset": 0.0, "delay": 0.0, "ripple_cos": 0.0, "ripple_sin": 0.0, "lag": 0.0,
@@ -135,7 +137,7 @@ class ConstantSpeedProblem(Problem):
         self.ripple_order = int(ripple_order)
         # a speed the user asks for is searched over the start band (start.py); only a workflow
         # that refines a known operating point (diagnosis) confines it to the tolerance band
-        self.speed_band = speed_band(cfg, data) if speed_band and "speed" in self.names else None
+        self.speed_band = speed_band(cfg, data) if speed_in_band and "speed" in self.names else None
         if self.speed_band is not None:
             i = self.names.index("speed")
             self.lower[i], self.upper[i] = self.speed_band

@@ -36,18 +36,6 @@ def step_signature(samples, mids):
     return np.asarray(mids, dtype=float)[:-1] - 0.5 * (s[:-1] + s[1:]) + (d2[:-1] + d2[1:]) / 16
 
 
-def noise_sigma(residual, order: int = 1) -> float:
-    """Robust white-noise sigma of a residual: 1.4826 x the median absolute deviation of its
-    differences of `order` / sqrt(binomial(2 order, order)) (a k-th difference of white noise has
-    that many times its variance: 2 for first, 20 for third differences; a smooth systematic part
-    hardly enters them -- a sinusoid n samples a period as (2 pi / n)^order of its size --; the
-    few step spikes do not move a median)."""
-    d = np.diff(np.asarray(residual, dtype=float), order)
-    if d.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
-
-
 # the step's place inside its interval is found by bisection to 1/2^BISECTIONS of a sample; a
 # sample closer to a step than that is dropped (a step further from every sample cannot cross one
 # within a small parameter change: the cost is smooth there and keeps the step's timing evidence)

@@ -12,7 +12,7 @@ import numpy as np
 from scipy import stats
 
 from ..diagnostics import synchronous_speed_scan
-from ..model_spec.parameters import MEASUREMENT_BY_NAME
+from ..model_spec.parameters import MEASUREMENT_BY_NAME, registry
 from ..simulate import inverse_dynamics
 
 _GRID = np.linspace(0, 2 * math.pi, 720, endpoint=False)  # model over one revolution
@@ -34,7 +34,30 @@ def phase_and_speed_start(prob, x):
     if "theta0" in names:
         x[names.index("theta0")] = _phase_start(prob, one_rev, w, d.get("delay", prob.fixed["delay"]),
                                                 d["theta0"])
+    for i, period in periodic_config_names(prob):
+        x[i] = _periodic_start(prob, x, i, period)
     return x
+
+
+PERIODIC_SCAN = 24  # start values tried over one period of a periodic config parameter
+
+
+def periodic_config_names(prob) -> list:
+    """(index, period) of the fitted config parameters that are angles (a harmonic's phase)."""
+    reg = registry(prob.kern.structure)
+    return [(i, reg[n].period) for i, n in enumerate(prob.names) if n in reg and reg[n].period]
+
+
+def _periodic_start(prob, x, i, period):
+    """The value of x[i] over one period (PERIODIC_SCAN points and the current one) whose model
+    fits best at the other values of x."""
+    def cost(v):
+        z = x.copy()
+        z[i] = v
+        return float(np.sum((prob.y - prob.model(z)) ** 2))
+
+    tried = [x[i]] + list(x[i] + period * np.arange(1, PERIODIC_SCAN) / PERIODIC_SCAN)
+    return min(tried, key=cost)
 
 
 def _one_revolution(prob, x, w):

@@ -67,6 +67,7 @@ class Parameter:
     plausible_why: str = ""  # the physics behind the range, quoted when a value leaves it
     norm: str = ""  # entries sharing a norm key: the range bounds their Euclidean norm
     doc: str = ""
+    period: float | None = None  # an angle: a fit's start is scanned over one period (non-convex cost)
 
     @property
     def inputs(self) -> list[str]:
@@ -163,7 +164,7 @@ def _harmonic(j: int) -> list[Parameter]:
             Parameter(f"{pre}.amplitude", "m", 0.0, plausible=("-0.25 * clearance", "0.25 * clearance"),
                       plausible_why="an out-of-round (one order) below a quarter of the clearance: more "
                       "would leave no running gap on the tight side"),
-            Parameter(f"{pre}.phase", "rad", 0.0)]
+            Parameter(f"{pre}.phase", "rad", 0.0, period=2 * math.pi)]
 
 
 # the rotor touches the housing where the centre offset reaches the radial gap

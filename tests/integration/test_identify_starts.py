@@ -95,3 +95,19 @@ def test_cli_identify_fits_the_speed_from_a_wrong_configured_speed(tmp_path):
     fit = json.loads(out.read_text())
     assert abs(fit["params"]["speed"]["value"] - 471.0) < FIT_SPEED_ABS
     assert fit["params"]["mu"]["value"] == pytest.approx(0.17, rel=NOISE_FREE_MU_REL)
+
+
+def test_a_harmonic_phase_fitted_from_anywhere_in_its_period_reaches_an_exact_fit():
+    """An out-of-round's phase is an angle (its cost is periodic, not convex): from starts spread
+    over the period, the start scan and the local fit reach the truth or one of its exact
+    equivalents (the ellipse's symmetry: the phase modulo pi/3 with theta0 moved by pi)."""
+    truth = make_config("ellipse_1vane", **{"housing.harmonics": [[3, 4e-5, 1.0]]})
+    r = pumpsim.simulate(dataclasses.replace(truth, angle=0.2), duration=0.05, rate=10000)
+    ds = Dataset(r.time, r.torque.copy())
+    scale = float(np.sqrt(np.mean(r.torque ** 2)))
+    for start in 1.0 + np.linspace(0, 2 * math.pi, 6, endpoint=False):
+        cfg = dataclasses.replace(make_config("ellipse_1vane", **{"housing.harmonics": [[3, 4e-5, start]]}),
+                                  angle=0.2)
+        res = identify(cfg, ds, ["housing.harmonics.0.phase", "mu", "theta0"])
+        off = (res.value("housing.harmonics.0.phase") - 1.0 + math.pi / 6) % (math.pi / 3) - math.pi / 6
+        assert res.converged and res.rms < 1e-6 * scale and abs(off) < 1e-4, (start, res)

@@ -8,7 +8,8 @@ import pytest
 from scipy import stats
 
 from pumpsim.diagnostics import ljung_box, runs_test, synchronous_f_test
-from pumpsim.identification.reversals import STEP_SIGMA, noise_sigma, reversal_keep, step_signature
+from pumpsim.diagnostics import noise_sigma
+from pumpsim.identification.reversals import STEP_SIGMA, reversal_keep, step_signature
 from tests.tolerances import NULL_KS_P, ROBUST_SIGMA_REL, STEP_SIGNATURE_ABS
 
 
