@@ -491,6 +491,16 @@ def build_parser():
 
 def main(argv=None) -> int:
     """Run the command line with `argv` (default sys.argv[1:]); returns the exit status."""
+    from . import interrupt
+
+    try:
+        with interrupt.handling():  # from the start: building the parser imports much already
+            return _main(argv)
+    except KeyboardInterrupt as e:  # Interrupted, or SIGINT outside the handler's scope
+        return _report_interrupt(e if isinstance(e, interrupt.Interrupted) else interrupt.Interrupted())
+
+
+def _main(argv) -> int:
     ap = build_parser()
     try:
         a = ap.parse_args(argv)
@@ -499,7 +509,7 @@ def main(argv=None) -> int:
     from . import fsfaults, interrupt, locks
 
     try:
-        with interrupt.handling(), locks.session():
+        with locks.session():
             status = a.func(a)
             if interrupt.pending():  # a signal some native code took for its own failure, then went on
                 late = interrupt.Interrupted()
@@ -529,10 +539,6 @@ def main(argv=None) -> int:
         print(f"pumpsim: internal error (please report; PUMPSIM_DEBUG=1 shows the traceback): "
               f"{type(e).__name__}: {e}", file=sys.stderr)
         return 1
-    except interrupt.Interrupted as e:
-        return _report_interrupt(e)
-    except KeyboardInterrupt:  # SIGINT outside the handler's scope
-        return _report_interrupt(interrupt.Interrupted())
 
 
 def _report_interrupt(e) -> int:

@@ -308,9 +308,21 @@ def connect(scheduler=None, workers=None, processes=True):
     warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
     # the workers' own logs: a failing task reaches the client as its exception, and a cluster
     # torn down by an interruption would print lost-connection tracebacks from every worker
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                           dashboard_address=None, silence_logs=logging.CRITICAL)
-    return Client(cluster), cluster
+    cluster = client = None
+    interrupt.progress("while the local Dask cluster started (no design done)")
+    try:
+        with interrupt.deferred():  # a half-started cluster cannot be closed (Dask complains at exit)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                                   dashboard_address=None, silence_logs=logging.CRITICAL)
+            client = Client(cluster)
+    except BaseException:
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+        for x in (client, cluster):
+            if x is not None:
+                with contextlib.suppress(Exception):
+                    x.close()
+        raise
+    return client, cluster
 
 
 @dataclass
