@@ -7,8 +7,8 @@ names the holder (pid, host, command, start), which a refused second run prints 
 
 - a study folder (`sweep --out DIR`): the lock is DIR/.pumpsim.lock, so runs on other hosts
   sharing the folder see it too;
-- an output file: the lock lives in a per-machine folder under the system's temporary folder,
-  named by the file's absolute path, so nothing is added beside the user's files.
+- an output file: the lock lives in a per-user folder under the system's temporary folder
+  (TMPDIR), named by the file's absolute path, so nothing is added beside the user's files.
 """
 from __future__ import annotations
 
@@ -105,11 +105,13 @@ def holder_of(folder) -> str | None:
 
 
 def _lock_dir() -> Path:
-    d = Path(tempfile.gettempdir()) / "pumpsim-locks"
-    if not d.is_dir():
-        d.mkdir(exist_ok=True)
-        with contextlib.suppress(OSError):  # one folder for every user of the machine
-            os.chmod(d, 0o1777)
+    # one folder per user: filelock refuses a lock file another account owns in a shared folder.
+    # Its files (empty, one per output path ever written) stay: removing a lock file races with
+    # a run that has just opened it
+    uid = os.getuid() if hasattr(os, "getuid") else os.environ.get("USERNAME", "user")
+    d = Path(tempfile.gettempdir()) / f"pumpsim-locks-{uid}"
+    with fsfaults.guard("creating the lock folder", d, "TMPDIR"):
+        d.mkdir(mode=0o700, exist_ok=True)
     return d
 
 

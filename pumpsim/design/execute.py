@@ -313,16 +313,23 @@ def connect(scheduler=None, workers=None, processes=True):
     try:
         with interrupt.deferred():  # a half-started cluster cannot be closed (Dask complains at exit)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None, silence_logs=logging.CRITICAL)
+                                   dashboard_address=None, silence_logs=logging.CRITICAL,
+                                   preload=["pumpsim.design.worker_setup"] if processes else None)
             client = Client(cluster)
     except BaseException:
-        logging.getLogger("distributed").setLevel(logging.CRITICAL)
+        _quiet_dask()
         for x in (client, cluster):
             if x is not None:
                 with contextlib.suppress(Exception):
                     x.close()
         raise
     return client, cluster
+
+
+def _quiet_dask() -> None:
+    """A cluster torn down mid-run logs lost tasks and closed connections, even as CRITICAL: not
+    news to a user who stopped it."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 @dataclass
@@ -383,8 +390,7 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                         client, t0)
         except BaseException:
-            # a cluster torn down mid-run complains of lost tasks and data: not news to the user
-            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            _quiet_dask()
             raise
         finally:
             if own is not None:
@@ -463,6 +469,7 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     import pandas as pd
 
     stats = RunStats(designs=len(X))
+    interrupt.progress(_how_far(0, len(X), out))
     _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
     if study.function is None and not scheduler:
         _build_kernels(study)

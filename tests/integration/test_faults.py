@@ -48,18 +48,23 @@ def _env():
 
 
 def start(args, cwd):
+    """The command in its own process group (as a terminal runs it)."""
     return subprocess.Popen([sys.executable, "-m", "pumpsim", *map(str, args)], cwd=cwd, env=_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
 
 
-def signal_after(p, delay, sig, timeout=180):
-    """Send `sig` after `delay` s (unless the run ended); (exit status, stdout, stderr)."""
+def signal_after(p, delay, sig, timeout=180, group=False):
+    """Send `sig` after `delay` s (unless the run ended) to the process, or with group=True to its
+    whole process group as a terminal's Ctrl-C does (Dask's workers too); (status, stdout, stderr)."""
     try:
         out, err = p.communicate(timeout=delay)
         return p.returncode, out, err
     except subprocess.TimeoutExpired:
         pass
-    p.send_signal(sig)
+    if group:
+        os.killpg(p.pid, sig)
+    else:
+        p.send_signal(sig)
     out, err = p.communicate(timeout=timeout)
     return p.returncode, out, err
 
@@ -168,15 +173,16 @@ def designs_in(folder):
     return read_results(folder)["design"].to_numpy()
 
 
-def test_sweep_sigterm_mid_study_keeps_whole_parts(tmp_path):
-    """SIGTERM in the Dask client: 143, the designs done are named and kept as whole parts, the
-    summary says which are missing; nothing else written."""
+def test_sweep_ctrl_c_mid_study_keeps_whole_parts(tmp_path):
+    """Ctrl-C (SIGINT to the process group: the Dask workers get it too) mid-study: 130, one line
+    (no worker tracebacks), the designs done are named and kept as whole parts, the summary says
+    which are missing; nothing else written."""
     st, res, csv = sweep_study(tmp_path), tmp_path / "res", tmp_path / "t.csv"
     p = start(["sweep", st, "--out", res, "--csv", csv, "--workers", "1"], tmp_path)
     wait_for(lambda: any(res.glob("part-*.parquet")), p)
-    code, _, err = signal_after(p, rng("sweep").uniform(0.0, 0.5), signal.SIGTERM)
-    assert code == 143, err
-    m = the_message(err, signal.SIGTERM)
+    code, _, err = signal_after(p, rng("sweep").uniform(0.0, 0.5), signal.SIGINT, group=True)
+    assert code == 130, err
+    m = the_message(err, signal.SIGINT)
     done = int(m[5])
     assert int(m[6]) == 300 and (done == 0 or f"the {done} designs done are kept in '{res}'" in m[7]), err
     ids = designs_in(res)
