@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import interrupt
-from ..errors import ConfigError, SolverError
+from ..errors import ConfigError, OutputError, SolverError
 from ..fsfaults import guard, probe_folder
 from ..io import atomic_path, write_text
 from ..locks import LOCK_FILES, study_folder
@@ -522,9 +522,12 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         _idle(stats, spans, w1, w1 + stats.wall)
     except interrupt.Interrupted as e:
         if folder is not None and done_designs[0]:
-            e.notes.append(f"the {done_designs[0]} designs done are kept in '{folder}' (the same command "
-                           "resumes there)")
+            e.notes.append(_kept(done_designs[0], folder))
         raise
+    except OutputError as e:  # a full disk, say: what was written stays usable
+        if folder is None or not done_designs[0]:
+            raise
+        raise OutputError(f"{e}; {_kept(done_designs[0], folder)}") from None
     finally:
         if bar is not None:
             bar.close()
@@ -539,6 +542,10 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     parts = [tables[b].to_pandas() for b in sorted(tables)]
     df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c for c, _ in columns(study)])
     return _ordered(df), stats
+
+
+def _kept(done, folder) -> str:
+    return f"the {done} designs done are kept in '{folder}' (the same command resumes there)"
 
 
 def _how_far(done, total, folder) -> str:

@@ -345,6 +345,7 @@ def test_full_tmpfs(tmp_path, capsys):
         with pytest.raises(OutputError) as e:
             design.sweep(design.load_study(st), out=small / "res", workers=0)
         assert "no space left on the device" in str(e.value) and "--out" in str(e.value)
+        assert "designs done are kept in" in str(e.value) and "the same command resumes there" in str(e.value)
         assert e.value.exit_status == 2
         ids = designs_in(small / "res")
         assert len(ids) == len(set(ids)) and len(ids) % 1000 == 0 and temporaries(small) == []
