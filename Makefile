@@ -7,16 +7,16 @@ STAMP := $(VENV)/.installed
 .PHONY: demo-pumpdown install codegen demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
 
 install: $(STAMP)
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
 codegen: install
-	$(BIN)/python -m pumpsim.kernels examples/*.toml
+	$(BIN)/python -m pumpsim.variants examples/*.toml
 	$(BIN)/python -m pumpsim.fastkernel examples/*.toml
-	$(BIN)/python -m pumpsim.kernels bench/independent/rigs/*.toml  # the independent cross-check's rigs
+	$(BIN)/python -m pumpsim.variants bench/independent/rigs/*.toml  # the independent cross-check's rigs
 
 demo: codegen
 	mkdir -p out

@@ -209,7 +209,7 @@ def classify(truth_name, out, status="in_library"):
     if truth_name == "drifting_cof":
         if named:
             return "wrong_name"
-        return "right" if [d["parameter"] for d in out.get("drift", [])] == ["mu"] else "missed"
+        return "right" if [d["parameter"] for d in out["drift"]] == ["mu"] else "missed"
     if truth_name in EFFECTS and status == "absorbed":
         if named:
             return "wrong_name"

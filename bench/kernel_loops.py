@@ -136,7 +136,7 @@ def vector_loop(lib: Path) -> dict:
 def measure(kern, fast, p, speed, n=100_000, reps=5, count_n=10_000) -> dict:
     """Time the scalar function in a C loop and the SIMD library from C on n samples; count
     instructions per sample on count_n samples (difference of two runs removes start-up)."""
-    from codegen import build, simd
+    from pumpsim.codegen import build, simd
 
     N, NO = fast.vanes, len(fast.outputs) - 1
     pstr = " ".join(repr(float(v)) for v in p)

@@ -7,7 +7,7 @@ CasADi version and the compiler flags. A build whose key already exists reuses t
 only records this tree's source fingerprint in its manifest -- no compiler run. Builds go to a
 temporary folder that is renamed into place (atomic on one file system).
 
-`python -m codegen.build --structure '{"model": "constrained", "vanes": 4, ...}'` builds one
+`python -m pumpsim.codegen.build --structure '{"model": "constrained", "vanes": 4, ...}'` builds one
 variant; `make codegen` builds the bundled examples' variants through the runtime
 (`python -m pumpsim.kernels`).
 """

@@ -8,8 +8,37 @@ The public names load on first use (PEP 562), so `import pumpsim.model_spec` -- 
 codegen imports -- does not load the simulator.
 """
 import importlib
+import importlib.abc
+import importlib.util
 import sys
 import types
+from pathlib import Path
+
+_HERE = Path(__file__).resolve().parent
+# A source checkout keeps the model generator in codegen/ beside this package; a wheel installs it
+# inside, as pumpsim.codegen (pyproject.toml's package-dir). CHECKOUT is the checkout's root, or
+# None for an installed package.
+CHECKOUT = (_HERE.parent if not (_HERE / "codegen").is_dir()
+            and (_HERE.parent / "codegen" / "__init__.py").is_file() else None)
+
+
+class _CheckoutCodegen(importlib.abc.MetaPathFinder):
+    """In a checkout, pumpsim.codegen is that checkout's codegen/ -- also when the checkout is only
+    on PYTHONPATH, or another checkout's editable install maps the name to its own folder."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+
+    def find_spec(self, fullname, path=None, target=None):
+        if fullname != "pumpsim.codegen":
+            return None
+        return importlib.util.spec_from_file_location(
+            fullname, self.folder / "__init__.py", submodule_search_locations=[str(self.folder)])
+
+
+if CHECKOUT is not None:
+    sys.meta_path[:] = [f for f in sys.meta_path if not isinstance(f, _CheckoutCodegen)]
+    sys.meta_path.insert(0, _CheckoutCodegen(CHECKOUT / "codegen"))
 
 _EXPORTS = {
     "load_config": ".config", "PumpConfig": ".config", "simulate": ".simulate",
@@ -21,10 +50,27 @@ _EXPORTS = {
     "IdentificationResult": ".identification",
 }
 __all__ = list(_EXPORTS)
-__version__ = "0.1.0"
+
+
+def _version() -> str:
+    """The installed distribution's version (pyproject.toml is its one source)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("pumpsim")
+    except PackageNotFoundError:  # a checkout on PYTHONPATH, never installed
+        import tomllib
+
+        try:
+            return tomllib.loads((_HERE.parent / "pyproject.toml").read_text())["project"]["version"]
+        except (OSError, ValueError, KeyError):
+            return "unknown"
 
 
 def __getattr__(name):
+    if name == "__version__":
+        globals()[name] = _version()
+        return globals()[name]
     module = _EXPORTS.get(name)
     if module is None:
         raise AttributeError(f"module 'pumpsim' has no attribute '{name}'")

@@ -335,9 +335,11 @@ def register_identify(sub):
                         description="Fit model parameters to a measured drive torque at constant speed.")
     ip.add_argument("config", help="TOML configuration (SI units)")
     ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
-    ip.add_argument("--params", default="mu,theta0",
+    ip.add_argument("--params", default=None,
                     help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
-                         "numeric config key path (e.g. housing.center.0)")
+                         "numeric config key path (e.g. housing.center.0); default mu,theta0 -- for a "
+                         "bench log (columns voltage, current, booster_pressure; spec §10) "
+                         f"{','.join(BENCH_DEFAULT_PARAMS)}")
     ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
                     help="least-squares solver")
     ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
@@ -350,12 +352,21 @@ def register_identify(sub):
     ip.set_defaults(func=cmd_identify)
 
 
+BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
+
+
 def cmd_identify(a) -> int:
     from .api import identify
+    from .benchlog import is_bench_log
 
     outs = _outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)
-    params = _parse_params(a.params)
+    if is_bench_log(a.data, a.time_column, a.speed_column):
+        from .identification.pumpdown_fit import cmd_identify_bench
+
+        return cmd_identify_bench(a, cfg, outs, _parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS)),
+                                  _parse_initial(a.start), _write_fit_outputs, _fit_log())
+    params = _parse_params(a.params or "mu,theta0")
     initial = _parse_initial(a.start)
     data = _read_data(a, a.data, None if ("speed" in params or a.transient) else
                       (cfg.speed if cfg.mode == "speed" else None))
@@ -471,9 +482,92 @@ def register_pumpdown(sub):
     add_pumpdown_command(sub)
 
 
+# --- kernels, example ----------------------------------------------------------------------
+
+def register_kernels(sub):
+    from .model_spec.manifest import GENERATED_ENV
+
+    k = sub.add_parser("kernels", help="list, build or clear the compiled model kernels",
+                       formatter_class=_Help,
+                       description="Compiled kernels (one C library per model variant) are built on first "
+                       "use into a checkout's generated/ or, for an installed package, the per-user cache "
+                       f"(~/.cache/pumpsim/kernels on Linux); {GENERATED_ENV}=DIR moves them (e.g. to a "
+                       "shared, prebuilt folder on a cluster).")
+    ks = k.add_subparsers(dest="action", required=True, parser_class=_Parser)
+    ks.add_parser("list", help="the kernels in the folder: variant, key, size, status, path")
+    b = ks.add_parser("build", help="build (or check) the kernels that configs or studies need, "
+                      "e.g. for a CI image or a cluster's shared folder", formatter_class=_Help)
+    b.add_argument("files", nargs="+", metavar="FILE", help="TOML configs or studies")
+    b.add_argument("--model", choices=["constrained", "contact"], action="append",
+                   help="models of a config (repeatable; default: constrained)")
+    c = ks.add_parser("clear", help="remove the kernels (they are rebuilt on use)")
+    c.add_argument("--stale", action="store_true",
+                   help="only those this installation does not load (another model source, CasADi or CPU)")
+    k.set_defaults(func=cmd_kernels)
+
+
+def _megabytes(n: int) -> str:
+    return f"{n / 1e6:.1f} MB"
+
+
+def cmd_kernels(a) -> int:
+    from . import kernels
+    from .model_spec.manifest import GENERATED_ENV, generated_dir
+
+    if a.action == "build":
+        from .variants import build_for
+
+        build_for(a.files, a.model, log=lambda m: print(m, flush=True))
+    elif a.action == "clear":
+        gone = kernels.clear(stale_only=a.stale)
+        print(f"removed {len(gone)} kernel folder(s), {_megabytes(sum(k['size'] for k in gone))}, "
+              f"from {generated_dir()}")
+    else:
+        found = kernels.cached()
+        print(f"kernel folder: {generated_dir()} (set {GENERATED_ENV} to move it)")
+        if found:
+            w = max(len(k["variant"]) for k in found)
+            print(f"{'variant':<{w}}  {'key':<20}  {'size':>8}  {'status':<6}  path")
+        for k in found:
+            print(f"{k['variant']:<{w}}  {k['key']:<20}  {_megabytes(k['size']):>8}  "
+                  f"{'ok' if k['usable'] else 'stale':<6}  {k['folder']}")
+        print(f"{len(found)} kernel(s), {_megabytes(sum(k['size'] for k in found))}"
+              + ("; stale: not recorded for this model source, CasADi or CPU (`pumpsim kernels clear --stale`)"
+                 if any(not k["usable"] for k in found) else ""))
+    return 0
+
+
+def register_example(sub):
+    e = sub.add_parser("example", help="copy a bundled example (config, measurements, studies) into a folder",
+                       formatter_class=_Help,
+                       description="Copy a bundled configuration, its simulated measurements (DIR/data/) and "
+                       "its studies (DIR/studies/) into DIR; `pumpsim example test_rig examples` makes the "
+                       "documentation's paths (examples/...) work.")
+    e.add_argument("name", nargs="?", help="example name (see --list)")
+    e.add_argument("dir", nargs="?", help="destination folder (created if missing)")
+    e.add_argument("--list", action="store_true", help="list the bundled examples and their files")
+    e.set_defaults(func=cmd_example)
+
+
+def cmd_example(a) -> int:
+    from . import bundled
+    from .errors import ConfigError
+
+    if a.list:
+        for name in bundled.names():
+            print(f"{name}: {bundled.description(name)}\n    {', '.join(bundled.files(name))}")
+        return 0
+    if not a.name or not a.dir:
+        raise ConfigError("give an example NAME and a folder DIR (`pumpsim example test_rig examples`), "
+                          "or --list")
+    for path in bundled.copy_example(a.name, a.dir):
+        print(path)
+    return 0
+
+
 # A command = its parser registration; each registration sets `func`. New commands append here.
 COMMANDS = [register_simulate, register_identify, register_diagnose, register_study, register_design,
-            register_pumpdown]
+            register_pumpdown, register_kernels, register_example]
 
 
 def build_parser():

@@ -1341,7 +1341,9 @@ def _stationary_at_its_speed(run, st, res, new_names, sigma):
     refined speed is kept only if it makes the effect stationary."""
     h = _stationary(run, st, res, new_names, sigma)
     column = any(run.datasets[i].speed is not None for i in run.free)  # a column's speed in its band
-    if (h is None or h["p_value"] >= STATIONARY_ALPHA or not column
+    # a held speed (a column's mean, or the nominal where the baseline torque did not determine it:
+    # a concentric rig's torque has no shaft orders until the effect gives it some) is refined
+    if (h is None or h["p_value"] >= STATIONARY_ALPHA or not run.free
             or any(base_name(n) == "speed" for n in st.names)):
         return h, st, res
     info, notes = {"measurements": [dict(m) for m in run.speed_info["measurements"]]}, []
@@ -1352,8 +1354,10 @@ def _stationary_at_its_speed(run, st, res, new_names, sigma):
     if h2 is not None and h2["p_value"] < STATIONARY_ALPHA:
         return h, st, res
     run.speed_info["measurements"] = info["measurements"]
-    run.notes.append(f"speed refined in the speed column's band (its mean +- {SPEED_COLUMN_Z:g} standard errors): "
-                     "at the column's mean the effect's parameters disagreed between segments of the record")
+    band = (f"the speed column's band (its mean +- {SPEED_COLUMN_Z:g} standard errors)" if column else
+            f"its tolerance band (+- {100 * run.cfg.speed_tolerance:g} %)")
+    run.notes.append(f"speed refined in {band}: at the held speed the effect's parameters disagreed between "
+                     "segments of the record")
     return h2, st2, res2
 
 

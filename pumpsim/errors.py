@@ -25,6 +25,12 @@ class CodegenError(PumpsimError):
     exit_status = 1
 
 
+class KernelCacheError(CodegenError):
+    """The kernel folder cannot be written (read-only, no permission): the user moves it."""
+
+    exit_status = 2
+
+
 class SolverError(PumpsimError):
     """A numerical failure; the message names the time and state where it happened."""
 

@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import CodegenError, ConfigError
-from .kernels import _log_if_terminal, build_library, building_allowed
+from .kernels import build_library, building_allowed, log_build
 from .model_spec import manifest as mf
 from .model_spec.outputs import VANE_OUTPUTS
 from .model_spec.parameters import Structure, layout
@@ -208,8 +208,9 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
         if not building_allowed(build):
             raise CodegenError(
                 f"SIMD kernel for {structure.variant} is missing or stale for this source and CPU "
-                f"(source {fingerprint}, in {mf.generated_dir()}); run `make codegen` or unset PUMPSIM_NO_BUILD")
-        log = log or _log_if_terminal
+                f"(source {fingerprint}, in {mf.generated_dir()}); build it with `pumpsim kernels build CONFIG` "
+                "or unset PUMPSIM_NO_BUILD")
+        log = log or log_build
         try:
             build_library(structure, log, simd=True)
         except CodegenError as exc:

@@ -4,24 +4,28 @@ The runtime finds a variant's library by the contract's rules (`model_spec.manif
 manifest of the same variant, schema and CasADi version whose key matches its recorded contents,
 whose library has the recorded hash and which lists this tree's source fingerprint. No compiler
 and no SymPy is involved in that check. A missing or stale variant is built through one entry
-point, `codegen.build.build_library`, imported only then (set PUMPSIM_NO_BUILD=1 to refuse
-instead). Loaded kernels are cached in memory per variant and source.
+point, `pumpsim.codegen.build.build_library`, imported only then (set PUMPSIM_NO_BUILD=1 to
+refuse instead), into `model_spec.manifest.generated_dir()`: $PUMPSIM_GENERATED, a checkout's
+generated/, else the per-user cache. Every build says so on stderr. Loaded kernels are cached in
+memory per variant and source.
 
-`python -m pumpsim.kernels [CONFIG ...] [--model contact]` loads (building when needed) the
-variants of configuration files; `make codegen` runs it on the bundled examples.
+`pumpsim kernels list|build|clear` manages the kernel folder (which variants a file needs and
+building them ahead of use: `variants.py`).
 """
 from __future__ import annotations
 
-import argparse
 import os
+import shutil
 import sys
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import casadi as ca
 
-from .errors import CodegenError
+from .errors import CodegenError, KernelCacheError
 from .model_spec import manifest as mf
-from .model_spec.parameters import MODELS, Structure
+from .model_spec.parameters import Structure
 
 _LOADED: dict = {}
 
@@ -86,9 +90,23 @@ def fast_kernel(structure: Structure):
     return _FAST[memo]
 
 
-def _log_if_terminal(msg):
-    if sys.stderr.isatty():
-        print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+def log_build(msg):
+    """Build messages go to stderr, on a terminal or not: a build takes seconds to a minute."""
+    print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+
+
+def writable_dir() -> Path:
+    """generated_dir(), created if needed, or KernelCacheError (exit 2) naming it and the way out."""
+    base = mf.generated_dir()
+    try:
+        base.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=base):
+            pass
+    except OSError as e:
+        raise KernelCacheError(
+            f"cannot write compiled kernels to {base} ({e.strerror or e}); set {mf.GENERATED_ENV} to a "
+            f"writable folder, or build them beforehand there with `pumpsim kernels build CONFIG`") from None
+    return base
 
 
 def building_allowed(build: bool | None) -> bool:
@@ -99,9 +117,13 @@ def building_allowed(build: bool | None) -> bool:
 def build_library(structure: Structure, log=None, simd: bool = False):
     """The one way the runtime builds a library -- the variant's, or with simd=True its SIMD
     inverse dynamics -- through codegen's one entry point, imported here and nowhere else."""
-    from codegen.build import build_library as build
+    log = log or log_build
+    base = writable_dir()
+    log(f"building the {'SIMD ' if simd else ''}kernel {structure.variant} in {base} "
+        "(once per model variant; up to a minute)")
+    from .codegen.build import build_library as build
 
-    return build(structure, simd=simd, log=log or _log_if_terminal)
+    return build(structure, simd=simd, log=log)
 
 
 def load_kernels(structure: Structure, build: bool | None = None, log=None) -> Kernels:
@@ -115,7 +137,7 @@ def load_kernels(structure: Structure, build: bool | None = None, log=None) -> K
             raise CodegenError(
                 f"compiled kernel for {structure.variant} is missing or stale (source "
                 f"{fingerprint}, CasADi {ca.__version__}, in {mf.generated_dir()}); "
-                "run `make codegen` or unset PUMPSIM_NO_BUILD")
+                "build it with `pumpsim kernels build CONFIG` or unset PUMPSIM_NO_BUILD")
         folder = build_library(structure, log)
         manifest = mf.trusted_manifest(folder, structure.variant, ca.__version__, fingerprint)
         if manifest is None:
@@ -127,33 +149,40 @@ def load_kernels(structure: Structure, build: bool | None = None, log=None) -> K
     return k
 
 
-def main(argv=None) -> int:
-    from .config import load_config
-
-    ap = argparse.ArgumentParser(description="Load (and build when missing or stale) the compiled "
-                                             "kernels of configuration files.")
-    ap.add_argument("configs", nargs="+", help="TOML configs whose variants to load")
-    ap.add_argument("--model", choices=MODELS, action="append")
-    args = ap.parse_args(argv)
-    seen = set()
-    for path in args.configs:
-        cfg = load_config(path, check_geometry=False)
-        for model in args.model or ["constrained"]:
-            st = cfg.structure_for(model)
-            if st not in seen:
-                seen.add(st)
-                k = load_kernels(st, log=lambda m: print(m, flush=True))
-                print(f"{st.variant}: {k.folder}")
-        if cfg.pneumatic is not None:  # spec §8 configs also get their gas-cell variant
-            from .pneumatics.kernel import structure_of
-
-            models = ["constrained"] + (["contact"] if cfg.contact_given else [])  # Model 1 with gas too
-            for st in (structure_of(cfg, m) for m in models):
-                if st not in seen:
-                    seen.add(st)
-                    print(f"{st.variant}: {load_kernels(st, log=lambda m: print(m, flush=True)).folder}")
-    return 0
+def _size(folder: Path) -> int:
+    return sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def cached() -> list[dict]:
+    """Every compiled library in generated_dir(): variant, key, size [bytes], folder and whether
+    this installation loads it (same model source, CasADi and, for SIMD, CPU) -- else stale."""
+    from .model_spec.simd import runs_here
+
+    base = mf.generated_dir()
+    fingerprint = mf.source_fingerprint()
+    out = []
+    for folder in sorted(base.glob("*-*")) if base.is_dir() else []:
+        m = mf.read_manifest(folder)
+        if not folder.is_dir() or folder.name.startswith(".") or m is None:
+            continue
+        variant = m.get("variant", "?")
+        trusted = mf.trusted_manifest(folder, variant, ca.__version__, fingerprint)
+        usable = trusted is not None and (not variant.endswith("-simd") or runs_here(trusted))
+        out.append({"variant": variant, "key": m.get("key", "?"), "size": _size(folder),
+                    "folder": folder, "usable": usable})
+    return out
+
+
+def clear(stale_only: bool = False) -> list[dict]:
+    """Remove the compiled libraries of generated_dir() (stale_only: those this installation does
+    not load); returns what was removed."""
+    gone = [k for k in cached() if not (stale_only and k["usable"])]
+    if gone:
+        writable_dir()
+    for k in gone:
+        try:
+            shutil.rmtree(k["folder"])
+        except OSError as e:
+            raise KernelCacheError(f"cannot remove {k['folder']} ({e.strerror or e}); "
+                                   f"{mf.GENERATED_ENV} moves the kernel folder") from None
+    return gone

@@ -38,7 +38,9 @@ from .rig import RIGS, drive_torque, motion
 
 LIBRARY = ("rotor_eccentricity", "housing_out_of_round", "speed_ripple", "torque_offset",
            "sensor_lag", "vane_friction_spread", "viscous_tip_friction")
-OUT_OF_LIBRARY = ("hum", "drift", "impulse", "ar1_noise")
+# a heavier vane (one vane 10-20 % heavier: a different part, a broken-in carbon vane that soaked oil)
+# is a pump effect outside pumpsim's library; appended last to EFFECTS so the older cases keep their seeds
+OUT_OF_LIBRARY = ("hum", "drift", "impulse", "ar1_noise", "heavy_vane")
 # no effect, but the rig runs 0.3-1.5 % off the configured (nominal) speed, as a real motor does
 NO_EFFECT = ("none", "off_speed", "speed_drift")
 # pairs a pump can show together (a shaft pressed off-centre with a drifting zero, a lobed bore with a
@@ -47,7 +49,8 @@ PAIRS = (("rotor_eccentricity", "torque_offset"), ("housing_out_of_round", "spee
          ("vane_friction_spread", "rotor_eccentricity"), ("speed_ripple", "torque_offset"),
          ("viscous_tip_friction", "housing_out_of_round"), ("sensor_lag", "rotor_eccentricity"))
 COMBINED = ("two_effects",)
-EFFECTS = ("none",) + LIBRARY + OUT_OF_LIBRARY + ("off_speed",) + COMBINED + ("speed_drift",)
+EFFECTS = (("none",) + LIBRARY + OUT_OF_LIBRARY[:4] + ("off_speed",) + COMBINED + ("speed_drift",)
+           + OUT_OF_LIBRARY[4:])
 
 
 @dataclass
@@ -98,6 +101,8 @@ def _sample_effect(effect, rig, rng):
         return dict(phi=rng.uniform(0.8, 0.95))
     if effect == "speed_drift":
         return dict(d=float(rng.choice([-1, 1])) * rng.uniform(0.003, 0.01))   # relative change over the record
+    if effect == "heavy_vane":
+        return dict(vane=int(rng.integers(0, rig.vanes)), factor=rng.uniform(1.1, 1.2))
     if effect == "two_effects":
         pair = PAIRS[int(rng.integers(len(PAIRS)))]
         return dict(effects=list(pair), **{e: _sample_effect(e, rig, rng) for e in pair})
@@ -108,7 +113,7 @@ def components(effect, p):
     """The pump and sensor effects (name, params) a record carries."""
     if effect in COMBINED:
         return [(e, p[e]) for e in p["effects"]]
-    return [(effect, p)] if effect in LIBRARY or effect == "speed_drift" else []
+    return [(effect, p)] if effect in LIBRARY or effect in ("speed_drift", "heavy_vane") else []
 
 
 def _shaft(rig, comps, theta0, span):
@@ -131,6 +136,9 @@ def _shaft(rig, comps, theta0, span):
             factors[p["vane"]] = (p["factor"], p["factor"])
         elif e == "viscous_tip_friction":
             viscous = p["c"]
+        elif e == "heavy_vane":
+            factors = list(factors or [(1.0, 1.0)] * rig.vanes)
+            factors[p["vane"]] = tuple(factors[p["vane"]][:2]) + (p["factor"],)
 
     def torque(t):
         th, om, dom = motion(t, rig.speed, theta0, ripple, drift)
@@ -323,6 +331,11 @@ def make_record(rig_name, effect, snr, seed, rate=10000.0, duration=0.5):
         sigma = ref / 3.0                           # disturbance RMS = SNR x noise RMS
         clean = clean + snr * sigma * _disturbance(effect, p, t, rng)
         truth["contribution_rms"] = snr * sigma
+    elif effect == "heavy_vane":                    # a pump effect out of the library: SNR = its RMS / noise
+        truth["contribution_rms"] = float(np.sqrt(np.mean((clean - nominal) ** 2)))
+        sigma = truth["contribution_rms"] / snr
+        # on a concentric rig a heavier vane only raises the mean torque: a mu change (quiet is right)
+        truth["expected"] = "quiet" if _absorbed(rig, t, theta0, clean - nominal, sigma) else "no_name"
     else:                                           # none, off_speed, speed_drift, ar1_noise
         sigma = ref / snr
         truth["contribution_rms"] = 0.0

@@ -190,13 +190,15 @@ def vane_kinematics(rig, i, theta, omega, domega):
 SIGNS = ((1, 1), (1, -1), (-1, 1), (-1, -1))
 
 
-def vane_reactions(rig, k, theta, omega, domega, tip_factor=1.0, slot_factor=1.0, tip_viscous=0.0):
+def vane_reactions(rig, k, theta, omega, domega, tip_factor=1.0, slot_factor=1.0, tip_viscous=0.0,
+                   mass_factor=1.0):
     """Reactions N, F1, F2 and the vane's drive-torque share (z-moment about O of its slot forces).
 
     tip_viscous (s/m): the tip COF grows with slip speed, mu_h(v) + tip_viscous * v (a lubricated
     tip's rising Stribeck branch) - this generator's own form of viscous tip friction.
+    mass_factor: this vane's mass (and inertia) over the rig's (a heavier vane: out of pumpsim's library).
     """
-    m, J, h2 = rig.mass, rig.J, 0.5 * rig.thickness
+    m, J, h2 = rig.mass * mass_factor, rig.J * mass_factor, 0.5 * rig.thickness
     U, W, B, n, t = k["U"], k["W"], k["B"], k["n"], k["t"]
     G = k["Ob"] + (k["s"] + 0.5 * rig.length)[:, None] * U
     Gd = omega[:, None] * _zx(G) + k["sd"][:, None] * U
@@ -256,13 +258,13 @@ def motion(t, speed, theta0=0.0, ripple=None, drift=None):
 
 
 def drive_torque(rig, theta, omega, domega, factors=None, tip_viscous=0.0, details=False):
-    """Shaft torque of Model 2 along a motion; factors: per-vane (tip, slot) COF scale factors."""
+    """Shaft torque of Model 2 along a motion; factors: per-vane (tip, slot[, mass]) scale factors."""
     total = rig.rotor_inertia * domega + rig.bearing_torque
     per_vane, paradox = [], 0
     for i in range(rig.vanes):
-        tf, sf = (1.0, 1.0) if factors is None else factors[i]
+        tf, sf, mf = (1.0, 1.0, 1.0) if factors is None else (tuple(factors[i]) + (1.0,))[:3]
         kin = vane_kinematics(rig, i, theta, omega, domega)
-        r = vane_reactions(rig, kin, theta, omega, domega, tf, sf, tip_viscous)
+        r = vane_reactions(rig, kin, theta, omega, domega, tf, sf, tip_viscous, mf)
         total = total + r["tau"]
         paradox += r["paradox"]
         per_vane.append({**kin, **r})

@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from scipy import stats
 
 from ..diagnostics import synchronous_speed_scan
@@ -115,9 +114,8 @@ def model_order_scan(t, y, one_rev, lower, upper):
     step = math.pi / (2 * kmax * max(t[m - 1], dt))
     grid = np.arange(lower, upper + 0.5 * step, step)
     first = _order_spectra(t[:m], y[:m], grid, orders)
-    score = first @ weights
-    best = float(grid[int(np.argmax(score))])
-    j = int(np.argmax(score))
+    j = int(np.argmax(first @ weights))
+    best = float(grid[j])
     explained = 2.0 * float(np.sum(first[j] ** 2)) / m
     total = float(y[:m] @ y[:m])
     dof = 2 * orders.size

@@ -1,6 +1,6 @@
 """Where compiled variants live and when one may be trusted: the cache key and the manifest.
 
-A variant folder `generated/<variant>-<key>/` holds the generated C source, the library and
+A variant folder `<variant>-<key>/` in generated_dir() holds the generated C source, the library and
 `manifest.json`. Two hashes, two questions:
 
 - the **key** (content key) hashes what the library is made of: the generated C source, the
@@ -26,12 +26,23 @@ from pathlib import Path
 
 SCHEMA_VERSION = 2
 CONTRACT_DIR = Path(__file__).resolve().parent
-ROOT = CONTRACT_DIR.parent.parent
 MANIFEST = "manifest.json"
+GENERATED_ENV = "PUMPSIM_GENERATED"
 
 
 def generated_dir() -> Path:
-    return Path(os.environ.get("PUMPSIM_GENERATED", ROOT / "generated"))
+    """Where compiled kernels live: $PUMPSIM_GENERATED if set; in a source checkout its
+    generated/; for an installed package the per-user cache (~/.cache/pumpsim/kernels on Linux),
+    never site-packages."""
+    if os.environ.get(GENERATED_ENV):
+        return Path(os.environ[GENERATED_ENV])
+    from pumpsim import CHECKOUT
+
+    if CHECKOUT is not None:
+        return CHECKOUT / "generated"
+    from platformdirs import user_cache_dir
+
+    return Path(user_cache_dir("pumpsim", appauthor=False)) / "kernels"
 
 
 def library_name(structure) -> str:
@@ -50,8 +61,9 @@ def content_key(c_source_sha256: str, casadi_version: str, options: dict) -> str
 
 
 def codegen_dir() -> Path | None:
-    """The codegen package's folder, found without importing it (None when not installed)."""
-    spec = importlib.util.find_spec("codegen")
+    """The folder of pumpsim.codegen (a checkout's codegen/ or the installed subpackage), found
+    without importing it (None when absent)."""
+    spec = importlib.util.find_spec("pumpsim.codegen")
     if spec is None or not spec.submodule_search_locations:
         return None
     return Path(list(spec.submodule_search_locations)[0])

@@ -58,8 +58,10 @@ class PumpdownRun:
 class PumpIntegrator:
     """x(t) of the pneumatic kernel with CVODES; `valve mode` is the one integrator parameter."""
 
-    def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000):
-        self.kern, self.p = kern, np.asarray(p, dtype=float)
+    def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000, drive=None):
+        """drive: the supply voltage as a CasADi function of time (a bench log's measured voltage)
+        in place of motor.voltage; the integrations then take their start time t0."""
+        self.kern, self.p, self.drive = kern, np.asarray(p, dtype=float), drive
         nx = kern["pump_rhs"].size1_in(0)
         self.nx = nx
         self.scale = np.ones(nx) if scale is None else np.asarray(scale, float)
@@ -76,21 +78,29 @@ class PumpIntegrator:
         y, mode = ca.MX.sym("y", nx + nq), ca.MX.sym("mode")
         S = ca.DM(np.concatenate([self.scale, np.ones(nq)]))
         P = ca.DM(p0) + ca.DM(e) * mode
+        ins, names = [y, mode], ["y", "mode"]
+        if drive is not None:  # the voltage enters like the mode: a runtime input of the kernel
+            volt = ca.MX.sym("volt")
+            ev = np.zeros(self.p.size)
+            ev[parameter_index(kern.structure, "motor.voltage")] = 1.0
+            P = ca.DM(p0 * (1 - ev)) + ca.DM(e) * mode + ca.DM(ev) * volt
+            ins, names = ins + [volt], names + ["volt"]
         xs = y[:nx] * S[:nx]
         xdot, qdot = f(xs, P)
         Jx, Jq = fj(xs, P)
         J = ca.vertcat(ca.horzcat(Jx, ca.MX(nx, nq)), ca.horzcat(Jq, ca.MX(nq, nq)))
         out = ca.MX.sym("out", nx + nq)
-        jac = ca.Function("jac_ydot", [y, mode, out],
-                          [ca.mtimes(ca.diag(1 / S), ca.mtimes(J, ca.diag(S))), ca.MX(nx + nq, 1)],
-                          ["y", "mode", "out_ydot"], ["jac_ydot_y", "jac_ydot_mode"])
-        ydot = ca.Function("ydot", [y, mode], [ca.vertcat(xdot, qdot) / S], ["y", "mode"], ["ydot"],
+        jac = ca.Function("jac_ydot", ins + [out],
+                          [ca.mtimes(ca.diag(1 / S), ca.mtimes(J, ca.diag(S)))] + [ca.MX(nx + nq, 1)] * (len(ins) - 1),
+                          names + ["out_ydot"], [f"jac_ydot_{n}" for n in names])
+        ydot = ca.Function("ydot", ins, [ca.vertcat(xdot, qdot) / S], names, ["ydot"],
                            {"custom_jacobian": jac, "jac_penalty": 0, "never_inline": True})
         self.S = np.asarray(S).ravel()
-        tt = ca.MX.sym("T")  # normalised time, duration as a parameter
-        pp = ca.vertcat(mode, tt)
-        self._dae = {"x": y, "p": pp, "ode": ydot(y, mode)}
-        self._dae_T = {"x": y, "p": pp, "ode": tt * ydot(y, mode)}
+        tt, t0, t = ca.MX.sym("T"), ca.MX.sym("t0"), ca.MX.sym("t")  # T: duration (normalised time)
+        pp = ca.vertcat(mode, tt, t0)
+        arg = (lambda s: [y, mode, drive(t0 + s)]) if drive is not None else (lambda s: [y, mode])
+        self._dae = {"x": y, "t": t, "p": pp, "ode": ydot(*arg(t))}
+        self._dae_T = {"x": y, "t": t, "p": pp, "ode": tt * ydot(*arg(tt * t))}
         # BDF order capped at 3: the right-hand side is only piecewise smooth (port edges, valve
         # ramps, orifice branches), and orders 4-5 are rejected there anyway; measured on the EVP
         # pump-down: 2.5 % fewer steps, 5 % fewer error-test failures, time to target closer to a
@@ -102,13 +112,21 @@ class PumpIntegrator:
         self.calls = 0
         self.integrator_wall = 0.0  # s inside CVODES calls (the rest of a run's wall is Python)
 
-    def _run(self, integ, x, mode, T=0.0):
+    def p_at(self, t):
+        """The kernel's parameter vector at time t (the drive's voltage put in)."""
+        if self.drive is None:
+            return self.p
+        p = self.p.copy()
+        p[parameter_index(self.kern.structure, "motor.voltage")] = float(self.drive(t))
+        return p
+
+    def _run(self, integ, x, mode, T=0.0, start=0.0):
         self.calls += 1
         y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)]) / self.S
         t0 = _time.perf_counter()
         try:
             with interrupt.deferred():
-                r = integ(x0=y0, p=[mode, T])
+                r = integ(x0=y0, p=[mode, T, start])
         except RuntimeError as e:
             interrupt.check()  # a signal inside the integrator's callbacks
             raise SolverError(f"integrator failed: {str(e).strip().splitlines()[-1]}") from None
@@ -122,16 +140,17 @@ class PumpIntegrator:
         Y = np.asarray(r["xf"]) * self.S[:, None]
         return Y[:self.nx], Y[self.nx:]
 
-    def grid(self, x, mode, dt, m):
+    def grid(self, x, mode, dt, m, start=0.0):
+        """States and quadratures at start + dt, ..., start + m dt from x at `start`."""
         key = (dt, m)
         if key not in self._grids:
             self._grids[key] = ca.integrator(f"g{m}", "cvodes", self._dae, 0.0,
                                              list(dt * np.arange(1, m + 1)), self.opts)
-        X, Q = self._run(self._grids[key], x, mode)
+        X, Q = self._run(self._grids[key], x, mode, start=start)
         return X.T, Q.T
 
-    def step(self, x, mode, d):
-        X, Q = self._run(self._step, x, mode, d)
+    def step(self, x, mode, d, start=0.0):
+        X, Q = self._run(self._step, x, mode, d, start)
         return X[:, 0], Q[:, 0]
 
 
@@ -211,10 +230,11 @@ def _reed_switch(kern, p, X, mode):
 
 
 def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, atol=GAS_ATOL,
-              progress=None, max_steps=2_000_000, kern=None, scale=None) -> PumpdownRun:
+              progress=None, max_steps=2_000_000, kern=None, scale=None, drive=None) -> PumpdownRun:
     """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
     booster pressure falls to `until` (located to EVENT_TIME_TOL). kern, scale: another variant
-    (Model 1 with gas) and its state scale; its p and x0 are then given."""
+    (Model 1 with gas) and its state scale; its p and x0 are then given. drive: the supply voltage
+    as a CasADi function of time in place of motor.voltage (PumpIntegrator)."""
     kern = kernels(cfg) if kern is None else kern
     p = parameter_vector(cfg) if p is None else np.asarray(p, float)
     st = kern.structure
@@ -223,7 +243,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     reed = p[parameter_index(st, "valve.reed")] > 0.5
     mode = float(p[parameter_index(st, "valve.mode")]) if reed else 0.0
     scale = state_scale(x0, p, st) if scale is None else scale
-    integ = PumpIntegrator(kern, p, rtol, atol, scale, max_steps)
+    integ = PumpIntegrator(kern, p, rtol, atol, scale, max_steps, drive)
     dt = 1.0 / rate
     n_total = int(math.floor(duration * rate + 1e-9))
     times, xs, qs, modes = [0.0], [x0], [np.zeros(integ.nq)], [mode]
@@ -239,7 +259,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     while k < n_total:
         m = min(CHUNK, n_total - k)
         try:
-            X, Q = integ.grid(x, mode, dt, m)
+            X, Q = integ.grid(x, mode, dt, m, t)
         except SolverError as e:
             raise SolverError(f"the gas model's integration failed between t = {t:.6g} s and "
                               f"{t + m * dt:.6g} s (theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
@@ -261,9 +281,9 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             k += cut
         if stop_row is not None:  # locate the target crossing inside the next interval
             pa = p_booster(x) - until
-            d = _illinois(lambda d: p_booster(integ.step(x, mode, d)[0]) - until, 0.0, dt, pa,
+            d = _illinois(lambda d: p_booster(integ.step(x, mode, d, t)[0]) - until, 0.0, dt, pa,
                           p_booster(X[stop_row]) - until, EVENT_TIME_TOL)
-            xe, qe = integ.step(x, mode, d)
+            xe, qe = integ.step(x, mode, d, t)
             t_target = t + d
             times.append(t_target)
             xs.append(xe)
@@ -299,18 +319,19 @@ def peak_current(integ, times, X, modes) -> float:
     i = X[:, 2]
     k = int(np.argmax(np.abs(i)))
     sign = 1.0 if i[k] >= 0 else -1.0
-    rate = lambda x: sign * float(integ.kern["pump_rhs"](x, integ.p)[0][2])  # noqa: E731
-    g_k = rate(X[k])
+    rate = lambda x, t: sign * float(integ.kern["pump_rhs"](x, integ.p_at(t))[0][2])  # noqa: E731
+    g_k = rate(X[k], times[k])
     j = k + 1 if g_k > 0 else k - 1  # the neighbour on the side the maximum lies
     if g_k == 0.0 or not 0 <= j < len(X):
         return abs(i[k])
     a = min(j, k)
-    g_a, g_b = (g_k, rate(X[j])) if a == k else (rate(X[j]), g_k)
+    g_a, g_b = (g_k, rate(X[j], times[j])) if a == k else (rate(X[j], times[j]), g_k)
     if not (g_a > 0 > g_b) or modes[a + 1] is None:
         return abs(i[k])
     x_a, mode, d = X[a], modes[a + 1], times[a + 1] - times[a]
-    root = _illinois(lambda s: rate(integ.step(x_a, mode, s)[0]), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
-    return max(abs(i[k]), abs(integ.step(x_a, mode, root)[0][2]))
+    t_a = times[a]
+    root = _illinois(lambda s: rate(integ.step(x_a, mode, s, t_a)[0], t_a + s), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
+    return max(abs(i[k]), abs(integ.step(x_a, mode, root, t_a)[0][2]))
 
 
 def _first_reed_switch(kern, p, x, X, mode) -> int:
@@ -332,16 +353,16 @@ def _reed_interval(integ, kern, p, x, q, mode, t, dt, events):
     t_end = t + dt
     for _ in range(100):
         g0 = _reed_switch(kern, p, x[None, :], mode)[0]
-        x1, q1 = integ.step(x, mode, t_end - t)
+        x1, q1 = integ.step(x, mode, t_end - t, t)
         g1 = _reed_switch(kern, p, x1[None, :], mode)[0]
         crossed = [i for i in range(g0.size) if np.sign(g1[i]) != np.sign(g0[i]) and g0[i] != 0.0]
         if not crossed:
             return x1, q + q1, mode
-        roots = {i: _illinois(lambda d, i=i: _reed_switch(kern, p, integ.step(x, mode, d)[0][None, :],
+        roots = {i: _illinois(lambda d, i=i: _reed_switch(kern, p, integ.step(x, mode, d, t)[0][None, :],
                                                              mode)[0][i],
                               0.0, t_end - t, g0[i], g1[i], EVENT_TIME_TOL) for i in crossed}
         i, d = min(roots.items(), key=lambda kv: kv[1])
-        xe, qe = integ.step(x, mode, d)
+        xe, qe = integ.step(x, mode, d, t)
         q = q + qe
         t = t + d
         x = xe.copy()

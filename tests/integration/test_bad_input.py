@@ -237,7 +237,7 @@ def test_output_modes_follow_the_umask(tmp_path, capsys):
 def test_generated_kernel_folders_follow_the_umask(tmp_path, monkeypatch):
     """A kernel folder is built in a mkdtemp folder (0700) and renamed into place: it must get
     the umask's mode so colleagues sharing generated/ can load it (one 1-vane compile, ~5 s)."""
-    from codegen.build import build_variant
+    from pumpsim.codegen.build import build_variant
     from tests.conftest import make_config
 
     monkeypatch.setenv("PUMPSIM_GENERATED", str(tmp_path))

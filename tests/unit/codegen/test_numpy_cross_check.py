@@ -2,7 +2,7 @@
 (2x2 Newton in (s, alpha) instead of the kernel's scalar Newton in alpha)."""
 import numpy as np
 
-from codegen.numpy_model import NumpyConstrainedModel
+from pumpsim.codegen.numpy_model import NumpyConstrainedModel
 from pumpsim.simulate import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import NUMPY_CROSS_REL

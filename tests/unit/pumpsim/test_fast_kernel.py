@@ -5,7 +5,7 @@ import subprocess
 import numpy as np
 import pytest
 
-import codegen.simd as simd
+import pumpsim.codegen.simd as simd
 from pumpsim import fastkernel
 from pumpsim.model_spec import manifest as mf
 from pumpsim.model_spec import simd as simd_contract

@@ -26,32 +26,46 @@ def _modules_after(code, cwd=ROOT, env=None):
 
 
 def test_codegen_imports_no_runtime_module():
-    mods = _modules_after("import codegen, codegen.build, codegen.model, codegen.contact_model, "
-                          "codegen.numpy_model")
-    loaded = [m for m in mods if m.split(".")[0] == "pumpsim"]
+    mods = _modules_after("import pumpsim.codegen, pumpsim.codegen.build, pumpsim.codegen.model, "
+                          "pumpsim.codegen.contact_model, pumpsim.codegen.numpy_model")
+    loaded = [m for m in mods if m.split(".")[0] == "pumpsim" and not m.startswith("pumpsim.codegen")]
     runtime = [m for m in loaded if m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
     assert "pumpsim.model_spec" in loaded and runtime == []
 
 
-def _absolute_imports(package):
-    """(file, module) for every absolute import in a package's source, in function bodies too."""
-    for path in sorted((ROOT / package).rglob("*.py")):
+def _imports(folder, package):
+    """(file, absolute module) for every import in the source under ROOT/folder, installed as
+    `package`, in function bodies too (relative imports resolved)."""
+    for path in sorted((ROOT / folder).rglob("*.py")):
+        rel = path.relative_to(ROOT / folder)
+        here = [package, *rel.parent.parts]
         for node in ast.walk(ast.parse(path.read_text())):
+            name = path.relative_to(ROOT).as_posix()
             if isinstance(node, ast.Import):
-                yield from ((path.relative_to(ROOT).as_posix(), a.name) for a in node.names)
-            elif isinstance(node, ast.ImportFrom) and node.level == 0:
-                yield path.relative_to(ROOT).as_posix(), node.module
+                yield from ((name, a.name) for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = here[:len(here) - node.level + 1] if node.level else []
+                mods = [node.module] if node.module else [a.name for a in node.names]
+                yield from ((name, ".".join([*base, m])) for m in mods)
+
+
+def test_codegen_is_imported_as_pumpsim_codegen():
+    """No top-level `codegen` is installed, so no source may import one."""
+    for folder, package in (("pumpsim", "pumpsim"), ("codegen", "pumpsim.codegen"), ("tests", "tests"),
+                            ("bench", "bench")):
+        assert [(f, m) for f, m in _imports(folder, package) if m.split(".")[0] == "codegen"] == []
 
 
 def test_no_import_anywhere_crosses_the_contract():
     """Also the imports inside functions (which the sys.modules checks cannot see unless they run):
     codegen names only the contract of pumpsim, and the runtime names codegen in one place, the
     lazily imported builder entry point."""
-    crossing = [(f, m) for f, m in _absolute_imports("codegen") if m.split(".")[0] == "pumpsim"
+    crossing = [(f, m) for f, m in _imports("codegen", "pumpsim.codegen")
+                if m.split(".")[0] == "pumpsim" and not m.startswith("pumpsim.codegen")
                 and m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
     assert crossing == []
-    into_codegen = [(f, m) for f, m in _absolute_imports("pumpsim") if m.split(".")[0] == "codegen"]
-    assert into_codegen == [("pumpsim/kernels.py", "codegen.build")]
+    into_codegen = [(f, m) for f, m in _imports("pumpsim", "pumpsim") if m.startswith("pumpsim.codegen")]
+    assert into_codegen == [("pumpsim/kernels.py", "pumpsim.codegen.build")]
 
 
 def test_runtime_imports_no_codegen_and_no_sympy():
@@ -61,7 +75,7 @@ def test_runtime_imports_no_codegen_and_no_sympy():
         "cfg = pumpsim.load_config('examples/ellipse_4vanes.toml')\n"
         "res = pumpsim.simulate(cfg, duration=0.002, rate=5000)\n"
         "assert res['torque'].size == 11\n")
-    assert [m for m in mods if m.split(".")[0] in ("codegen", "sympy")] == []
+    assert [m for m in mods if m.startswith("pumpsim.codegen") or m.split(".")[0] == "sympy"] == []
 
 
 def test_fingerprint_ignores_comments_and_docstrings_not_expressions():

@@ -1,0 +1,271 @@
+"""Bench logs (spec §10): what a pump bench measures -- time, the supply voltage at the motor
+terminals, the motor current, the booster pressure (absolute) and optionally the speed -- read from
+CSV, MATLAB .mat or NI TDMS (the readers of pumpsim.data) into a validated `BenchLog` in SI units.
+
+Units come from the headers (`booster_pressure [kPa]`, `current (mA)`), else SI. A pressure column
+may say whether it is absolute (`kPa abs`, `bara`, `kPa(a)`) or gauge (`kPa g`, `barg`, `psig`);
+gauge pressure is refused with the fix (the day's atmosphere is not known here), and so is an
+unmarked column that reads as gauge: negative values, or a pump-down from atmosphere whose first
+samples lie far below it. Bad rows (NaN, time not increasing, gaps) are named as for torque data.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .data import (SPEED_UNITS, TIME_UNITS, _column, _read_csv, _read_mat, _read_tdms, _resolution, _where,
+                   time_gaps, unit_key)
+from .diagnostics import noise_sigma
+from .errors import DataError
+
+CHANNELS = ("voltage", "current", "booster_pressure")  # required besides time
+COMPARED = ("booster_pressure", "current", "speed")  # what the model is compared with, when logged
+VOLTAGE_UNITS = {"v": 1.0, "mv": 1e-3, "kv": 1e3}
+CURRENT_UNITS = {"a": 1.0, "ma": 1e-3, "ka": 1e3}
+PRESSURE_UNITS = {"pa": 1.0, "hpa": 1e2, "kpa": 1e3, "mpa": 1e6, "mbar": 1e2, "bar": 1e5,
+                  "psi": 6894.757293168, "torr": 133.322368, "mmhg": 133.322387}
+UNITS = {"time": TIME_UNITS, "voltage": VOLTAGE_UNITS, "current": CURRENT_UNITS,
+         "booster_pressure": PRESSURE_UNITS, "speed": SPEED_UNITS}
+UNIT_NAMES = {"time": "s, ms, us", "voltage": "V, mV", "current": "A, mA",
+              "booster_pressure": "Pa, hPa, kPa, MPa, mbar, bar, psi, torr (with abs or g)",
+              "speed": "rad/s, rpm (1/min), rev/s (Hz), deg/s"}
+# the marks after a pressure unit, longest first ('pa' itself ends in 'a': the unit is tried whole first)
+ABSOLUTE_MARKS = ("(absolute)", "absolute", "(abs)", "abs", "(a)", "a")
+GAUGE_MARKS = ("(gauge)", "gauge", "(relative)", "relative", "(rel)", "rel", "(g)", "g")
+# an unmarked column whose first samples are below this fraction of a start from atmosphere is
+# gauge: an absolute pump-down from atmosphere starts near it, a gauge one near 0
+GAUGE_START_FRACTION = 0.5
+START_SAMPLES = 20  # samples a quadratic is fitted to for the log's start pressure
+VOLTAGE_FACTOR = 5.0  # a median voltage this far from motor.voltage is a unit mistake
+MIN_SAMPLES = 10
+
+
+@dataclass
+class BenchLog:
+    """A bench log in SI units: time [s] (strictly increasing, no gaps), voltage [V], current [A],
+    booster_pressure [Pa absolute], optional speed [rad/s]; `source` names the file."""
+
+    time: np.ndarray
+    voltage: np.ndarray
+    current: np.ndarray
+    booster_pressure: np.ndarray
+    speed: np.ndarray | None = None
+    source: str = ""
+    notes: list = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return self.time.size
+
+    @property
+    def name(self) -> str:
+        return Path(self.source).name if self.source else "bench log"
+
+    @property
+    def step(self) -> float:
+        """The mean sample interval [s]."""
+        return float((self.time[-1] - self.time[0]) / max(self.n - 1, 1))
+
+    def channels(self) -> dict:
+        """{name: samples} of the channels the model is compared with (COMPARED, where logged)."""
+        return {c: getattr(self, c) for c in COMPARED if getattr(self, c) is not None}
+
+    def noise(self, channel) -> float:
+        """The channel's white-noise sigma: robust sigma of its first differences (a smooth
+        pump-down hardly enters them; what the log's sampling aliases of the vane-passing ripple
+        does, and is noise to a model compared sample by sample)."""
+        return noise_sigma(getattr(self, channel), order=1)
+
+    def start_pressure(self) -> float:
+        """The booster pressure at the first sample: a quadratic in time fitted to the first
+        START_SAMPLES and read at the first (one sample's noise would start the model off by a
+        whole sigma, which a fitted leak then absorbs)."""
+        m = min(START_SAMPLES, self.n)
+        t = self.time[:m] - self.time[0]
+        return float(np.polyval(np.polyfit(t, self.booster_pressure[:m], min(2, m - 1)), 0.0))
+
+    def __repr__(self):
+        extra = ", speed" if self.speed is not None else ""
+        return (f"BenchLog({self.name!r}: {self.n} samples, {self.time[-1] - self.time[0]:.4g} s, voltage, "
+                f"current, booster_pressure{extra})")
+
+
+def _reader(p: Path):
+    return {".mat": _read_mat, ".tdms": _read_tdms}.get(p.suffix.lower(), _read_csv)
+
+
+def _pick(names, columns: dict) -> dict:
+    found = {k: _column(v, names) for k, v in columns.items() if v}
+    return {k: v for k, v in found.items() if v in names}
+
+
+def _columns(time="time", speed="speed") -> dict:
+    return {"time": time, "voltage": "voltage", "current": "current", "booster_pressure": "booster_pressure",
+            "speed": speed, "torque": "torque"}
+
+
+def is_bench_log(path, time="time", speed="speed") -> bool:
+    """Whether the file is a bench log: two or more of voltage, current, booster_pressure and no
+    torque column (a torque measurement may log the supply too). An unreadable file is not one
+    (load_data then says why)."""
+    p = Path(path)
+    if not p.is_file():
+        return False
+    cols = _columns(time, speed)
+    try:
+        src = _reader(p)(p, lambda names: _pick(names, {"time": cols["time"]}))
+    except DataError:
+        return False
+    names = list(src.names or src.cols)
+    found = _pick(names, cols)
+    return "torque" not in found and sum(c in found for c in CHANNELS) >= 2
+
+
+def unit_of(key: str, unit: str | None, where: str) -> tuple[float, str | None]:
+    """(factor to SI, 'absolute' | 'gauge' | None) of a column's unit (None: SI, unmarked)."""
+    if unit is None:
+        return 1.0, None
+    u = unit_key(unit)
+    table = UNITS[key]
+    if u in table:
+        return table[u], None
+    if key == "booster_pressure":
+        for marks, kind in ((ABSOLUTE_MARKS, "absolute"), (GAUGE_MARKS, "gauge")):
+            for m in marks:
+                if u.endswith(m) and u[:-len(m)].rstrip("(_-") in table:
+                    return table[u[:-len(m)].rstrip("(_-")], kind
+    raise DataError(f"{where}: {key} unit must be one of {UNIT_NAMES[key]}, got '{unit}'")
+
+
+def read_bench_log(path, cfg=None, time="time", speed="speed", time_unit=None, speed_unit=None) -> BenchLog:
+    """Read and validate a bench log (spec §10). cfg (a §8 config in motor mode): its booster start
+    and motor voltage judge the pressure's gauge/absolute reading and the voltage's unit."""
+    p = Path(path)
+    try:
+        return _load(p, cfg, _columns(time, speed), time_unit, speed_unit)
+    except DataError as e:
+        msg = str(e)
+        raise DataError(msg if msg.startswith(f"data '{p}'") else f"data '{p}': {msg}") from None
+
+
+def _load(p: Path, cfg, cols: dict, time_unit, speed_unit) -> BenchLog:
+    if p.is_dir():
+        raise DataError("is a folder, not a data file")
+    if not p.exists():
+        raise DataError("cannot read data: no such file")
+    src = _reader(p)(p, lambda names: _pick(names, cols))
+    where = src.where
+    name = _pick(list(src.cols), cols)
+    missing = [c for c in CHANNELS if c not in name]
+    if missing:
+        raise DataError(f"is not a complete bench log: no {where} {', '.join(repr(m) for m in missing)} "
+                        f"(spec §10: time, voltage, current, booster_pressure[, speed]; found: {src.found()})")
+    notes = []
+    if "time" in name:
+        t = np.asarray(src.cols[name["time"]], dtype=float)
+    else:
+        iv = src.interval(name["current"])
+        if iv is None:
+            raise DataError(f"has no {where} '{cols['time']}' and no sample rate (found: {src.found()})")
+        dt, t0, origin = iv
+        t = t0 + dt * np.arange(src.cols[name["current"]].size)
+        notes.append(f"time from {origin} (no {where} '{cols['time']}')")
+    used = {k: np.asarray(src.cols[name[k]], dtype=float) for k in ("voltage", "current", "booster_pressure", "speed")
+            if k in name}
+    if "time" in name:
+        used = {"time": t, **used}
+    n = t.size
+    if n < MIN_SAMPLES:
+        raise DataError(f"has {n} samples; at least {MIN_SAMPLES} are needed")
+    for key, arr in used.items():
+        if arr.size != n:
+            raise DataError(f"{where} '{name[key]}' has {arr.size} samples, {where} "
+                            f"'{name.get('time', name['current'])}' has {n}")
+        bad = np.nonzero(~np.isfinite(arr))[0]
+        if bad.size:
+            raise DataError(f"{_where(src.rows, bad[0], where, name[key])}: {key} is not a finite number")
+    si, factor, kind = {}, {}, None
+    for key, arr in used.items():
+        head = src.units.get(name[key])
+        option = {"time": time_unit, "speed": speed_unit}.get(key)
+        factor[key], k = unit_of(key, option if option is not None else head, f"{where} '{name[key]}'")
+        si[key] = arr * factor[key] if factor[key] != 1.0 else arr
+        kind = k if key == "booster_pressure" else kind
+    if "time" in used:
+        t = si["time"]
+        _check_time(t, _resolution(used["time"]) * factor["time"], src.rows, where, name["time"])
+    _check_pressure(si["booster_pressure"], kind, cfg, src.rows, where, name["booster_pressure"])
+    _check_voltage(si["voltage"], cfg, where, name["voltage"])
+    return BenchLog(t, si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
+
+
+def _check_time(t, resolution, rows, where, column) -> None:
+    dt = np.diff(t)
+    bad = np.nonzero(dt <= 0)[0]
+    if bad.size:
+        b = bad[0]
+        raise DataError(f"{_where(rows, b + 1, where, column)}: time must be strictly increasing "
+                        f"({t[b + 1]:.10g} s after {t[b]:.10g} s)")
+    gaps = time_gaps(t, resolution)
+    if gaps.gaps.size:
+        i = int(gaps.gaps[0])
+        size = t[i + 1] - t[i]
+        raise DataError(f"{_where(rows, i + 1, where, column)}: a gap of {size:.6g} s in time after {t[i]:.10g} s "
+                        f"({size / gaps.step:.3g} sample intervals of {gaps.step:.6g} s); the model is driven "
+                        "by the logged voltage sample by sample: cut the log at the gap or fill it")
+
+
+def _check_pressure(pb, kind, cfg, rows, where, column) -> None:
+    """Absolute pressure only: a gauge column (marked, negative, or a pump-down from atmosphere
+    that starts far below it) is refused with the fix."""
+    atm = cfg.pneumatic.values["gas.atmosphere"] if cfg is not None and cfg.pneumatic else 101325.0
+    fix = (f"add the atmospheric pressure ({atm / 1e3:.6g} kPa, or the day's barometer reading) to the column "
+           f"and mark it absolute ('{column} [kPa abs]')")
+    if kind == "gauge":
+        raise DataError(f"{where} '{column}' is marked gauge; the model needs absolute pressure: {fix}")
+    neg = np.nonzero(pb <= 0)[0]
+    if neg.size:
+        head = "is not positive" if kind == "absolute" else "is not positive: a gauge pressure?"
+        raise DataError(f"{_where(rows, neg[0], where, column)}: booster_pressure {pb[neg[0]]:.6g} Pa {head} "
+                        f"The model needs absolute pressure: {fix}")
+    if kind is None and cfg is not None and cfg.pneumatic is not None:
+        start = cfg.pneumatic.booster_start
+        first = float(np.median(pb[:START_SAMPLES]))
+        if start >= 0.9 * atm and first < GAUGE_START_FRACTION * start:
+            raise DataError(f"{where} '{column}' starts at {pb[0]:.6g} Pa, far below the atmosphere the config's "
+                            f"pump-down starts from (booster.pressure {start:.6g} Pa): a gauge pressure? {fix}; "
+                            "if the log is absolute and starts there, mark it absolute and set booster.pressure")
+
+
+def _check_voltage(v, cfg, where, column) -> None:
+    if cfg is None or cfg.pneumatic is None or not cfg.pneumatic.motor:
+        return
+    nominal = cfg.pneumatic.values["motor.voltage"]
+    med = float(np.median(np.abs(v)))
+    if not nominal / VOLTAGE_FACTOR <= med <= nominal * VOLTAGE_FACTOR:
+        raise DataError(f"{where} '{column}': median supply voltage {med:.6g} V against motor.voltage "
+                        f"{nominal:.6g} V: a unit mistake? give the unit in the header ('{column} [mV]') or "
+                        "check the channel")
+
+
+def write_bench_log(path, log: BenchLog) -> None:
+    """The log as CSV with unit headers (pressure in kPa absolute), written atomically."""
+    from .io import atomic_path
+
+    cols = {"time [s]": log.time, "voltage [V]": log.voltage, "current [A]": log.current,
+            "booster_pressure [kPa abs]": log.booster_pressure / 1e3}
+    if log.speed is not None:
+        cols["speed [rad/s]"] = log.speed
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, np.column_stack(list(cols.values())), delimiter=",", header=",".join(cols),
+                   comments="", fmt="%.10g")
+
+
+def fit_percent(y, yhat) -> float:
+    """NRMSE fit in % (spec §10): 100 (1 - |y - yhat| / |y - mean y|); 100 for a perfect fit."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    spread = float(np.linalg.norm(y - y.mean()))
+    return 100.0 * (1.0 - float(np.linalg.norm(y - yhat)) / spread) if spread > 0 else math.nan

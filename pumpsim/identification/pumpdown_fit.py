@@ -1,0 +1,498 @@
+"""Identification from a bench log (spec §10): the pump-down model (spec §8, Model 2 with gas, the
+DC motor) driven by the log's measured supply voltage, compared with its booster pressure, motor
+current and (when logged) speed.
+
+The model starts where the log starts: the pump at rest (or at the speed column's first value),
+the booster at the log's start pressure (BenchLog.start_pressure), the cells at the atmosphere. The
+voltage between samples is the linear interpolation of the logged one.
+
+What is compared: the booster pressure at each sample; the current and the speed as means over
+consecutive blocks of about one revolution (block_samples). A bench samples the current far below
+the rate at which the vanes pass, so each sample carries the vane-passing ripple at a phase that no
+model reproduces over seconds (a 0.1 % speed error turns it by a revolution within ~2 s), and a
+mean over less than a ripple period keeps most of it. Over a block the model's mean is exact from
+the states, with no extra quadrature -- the motor equation V = R i + L di/dt + k omega gives
+integral(i dt) = (integral(V dt) - k dtheta - L di) / R -- and the speed's is dtheta / dt; the log's
+block means are trapezoidal means of its samples.
+
+Each compared channel is divided by its noise sigma (robust sigma of its first differences,
+floored at CHANNEL_FLOOR of the channel's size, the integrator's accuracy) so that one least-squares
+cost weighs pressure, current and speed; the residual RMS is then in units of the noise (1: the
+model explains the log to its noise).
+
+Jacobian: central differences of the compiled model, 2 simulations per parameter. The pneumatic
+kernel is compiled without derivatives in its parameters (codegen FORWARD_DERIVATIVES), so CVODES
+forward sensitivities through CasADi are not available without rebuilding every variant; at
+BENCH_FIT_RTOL the differences agree with halved steps to ~1e-3 (tests).
+"""
+from __future__ import annotations
+
+import difflib
+import time as _time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from ..benchlog import BenchLog, fit_percent
+from ..diagnostics import noise_sigma
+from ..errors import ConfigError, SolverError
+from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
+from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
+from .problem import Problem, following, parameter_map, slot_ratio
+
+CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
+DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see _scale)
+# a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
+TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
+           "motor.friction": 1e-3, "mu": 0.01, "mu_slot": 0.01}
+NOT_FITTED = GAS_ENCODED + ("motor.voltage",)  # structure, or the log's own input
+_GAS = {q.name: q for q in GAS_PARAMETERS}
+# what separates parameters a log cannot tell apart: (the names, the experiment)
+SEPARATING = (
+    (("leak.tip_gap", "leak.end_gap"),
+     "a run with the inlet closed (booster port blanked): the pressure the pump holds and its current "
+     "there depend on the internal clearances alone; tip and end clearances differ in how they scale "
+     "with speed, so two supply voltages separate them"),
+    (("motor.constant", "motor.resistance"),
+     "runs at two supply voltages (or a stalled-rotor current at a low voltage, which gives "
+     "motor.resistance alone)"),
+    (("mu", "mu_slot", "motor.friction"),
+     "a free-running current with the pump's inlet open to the atmosphere at two voltages: vane "
+     "friction follows the gas load and the speed, the motor's friction torque does not"),
+    (("booster.leak",),
+     "a hold test: the pump stopped at a low booster pressure with the check valve closed; the "
+     "pressure rise is the booster leak alone"),
+    (("valve.cracking",),
+     "a pump-down to a lower booster pressure: the exhaust valve's cracking shapes the compression "
+     "work at low inlet pressure"),
+)
+CORRELATED = 0.95  # |correlation| above which two estimates are named as hard to separate
+
+
+def fit_map(cfg):
+    """What parameter_map needs for the pneumatic layout: (index by name, the config's parameter
+    vector, the COF ratios mu keeps, the slot COF, the derived defaults that follow their inputs)."""
+    from ..pneumatics.kernel import parameter_vector, structure_of
+
+    p0 = parameter_vector(cfg)
+    names = [q.name for q in pneumatic_layout(structure_of(cfg))]
+    v = dict(zip(names, p0))
+    ratios = np.array([v[f"friction.{s}.static"] / max(v[f"friction.{s}.dynamic"], 1e-300)
+                       for s in ("housing", "slot")] + [slot_ratio(v)])
+    return {n: i for i, n in enumerate(names)}, p0, ratios, v["friction.slot.dynamic"], following(cfg)
+
+
+class BenchLogProblem(Problem):
+    """The pump-down model at a bench log's samples (pressure, interval-mean current and speed),
+    each channel divided by its noise sigma; Jacobian by central differences."""
+
+    KIND = " for a bench log"
+    METHOD_TAG = "/bench-log"
+    SPECIAL = COF_ALIASES
+
+    def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
+                 atol=BENCH_FIT_ATOL):
+        from ..pneumatics.kernel import kernels
+
+        if cfg.pneumatic is None or not cfg.pneumatic.motor:
+            raise ConfigError(f"{cfg.path or cfg.name}: a bench log is fitted with the pump-down model: the config "
+                              "needs the gas tables and operation.mode = \"motor\" (spec §8, §10)")
+        self.cfg, self.data, self.rtol, self.atol = cfg, log, rtol, atol
+        self.kern = kernels(cfg)
+        self._index, self.p0, self._ratios, mu_slot, self._follow = fit_map(cfg)
+        self.names = list(names)
+        if not self.names:
+            raise ConfigError("--params names no parameter to fit")
+        for n in self.names:
+            self._check_name(n)
+        if len(set(self.names)) != len(self.names):
+            raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
+        v = dict(zip(self._index, self.p0))
+        self.fixed = {"mu": v["friction.housing.dynamic"], "mu_slot": mu_slot}
+        self.hold = dict(hold or {})
+        initial = initial or {}
+        self.x0 = np.array([float(initial.get(n, self.fixed.get(n, v.get(n, 0.0)))) for n in self.names])
+        bounds = [_GAS[n].fit_bounds() if n in _GAS else fit_bounds(n, cfg.parameters("constrained").structure)
+                  for n in self.names]
+        self.lower, self.upper = (np.array(b, dtype=float) for b in zip(*bounds))
+        self.t = log.time - log.time[0]
+        self.channel_names = list(log.channels())
+        omega0 = float(log.speed[0]) if log.speed is not None else 0.0
+        self.bench = BenchModel(cfg, log.time, log.voltage, log.start_pressure(), omega0, rtol, atol, self.kern)
+        self.measured = self.bench.compared(log.channels())
+        # robust sigma of first differences of what is compared (block means: their own), floored
+        self.sigma = {c: max(noise_sigma(y), CHANNEL_FLOOR * float(np.max(np.abs(y)))) for c, y in self.measured.items()}
+        self.y = self._stack(self.measured)
+        self.n_eval = 0
+        self.last = None  # the channels of the last simulation (unscaled)
+
+    def _check_name(self, n):
+        if n in NOT_FITTED:
+            raise ConfigError(f"--params: '{n}' is not a fit parameter of a bench log"
+                              + (" (the log's voltage drives the model)" if n == "motor.voltage" else
+                                 " (it selects the model's structure)"))
+        if n in self.SPECIAL or n in self._index:
+            return
+        close = difflib.get_close_matches(n, list(self.SPECIAL) + list(self._index), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ConfigError(f"--params: unknown parameter '{n}'{self.KIND}{hint}")
+
+    def parameter_vector(self, x):
+        val = {**self.hold, **dict(zip(self.names, map(float, x)))}
+        p = parameter_map(self._index, self.p0, val, self.fixed["mu_slot"], self._ratios, self._follow)
+        return np.asarray(p, dtype=float).ravel()
+
+    def simulate(self, x) -> dict:
+        """{channel: model samples} (unscaled) at the log's samples with the fitted values x."""
+        out = self.bench.channels(self.parameter_vector(x))
+        self.last = {c: out[c] for c in self.channel_names}
+        return self.last
+
+    def _stack(self, ch: dict):
+        return np.concatenate([ch[c] / self.sigma[c] for c in self.channel_names])
+
+    def model(self, x):
+        self.n_eval += 1
+        return self._stack(self.simulate(x))
+
+    def _scale(self, j, x):
+        return max(abs(x[j]), TYPICAL.get(self.names[j], 0.0)) or 1.0
+
+    def model_and_jacobian(self, x, cols=None):
+        """The model and its central-difference Jacobian (one-sided at a bound)."""
+        x = np.asarray(x, dtype=float)
+        m = self.model(x)
+        last = self.last
+        cols = range(len(self.names)) if cols is None else cols
+        J = np.zeros((m.size, len(list(cols))))
+        for k, j in enumerate(cols):
+            h = DIFFERENCE_STEP * self._scale(j, x)
+            lo, hi = max(x[j] - h, self.lower[j]), min(x[j] + h, self.upper[j])
+            xs = [x.copy(), x.copy()]
+            xs[0][j], xs[1][j] = hi, lo
+            up = self.model(xs[0]) if hi > x[j] else m
+            down = self.model(xs[1]) if lo < x[j] else m
+            J[:, k] = (up - down) / (hi - lo)
+        self.last = last
+        return m, J
+
+    def symbolic_model(self, phi):
+        raise ConfigError("--method ipopt fits torque data; a bench log uses gauss-newton or levenberg-marquardt")
+
+    @property
+    def dt(self):
+        return self.bench.step
+
+    def speed_of(self, x):
+        return self.bench.mean_speed
+
+    def angle(self, x):
+        return None
+
+
+BLOCK_REVOLUTIONS = 1.0  # current and speed are compared as means over blocks this many revolutions long
+
+
+def block_samples(cfg, step) -> int:
+    """Samples per block: BLOCK_REVOLUTIONS at the motor's no-load speed V/k (the fastest the pump
+    turns, so a block holds at least N vane passings there and more below it), at least 1."""
+    v = cfg.pneumatic.values
+    omega = v["motor.voltage"] / v["motor.constant"]
+    return max(1, int(round(BLOCK_REVOLUTIONS * 2 * np.pi / omega / step)))
+
+
+def block_edges(n, m) -> np.ndarray:
+    """Sample indices bounding consecutive blocks of m intervals (the tail shorter than m dropped)."""
+    return np.arange(0, n, m) if n > m else np.array([0, n - 1])
+
+
+def block_means(y, edges) -> np.ndarray:
+    """Means of a logged channel's samples over each block (both edges at half weight: the
+    trapezoidal mean, as the model's is the mean over the interval)."""
+    c = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]))])
+    return np.diff(c[edges]) / np.diff(edges)
+
+
+class BenchModel:
+    """The pump-down model driven by a logged voltage, sampled as a bench log is (module doc):
+    `channels(p)` -> {booster_pressure, current, speed} at the log's times for the runtime
+    parameter vector p."""
+
+    def __init__(self, cfg, time, voltage, start_pressure, omega0=0.0, rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL,
+                 kern=None):
+        from ..pneumatics.kernel import kernels, structure_of
+
+        self.cfg, self.rtol, self.atol = cfg, rtol, atol
+        self.kern = kernels(cfg) if kern is None else kern
+        self.names = [q.name for q in pneumatic_layout(structure_of(cfg))]
+        self.t0 = float(time[0])
+        self.t = np.asarray(time, float) - self.t0
+        self.n = self.t.size
+        self.start_pressure, self.omega0 = float(start_pressure), float(omega0)
+        self.step = float(self.t[-1] / max(self.n - 1, 1))
+        self.grid = self.step * np.arange(self.n)  # the model's uniform grid, the log's times without jitter
+        volt = np.interp(self.grid, self.t, voltage)
+        # the drive: the logged voltage, linear between samples
+        self.drive = ca.interpolant("bench_voltage", "linear", [self.grid.tolist()], volt.tolist())
+        # integral of the voltage from the start to each sample
+        self.volt_integral = np.concatenate([[0.0], np.cumsum(0.5 * (volt[1:] + volt[:-1]) * self.step)])
+        self.jittered = bool(np.ptp(np.diff(self.t)) > 0)
+        N = cfg.vanes
+        self.i_in, self.i_b = 3 + 2 * N, 3 + 2 * N + 2  # inlet manifold and booster masses (run.state_names)
+        self.edges = block_edges(self.n, block_samples(cfg, self.step))
+        self.block_time = 0.5 * (self.t[self.edges[1:]] + self.t[self.edges[:-1]]) + time[0]
+
+    def compared(self, logged: dict) -> dict:
+        """A log's channels as the model gives them: pressure per sample, current and speed as
+        block means."""
+        return {c: y if c == "booster_pressure" else block_means(y, self.edges) for c, y in logged.items()}
+
+    def times(self, channel) -> np.ndarray:
+        return self.t + self.t0 if channel == "booster_pressure" else self.block_time
+        self.mean_speed = 0.0
+
+    def _states(self, p):
+        """(states at the log's times, parameter values by name)."""
+        from ..pneumatics import run
+
+        pv = dict(zip(self.names, p))
+        x0 = run.initial_state(self.cfg, self.kern, p, omega0=self.omega0)
+        RT = pv["gas.gas_constant"] * pv["gas.temperature"]
+        x0[self.i_in] = self.start_pressure * pv["ports.inlet_volume"] / RT
+        x0[self.i_b] = self.start_pressure * pv["booster.volume"] / RT
+        r = run.integrate(self.cfg, self.step * (self.n - 1) * (1 + 1e-12), 1.0 / self.step, p=p, x0=x0,
+                          rtol=self.rtol, atol=self.atol, kern=self.kern, drive=self.drive)
+        X = r.states[:self.n]
+        if X.shape[0] < self.n:
+            raise SolverError(f"the pump-down model stopped at sample {X.shape[0]} of {self.n}")
+        if self.jittered:  # the model onto the log's own times
+            X = np.column_stack([np.interp(self.t, self.grid, c) for c in X.T])
+        self.mean_speed = float((X[-1, 0] - X[0, 0]) / max(self.t[-1], 1e-300))
+        return X, pv
+
+    def _pressure(self, X, pv):
+        return X[:, self.i_b] * pv["gas.gas_constant"] * pv["gas.temperature"] / pv["booster.volume"]
+
+    def samples(self, p) -> dict:
+        """What a bench would log, sample by sample: booster pressure, current, speed."""
+        X, pv = self._states(p)
+        return {"booster_pressure": self._pressure(X, pv), "current": X[:, 2], "speed": X[:, 1]}
+
+    def channels(self, p) -> dict:
+        """What is compared (module doc): pressure per sample, current and speed as block means."""
+        X, pv = self._states(p)
+        theta, cur = X[self.edges, 0], X[self.edges, 2]
+        dth, dcur, span = np.diff(theta), np.diff(cur), np.diff(self.t[self.edges])
+        mean_i = (np.diff(self.volt_integral[self.edges]) - pv["motor.constant"] * dth
+                  - pv["motor.inductance"] * dcur) / (pv["motor.resistance"] * span)
+        return {"booster_pressure": self._pressure(X, pv), "current": mean_i, "speed": dth / span}
+
+
+def twin_log(cfg, duration, rate, values=None, noise=0.005, seed=0, voltage=None, speed=False) -> BenchLog:
+    """A bench log generated by the model with known parameter values (name -> value; mu and
+    config key paths), for twin experiments: the config's motor.voltage (or `voltage(t)`, an array
+    function of time) drives it, and each channel gets white Gaussian noise of `noise` times its
+    range (the voltage of its mean)."""
+    t = np.arange(int(round(duration * rate)) + 1) / rate
+    volt = np.full_like(t, cfg.pneumatic.values["motor.voltage"]) if voltage is None else np.asarray(voltage(t), float)
+    index, p0, ratios, mu_slot, follow = fit_map(cfg)
+    p = np.asarray(parameter_map(index, p0, dict(values or {}), mu_slot, ratios, follow), float).ravel()
+    ch = BenchModel(cfg, t, volt, cfg.pneumatic.booster_start).samples(p)
+    rng = np.random.default_rng(seed)
+    noisy = {k: a + noise * np.ptp(a) * rng.standard_normal(a.size) for k, a in ch.items()}
+    v_noisy = volt + noise * np.mean(volt) * rng.standard_normal(volt.size)
+    return BenchLog(t, v_noisy, noisy["current"], noisy["booster_pressure"], noisy["speed"] if speed else None,
+                    source="", notes=[f"twin experiment: {values or {}} noise {noise:g} seed {seed}"])
+
+
+@dataclass
+class ChannelFit:
+    channel: str
+    unit: str
+    noise: float  # the sigma the channel is scaled by
+    rms: float  # residual RMS in the channel's unit
+    fit_percent: float  # NRMSE fit, spec §10
+
+    def as_dict(self):
+        return {"rms": self.rms, "fit": self.fit_percent, "noise_sigma": self.noise, "unit": self.unit}
+
+
+UNITS = {"booster_pressure": "Pa", "current": "A", "speed": "rad/s"}
+
+
+def channel_fits(prob: BenchLogProblem, fitted: dict) -> dict:
+    out = {}
+    for c in prob.channel_names:
+        y = prob.measured[c]
+        out[c] = ChannelFit(c, UNITS[c], prob.sigma[c], float(np.sqrt(np.mean((y - fitted[c]) ** 2))),
+                            fit_percent(y, fitted[c]))
+    return out
+
+
+def separation_notes(names, unident, correlation, identified) -> list[str]:
+    """What would separate the parameters this log cannot tell apart: the unidentifiable ones and
+    the identified pairs correlated beyond CORRELATED."""
+    hard = set(unident)
+    pairs = []
+    if correlation is not None:
+        for a in range(len(identified)):
+            for b in range(a + 1, len(identified)):
+                if abs(correlation[a, b]) > CORRELATED:
+                    pairs.append((identified[a], identified[b], float(correlation[a, b])))
+                    hard.update((identified[a], identified[b]))
+    notes = []
+    if unident:
+        notes.append(f"this log cannot separate {', '.join(unident)}")
+    for a, b, c in pairs:
+        notes.append(f"{a} and {b} are correlated {c:+.3f}: the log tells their combination better than either")
+    for group, experiment in SEPARATING:
+        if hard & set(group):
+            notes.append(f"to separate {', '.join(n for n in group if n in hard or n in names)}: {experiment}")
+    return notes
+
+
+@dataclass(kw_only=True)
+class BenchFit:
+    """The bench-log identification: the IdentificationResult (estimates, correlation, history in
+    noise-scaled units) and per channel the fit, the measured and fitted samples."""
+
+    result: object
+    channels: dict  # name -> ChannelFit
+    measured: dict
+    fitted: dict
+    time: dict  # channel -> the times of its compared values
+    notes: list = field(default_factory=list)
+    jacobian: str = "central differences of the compiled model"
+    start: str = "the config's values"
+
+    def problems(self) -> list[str]:
+        """Why this fit is not a usable estimate (the command exits 1): not converged, a parameter
+        on its bound, parameters the log cannot separate (the notes say what would)."""
+        r = self.result
+        out = [] if r.converged else [f"NOT converged ({r.message})"]
+        out += [f"{n} ended on its bound {b:g} (a unit mistake, a wrong configuration or an effect the model "
+                "lacks; the interval is not valid)" for n, b in r.on_bound]
+        apart = [n for n in r.unidentifiable if n not in r.no_effect]
+        if apart:
+            out.append(f"not identifiable from this log: {', '.join(apart)} (see the notes for the experiment "
+                       "that separates them, or fit fewer parameters)")
+        return out
+
+    def to_json(self) -> dict:
+        d = self.result.to_json()
+        d["fit"] = {c: f.as_dict() for c, f in self.channels.items()}
+        d["rms_unit"] = "noise sigmas (each channel divided by its noise sigma)"
+        d.update(separability=self.notes, jacobian=self.jacobian, start=self.start)
+        return d
+
+    def __str__(self):
+        r = self.result
+        its = len(r.iterations) - 1
+        lines = [f"bench-log identification ({r.method}): {'converged' if r.converged else 'NOT converged'} after "
+                 f"{its} iterations, weighted residual RMS {r.rms:.4g} noise sigmas, {r.wall_time:.1f} s"]
+        if r.provenance:
+            pv = r.provenance
+            lines.append(f"  from {pv['config']} and " + ", ".join(
+                f"{d['name']} (sha256 {d['sha256'][:12]})" for d in pv["data"]))
+        for e in r.estimates.values():
+            if e.identifiable and e.value is not None:
+                rel = f" ({100 * e.stderr / abs(e.value):.2g} %)" if e.value else ""
+                lines.append(f"  {e.name:<22} {e.value:.6g} ± {e.stderr:.3g}{rel}  (95%: {e.lower95:.6g} .. "
+                             f"{e.upper95:.6g}; start {e.initial:.6g})")
+            else:
+                lines.append(f"  {e.name:<22} not identifiable from this log (held at {e.initial:.6g})")
+        for c in self.channels.values():
+            lines.append(f"  {c.channel:<17} fit {c.fit_percent:6.2f} %, residual RMS {c.rms:.4g} {c.unit} "
+                         f"(noise sigma {c.noise:.3g} {c.unit})")
+        lines += [f"  note: {n}" for n in self.notes]
+        return "\n".join(lines)
+
+
+def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
+                   initial=None, max_iter=30, relaxation=1.0, progress=None) -> BenchFit:
+    """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
+    Parameters the log cannot determine (no effect, or a near-null direction of the noise-scaled
+    Jacobian) get no number and the note says what experiment would separate them."""
+    from .fit import _fit_identifiable
+    from .optimiser import Optimiser
+    from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
+
+    if method == "ipopt":
+        raise ConfigError("--method ipopt fits torque data; a bench log uses gauss-newton or levenberg-marquardt")
+    optimiser = Optimiser(method, relaxation, max_iter, progress)
+    wall0 = _time.perf_counter()
+    prob = BenchLogProblem(cfg, log, params, initial)
+
+    def reduced(active, fixed, unident):
+        return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident})
+
+    fit = _fit_identifiable(prob, prob.x0.copy(), optimiser, reduced)
+    x0 = dict(zip(prob.names, prob.x0))
+    if fit.outcome is None:
+        fitted_prob, x = prob, prob.x0
+        r = prob.y - prob.model(x)
+        est, corr, history, converged, message, on_bound = {}, None, [], False, "nothing identifiable", []
+    else:
+        out, fitted_prob = fit.outcome, fit.prob
+        x, r, history = np.asarray(out.x, float), out.residual, out.history
+        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
+        converged, message, on_bound = out.converged, out.message, bounds_reached(fitted_prob, x)
+    for n in fit.unident:
+        est[n] = Estimate(n, None, None, None, None, x0[n], identifiable=False)
+    fitted = fitted_prob.simulate(x)
+    res = IdentificationResult(
+        estimates={n: est[n] for n in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r ** 2))),
+        converged=converged, message=message, correlation=corr, diagnostics={}, method=method + prob.METHOD_TAG,
+        wall_time=0.0, unidentifiable=fit.unident, time=log.time, on_bound=on_bound, no_effect=fit.no_effect,
+        n_evaluations=prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
+    res.provenance = provenance(cfg, _AsData(log), prob.kern)
+    res.wall_time = _time.perf_counter() - wall0
+    notes = separation_notes(prob.names, fit.unident, corr, list(fitted_prob.names) if fit.outcome else [])
+    if fit.unident:
+        res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(fit.unident)}"
+    return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
+                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes)
+
+
+class _AsData:
+    """What provenance() reads of a measurement: its source (hashed) and, without one, samples."""
+
+    def __init__(self, log: BenchLog):
+        self.source, self.time = log.source, log.time
+        self.torque = np.concatenate([log.voltage, log.current, log.booster_pressure])
+        self.speed = log.speed
+        self.angle = None
+
+
+def cmd_identify_bench(a, cfg, outs, params, initial, write_outputs, progress=None) -> int:
+    """`pumpsim identify CONFIG LOG` on a bench log (the command line recognised its columns)."""
+    import sys
+
+    from ..benchlog import read_bench_log
+
+    for flag, given in (("--transient", a.transient), ("--steady", a.steady), ("--resample", a.resample)):
+        if given:
+            raise ConfigError(f"{flag} is for torque data; a bench log is fitted as logged: drop {flag}")
+    if a.report:
+        raise ConfigError("--report: the HTML report of a bench-log fit is not available yet; use --json")
+    log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
+    for note in log.notes:
+        print(f"pumpsim: {log.name}: {note}", file=sys.stderr)
+    fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
+                         _progress if progress is not None else None)
+    if progress is not None:
+        print(file=sys.stderr)
+    print(fit)
+    write_outputs(outs, a, fit.to_json(), None)
+    problems = fit.problems()
+    if problems:
+        print("pumpsim: the fit is not a usable estimate: " + "; ".join(problems), file=sys.stderr)
+        return 1
+    return 0
+
+
+def _progress(entry):
+    import sys
+
+    print(f"\r\033[Kpumpsim: residual RMS {entry['rms']:.6g} noise sigmas", end="", file=sys.stderr, flush=True)

@@ -1,0 +1,95 @@
+"""Bench logs (spec §10): recognised by their columns, units from the headers, gauge pressure and
+bad rows refused with the row, the column and the fix."""
+import numpy as np
+import pytest
+
+from pumpsim.benchlog import fit_percent, is_bench_log, read_bench_log, unit_of
+from pumpsim.config import load_config
+from pumpsim.errors import DataError
+from tests.conftest import EXAMPLES
+
+CFG = load_config(EXAMPLES / "evp_booster.toml")
+
+
+def _write(path, header, rows):
+    path.write_text(header + "\n" + "\n".join(",".join(f"{v:.9g}" for v in r) for r in rows) + "\n")
+    return path
+
+
+def _rows(n=50, p0=101.3, unit_scale=1.0):
+    t = np.arange(n) / 1000.0
+    return [(ti, 13.5, 10.0 + ti, (p0 - 20 * ti) * unit_scale) for ti in t]
+
+
+def test_reads_units_and_recognises_a_bench_log(tmp_path):
+    f = _write(tmp_path / "log.csv", "time [ms],voltage [V],current [mA],booster_pressure [mbar abs]",
+               [(1e3 * t, v, 1e3 * i, 10 * p) for t, v, i, p in _rows()])
+    assert is_bench_log(f)
+    log = read_bench_log(f, CFG)
+    assert log.n == 50 and log.step == pytest.approx(1e-3)
+    assert log.current[0] == pytest.approx(10.0) and log.booster_pressure[0] == pytest.approx(101300.0)
+    assert log.start_pressure() == pytest.approx(101300.0, rel=1e-9)  # the quadratic holds a line exactly
+    torque = _write(tmp_path / "torque.csv", "time,torque,voltage,current", [(0, 1, 2, 3), (1, 1, 2, 3)])
+    assert not is_bench_log(torque)  # a torque measurement that logs the supply stays torque data
+
+
+@pytest.mark.parametrize("unit,factor,kind", [("kPa", 1e3, None), ("bara", 1e5, "absolute"),
+                                              ("kPa(a)", 1e3, "absolute"), ("kPa g", 1e3, "gauge"),
+                                              ("psig", 6894.757293168, "gauge"), ("Pa", 1.0, None),
+                                              ("mbar abs", 100.0, "absolute")])
+def test_pressure_units_with_their_marks(unit, factor, kind):
+    f, k = unit_of("booster_pressure", unit, "")
+    assert f == pytest.approx(factor) and k == kind
+
+
+def test_gauge_pressure_is_refused_with_the_fix(tmp_path):
+    # a gauge pump-down from atmosphere: 0 kPa falling negative
+    f = _write(tmp_path / "gauge.csv", "time,voltage,current,booster_pressure [kPa]", _rows(p0=0.0))
+    with pytest.raises(DataError, match=r"row 2: booster_pressure 0 Pa is not positive: a gauge pressure\?.*add the atmospheric "
+                                        r"pressure \(101\.325 kPa"):
+        read_bench_log(f, CFG)
+    marked = _write(tmp_path / "marked.csv", "time,voltage,current,booster_pressure [kPa g]", _rows(p0=5.0))
+    with pytest.raises(DataError, match="marked gauge.*mark it absolute"):
+        read_bench_log(marked, CFG)
+    # positive but far below the atmosphere the config's pump-down starts from (bar gauge + offset)
+    low = _write(tmp_path / "low.csv", "time,voltage,current,booster_pressure [kPa]", _rows(p0=20.0))
+    with pytest.raises(DataError, match="starts at 2.* Pa, far below .*a gauge pressure"):
+        read_bench_log(low, CFG)
+    # the same column marked absolute is the user's word for it
+    ok = _write(tmp_path / "abs.csv", "time,voltage,current,booster_pressure [kPa abs]", _rows(p0=20.0))
+    assert read_bench_log(ok, CFG).booster_pressure[0] == pytest.approx(20e3)
+
+
+def test_bad_rows_are_named(tmp_path):
+    rows = _rows()
+    rows[7] = (rows[7][0], float("nan"), rows[7][2], rows[7][3])
+    f = _write(tmp_path / "nan.csv", "time,voltage,current,booster_pressure [kPa]", rows)
+    with pytest.raises(DataError, match=r"row 9: voltage is not a finite number"):
+        read_bench_log(f, CFG)
+    rows = _rows()
+    rows[10] = (rows[9][0], *rows[10][1:])
+    f = _write(tmp_path / "mono.csv", "time,voltage,current,booster_pressure [kPa]", rows)
+    with pytest.raises(DataError, match=r"row 12: time must be strictly increasing"):
+        read_bench_log(f, CFG)
+    rows = _rows()
+    del rows[20:23]
+    f = _write(tmp_path / "gap.csv", "time,voltage,current,booster_pressure [kPa]", rows)
+    with pytest.raises(DataError, match=r"row 22: a gap of 0.004 s .*cut the log at the gap"):
+        read_bench_log(f, CFG)
+    f = _write(tmp_path / "part.csv", "time,voltage,current", [(t, v, i) for t, v, i, _ in _rows()])
+    with pytest.raises(DataError, match=r"not a complete bench log: no column 'booster_pressure'"):
+        read_bench_log(f, CFG)
+    f = _write(tmp_path / "mv.csv", "time,voltage,current,booster_pressure [kPa]",
+               [(t, 1e3 * v, i, p) for t, v, i, p in _rows()])
+    with pytest.raises(DataError, match=r"median supply voltage 13500 V .*unit mistake"):
+        read_bench_log(f, CFG)
+    f = _write(tmp_path / "unit.csv", "time,voltage,current,booster_pressure [atm]", _rows())
+    with pytest.raises(DataError, match=r"booster_pressure unit must be one of Pa, hPa, kPa"):
+        read_bench_log(f, CFG)
+
+
+def test_fit_percent_is_the_nrmse_fit():
+    y = np.array([1.0, 2.0, 3.0, 4.0])
+    assert fit_percent(y, y) == 100.0
+    assert fit_percent(y, np.full(4, y.mean())) == pytest.approx(0.0)
+    assert fit_percent(y, y + np.array([0.1, -0.1, 0.1, -0.1])) == pytest.approx(100 * (1 - 0.2 / np.sqrt(5)))
