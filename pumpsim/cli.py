@@ -338,7 +338,7 @@ def register_identify(sub):
     ip.add_argument("--params", default=None,
                     help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
                          "numeric config key path (e.g. housing.center.0); default mu,theta0 -- for a "
-                         "bench log (columns voltage, current, booster_pressure; spec §10) "
+                         "bench log (columns time, voltage, current, booster_pressure) "
                          f"{','.join(BENCH_DEFAULT_PARAMS)}")
     ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
                     help="least-squares solver")

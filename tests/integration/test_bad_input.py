@@ -340,7 +340,7 @@ def test_help_shows_defaults_and_the_torque_drive_duration(capsys):
     out = " ".join(out.split())
     assert code == 0 and "(default: 10000.0)" in out and "0.5 s for a torque drive" in out
     code, out, _ = run(capsys, "identify", "--help")
-    assert code == 0 and "(default: mu,theta0)" in " ".join(out.split())
+    assert code == 0 and "default mu,theta0" in " ".join(out.split())
 
 
 def test_ipopt_prints_no_banner_and_converges_where_the_others_do(tmp_path, capsys):
