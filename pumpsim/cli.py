@@ -1,10 +1,13 @@
 """Command line (spec §7).
 
 Exit status: 0 success; 2 bad input (config, data, options, unit mistakes, output paths: the
-message names the key, row, file or option and the limit; nothing is written); 1 a numerical
-failure (the message names the time and state) or a fit whose answer must not be used as is (not
-converged, ended on a parameter bound, or a named parameter not identifiable from the data: the
-outputs are still written, complete, and say so).
+message names the key, row, file or option and the limit; nothing is written) or a file-system
+fault the user can fix (read-only, missing, full, no permission, an output another run holds: the
+path, the operation and what to do); 1 a numerical failure (the message names the time and
+state) or a fit whose answer must not be used as is (not converged, ended on a parameter bound,
+or a named parameter not identifiable from the data: the outputs are still written, complete, and
+say so); 130 / 143 interrupted by SIGINT / SIGTERM (one line: how far the run got, what is kept;
+no partial file).
 
 One function registers each command (`register_*`) and one runs it (`cmd_*`); a new command adds
 its pair to COMMANDS. Output files are declared with `_outputs` before any work starts and written
@@ -13,6 +16,7 @@ together at the end (`pumpsim.io.Outputs`).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 
@@ -123,7 +127,29 @@ def _outputs(a, inputs, **options):
         else:
             outs.add("--" + attr.replace("_", "-"), path, suffixes)
     outs.check()
+    from .locks import hold_files
+
+    hold_files({"--" + attr.replace("_", "-"): getattr(a, attr, None) for attr in options})
     return outs
+
+
+@contextlib.contextmanager
+def _staged(outs):
+    """outs.staged() with a file-system fault while writing named: the output, what to do (exit 2)."""
+    from . import fsfaults
+
+    tmps = {}
+    try:
+        with outs.staged() as tmp:
+            tmps.update(tmp)
+            yield tmp
+    except OSError as e:
+        named = os.path.abspath(str(e.filename)) if e.filename is not None else None
+        same = [o for o, t in tmps.items() if os.path.abspath(t) == named]
+        if same:
+            raise fsfaults.error(e, "writing", fsfaults.target_of(tmps[same[0]]), same[0]) from None
+        every = ", ".join(f"{o} '{fsfaults.target_of(t)}'" for o, t in tmps.items())
+        raise fsfaults.error(e, f"writing {every}" if every else "writing the outputs") from None
 
 
 def _load_config(a):
@@ -187,7 +213,7 @@ def _write_fit_outputs(outs, a, document: dict, write_report) -> None:
 
     from .io import write_text
 
-    with outs.staged() as tmp:
+    with _staged(outs) as tmp:
         if a.json:
             write_text(tmp["--json"], json.dumps(document, indent=1))
         if a.report:
@@ -259,8 +285,17 @@ def register_simulate(sub):
     s.set_defaults(func=cmd_simulate)
 
 
+def _write_simulation(outs, a, res, cfg) -> None:
+    with _staged(outs) as tmp:
+        if a.out:
+            res.to_csv(tmp["--out"])
+        if a.plot:
+            res.plot(tmp["--plot"], name=cfg.name, x=a.plot_x)
+
+
 def cmd_simulate(a) -> int:
     from . import SimulationResult, SolverError, simulate
+    from .interrupt import Interrupted
 
     outs = _outputs(a, [a.config], out=None, plot=FIGURE)
     cfg = _load_config(a)
@@ -276,17 +311,17 @@ def cmd_simulate(a) -> int:
         res = simulate(cfg, model=a.model, duration=a.duration, rate=a.rate, method=a.method,
                        rtol=a.rtol, atol=a.atol, max_step=a.max_step, progress=progress,
                        max_steps=a.max_steps, **opts)
-    except SolverError as e:
-        if a.keep_partial and isinstance(e.partial, SimulationResult) and a.out:
-            with outs.staged() as tmp:
-                e.partial.to_csv(tmp["--out"])
-            print(f"pumpsim: the samples computed before the failure are in {a.out}", file=sys.stderr)
+    except (SolverError, Interrupted) as e:
+        part = e.partial
+        if a.keep_partial and isinstance(part, SimulationResult) and part.time.size >= 2 and (a.out or a.plot):
+            _write_simulation(outs, a, part, cfg)  # every requested file, complete, or none
+            kept = " and ".join(x for x in (a.out, a.plot) if x)
+            if isinstance(e, Interrupted):
+                e.notes.append(f"the {part.time.size} samples computed before it are in {kept}")
+            else:
+                print(f"pumpsim: the samples computed before the failure are in {kept}", file=sys.stderr)
         raise
-    with outs.staged() as tmp:
-        if a.out:
-            res.to_csv(tmp["--out"])
-        if a.plot:
-            res.plot(tmp["--plot"], name=cfg.name, x=a.plot_x)
+    _write_simulation(outs, a, res, cfg)
     print(res.summary())
     _warn(res.warnings)
     return 0
@@ -429,7 +464,7 @@ def cmd_study(a) -> int:
           "from an in-contact start; deviations from Model 2 over the last revolution")
     print(HEADER)
     result = solver_study(cfg, revolutions=a.revolutions, speed=a.speed, log=print)
-    with outs.staged() as tmp:
+    with _staged(outs) as tmp:
         if a.json:
             write_json(tmp["--json"], result)
     return 0
@@ -550,30 +585,59 @@ def build_parser():
 
 def main(argv=None) -> int:
     """Run the command line with `argv` (default sys.argv[1:]); returns the exit status."""
+    from . import interrupt
+
+    try:
+        with interrupt.handling():  # from the start: building the parser imports much already
+            return _main(argv)
+    except KeyboardInterrupt as e:  # Interrupted, or SIGINT outside the handler's scope
+        return _report_interrupt(e if isinstance(e, interrupt.Interrupted) else interrupt.Interrupted())
+
+
+def _main(argv) -> int:
     ap = build_parser()
     try:
         a = ap.parse_args(argv)
     except SystemExit as e:  # --help, --version, bad options (status 2, message printed)
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 2)
+    from . import fsfaults, interrupt, locks
+
     try:
-        return a.func(a)
-    except PumpsimError as e:
-        print(f"pumpsim: error: {e}", file=sys.stderr)
-        return e.exit_status
-    except KeyboardInterrupt:
-        print("pumpsim: interrupted", file=sys.stderr)
-        return 130
-    except MemoryError:
-        print("pumpsim: error: out of memory (shorten the data, --resample, or a shorter --duration)",
-              file=sys.stderr)
-        return 1
-    except Exception as e:  # a bug, not a user error: one line unless debugging
-        if os.environ.get("PUMPSIM_DEBUG"):
+        with locks.session():
+            status = a.func(a)
+            if interrupt.pending():  # a signal some native code took for its own failure, then went on
+                late = interrupt.Interrupted()
+                late.notes.append("the run had ended: its outputs are written, complete")
+                raise late
+            return status
+    except BrokenPipeError:  # the reader of our output went away (`| head`): stop quietly
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+    except Exception as e:
+        if interrupt.pending():  # the failure is the signal's doing (a solver callback's, say)
+            return _report_interrupt(interrupt.Interrupted())
+        if isinstance(e, PumpsimError):
+            print(f"pumpsim: error: {e}", file=sys.stderr)
+            return e.exit_status
+        if isinstance(e, OSError):  # a file-system fault no guard named: say what the OS said
+            err = fsfaults.error(e)
+            print(f"pumpsim: error: {err}", file=sys.stderr)
+            return err.exit_status
+        if isinstance(e, MemoryError):
+            print("pumpsim: error: out of memory (shorten the data, --resample, or a shorter --duration)",
+                  file=sys.stderr)
+            return 1
+        if os.environ.get("PUMPSIM_DEBUG"):  # a bug, not a user error: one line unless debugging
             raise
         print(f"pumpsim: internal error (please report; PUMPSIM_DEBUG=1 shows the traceback): "
               f"{type(e).__name__}: {e}", file=sys.stderr)
         return 1
 
+
+def _report_interrupt(e) -> int:
+    print(f"pumpsim: {e.message()}", file=sys.stderr)
+    return e.exit_status
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import casadi as ca
 import numpy as np
 
+from . import interrupt
 from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
@@ -130,7 +131,8 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
 
 def _integrate(integ, kern, dyn, drive, p, x0, t, N, progress) -> SimpleNamespace:
     """Integrate over the sample grid, locating contact-state changes; on an integrator failure
-    keep what was computed and a message naming every vane's contact state."""
+    keep what was computed and a message naming every vane's contact state (on an interruption,
+    what was computed)."""
 
     def switches(X):
         """Contact-state changes (report Table 1): housing penetration and slot-bottom contact.
@@ -158,6 +160,10 @@ def _integrate(integ, kern, dyn, drive, p, x0, t, N, progress) -> SimpleNamespac
         t, xs, ev = tt, xx, []
         stats = dict(integ.stats)
         termination = f"failed after t = {t[-1]:.9g} s"
+    except interrupt.Interrupted as e:  # the samples before it make a result of their own
+        failure, (t, xs), ev = e, e.partial, []
+        stats = dict(integ.stats)
+        termination = f"interrupted after t = {t[-1]:.9g} s"
     stats["wall_time"] = _time.perf_counter() - wall0
     return SimpleNamespace(t=t, xs=xs, ev=ev, stats=stats, termination=termination, failure=failure,
                            step_log=step_log)

@@ -43,3 +43,10 @@ class SolverError(PumpsimError):
 
 class IdentificationError(PumpsimError):
     exit_status = 1
+
+
+class OutputError(PumpsimError):
+    """A file-system fault on an output the user can fix: a read-only, missing or full place, no
+    permission, or an output another run is writing (names the path, the operation, the remedy)."""
+
+    exit_status = 2

@@ -22,6 +22,7 @@ import time as _time
 import casadi as ca
 import numpy as np
 
+from . import interrupt
 from .errors import ConfigError, SolverError
 from .tolerances import ATOL, RTOL
 
@@ -77,7 +78,8 @@ class Integrator:
 
     def _call(self, integ, x, extra, intervals=1):
         self.calls += 1
-        res = integ(x0=np.asarray(x, dtype=float) / self.scale, p=np.concatenate([self.params, [extra]]))
+        with interrupt.deferred():
+            res = integ(x0=np.asarray(x, dtype=float) / self.scale, p=np.concatenate([self.params, [extra]]))
         if self.method == "rk":  # RK4: four right-hand sides a step
             self.stats["nsteps"] += self.rk_steps * intervals
             self.stats["nfevals"] += 4 * self.rk_steps * intervals
@@ -105,7 +107,8 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
     functions switch_fn(X) -> (len(X), n_switch) for states X (len, nx).
 
     Returns (states (n_times, nx), events [(time, switch index)], stats). A failure raises
-    SolverError naming the time and state, with (times, states) computed so far attached."""
+    SolverError naming the time and state, an interruption Interrupted, either with (times,
+    states) computed so far attached."""
     times = np.asarray(times, dtype=float)
     n = times.size
     xs = np.empty((n, len(x0)))
@@ -114,32 +117,40 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
     g = switch_fn(x[None, :])[0] if switch_fn else None
     wall0 = _time.perf_counter()
     k = 0
-    while k < n - 1:
-        m = min(CHUNK, n - 1 - k)
-        steps_before = integ.stats["nsteps"]
-        X = _guarded(integ, lambda: integ.chunk(x, m), times[k], times[k + m], x, times[:k + 1], xs[:k + 1])
-        cut = m
-        if switch_fn is not None:
-            G = switch_fn(X)
-            prev = np.vstack([g[None, :], G[:-1]])
-            changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
-            rows = np.nonzero(changed.any(axis=1))[0]
-            if rows.size:
-                cut = int(rows[0])  # intervals accepted before the one with the crossing
-        if cut:
-            xs[k + 1:k + 1 + cut] = X[:cut]
-            x = X[cut - 1]
-            k += cut
-            g = switch_fn(x[None, :])[0] if switch_fn else None
-            if on_chunk:
-                on_chunk(times[k], cut, integ.stats["nsteps"] - steps_before)
-        if cut < m:  # the interval [times[k], times[k+1]] holds a crossing: locate, restart
-            x, g = _cross_interval(integ, switch_fn, x, g, times[k], times[k + 1], events, time_tol,
-                                   times[:k + 1], xs[:k + 1])
-            k += 1
-            xs[k] = x
-        if progress:
-            progress(times[k])
+    interrupt.progress(f"at simulated t = {times[0]:.6g} s of {times[-1]:.6g} s")
+    try:
+        while k < n - 1:
+            m = min(CHUNK, n - 1 - k)
+            steps_before = integ.stats["nsteps"]
+            X = _guarded(integ, lambda: integ.chunk(x, m), times[k], times[k + m], x, times[:k + 1],
+                         xs[:k + 1])
+            cut = m
+            if switch_fn is not None:
+                G = switch_fn(X)
+                prev = np.vstack([g[None, :], G[:-1]])
+                changed = (np.sign(G) != np.sign(prev)) & (prev != 0.0)
+                rows = np.nonzero(changed.any(axis=1))[0]
+                if rows.size:
+                    cut = int(rows[0])  # intervals accepted before the one with the crossing
+            if cut:
+                xs[k + 1:k + 1 + cut] = X[:cut]
+                x = X[cut - 1]
+                k += cut
+                g = switch_fn(x[None, :])[0] if switch_fn else None
+                if on_chunk:
+                    on_chunk(times[k], cut, integ.stats["nsteps"] - steps_before)
+            if cut < m:  # the interval [times[k], times[k+1]] holds a crossing: locate, restart
+                x, g = _cross_interval(integ, switch_fn, x, g, times[k], times[k + 1], events, time_tol,
+                                       times[:k + 1], xs[:k + 1])
+                xs[k + 1] = x
+                k += 1
+            interrupt.progress(f"at simulated t = {times[k]:.6g} s of {times[-1]:.6g} s")
+            if progress:
+                progress(times[k])
+    except interrupt.Interrupted as e:  # xs[:k + 1] is done
+        if e.partial is None:
+            e.partial = (times[:k + 1], xs[:k + 1])
+        raise
     stats = dict(integ.stats)
     stats["integrator_calls"] = integ.calls
     stats["events"] = len(events)
@@ -153,6 +164,7 @@ def _guarded(integ, fn, t_a, t_b, x, done_t, done_x):
     try:
         out = fn()
     except RuntimeError as e:
+        interrupt.check(partial=(done_t, done_x))  # a signal inside the integrator's callbacks
         raise SolverError(
             f"integrator failed between t = {t_a:.9g} s and {t_b:.9g} s starting from state "
             f"{np.array2string(x, precision=6)}: {str(e).strip().splitlines()[-1]}",

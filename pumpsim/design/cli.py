@@ -6,16 +6,22 @@ from pathlib import Path
 
 import sys
 
+from ..cli import _staged
 from ..errors import ConfigError
 
 
-def _check_paths(**paths):
-    """Every output path's folder exists before any work starts."""
+def _outputs(inputs, **paths):
+    """The output files, checked before any work starts (writable, not a folder, not an input,
+    no two the same) and held against other runs; written together by `_staged`."""
+    from ..io import Outputs
+    from ..locks import hold_files
+
+    outs = Outputs(inputs)
     for option, path in paths.items():
-        if path:
-            folder = Path(path).parent if str(Path(path).parent) else Path(".")
-            if not folder.is_dir():
-                raise ConfigError(f"--{option}: folder '{folder}' does not exist")
+        outs.add(f"--{option}", path)
+    outs.check()
+    hold_files({f"--{option}": path for option, path in paths.items()})
+    return outs
 
 
 def _idle_text(stats) -> str:
@@ -44,27 +50,16 @@ def _json_safe(obj):
 
 
 def cmd_sweep(a) -> int:
-    from ..io import write_text
-    from .execute import check_out_dir, read_manifest, read_results, run_study
+    from .execute import check_out_dir, read_manifest, run_study
     from .report import sweep_report
-    from .study import load_study
     from .summary import summary_text
 
     study = _load(a.study)
     if a.samples is not None:
         override_samples(study, a.samples)
     if a.summary:
-        if not a.out:
-            raise ConfigError("--summary reads the results folder given by --out DIR")
-        check_out_dir(a.out, study.study_hash())
-        man = read_manifest(a.out)
-        df = read_results(a.out)
-        print(summary_text(df, study.outputs, study.limits, man))
-        parts = len(list(Path(a.out).glob("part-*.parquet")))
-        if parts < man.get("batches", 0):
-            print(f"{parts} of {man['batches']} batches written: rerun without --summary to resume")
-        return 0
-    _check_paths(csv=a.csv, report=a.report)
+        return _summary(a, study)
+    outs = _outputs([a.study], csv=a.csv, report=a.report)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
                           batch_size=a.batch_size)
@@ -74,13 +69,38 @@ def cmd_sweep(a) -> int:
     print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
           f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
           f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
-    if a.csv:
-        from ..io import atomic_path
+    with _staged(outs) as tmp:
+        if a.csv:
+            df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
+        if a.report:
+            sweep_report(df, study, tmp["--report"])
+    return 0
 
-        with atomic_path(a.csv) as tmp:
-            df.to_csv(tmp, index=False, float_format="%.10g")
-    if a.report:
-        sweep_report(df, study, a.report)
+
+def _summary(a, study) -> int:
+    """--summary: the table so far; exit 1 when a design appears more than once (a mixed folder)."""
+    from ..locks import holder_of
+    from .execute import check_out_dir, read_manifest, read_results
+    from .summary import coverage, summary_text
+
+    if not a.out:
+        raise ConfigError("--summary reads the results folder given by --out DIR")
+    if not Path(a.out).is_dir():
+        raise ConfigError(f"--out '{a.out}' is not a results folder (it does not exist)")
+    check_out_dir(a.out, study.study_hash())
+    man = read_manifest(a.out)
+    df = read_results(a.out)
+    running = holder_of(a.out)
+    if running:
+        print(f"a run is writing this folder ({running}); the summary is of the parts written so far")
+    print(summary_text(df, study.outputs, study.limits, man))
+    parts = len(list(Path(a.out).glob("part-*.parquet")))
+    if parts < man.get("batches", 0) and not running:
+        print(f"{parts} of {man['batches']} batches written: rerun without --summary to resume")
+    if coverage(df, int(man.get("designs") or 0))["duplicated"]:
+        print(f"pumpsim: error: '{a.out}' holds designs more than once (parts of different runs); "
+              "remove it and run the study again", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -101,14 +121,15 @@ def cmd_sensitivity(a) -> int:
     from .study import load_study
 
     study = _load(a.study)
-    _check_paths(json=a.json, report=a.report)
+    outs = _outputs([a.study], json=a.json, report=a.report)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
                       workers=_workers(a.workers))
     print(sensitivity_text(res))
-    if a.json:
-        write_text(a.json, json.dumps(_json_safe(res), indent=1))
-    if a.report:
-        sensitivity_report(res, study, a.report)
+    with _staged(outs) as tmp:
+        if a.json:
+            write_text(tmp["--json"], json.dumps(_json_safe(res), indent=1))
+        if a.report:
+            sensitivity_report(res, study, tmp["--report"])
     return 0
 
 
@@ -136,13 +157,14 @@ def cmd_optimize(a) -> int:
     from .study import load_study
 
     study = _load(a.study)
-    _check_paths(json=a.json, report=a.report)
+    outs = _outputs([a.study], json=a.json, report=a.report)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))
-    if a.json:
-        write_text(a.json, json.dumps(res, indent=1))
-    if a.report:
-        optimize_report(res, study, a.report)
+    with _staged(outs) as tmp:
+        if a.json:
+            write_text(tmp["--json"], json.dumps(res, indent=1))
+        if a.report:
+            optimize_report(res, study, tmp["--report"])
     return 0 if res["success"] else 1
 
 

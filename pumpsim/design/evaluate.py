@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from .. import interrupt
 from ..config import as_array, config_from_dict
 from ..errors import ConfigError, PumpsimError
 from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
@@ -326,6 +327,7 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict
                 else:
                     results[j] = _evaluate_one(study, kern, prepared[j], nrev)
             except Exception as e:  # noqa: BLE001 - one design's failure never stops the study
+                interrupt.check()  # unless the failure was a signal's doing
                 results[j] = (f"error: {type(e).__name__}: {e}", None)
     for j, pr in enumerate(prepared):
         base = {"design": int(ids[j])}

@@ -16,6 +16,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata
 import json
 import logging
@@ -29,10 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from .. import interrupt
+from ..errors import ConfigError, OutputError, SolverError
+from ..fsfaults import guard, probe_folder
 from ..io import atomic_path, write_text
+from ..locks import LOCK_FILES, study_folder
 from .outputs import BOOL_OUTPUTS, per_vane_name
 from .sampling import design_matrix
+from .summary import coverage, coverage_text
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
 TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the workers finish together
@@ -239,13 +244,14 @@ def check_out_dir(out, study_hash) -> dict | None:
     d = Path(out)
     if not d.parent.is_dir():
         raise ConfigError(f"--out: folder '{d.parent}' does not exist")
+    if d.exists() and not d.is_dir():
+        raise ConfigError(f"--out '{d}' exists and is not a folder")
+    probe_folder(d, "--out", create=True)
     if not d.exists():
         return None
-    if not d.is_dir():
-        raise ConfigError(f"--out '{d}' exists and is not a folder")
     mpath = d / MANIFEST
     if not mpath.exists():
-        if any(d.iterdir()):
+        if any(p.name not in LOCK_FILES for p in d.iterdir()):
             raise ConfigError(f"--out '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
         return None
     try:
@@ -300,9 +306,30 @@ def connect(scheduler=None, workers=None, processes=True):
 
     # its HTTP endpoint moves to a free port when another cluster holds the default one
     warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    # the workers' own logs: a failing task reaches the client as its exception, and a cluster
+    # torn down by an interruption would print lost-connection tracebacks from every worker
+    cluster = client = None
+    interrupt.progress("while the local Dask cluster started (no design done)")
+    try:
+        with interrupt.deferred():  # a half-started cluster cannot be closed (Dask complains at exit)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                                   dashboard_address=None, silence_logs=logging.CRITICAL,
+                                   preload=["pumpsim.design.worker_setup"] if processes else None)
+            client = Client(cluster)
+    except BaseException:
+        _quiet_dask()
+        for x in (client, cluster):
+            if x is not None:
+                with contextlib.suppress(Exception):
+                    x.close()
+        raise
+    return client, cluster
+
+
+def _quiet_dask() -> None:
+    """A cluster torn down mid-run logs lost tasks and closed connections, even as CRITICAL: not
+    news to a user who stopped it."""
+    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 @dataclass
@@ -350,19 +377,26 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     scheduler = scheduler or study.scheduler
     workers = study.workers if workers is None else workers
     X = study_designs(study) if X is None else np.asarray(X, dtype=float)
-    man = check_out_dir(out, study.study_hash())
-    t0 = time.perf_counter()
-    own = None
-    if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
-        client, own = connect(scheduler, workers, processes)
-    try:
-        return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
-                    client, t0)
-    finally:
-        if own is not None:
-            client.close()
-            if own is not client:
-                own.close()
+    check_out_dir(out, study.study_hash())
+    # one run at a time per folder (a second one fails here, before any work); the manifest is
+    # read again under the lock: a run that just ended may have changed it
+    with study_folder(out) if out is not None else contextlib.nullcontext():
+        man = check_out_dir(out, study.study_hash())
+        t0 = time.perf_counter()
+        own = None
+        if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
+            client, own = connect(scheduler, workers, processes)
+        try:
+            return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
+                        client, t0)
+        except BaseException:
+            _quiet_dask()
+            raise
+        finally:
+            if own is not None:
+                client.close()
+                if own is not client:
+                    own.close()
 
 
 def _warm_workers(study, X, workers, client) -> list:
@@ -392,6 +426,10 @@ def _plan(study, X, man, batch_size, client) -> Plan:
     from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
     guided_bounds on several."""
     bs = batch_size or study.batch_size
+    if man and bs and (man.get("batch_bounds") or int(man.get("batch_size") or 0) != int(bs)):
+        raise ConfigError(f"the results folder holds batches laid out as {_layout(man)}, not of {int(bs)} "
+                          "designs; resume it without --batch-size (and study.batch_size), or choose "
+                          "another folder")
     if bs:
         return Plan(study, X, int(bs))
     if man and man.get("batch_bounds"):
@@ -404,6 +442,12 @@ def _plan(study, X, man, batch_size, client) -> Plan:
         bounds = guided_bounds(len(X), per, n_workers)
         return Plan(study, X, bounds[1] - bounds[0], bounds=bounds)
     return Plan(study, X, max(1, math.ceil(TASK_SECONDS / per)))
+
+
+def _layout(man) -> str:
+    if man.get("batch_bounds"):
+        return f"guided batches ({man['batch_bounds'][1]} designs first, shrinking)"
+    return f"batches of {man.get('batch_size')} designs"
 
 
 def _idle(stats, spans, t_start, t_end) -> None:
@@ -425,6 +469,7 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     import pandas as pd
 
     stats = RunStats(designs=len(X))
+    interrupt.progress(_how_far(0, len(X), out))
     _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
     if study.function is None and not scheduler:
         _build_kernels(study)
@@ -446,6 +491,8 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     tables = {}
     bar = _bar(progress, len(todo))
     written = [0]
+    done_designs = [sum(len(plan.batch(b)[0]) for b in done)]
+    interrupt.progress(_how_far(done_designs[0], len(X), folder))
 
     spans = []
 
@@ -455,10 +502,13 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         if folder is not None:
             import pyarrow.parquet as pq
 
-            with atomic_path(folder / PART.format(b)) as tmp:
-                pq.write_table(table, tmp)
+            with guard("writing the results part", folder / PART.format(b), "--out"):
+                with atomic_path(folder / PART.format(b)) as tmp:
+                    pq.write_table(table, tmp)
         tables[b] = table
         written[0] += 1
+        done_designs[0] += len(table.column("design").unique()) if len(table) else 0
+        interrupt.progress(_how_far(done_designs[0], len(X), folder))
         if bar is not None:
             bar.update(1)
         if on_batch is not None:
@@ -467,33 +517,60 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     try:
         stats.setup = time.perf_counter() - t0
         t1, w1 = time.perf_counter(), time.time()
-        if workers == 0 or not todo:
-            stats.workers = 1
-            for b in todo:
-                ids, Xb = plan.batch(b)
-                finish(b, *run_batch(study, ids, Xb)[1:])
-        else:
-            from dask.distributed import as_completed
-
-            stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
-            sfut = client.scatter(study, broadcast=True)
-            futs = {}
-            for b in todo:
-                ids, Xb = plan.batch(b)
-                futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
-            for fut in as_completed(futs):
-                finish(futs[fut], *fut.result()[1:])
+        _evaluate(study, plan, todo, workers, client, stats, finish)
         stats.wall = time.perf_counter() - t1
         _idle(stats, spans, w1, w1 + stats.wall)
+    except interrupt.Interrupted as e:
+        if folder is not None and done_designs[0]:
+            e.notes.append(_kept(done_designs[0], folder))
+        raise
+    except OutputError as e:  # a full disk, say: what was written stays usable
+        if folder is None or not done_designs[0]:
+            raise
+        raise OutputError(f"{e}; {_kept(done_designs[0], folder)}") from None
     finally:
         if bar is not None:
             bar.close()
     if folder is not None:
-        write_manifest(folder, study, plan, "complete", stats)
-        return read_results(folder), stats
+        df = read_results(folder)
+        gaps = coverage_text(coverage(df, len(X)))
+        write_manifest(folder, study, plan, "complete" if gaps is None else "incomplete", stats)
+        if gaps:  # parts from elsewhere (another layout, a copied file): the table is not this study
+            raise SolverError(f"the results folder '{folder}' does not hold every design once: {gaps}; "
+                              "remove it and run the study again")
+        return df, stats
     parts = [tables[b].to_pandas() for b in sorted(tables)]
     df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c for c, _ in columns(study)])
     return _ordered(df), stats
+
+
+def _kept(done, folder) -> str:
+    return f"the {done} designs done are kept in '{folder}' (the same command resumes there)"
+
+
+def _how_far(done, total, folder) -> str:
+    return f"with {done} of {total} designs done" + ("" if folder is not None else " (none kept: no --out folder)")
+
+
+def _evaluate(study, plan, todo, workers, client, stats, finish) -> None:
+    """The batches `todo`, here (workers=0) or on the cluster; finish(b, table, seconds, span)
+    takes each as it completes."""
+    if workers == 0 or not todo:
+        stats.workers = 1
+        for b in todo:
+            ids, Xb = plan.batch(b)
+            finish(b, *run_batch(study, ids, Xb)[1:])
+        return
+    from dask.distributed import as_completed
+
+    stats.workers = max(1, len(client.scheduler_info().get("workers", {})) or (workers or 1))
+    sfut = client.scatter(study, broadcast=True)
+    futs = {}
+    for b in todo:
+        ids, Xb = plan.batch(b)
+        futs[client.submit(run_batch, sfut, ids, Xb, pure=False)] = b
+    for fut in as_completed(futs):  # a batch a lost worker held is run again elsewhere: once here
+        finish(futs[fut], *fut.result()[1:])
 
 
 def _bar(progress, total):
@@ -518,7 +595,8 @@ def write_manifest(folder, study, plan, status, stats=None):
     }
     if stats is not None:
         man["run"] = stats.as_dict()
-    write_text(folder / MANIFEST, json.dumps(man, indent=1))
+    with guard("writing the study manifest", folder / MANIFEST, "--out"):
+        write_text(folder / MANIFEST, json.dumps(man, indent=1))
 
 
 def _ordered(df):

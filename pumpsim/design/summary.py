@@ -93,12 +93,39 @@ def flag_counts(df) -> dict:
     return {f: int(df[f].fillna(False).astype(bool).sum()) for f in BOOL_OUTPUTS if f in df.columns}
 
 
+def coverage(df, designs: int) -> dict:
+    """Which of the designs 0..designs-1 the table misses, and which it holds more than once (a
+    design is one row per speed: a (design, speed) pair that repeats is a duplicate)."""
+    ids = df["design"].to_numpy(dtype=np.int64) if len(df) else np.zeros(0, np.int64)
+    missing = np.setdiff1d(np.arange(designs), ids)
+    keys = [c for c in ("design", "speed") if c in df.columns]
+    dup = df.loc[df.duplicated(keys, keep=False), "design"].unique() if len(df) else []
+    return {"missing": [int(i) for i in missing], "duplicated": sorted(int(i) for i in dup)}
+
+
+def coverage_text(cov) -> str | None:
+    """None when every design appears exactly once."""
+    def ids(v):
+        return ", ".join(map(str, v[:8])) + (", ..." if len(v) > 8 else "")
+
+    parts = []
+    if cov["missing"]:
+        parts.append(f"{len(cov['missing'])} designs missing ({ids(cov['missing'])})")
+    if cov["duplicated"]:
+        parts.append(f"{len(cov['duplicated'])} designs appear more than once ({ids(cov['duplicated'])})")
+    return "; ".join(parts) or None
+
+
 def summary_text(df, study_outputs, limits, manifest=None) -> str:
     lines = []
     if manifest:
+        status = manifest.get("status")
+        gaps = coverage_text(coverage(df, int(manifest.get("designs") or 0)))
+        if gaps:
+            status = f"NOT complete: {gaps}"
         lines.append(f"study {manifest.get('study')} (hash {manifest.get('study_hash')}), sampler "
                      f"{manifest.get('sampler')}, seed {manifest.get('seed')}, {manifest.get('designs')} "
-                     f"designs, status {manifest.get('status')}")
+                     f"designs, status {status}")
     designs = df["design"].nunique() if len(df) else 0
     lines.append(f"{designs} designs, {len(df)} rows; status: "
                  + ", ".join(f"{k} {n}" for k, n in status_counts(df).items()))

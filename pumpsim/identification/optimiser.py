@@ -9,6 +9,7 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
+from .. import interrupt
 from ..errors import ConfigError
 from ..tolerances import SINGULAR_COND
 
@@ -125,6 +126,8 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
         x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)
         history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)})
+        interrupt.progress(f"in a fit of {', '.join(prob.names)} after {len(history) - 1} iterations "
+                           f"(residual RMS {history[-1]['rms']:.4g} N m)")
         if log:
             log(history[-1])
         if small:
@@ -145,8 +148,9 @@ def ipopt_fit(prob, x0, log=None) -> FitOutcome:
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                                           "ipopt.hessian_approximation": "limited-memory",
                                           "ipopt.tol": 1e-12, "ipopt.max_iter": 200})
-    res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
-              ubx=np.where(np.isfinite(prob.upper), prob.upper, 1e20))
+    with interrupt.deferred():  # IPOPT would report a signal in its callbacks as a failed solve
+        res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
+                  ubx=np.where(np.isfinite(prob.upper), prob.upper, 1e20))
     x = np.asarray(res["x"]).ravel()
     m, J = prob.model_and_jacobian(x)
     st = sol.stats()

@@ -47,6 +47,9 @@ def _outputs(a):
     for opt, suffixes in (("out", None), ("plot", (".png",)), ("json", None), ("report", REPORT_SUFFIXES)):
         outs.add(f"--{opt}", getattr(a, opt), suffixes)
     outs.check()
+    from ..locks import hold_files
+
+    hold_files({f"--{opt}": getattr(a, opt) for opt in ("out", "plot", "json", "report")})
     return outs
 
 
@@ -55,7 +58,7 @@ def _progress(t, pb):
 
 
 def cmd_pumpdown(a) -> int:
-    from ..cli import _load_config
+    from ..cli import _load_config, _staged
     from ..io import write_text
     from . import pumpdown as pdm
 
@@ -88,7 +91,7 @@ def cmd_pumpdown(a) -> int:
               f"{fast['time'][-1]:.3f} s, mean current {fast['mean_current']:.2f} A {made}")
     for w in res.warnings:
         print(f"pumpsim: warning: {w}", file=sys.stderr)
-    with outs.staged() as tmp:
+    with _staged(outs) as tmp:
         if a.out:
             res.to_csv(tmp["--out"])
         if a.json:

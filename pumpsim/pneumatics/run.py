@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from .. import interrupt
 from ..errors import SolverError
 from ..tolerances import GAS_ATOL, GAS_RTOL
 from ..integrate import _illinois
@@ -124,8 +125,10 @@ class PumpIntegrator:
         y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)]) / self.S
         t0 = _time.perf_counter()
         try:
-            r = integ(x0=y0, p=[mode, T, start])
+            with interrupt.deferred():
+                r = integ(x0=y0, p=[mode, T, start])
         except RuntimeError as e:
+            interrupt.check()  # a signal inside the integrator's callbacks
             raise SolverError(f"integrator failed: {str(e).strip().splitlines()[-1]}") from None
         finally:
             self.integrator_wall += _time.perf_counter() - t0
@@ -295,6 +298,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             xs.append(x.copy())
             qs.append(q.copy())
             modes.append(None)  # an event inside the interval before: no single mode there
+        interrupt.progress(f"at simulated t = {t:.6g} s of {duration:.6g} s (booster {p_booster(x):.6g} Pa)")
         if progress:
             progress(t, p_booster(x))
     X = np.array(xs)

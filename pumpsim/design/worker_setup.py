@@ -1,0 +1,12 @@
+"""Preloaded into each worker process of the local Dask cluster (execute.connect).
+
+A terminal's Ctrl-C reaches every process of its process group: the workers ignore it, and the
+run's own process, which owns the interruption, closes them (otherwise each worker prints its own
+KeyboardInterrupt traceback while the client is shutting the cluster down)."""
+import signal
+import threading
+
+
+def dask_setup(worker):
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

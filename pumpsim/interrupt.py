@@ -1,0 +1,102 @@
+"""SIGINT and SIGTERM end a run as their own outcome: exit 130 (143 for SIGTERM), never a failure.
+
+`handling()` (the command line) installs a handler that records the signal and raises
+`Interrupted` in the main thread. Native code that calls back into Python turns an exception
+raised there into its own failure (CasADi's SUNDIALS interfaces check for signals in their
+callbacks: CV_RHSFUNC_FAIL, and SUNDIALS prints its complaint), so an integrator call runs
+`deferred()`: the first signal only sets the flag, the call ends its (short) chunk, and the check
+after it raises; a second signal raises at once. Every place that turns a native failure into
+SolverError, or keeps going past one failed design, asks `check()` first.
+
+`progress(text)` records how far the run got (simulated time reached, designs done); the message
+the command line prints names it.
+"""
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+
+_state = {"signal": None, "progress": None, "defer": 0}
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """The run was stopped by a signal. A KeyboardInterrupt, so `except Exception` (one design's
+    failure, a report's provenance) never swallows it. partial: what was computed so far."""
+
+    def __init__(self, signum=None, partial=None):
+        self.signum = int(signum or _state["signal"] or signal.SIGINT)
+        self.partial = partial
+        self.notes: list[str] = []  # what the command kept (e.g. a --keep-partial file)
+        super().__init__(signal.Signals(self.signum).name)
+
+    @property
+    def exit_status(self) -> int:
+        return 128 + self.signum
+
+    def message(self) -> str:
+        """One line: the signal, how far the run got, what is left on disk."""
+        where = _state["progress"]
+        kept = "; ".join(self.notes) if self.notes else "no output file written"
+        return (f"interrupted by {signal.Signals(self.signum).name}"
+                + (f" {where}" if where else "") + f"; {kept}")
+
+
+def pending() -> int | None:
+    """The signal received during this run, if any."""
+    return _state["signal"]
+
+
+def check(partial=None) -> None:
+    """Raise Interrupted if a signal arrived (call where a native failure or a caught exception
+    may stand for it)."""
+    if _state["signal"] is not None:
+        raise Interrupted(_state["signal"], partial) from None
+
+
+def progress(text: str) -> None:
+    """How far the run got, in words that follow 'interrupted by SIGINT' (e.g. 'at t = 0.2 s')."""
+    _state["progress"] = text
+
+
+def _handler(signum, frame):
+    first = _state["signal"] is None
+    _state["signal"] = signum
+    if first and _state["defer"]:
+        return  # inside native code: raised by `deferred` when the call returns
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def deferred():
+    """Run a native call (an integrator's) whose callbacks must not see the exception; raise
+    Interrupted after it if a signal came meanwhile."""
+    _state["defer"] += 1
+    try:
+        yield
+    finally:
+        _state["defer"] -= 1
+    check()
+
+
+@contextlib.contextmanager
+def handling():
+    """Route SIGINT and SIGTERM to Interrupted for the block (main thread only). A signal that is
+    ignored when the run starts (nohup, a background job) stays ignored."""
+    _state.update(signal=None, progress=None, defer=0)
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {}
+    for s in SIGNALS:
+        current = signal.getsignal(s)
+        if current == signal.SIG_IGN:
+            continue
+        old[s] = current
+        signal.signal(s, _handler)
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
