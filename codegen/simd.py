@@ -27,6 +27,10 @@ output for vanes 0..N-1; `ld` lets callers write a column range of a larger arra
       one parameter vector per block of `block` consecutive samples (block = n: one design);
   pumpsim_simd_samples(n, theta, omega, omegadot, pt, pld, out, ld): pt is (n_p, pld), one
       parameter vector per sample, stored by parameter.
+  pumpsim_simd_<subset>_blocks / _samples for each reduced set of model_spec.simd.SUBSETS: the same
+      arguments, `out` (1 + len(subset) N, ld) with the torque and the subset's vane outputs only
+      (the vane body restricted to them: the torque alone is 1,124 of the 4-vane ellipse's 1,342
+      vane instructions, and stores one row).
 """
 from __future__ import annotations
 
