@@ -297,8 +297,10 @@ def bench_diagnose(duration=0.5, rate=10000.0):
 
 IDENTIFY_ROWS = 1_000_000
 IDENTIFY_TARGET_MIB = 300.0
-# identify in its own process: peak resident memory (ru_maxrss) of the whole process, and the part
-# identify adds to the process with its modules imported, the record loaded and the kernels built
+# identify in its own process: peak resident memory of the whole process, and the part identify
+# adds to the process with its modules imported, the record loaded and the kernels built. The peak
+# is VmHWM (Linux), not ru_maxrss: getrusage keeps the maximum across execve, so a child started
+# from a large parent reports the parent's size.
 _IDENTIFY_PROBE = """
 import dataclasses, resource, sys, time
 sys.path.insert(0, {root!r})
@@ -307,7 +309,12 @@ from pumpsim.config import load_config
 from pumpsim.data import Dataset
 from pumpsim.identification import identify
 from pumpsim.kernels import fast_kernel, load_kernels
-def rss(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+def rss():
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(ln.split()[1]) for ln in fh if ln.startswith("VmHWM:")) / 1024
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 rec = np.load(sys.argv[1])
 base = load_config(sys.argv[2])
 fast_kernel(load_kernels(base.parameters().structure).structure)
@@ -324,7 +331,7 @@ print(time.perf_counter() - t0, time.process_time() - c0, rss(), before, res.val
 def bench_identify_large(rows=IDENTIFY_ROWS):
     """identify (mu, theta0, from theta0 = 0.3 and mu = 0.1) on a generated 10^6-sample record
     (20 kHz, 4 vanes, ellipse, mu 0.17, theta0 0.4, 2 % noise), in a subprocess: wall and CPU
-    time, peak resident memory (ru_maxrss) of the process and what identify adds to it."""
+    time, peak resident memory (VmHWM) of the process and what identify adds to it."""
     import dataclasses
     import subprocess
 
