@@ -469,7 +469,10 @@ def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
     row = tq.reshape(1, n)
     for sl in sample_blocks(n):
         m = sl.stop - sl.start
-        _, w, wd = drive_motion(theta0 + w0 * (tau[sl] - delay), theta0, w0, rc, rs, k, g[sl], gd[sl])
+        if rc == 0 and rs == 0:  # no ripple: drive_motion's speed and acceleration, bit for bit
+            w, wd = w0 * g[sl], w0 * gd[sl]
+        else:
+            _, w, wd = drive_motion(theta0 + w0 * (tau[sl] - delay), theta0, w0, rc, rs, k, g[sl], gd[sl])
         fast(theta[sl], np.broadcast_to(w, (m,)), np.broadcast_to(wd, (m,)), z[:npar], out=row[:, sl],
              threads=default_threads() if m >= FAST_THREADED else 1, outputs="torque")
     tq += offset
