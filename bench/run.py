@@ -72,9 +72,45 @@ def bench_inverse_dynamics(n=100_000):
     from kernel_loops import bench_simd  # the SIMD library in the same run (issue 14)
 
     simd = bench_simd(cfg, kern, p, theta, rows, best_of)
+    api = bench_simulate_api(cfg, n, simd["rows"])
     return {"samples": n, "rows": out, "speedup_vs_numpy": ratio_numpy,
             "speedup_vs_numpy_threaded": ratio_threads, "speedup_vs_vm": ratio_vm,
-            "max_rel_difference_vs_numpy": agree, "simd": simd}
+            "max_rel_difference_vs_numpy": agree, "simd": simd, "simulate_api": api}
+
+
+SIMULATE_TARGET_VS_MAP = 10.0  # pumpsim.simulate on the SIMD library vs the same call on the CasADi map
+SIMULATE_TARGET_VS_KERNEL = 2.0  # ... and at most this factor slower than the SIMD kernel alone
+
+
+def bench_simulate_api(cfg, n, simd_rows):
+    """pumpsim.simulate (constrained, prescribed speed) for n samples: through the SIMD library's
+    reported-columns entry point, and the same call on the CasADi map (PUMPSIM_FIT_KERNEL=scalar:
+    the API as it was), held against the SIMD kernel rows of the same run (one thread; simulate
+    splits >= 20,000 samples over the machine's threads, so the 2-thread row is shown too)."""
+    from pumpsim.simulate import simulate
+
+    rate = 20000.0
+    duration = (n - 1) / rate
+    simulate(cfg, duration=duration, rate=rate)  # warm-up: kernels loaded
+    t_simd = best_of(lambda: simulate(cfg, duration=duration, rate=rate), repeats=5)
+    os.environ["PUMPSIM_FIT_KERNEL"] = "scalar"
+    try:
+        t_map = best_of(lambda: simulate(cfg, duration=duration, rate=rate), repeats=3)
+    finally:
+        del os.environ["PUMPSIM_FIT_KERNEL"]
+    k1, k2 = simd_rows["SIMD library, one design"]["seconds"], simd_rows["SIMD library, 2 threads"]["seconds"]
+    vs_map, vs_kernel, vs_kernel2 = t_map / t_simd, t_simd / k1, t_simd / k2
+    print(f"\npumpsim.simulate, constrained, {n} samples")
+    print(f"{'path':<40}{'seconds':>10}{'samples/s':>14}")
+    for name, t in (("simulate, SIMD library (reported columns)", t_simd), ("simulate, CasADi map (before)", t_map),
+                    ("SIMD kernel alone, 1 thread", k1), ("SIMD kernel alone, 2 threads", k2)):
+        print(f"{name:<40}{t:>10.4f}{n / t:>14.3g}")
+    print(f"simulate SIMD vs CasADi map {vs_map:.1f}x (target >= {SIMULATE_TARGET_VS_MAP:g}x); "
+          f"{vs_kernel:.2f}x the SIMD kernel's time on one thread, {vs_kernel2:.2f}x on two "
+          f"(target <= {SIMULATE_TARGET_VS_KERNEL:g}x)")
+    return {"samples": n, "simd_seconds": t_simd, "map_seconds": t_map, "speedup_vs_map": vs_map,
+            "time_vs_kernel_1_thread": vs_kernel, "time_vs_kernel_2_threads": vs_kernel2,
+            "target_met": vs_map >= SIMULATE_TARGET_VS_MAP and vs_kernel2 <= SIMULATE_TARGET_VS_KERNEL}
 
 
 COMPILE_TARGET_S = 60.0  # one variant, model build + C compile
@@ -276,6 +312,71 @@ def bench_benchlog(duration=5.0, rate=1000.0):
     print(f"  {est} (truth {truth}); wall {wall:.1f} s (target <= 30 s)")
     return {"samples": int(log.n), "seconds": wall, "simulations": fit.result.n_evaluations,
             "estimates": est, "truth": truth, "target_met": wall <= 30.0}
+IDENTIFY_ROWS = 1_000_000
+IDENTIFY_TARGET_MIB = 300.0
+# identify in its own process: peak resident memory of the whole process, and the part identify
+# adds to the process with its modules imported, the record loaded and the kernels built. The peak
+# is VmHWM (Linux), not ru_maxrss: getrusage keeps the maximum across execve, so a child started
+# from a large parent reports the parent's size.
+_IDENTIFY_PROBE = """
+import dataclasses, resource, sys, time
+sys.path.insert(0, {root!r})
+import numpy as np
+from pumpsim.config import load_config
+from pumpsim.data import Dataset
+from pumpsim.identification import identify
+from pumpsim.kernels import fast_kernel, load_kernels
+def rss():
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(ln.split()[1]) for ln in fh if ln.startswith("VmHWM:")) / 1024
+    except (OSError, StopIteration):
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+rec = np.load(sys.argv[1])
+base = load_config(sys.argv[2])
+fast_kernel(load_kernels(base.parameters().structure).structure)
+start = dataclasses.replace(base, values={{**base.values, **{{f"friction.{{c}}.{{k}}": v for c in ("housing", "slot")
+                                                            for k, v in (("dynamic", 0.1), ("static", 0.1 * 0.18 / 0.17))}}}})
+data = Dataset(rec["time"], rec["torque"])
+before = rss()
+t0, c0 = time.perf_counter(), time.process_time()
+res = identify(start, data, ["mu", "theta0"], initial={{"theta0": 0.3}})
+print(time.perf_counter() - t0, time.process_time() - c0, rss(), before, res.value("mu"), res.value("theta0"))
+"""
+
+
+def bench_identify_large(rows=IDENTIFY_ROWS):
+    """identify (mu, theta0, from theta0 = 0.3 and mu = 0.1) on a generated 10^6-sample record
+    (20 kHz, 4 vanes, ellipse, mu 0.17, theta0 0.4, 2 % noise), in a subprocess: wall and CPU
+    time, peak resident memory (VmHWM) of the process and what identify adds to it."""
+    import dataclasses
+    import subprocess
+
+    from pumpsim.simulate import simulate
+
+    path = ROOT / "examples" / "ellipse_4vanes.toml"
+    base = load_config(path)
+    truth = dataclasses.replace(base, angle=0.4, values={**base.values, "friction.housing.dynamic": 0.17,
+                                                         "friction.housing.static": 0.18})
+    sim = simulate(truth, duration=(rows - 1) / 20000.0, rate=20000.0)
+    y = sim.torque + np.random.default_rng(0).normal(0, 0.02 * np.sqrt(np.mean(sim.torque**2)), sim.time.size)
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = os.path.join(tmp, "record.npz")
+        np.savez(rec, time=sim.time, torque=y)
+        del sim, y
+        r = subprocess.run([sys.executable, "-c", _IDENTIFY_PROBE.format(root=str(ROOT)), rec, str(path)],
+                           capture_output=True, text=True)
+    if r.returncode:
+        raise RuntimeError(f"identify on {rows} rows failed:\n{r.stderr[-2000:]}")
+    wall, cpu, peak, before, mu, theta0 = map(float, r.stdout.split()[-6:])
+    met = peak <= IDENTIFY_TARGET_MIB
+    print(f"\nidentify (mu, theta0) on {rows:,} samples, own process")
+    print(f"  wall {wall:.1f} s, CPU {cpu:.1f} s; peak resident {peak:.0f} MiB (target <= "
+          f"{IDENTIFY_TARGET_MIB:g}: {'met' if met else 'MISSED'}), of which identify adds {peak - before:.0f} "
+          f"MiB to {before:.0f} MiB (modules, record, kernels); mu {mu:.5f} (true 0.17), theta0 {theta0:.4f} (0.4)")
+    return {"rows": rows, "wall_seconds": wall, "cpu_seconds": cpu, "peak_mib": peak,
+            "added_mib": peak - before, "mu": mu, "theta0": theta0, "target_mib": IDENTIFY_TARGET_MIB,
+            "target_met": met}
 
 
 LOAD_ROWS = 1_000_000
@@ -339,18 +440,20 @@ def bench_load(rows=LOAD_ROWS):
 
 
 BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile, "contact": bench_contact,
-           "identify": bench_identify, "diagnose": bench_diagnose, "load": bench_load,
-           "benchlog": bench_benchlog}
+           "identify": bench_identify, "identify_1e6": bench_identify_large, "diagnose": bench_diagnose,
+           "load": bench_load}
+# run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes today
+OPTIONAL = {"benchlog": bench_benchlog}
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
-    ap.add_argument("--only", nargs="*", choices=list(BENCHES))
+    ap.add_argument("--only", nargs="*", choices=list(BENCHES) + list(OPTIONAL))
     ap.add_argument("--scipy-span", type=float, default=0.1,
                     help="simulated seconds for the SciPy comparison of the contact model")
     a = ap.parse_args()
-    benches = dict(BENCHES, contact=functools.partial(bench_contact, scipy_span=a.scipy_span))
+    benches = dict(BENCHES, **OPTIONAL, contact=functools.partial(bench_contact, scipy_span=a.scipy_span))
     result = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(),
                           "platform": platform.platform()}}
     for name in a.only or BENCHES:

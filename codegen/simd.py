@@ -27,6 +27,10 @@ output for vanes 0..N-1; `ld` lets callers write a column range of a larger arra
       one parameter vector per block of `block` consecutive samples (block = n: one design);
   pumpsim_simd_samples(n, theta, omega, omegadot, pt, pld, out, ld): pt is (n_p, pld), one
       parameter vector per sample, stored by parameter.
+  pumpsim_simd_<subset>_blocks / _samples for each reduced set of model_spec.simd.SUBSETS: the same
+      arguments, `out` (1 + len(subset) N, ld) with the torque and the subset's vane outputs only
+      (the vane body restricted to them: the torque alone is 1,124 of the 4-vane ellipse's 1,342
+      vane instructions, and stores one row).
 """
 from __future__ import annotations
 
@@ -34,6 +38,7 @@ import functools
 import math
 import os
 import re
+import string
 import subprocess
 import time
 from pathlib import Path
@@ -41,7 +46,7 @@ from pathlib import Path
 import casadi as ca
 
 from pumpsim.errors import CodegenError
-from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, simd_options, simd_variant
+from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, SUBSETS, simd_options, simd_variant
 
 from . import build
 
@@ -172,18 +177,21 @@ def simd_functions(structure):
                 share_index=VANE_OUTPUTS.index("torque_share"))
 
 
-_DRIVER = r"""
+# One template for every entry point: the full one (sfx "", every vane output stored) and the
+# reduced ones of SUBSETS (only their outputs computed and stored; the vanes' torque shares, which
+# the rotor sum needs, kept in a chunk-sized scratch when the subset does not store them).
+_DRIVER = string.Template(r"""
 /* One design over samples [0, n): theta.. point at sample 0, p at its parameter vector. */
-static void one_design(long n, const double *theta, const double *omega, const double *omegadot,
+static void one_design$sfx(long n, const double *theta, const double *omega, const double *omegadot,
                        const double *p, double *out, long ld) {
-  double arg[2 * NV];
+  double arg[2 * NV];$scratch
   const double *ain[NP];
   double *aout[2 * NV];
   for (int q = 0; q < NP; ++q) ain[q] = p + q;
   for (int q = 0; q < 2 * NV; ++q) aout[q] = arg + q;
   loop_arguments_shared(1, ain, aout);
   const double *vin[5 + NP];
-  double *vout[NO];
+  double *vout[$no];
   const double *tin[1 + NV + NP];
   for (int q = 0; q < NP; ++q) vin[5 + q] = tin[1 + NV + q] = p + q;
   for (long lo = 0; lo < n; lo += CHUNK) {
@@ -191,32 +199,32 @@ static void one_design(long n, const double *theta, const double *omega, const d
     vin[0] = theta + lo; vin[1] = omega + lo; vin[2] = omegadot + lo;
     for (int k = 0; k < NV; ++k) {
       vin[3] = arg + k; vin[4] = arg + NV + k;
-      for (int j = 0; j < NO; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;
-      loop_vane_shared(m, vin, vout);
+      for (int j = 0; j < $stored; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;$scratch_out
+      loop_vane${sfx}_shared(m, vin, vout);
     }
     tin[0] = omegadot + lo;
-    for (int k = 0; k < NV; ++k) tin[1 + k] = out + (1 + (long)SHARE * NV + k) * ld + lo;
+    for (int k = 0; k < NV; ++k) tin[1 + k] = $share;
     double *tout[1] = {out + lo};
     loop_torque_shared(m, tin, tout);
   }
 }
 
-int pumpsim_simd_blocks(long n, const double *theta, const double *omega, const double *omegadot,
+int pumpsim_simd${sfx}_blocks(long n, const double *theta, const double *omega, const double *omegadot,
                         const double *p, long block, double *out, long ld) {
   if (n < 0 || block < 1 || ld < n) return 1;
   for (long b = 0; b * block < n; ++b) {
     long lo = b * block, m = n - lo < block ? n - lo : block;
-    one_design(m, theta + lo, omega + lo, omegadot + lo, p + b * NP, out + lo, ld);
+    one_design$sfx(m, theta + lo, omega + lo, omegadot + lo, p + b * NP, out + lo, ld);
   }
   return 0;
 }
 
-int pumpsim_simd_samples(long n, const double *theta, const double *omega, const double *omegadot,
+int pumpsim_simd${sfx}_samples(long n, const double *theta, const double *omega, const double *omegadot,
                          const double *pt, long pld, double *out, long ld) {
   if (n < 0 || pld < n || ld < n) return 1;
-  double arg[2 * NV][CHUNK];
+  double arg[2 * NV][CHUNK];$scratch
   const double *ain[NP], *vin[5 + NP], *tin[1 + NV + NP];
-  double *aout[2 * NV], *vout[NO];
+  double *aout[2 * NV], *vout[$no];
   for (int q = 0; q < 2 * NV; ++q) aout[q] = arg[q];
   for (long lo = 0; lo < n; lo += CHUNK) {
     long m = n - lo < CHUNK ? n - lo : CHUNK;
@@ -225,17 +233,40 @@ int pumpsim_simd_samples(long n, const double *theta, const double *omega, const
     vin[0] = theta + lo; vin[1] = omega + lo; vin[2] = omegadot + lo;
     for (int k = 0; k < NV; ++k) {
       vin[3] = arg[k]; vin[4] = arg[NV + k];
-      for (int j = 0; j < NO; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;
-      loop_vane_samples(m, vin, vout);
+      for (int j = 0; j < $stored; ++j) vout[j] = out + (1 + (long)j * NV + k) * ld + lo;$scratch_out
+      loop_vane${sfx}_samples(m, vin, vout);
     }
     tin[0] = omegadot + lo;
-    for (int k = 0; k < NV; ++k) tin[1 + k] = out + (1 + (long)SHARE * NV + k) * ld + lo;
+    for (int k = 0; k < NV; ++k) tin[1 + k] = $share;
     double *tout[1] = {out + lo};
     loop_torque_samples(m, tin, tout);
   }
   return 0;
 }
-"""
+""")
+
+
+def vane_subset(vane: ca.Function, stored) -> ca.Function:
+    """The vane body with only the outputs `stored` (in that order) and the torque share last when
+    not among them: CasADi keeps only the instructions these outputs depend on."""
+    keep = list(stored) + ([] if "torque_share" in stored else ["torque_share"])
+    sx = vane.sx_in()
+    outs = dict(zip(vane.name_out(), vane.call(sx)))
+    return ca.Function(f"{vane.name()}_{len(stored)}", sx, [outs[k] for k in keep], vane.name_in(), keep)
+
+
+def _driver(sfx: str, stored: list, vane: ca.Function) -> str:
+    """The C entry points of one output set (see _DRIVER)."""
+    share_row = "out + (1 + (long){} * NV + k) * ld + lo"
+    if sfx == "":  # the full set: the vane function's own outputs
+        return _DRIVER.substitute(sfx="", scratch="", no="NO", stored="NO", scratch_out="",
+                                  share=share_row.format("SHARE"))
+    if "torque_share" in stored:
+        return _DRIVER.substitute(sfx=sfx, scratch="", no=vane.n_out(), stored=len(stored), scratch_out="",
+                                  share=share_row.format(stored.index("torque_share")))
+    return _DRIVER.substitute(sfx=sfx, scratch="\n  double share[NV][CHUNK];", no=vane.n_out(),
+                              stored=len(stored), scratch_out=f"\n      vout[{len(stored)}] = share[k];",
+                              share="share[k]")
 
 
 def generate_source(structure) -> tuple[str, dict]:
@@ -258,21 +289,30 @@ def generate_source(structure) -> tuple[str, dict]:
         emit_loop(args, "loop_arguments_samples", {0}),
         emit_loop(torque, "loop_torque_shared", {0, 1}),
         emit_loop(torque, "loop_torque_samples", {0, 1, 2}),
-        _DRIVER,
+        _driver("", fns["outputs"][1:], vane),
     ]
+    for name, stored in SUBSETS.items():
+        sub = vane_subset(vane, stored)
+        parts += [emit_loop(sub, f"loop_vane_{name}_shared", {0, 1, 2}),
+                  emit_loop(sub, f"loop_vane_{name}_samples", set(range(sub.n_in()))),
+                  _driver(f"_{name}", list(stored), sub)]
     src = "\n".join(parts)
     lines = src.splitlines()
     starts = {m.group(1): i + 1 for i, ln in enumerate(lines) for m in [re.match(r"static void (loop_\w+)\(", ln)] if m}
     ends = {name: next(i + 1 for i in range(a, len(lines)) if lines[i] == "}") for name, a in starts.items()}
     info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]), "chunk": CHUNK,
+            "subsets": {name: list(stored) for name, stored in SUBSETS.items()},
             "vane_instructions": vane.n_instructions(),
             "loop_lines": {name: [starts[name], ends[name]] for name in starts}}
     return src, info
 
 
-def unvectorised_loops(loop_lines: dict, report: str, names=("loop_vane_shared", "loop_vane_samples")):
-    """The loops among `names` that gcc's -fopt-info-vec-optimized report does not name as
-    vectorised (a loop is found by the source lines of its function)."""
+def unvectorised_loops(loop_lines: dict, report: str, names=None):
+    """The loops among `names` (default: every vane loop, in source order) that gcc's
+    -fopt-info-vec-optimized report does not name as vectorised (a loop is found by the source
+    lines of its function)."""
+    if names is None:
+        names = sorted((nm for nm in loop_lines if nm.startswith("loop_vane")), key=lambda nm: loop_lines[nm][0])
     done = [int(m.group(1)) for m in re.finditer(r":(\d+):\d+: optimized: loop vectorized", report)]
     return [nm for nm in names if not any(loop_lines[nm][0] <= ln <= loop_lines[nm][1] for ln in done)]
 

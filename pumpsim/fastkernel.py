@@ -5,7 +5,9 @@ one; calling it evaluates the constrained model's inverse dynamics for arrays th
 with one parameter vector for all samples, one per block of consecutive samples (many designs, e.g.
 one revolution each) or one per sample. No CasADi objects are involved: ctypes hands the library
 pointers to float64 arrays and it writes into one preallocated (1 + 17 N, n) array (pass `out=` to
-reuse it: fresh pages cost ~0.2 us per sample). ctypes releases the GIL during the call, so
+reuse it: fresh pages cost ~0.2 us per sample). `outputs=` names the outputs wanted: the call then
+runs the smallest entry point that computes them (model_spec.simd.SUBSETS: the torque alone, one
+row; the simulation's reported columns) and the buffer has only that entry's rows. ctypes releases the GIL during the call, so
 `threads > 1` splits the samples over threads.
 
 Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key over C source and
@@ -33,7 +35,7 @@ from .kernels import build_library, building_allowed, log_build
 from .model_spec import manifest as mf
 from .model_spec.outputs import VANE_OUTPUTS
 from .model_spec.parameters import Structure, layout
-from .model_spec.simd import find_simd
+from .model_spec.simd import SUBSETS, find_simd
 
 _LOADED: dict = {}
 _c_long, _ptr = ctypes.c_long, ctypes.c_void_p
@@ -54,13 +56,38 @@ class FastInverseDynamics:
         self.key = manifest["key"]
         self.vanes, self.n_params = manifest["vanes"], manifest["n_params"]
         self.outputs = tuple(manifest["outputs"])  # torque, then the per-vane outputs
-        self.rows = 1 + (len(self.outputs) - 1) * self.vanes
+        self._set_layouts(manifest["subsets"])
         lib = ctypes.CDLL(str(folder / manifest["library"]))
-        self._blocks, self._samples = lib.pumpsim_simd_blocks, lib.pumpsim_simd_samples
-        self._blocks.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
-        self._samples.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
-        self._blocks.restype = self._samples.restype = ctypes.c_int
+        self._entries = {}
+        for key in self.layouts:
+            fns = [getattr(lib, f"pumpsim_simd{'' if key is None else '_' + key}_{kind}")
+                   for kind in ("blocks", "samples")]
+            for fn in fns:
+                fn.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
+                fn.restype = ctypes.c_int
+            self._entries[key] = fns
         self._lib = lib
+
+    def _set_layouts(self, subsets: dict):
+        """The vane outputs of each entry point: None the full one, then the reduced SUBSETS."""
+        self.layouts = {None: self.outputs[1:], **{k: tuple(v) for k, v in subsets.items()}}
+        self.rows = self.rows_of(None)
+
+    def rows_of(self, key) -> int:
+        return 1 + len(self.layouts[key]) * self.vanes
+
+    def entry_for(self, outputs) -> str | None:
+        """The entry point with the fewest rows that computes every name in `outputs` (None: all)."""
+        if outputs is None:
+            return None
+        if isinstance(outputs, str):
+            outputs = (outputs,)
+        want = set(outputs) - {"torque"}
+        unknown = sorted(want - set(self.outputs))
+        if unknown:
+            raise ConfigError(f"no inverse-dynamics output {', '.join(map(repr, unknown))}; available: "
+                              f"{', '.join(self.outputs)}")
+        return min((k for k, names in self.layouts.items() if want <= set(names)), key=self.rows_of)
 
     # -- arguments ---------------------------------------------------------------------------------
     def _samples_array(self, name, a, n):
@@ -71,16 +98,23 @@ class FastInverseDynamics:
             raise ConfigError(f"{name} must be a scalar or have {n} samples, got shape {a.shape}")
         return np.ascontiguousarray(a)
 
-    def output_array(self, n: int) -> np.ndarray:
-        """An output buffer for n samples, to pass as `out=` to repeated calls. `out` may also be
-        a column range of a wider array (rows contiguous, any row stride)."""
-        return np.empty((self.rows, n))
+    def output_array(self, n: int, outputs=None) -> np.ndarray:
+        """An output buffer for n samples (and the `outputs` of the call), to pass as `out=` to
+        repeated calls. `out` may also be a column range of a wider array (rows contiguous, any
+        row stride)."""
+        return np.empty((self.rows_of(self.entry_for(outputs)), n))
 
-    def __call__(self, theta, omega, omegadot, p, block: int | None = None, out=None,
-                 threads: int = 1) -> dict:
-        """Evaluate n samples (n = len(theta)). p: (n_p,) for all samples; (n_blocks, n_p) with
-        `block` samples per row (the last block may be shorter); or (n, n_p) without `block`, one
-        vector per sample. Returns {"torque": (n,), vane output: (N, n)} -- views into `out`."""
+    def _out_array(self, out, key, n):
+        rows = self.rows_of(key)
+        if out is None:
+            return np.empty((rows, n))
+        if (out.shape != (rows, n) or out.dtype != np.float64 or out.strides[1] != 8
+                or out.strides[0] < 8 * n or out.strides[0] % 8):
+            raise ConfigError(f"out must be a float64 array of shape {(rows, n)} with contiguous "
+                              "rows (see output_array)")
+        return out
+
+    def _arguments(self, theta, omega, omegadot, p):
         theta = np.atleast_1d(np.asarray(theta, dtype=float))
         if theta.ndim != 1:
             raise ConfigError(f"theta must be one-dimensional, got shape {theta.shape}")
@@ -92,12 +126,18 @@ class FastInverseDynamics:
         if p.shape[-1:] != (self.n_params,) or p.ndim > 2:
             raise ConfigError(f"p must have {self.n_params} parameters per row ({self.structure.variant}), "
                               f"got shape {p.shape}")
-        if out is None:
-            out = self.output_array(n)
-        elif (out.shape != (self.rows, n) or out.dtype != np.float64 or out.strides[1] != 8
-              or out.strides[0] < 8 * n or out.strides[0] % 8):
-            raise ConfigError(f"out must be a float64 array of shape {(self.rows, n)} with contiguous "
-                              "rows (see output_array)")
+        return theta, omega, omegadot, p, n
+
+    def __call__(self, theta, omega, omegadot, p, block: int | None = None, out=None,
+                 threads: int = 1, outputs=None) -> dict:
+        """Evaluate n samples (n = len(theta)). p: (n_p,) for all samples; (n_blocks, n_p) with
+        `block` samples per row (the last block may be shorter); or (n, n_p) without `block`, one
+        vector per sample. outputs: the names wanted (default all; see entry_for). Returns
+        {"torque": (n,), vane output: (N, n)} for those names -- views into `out`."""
+        theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
+        key = self.entry_for(outputs)
+        out = self._out_array(out, key, n)
+        blocks_fn, samples_fn = self._entries[key]
         ld = out.strides[0] // 8
         if p.ndim == 2 and block is None:
             if p.shape[0] != n:
@@ -127,10 +167,10 @@ class FastInverseDynamics:
                 return 0
             args = (hi - lo, a_th + 8 * lo, a_om + 8 * lo, a_od + 8 * lo)
             if per_sample:
-                return self._samples(*args, a_p + 8 * lo, n, a_out + 8 * lo, ld)
+                return samples_fn(*args, a_p + 8 * lo, n, a_out + 8 * lo, ld)
             if shared:
-                return self._blocks(*args, a_p, hi - lo, a_out + 8 * lo, ld)
-            return self._blocks(*args, a_p + 8 * self.n_params * (lo // block), block, a_out + 8 * lo, ld)
+                return blocks_fn(*args, a_p, hi - lo, a_out + 8 * lo, ld)
+            return blocks_fn(*args, a_p + 8 * self.n_params * (lo // block), block, a_out + 8 * lo, ld)
 
         if threads > 1 and n > 1:
             with ThreadPoolExecutor(threads) as ex:
@@ -139,14 +179,17 @@ class FastInverseDynamics:
             codes = [run(0, n)]
         if any(codes):
             raise CodegenError(f"SIMD inverse dynamics of {self.structure.variant} refused its arguments")
-        return self.split(out)
+        return self.split(out, key, outputs)
 
-    def split(self, out: np.ndarray) -> dict:
+    def split(self, out: np.ndarray, key=None, outputs=None) -> dict:
+        """{name: view of out} for an entry point's buffer: all its outputs, or `outputs`."""
         N = self.vanes
         res = {"torque": out[0]}
-        for j, name in enumerate(self.outputs[1:]):
+        for j, name in enumerate(self.layouts[key]):
             res[name] = out[1 + j * N:1 + (j + 1) * N]
-        return res
+        if outputs is None:
+            return res
+        return {k: res[k] for k in ((outputs,) if isinstance(outputs, str) else outputs)}
 
 
 class ScalarInverseDynamics(FastInverseDynamics):
@@ -162,19 +205,15 @@ class ScalarInverseDynamics(FastInverseDynamics):
         self.key, self.folder, self.manifest = self.kern.key, self.kern.folder, self.kern.manifest
         self.vanes, self.n_params = structure.vanes, len(layout(structure))
         self.outputs = ("torque", *VANE_OUTPUTS)
-        self.rows = 1 + len(VANE_OUTPUTS) * self.vanes
+        self._set_layouts(SUBSETS)
 
-    def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1):
+    def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1, outputs=None):
         from .simulate import evaluate
 
-        theta = np.atleast_1d(np.asarray(theta, dtype=float))
-        n = theta.size
-        omega = self._samples_array("omega", omega, n)
-        omegadot = self._samples_array("omegadot", omegadot, n)
-        p = np.asarray(p, dtype=float)
-        if p.shape[-1:] != (self.n_params,) or p.ndim > 2:
-            raise ConfigError(f"p must have {self.n_params} parameters per row, got shape {p.shape}")
-        out = self.output_array(n) if out is None else out
+        theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
+        key = self.entry_for(outputs)
+        out = self._out_array(out, key, n)
+        names = self.layouts[key]
         if p.ndim == 1:
             block, p = n, p[None, :]
         elif block is None:
@@ -185,11 +224,11 @@ class ScalarInverseDynamics(FastInverseDynamics):
         for b, pb in enumerate(p):
             lo, hi = b * block, min(n, (b + 1) * block)
             r = evaluate(self.kern, "inverse_dynamics", [theta[lo:hi], omega[lo:hi], omegadot[lo:hi]],
-                         pb, hi - lo)
+                         pb, hi - lo, ("torque", *names))
             out[0, lo:hi] = r["torque"]
-            for j, name in enumerate(self.outputs[1:]):
+            for j, name in enumerate(names):
                 out[1 + j * N:1 + (j + 1) * N, lo:hi] = r[name]
-        return self.split(out)
+        return self.split(out, key, outputs)
 
 
 def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: bool = True, log=None):

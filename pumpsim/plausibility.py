@@ -155,7 +155,7 @@ def model_torque_range(cfg, speed):
     statics scaled by the configured ratios): the range a fit of mu can reach."""
     from .config import as_array
     from .kernels import load_kernels
-    from .simulate import inverse_dynamics
+    from .simulate import sampled_inverse_dynamics
 
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)
@@ -169,7 +169,7 @@ def model_torque_range(cfg, speed):
             vals[f"friction.{side}.static"] = mu * ratio
         pv2 = pv.copy()
         pv2.values.update(vals)
-        tq = inverse_dynamics(kern, as_array(pv2), grid, speed, 0.0)["torque"]
+        tq = sampled_inverse_dynamics(kern, as_array(pv2), grid, speed, 0.0, ("torque",))["torque"]
         out.append(float(np.sqrt(np.mean(tq**2))))
     return min(out), max(out)
 

@@ -8,7 +8,7 @@ import numpy as np
 from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
-from .kernels import load_kernels
+from .kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels
 from .model_spec import outputs as kernel_outputs
 from .model_spec.parameters import FRICTION_KEYS
 from .result import PER_VANE_COLUMNS, REPORTED, LazyOutputs, SimulationResult, contact_warnings
@@ -61,6 +61,18 @@ def inverse_dynamics(kern, p, theta, omega, omegadot, outputs=None):
     omega = np.broadcast_to(np.asarray(omega, dtype=float), (n,)).copy()
     omegadot = np.broadcast_to(np.asarray(omegadot, dtype=float), (n,)).copy()
     return evaluate(kern, "inverse_dynamics", [theta, omega, omegadot], p, n, outputs)
+
+
+def sampled_inverse_dynamics(kern, p, theta, omega, omegadot, outputs=None) -> dict:
+    """inverse_dynamics through the fastest kernel this machine has: for a constrained variant the
+    SIMD library (pumpsim.fastkernel; the entry point that computes only `outputs`, written into
+    one buffer, split over threads from FAST_THREADED samples), else the CasADi map. The same
+    names and shapes; the same numbers to ~1e-14 of each output's scale."""
+    fast = fast_kernel(kern.structure)
+    if fast is None:
+        return inverse_dynamics(kern, p, theta, omega, omegadot, outputs)
+    threads = default_threads() if np.size(theta) >= FAST_THREADED else 1
+    return fast(theta, omega, omegadot, p, outputs=outputs, threads=threads)
 
 
 def sample_times(duration, rate):
@@ -160,11 +172,11 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
     N = cfg.vanes
     if cfg.mode == "speed":
         theta, omega, omegadot = speed_profile(cfg.angle, cfg.speed, t, cfg.speed_ripple)
-        out = inverse_dynamics(kern, p, theta, omega, omegadot, ("torque", *REPORTED))
+        out = sampled_inverse_dynamics(kern, p, theta, omega, omegadot, ("torque", *REPORTED))
         torque = out["torque"]
 
         def more(names):  # every other output, on first use
-            return inverse_dynamics(kern, p, theta, omega, omegadot, names)
+            return sampled_inverse_dynamics(kern, p, theta, omega, omegadot, names)
     else:
         theta, omega, torque, out, stats, ev = _torque_drive(kern, p, cfg, t, method, rtol, atol,
                                                              max_step, progress, max_steps)

@@ -100,23 +100,46 @@ def order_columns(angle, orders) -> np.ndarray:
     return np.column_stack([np.cos(kth), np.sin(kth)])
 
 
-def model_orders(fitted, angle, dt, speed) -> tuple:
+ORDER_CHUNK = 1 << 12  # samples per block of order columns (4096 x 128 columns: 4 MB)
+
+
+def order_normal_equations(angle, orders, V) -> tuple:
+    """G = X^T X and X^T V for the order columns X = order_columns(angle, orders), summed over
+    blocks of samples: X itself would be n x 2 len(orders) (1 GB at 10^6 samples and 64 orders)."""
+    angle, V = np.asarray(angle, dtype=float), np.asarray(V, dtype=float).reshape(len(angle), -1)
+    m = 2 * len(orders)
+    G, B = np.zeros((m, m)), np.zeros((m, V.shape[1]))
+    for lo in range(0, angle.size, ORDER_CHUNK):
+        X = order_columns(angle[lo:lo + ORDER_CHUNK], orders)
+        G += X.T @ X
+        B += X.T @ V[lo:lo + ORDER_CHUNK]
+    return G, B
+
+
+def normal_solve(G, b) -> np.ndarray:
+    """The least-squares coefficients from the normal equations (minimum norm when the columns are
+    dependent: a record shorter than the orders' periods)."""
+    return np.linalg.lstsq(G, b, rcond=1e-12)[0]
+
+
+def model_orders(fitted, angle, dt, speed, others=()) -> tuple:
     """The orders carrying MODEL_ORDER_POWER of the fitted torque's shaft-order power (below the
-    Nyquist order), with their least-squares columns; () when the model has no shaft orders."""
+    Nyquist order) and the normal equations of their least-squares columns X: (orders, X^T X,
+    X^T [fitted - its mean, *others]); ((), None, None) when the model has no shaft orders."""
     kmax = int(min(MAX_ORDER, 0.9 * math.pi / max(abs(speed) * dt, 1e-300)))
     if kmax < 1 or fitted.size < 4 * kmax + 8:
-        return (), None
+        return (), None, None
     ks = np.arange(1, kmax + 1)
-    X = order_columns(angle, ks)
-    f = fitted - fitted.mean()
-    coef, *_ = np.linalg.lstsq(X, f, rcond=None)
+    G, B = order_normal_equations(angle, ks, np.column_stack([fitted - fitted.mean(), *others]))
+    coef = normal_solve(G, B[:, 0])
     power = coef[:kmax] ** 2 + coef[kmax:] ** 2
     total = float(power.sum())
     if total <= 1e-24 * max(float(np.mean(fitted**2)), 1e-300) or total <= 0:
-        return (), None
+        return (), None, None
     order = np.argsort(power)[::-1]
     keep = np.sort(order[:int(np.searchsorted(np.cumsum(power[order]), MODEL_ORDER_POWER * total)) + 1])
-    return tuple(int(k) for k in ks[keep]), X[:, np.concatenate([keep, keep + kmax])]
+    cols = np.concatenate([keep, keep + kmax])
+    return tuple(int(k) for k in ks[keep]), G[np.ix_(cols, cols)], B[cols]
 
 
 def assess(measured, fitted, angle, dt, speed, fitted_parameters: int = 0) -> Adequacy:
@@ -134,12 +157,11 @@ def assess(measured, fitted, angle, dt, speed, fitted_parameters: int = 0) -> Ad
                    systematic_to_noise=sys_rms / sigma if sigma > 0 else (math.inf if sys_rms > 0 else 0.0),
                    systematic_share=sys_rms / f_rms if f_rms > 0 else 0.0)
     if angle is not None:
-        ks, X = model_orders(f, angle, dt, speed)
+        ks, G, B = model_orders(f, angle, dt, speed, others=(r - r.mean(),))
         if ks:
-            cm, *_ = np.linalg.lstsq(X, f - f.mean(), rcond=None)
-            cr, *_ = np.linalg.lstsq(X, r - r.mean(), rcond=None)
-            pm, pr = float(np.sum((X @ cm) ** 2)), float(np.sum((X @ cr) ** 2))
-            dof = X.shape[1]
+            cm, cr = normal_solve(G, B[:, 0]), normal_solve(G, B[:, 1])
+            pm, pr = float(cm @ G @ cm), float(cr @ G @ cr)  # |X c|^2
+            dof = G.shape[0]
             F = (pr / dof) / max(sigma**2, 1e-300)
             out.model_orders, out.order_misfit = list(ks), math.sqrt(pr / pm) if pm > 0 else None
             out.order_misfit_p = float(stats.chi2.sf(F * dof, dof))

@@ -67,6 +67,10 @@ def scaled_svd(J):
     return scale, U, s, Vt
 
 
+def _sumsq(v) -> float:
+    return float(v @ v)
+
+
 def _rms(r) -> float:
     return float(np.sqrt(np.mean(r**2)))
 
@@ -102,12 +106,12 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
             message = "Jacobian became singular"
             break
         g = U.T @ rw
+        del U  # n x k: not held while the next point's model and Jacobian are evaluated
         if lm:
             while True:
                 step = (Vt.T @ (s * g / (s**2 + lam))) / scale
                 xn = np.clip(x + step, prob.lower, prob.upper)
-                rn = wt(prob.y - prob.model(xn))
-                if rn @ rn <= rw @ rw or lam > 1e12:
+                if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw or lam > 1e12:
                     lam = max(lam / 3, 1e-12)
                     break
                 lam *= 4
@@ -115,13 +119,14 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
             step = relaxation * (Vt.T @ (g / s)) / scale
             for _ in range(10):  # safeguard: halve a step that would increase the residual
                 xn = np.clip(x + step, prob.lower, prob.upper)
-                rn = wt(prob.y - prob.model(xn))  # trial: the model only, the Jacobian once accepted
-                if rn @ rn <= rw @ rw:
+                # trial: the model only, the Jacobian once accepted
+                if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw:
                     break
                 step = 0.5 * step
             else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
                 converged, message = True, "no further decrease of the residual"
                 break
+        J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = prob.model_and_jacobian(xn)
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
         x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)

@@ -189,13 +189,15 @@ class ConstantSpeedProblem(Problem):
         theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
         if lib is not np:
             return theta, None
-        cols = {"theta0": g - rc * math.cos(k * th0) + rs * math.sin(k * th0), "speed": (t - dl) * g,
-                "delay": -w0 * g, "ripple_cos": (np.sin(k * thn) - math.sin(k * th0)) / k,
-                "ripple_sin": (np.cos(k * thn) - math.cos(k * th0)) / k}
+        # each column computed only when fitted (at 10^6 samples each is 8 MB)
+        cols = {"theta0": lambda: g - rc * math.cos(k * th0) + rs * math.sin(k * th0),
+                "speed": lambda: (t - dl) * g, "delay": lambda: -w0 * g,
+                "ripple_cos": lambda: (np.sin(k * thn) - math.sin(k * th0)) / k,
+                "ripple_sin": lambda: (np.cos(k * thn) - math.cos(k * th0)) / k}
         J = np.zeros((t.size, len(self.names)))
         for j, nm in enumerate(self.names):
             if nm in cols:
-                J[:, j] = cols[nm]
+                J[:, j] = cols[nm]()
         return theta, J
 
     def angle(self, x):
@@ -260,7 +262,10 @@ class ConstantSpeedProblem(Problem):
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step / m
-            slope = (self._torque(theta + h, z, kin) - self._torque(theta - h, z, kin)) / (2 * h)
+            slope = np.empty(theta.size)
+            for sl in sample_blocks(theta.size):  # per sample: block by block (memory)
+                th, kn = theta[sl], [a[sl] for a in kin]
+                slope[sl] = (self._torque(th + h, z, kn) - self._torque(th - h, z, kn)) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
@@ -288,19 +293,22 @@ class ConstantSpeedProblem(Problem):
         J = np.zeros((theta.size, len(which)))
         scale = np.max(np.abs(tq)) if tq.size else 0.0
         floor = DIFFERENCE_FLOOR * scale
+        blocks = sample_blocks(theta.size)  # every step below is per sample: block by block
         for j, c in enumerate(which):
             seed = self._seeds[:, c]
             if not seed.any():  # 'lag' acts after the kernel
                 continue
             h = DIFFERENCE_STEP * self._difference_scale(self.names[c], z, seed)
-            up, down = (self._torque(theta, z + sgn * h * seed, kin) for sgn in (1.0, -1.0))
-            fwd, bwd = (up - tq) / h, (tq - down) / h
-            smooth = np.abs(fwd - bwd) <= DIFFERENCE_AGREE * (np.abs(fwd) + np.abs(bwd)) + floor / h
-            central = 0.5 * (fwd + bwd)
-            least = np.where(np.abs(fwd) < np.abs(bwd), fwd, bwd)
-            col = np.where(smooth | (np.abs(central) <= np.abs(least)), central, least)
-            # a change within rounding is none: 'no effect' (identifiability.py) must see none
-            J[:, j] = np.where(np.abs(up - down) <= DIFFERENCE_ROUNDING * scale, 0.0, col)
+            for sl in blocks:
+                th, kn, t0 = theta[sl], [a[sl] for a in kin], tq[sl]
+                up, down = (self._torque(th, z + sgn * h * seed, kn) for sgn in (1.0, -1.0))
+                fwd, bwd = (up - t0) / h, (t0 - down) / h
+                smooth = np.abs(fwd - bwd) <= DIFFERENCE_AGREE * (np.abs(fwd) + np.abs(bwd)) + floor / h
+                central = 0.5 * (fwd + bwd)
+                least = np.where(np.abs(fwd) < np.abs(bwd), fwd, bwd)
+                col = np.where(smooth | (np.abs(central) <= np.abs(least)), central, least)
+                # a change within rounding is none: 'no effect' (identifiability.py) must see none
+                J[sl, j] = np.where(np.abs(up - down) <= DIFFERENCE_ROUNDING * scale, 0.0, col)
         return J
 
     def _difference_scale(self, name, z, seed):
@@ -435,20 +443,40 @@ def sample_torque(kern, directions: int, samples: int) -> ca.Function:
     return _SAMPLE_FNS[mkey]
 
 
+SAMPLE_BLOCK = 1 << 16  # samples per block of a SIMD torque evaluation: its temporaries stay ~0.5 MB
+
+
+def sample_blocks(n: int):
+    """Slices of SAMPLE_BLOCK samples (a multiple of the SIMD library's chunk: the same bits as
+    one call over all samples)."""
+    return [slice(lo, min(n, lo + SAMPLE_BLOCK)) for lo in range(0, n, SAMPLE_BLOCK)]
+
+
 def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
     """`sample_torque(kern, 0, n)` evaluated at NumPy theta, tau, g, gd (n samples), z and ripple
     order k: through the SIMD inverse dynamics (pumpsim.fastkernel; the same model to ~1e-14 of the
-    torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map."""
+    torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map.
+    The SIMD path computes the torque alone, block by block into one array: at 10^6 samples its
+    speed and acceleration temporaries are those of a block, not of the record."""
     fast = fast_kernel(kern.structure)
     if fast is None:
         return np.asarray(sample_torque(kern, 0, theta.size)(theta, tau, z, k, g, gd)).ravel()
     npar = fast.n_params
     theta0, w0, delay, offset, rc, rs = z[npar:npar + len(Z_SPECIAL)]
-    _, w, wd = drive_motion(theta0 + w0 * (tau - delay), theta0, w0, rc, rs, k, g, gd)
     n = np.size(theta)
-    out = fast(theta, np.broadcast_to(w, (n,)), np.broadcast_to(wd, (n,)), z[:npar],
-               threads=default_threads() if n >= FAST_THREADED else 1)
-    return out["torque"] + offset
+    tau, g, gd = (np.broadcast_to(np.asarray(a, dtype=float), (n,)) for a in (tau, g, gd))
+    tq = np.empty(n)
+    row = tq.reshape(1, n)
+    for sl in sample_blocks(n):
+        m = sl.stop - sl.start
+        if rc == 0 and rs == 0:  # no ripple: drive_motion's speed and acceleration, bit for bit
+            w, wd = w0 * g[sl], w0 * gd[sl]
+        else:
+            _, w, wd = drive_motion(theta0 + w0 * (tau[sl] - delay), theta0, w0, rc, rs, k, g[sl], gd[sl])
+        fast(theta[sl], np.broadcast_to(w, (m,)), np.broadcast_to(wd, (m,)), z[:npar], out=row[:, sl],
+             threads=default_threads() if m >= FAST_THREADED else 1, outputs="torque")
+    tq += offset
+    return tq
 
 
 def drive_motion(theta_n, theta_start, omega0, rc, rs, k, g, gd, lib=np):
@@ -465,10 +493,10 @@ def drive_kinematics(data: Dataset, t):
     tau = integral of omega_s / mean(speed): the model's angle is theta0 + the integral of the
     smoothed measured speed, its speed and acceleration those of the trend (the column's noise
     never enters omegadot). Otherwise tau is t itself (the same array), g = 1, gd = 0 -- the
-    constant-speed model as it always was."""
+    constant-speed model as it always was (g and gd read-only views of one number: no memory)."""
     trend = data.speed_trend()
     if trend is None:
-        return t, np.ones_like(t), np.zeros_like(t)
+        return t, np.broadcast_to(1.0, t.shape), np.broadcast_to(0.0, t.shape)
     return (trend.warped_time(t), trend.speed(t) / trend.mean, trend.acceleration(t) / trend.mean)
 
 

@@ -22,6 +22,12 @@ from . import manifest as mf
 SIMD_CFLAGS = ["-O3", "-march=native", "-fopenmp-simd", "-fno-math-errno", "-ffp-contract=fast",
                "-fPIC", "-shared", "-std=gnu99"]
 LIBRARY = "pumpsim_simd"
+# The reduced entry points beside the full one (codegen/simd.py): the vane outputs each computes
+# and stores after the torque, in this order. "torque": the fits' model torque alone (one output
+# row instead of 1 + 17 N); "reported": what every simulation evaluates up front -- the spec's
+# per-vane columns and what the warnings read (pumpsim.result.REPORTED).
+SUBSETS = {"torque": (),
+           "reported": ("s", "sdot", "normal", "slot1", "slot2", "n_consistent", "ambiguity", "position_residual")}
 
 
 @dataclass(frozen=True)

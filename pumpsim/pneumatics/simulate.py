@@ -100,14 +100,14 @@ def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=
 def _solution(cfg, r, kern) -> GasSolution:
     from ..config import as_array
     from ..kernels import load_kernels
-    from ..simulate import inverse_dynamics
+    from ..simulate import sampled_inverse_dynamics
 
     N = cfg.vanes
     o, X = r.outputs, r.states
     theta, omega, omegadot = X[:, 0], X[:, 1], np.asarray(o["omegadot"]).ravel()
     per_vane = {k: np.asarray(o[k]).reshape(len(X), N).T for k in ("s", "normal", "slot1", "slot2", "n_consistent")}
     pv = cfg.parameters("constrained")
-    mech = inverse_dynamics(load_kernels(pv.structure), as_array(pv), theta, omega, omegadot, ("sdot",))
+    mech = sampled_inverse_dynamics(load_kernels(pv.structure), as_array(pv), theta, omega, omegadot, ("sdot",))
     vanes = {"s": per_vane["s"], "sdot": np.asarray(mech["sdot"]).reshape(N, -1),
              "normal": per_vane["normal"], "slot1": per_vane["slot1"], "slot2": per_vane["slot2"]}
     extra = dict(o)

@@ -116,6 +116,42 @@ def test_threads_and_reused_output_give_the_same_numbers(case):
         np.testing.assert_array_equal(b[k], a[k], err_msg=k)
 
 
+def test_output_subsets_compute_only_their_rows_and_agree(case):
+    """The reduced entry points (the torque alone; the simulation's reported columns) against the
+    CasADi map and the full entry point, for one design, blocks and p per sample; the buffer has
+    only their rows; threads split them at the same bits."""
+    kern, fk, p, pv = case
+    rng = np.random.default_rng(21)
+    theta, omega, omegadot = random_motion(rng, 2501)
+    n, N = theta.size, fk.vanes
+    ref = inverse_dynamics(kern, p, theta, omega, omegadot)
+    P = designs(pv, rng, 3)
+    block = -(-n // 3)
+    Ps = np.repeat(P, block, axis=0)[:n]
+    for key, stored in simd_contract.SUBSETS.items():
+        names = ("torque", *stored)
+        assert fk.entry_for(names) == key and fk.entry_for(stored[:1] or "torque") == key
+        out = fk.output_array(n, names)
+        assert out.shape == (1 + len(stored) * N, n)
+        got = fk(theta, omega, omegadot, p, out=out, outputs=names)
+        assert list(got) == list(names) and np.shares_memory(got["torque"], out)
+        assert_agree(got, {k: ref[k] for k in names}, pv.values["housing.a"])
+        assert_agree(fk(theta, omega, omegadot, p, outputs=names, threads=2), got, pv.values["housing.a"])
+        for args in ((P,), (Ps,)):
+            full = fk(theta, omega, omegadot, *args, **({"block": block} if args[0] is P else {}))
+            sub = fk(theta, omega, omegadot, *args, outputs=names, **({"block": block} if args[0] is P else {}))
+            assert_agree(sub, {k: full[k] for k in names}, pv.values["housing.a"])
+        a = {k: v.copy() for k, v in got.items()}
+        b = fk(theta, omega, omegadot, p, outputs=names, threads=2)
+        for k in a:  # threads split at the library's chunk boundaries: the same bits
+            np.testing.assert_array_equal(b[k], a[k], err_msg=k)
+    assert fk.entry_for(("torque", "alpha")) is None  # not in a reduced set: the full entry point
+    with pytest.raises(ConfigError, match="no inverse-dynamics output 'torq'; available: torque"):
+        fk(theta, omega, omegadot, p, outputs=("torq",))
+    with pytest.raises(ConfigError, match=r"out must be .* shape \(1, 2501\)"):
+        fk(theta, omega, omegadot, p, out=fk.output_array(n), outputs="torque")
+
+
 def test_bad_arguments_are_named(case):
     _, fk, p, _ = case
     th = np.zeros(10)
@@ -167,7 +203,8 @@ def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch
     cfg = make_config("ellipse_4vanes", **{"rotor.vanes": 2})
     kern, p, pv = kernel_and_p(cfg)
     monkeypatch.setattr(simd, "SIMD_CFLAGS", [f for f in simd.SIMD_CFLAGS if f != "-fno-math-errno"])
-    with pytest.raises(CodegenError, match="left loop_vane_shared, loop_vane_samples scalar"):
+    with pytest.raises(CodegenError, match="left loop_vane_shared, loop_vane_samples, loop_vane_torque_shared, "
+                                           ".* scalar"):
         fastkernel.load_fast_kernel(pv.structure, fallback=False)
     monkeypatch.setattr(fastkernel, "_LOADED", {})
     fb = fastkernel.load_fast_kernel(pv.structure)
@@ -178,6 +215,9 @@ def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch
     ref = inverse_dynamics(kern, P[1], theta[25:], omega[25:], omegadot[25:])
     for name, r in ref.items():
         np.testing.assert_array_equal(got[name][..., 25:], r)
+    torque = fb(theta, omega, omegadot, P, block=25, outputs="torque")  # the reduced entries too
+    assert list(torque) == ["torque"]
+    np.testing.assert_array_equal(torque["torque"][25:], ref["torque"])
 
 
 def test_vane_loops_vectorise_on_avx2_too(case, tmp_path):
@@ -192,3 +232,25 @@ def test_vane_loops_vectorise_on_avx2_too(case, tmp_path):
                           capture_output=True, text=True, check=True)
     assert simd.unvectorised_loops(fk.manifest["loop_lines"], proc.stderr) == []
     assert "using 32 byte vectors" in proc.stderr
+
+
+def test_simulate_on_the_simd_library_equals_the_casadi_map(monkeypatch):
+    """simulate (constrained, prescribed speed with a ripple) computes its reported columns with
+    the SIMD library's reduced entry point and any other output on first use with the full one:
+    the same columns, warnings and outputs as through the CasADi map (PUMPSIM_FIT_KERNEL=scalar)."""
+    from pumpsim.kernels import fast_kernel
+    from pumpsim.simulate import simulate
+
+    cfg = make_config("ellipse_4vanes", **{"effects.speed_ripple": [2, 0.02, 0.4]})
+    if fast_kernel(cfg.parameters().structure) is None:
+        pytest.skip("no SIMD library on this machine: simulate uses the CasADi map")
+    fast = simulate(cfg, duration=0.03, rate=20000)
+    monkeypatch.setenv("PUMPSIM_FIT_KERNEL", "scalar")
+    ref = simulate(cfg, duration=0.03, rate=20000)
+    assert fast.warnings == ref.warnings and fast.column_names() == ref.column_names()
+    cols, rcols = fast.columns(), ref.columns()
+    for name in ("torque", "s_0", "sdot_1", "normal_2", "slot1_3", "slot2_0"):
+        assert np.max(np.abs(cols[name] - rcols[name])) <= SIMD_REL * np.max(np.abs(rcols[name])), name
+    for name in ("alpha", "mu_housing", "torque_share", "ambiguity"):  # lazily evaluated outputs
+        a, r = fast.extra[name], ref.extra[name]
+        assert a.shape == r.shape and np.max(np.abs(a - r)) <= SIMD_REL * max(np.max(np.abs(r)), 1e-300), name
