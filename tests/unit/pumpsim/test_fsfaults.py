@@ -71,7 +71,7 @@ def test_deferred_signal_raises_after_the_native_call():
     with interrupt.handling():
         with pytest.raises(interrupt.Interrupted) as e:
             with interrupt.deferred():
-                os.kill(os.getpid(), signal.SIGINT)  # handled here: only recorded
+                signal.raise_signal(signal.SIGINT)  # to this thread, so handled here: only recorded
                 reached = True
         assert reached and e.value.exit_status == 130 and interrupt.pending() == signal.SIGINT
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
