@@ -100,3 +100,4 @@ def handling():
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+        _state["signal"] = None  # a run's signal ends with it: a later deferred() outside must not see it
