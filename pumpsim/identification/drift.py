@@ -30,6 +30,7 @@ class Drift:
     over: float  # record length [s]
     p_value: float
     segments: list = field(default_factory=list)  # [{"time", "value", "stderr"}]
+    line: tuple = ()  # the trend's value at the record's start and end
 
     def text(self) -> str:
         return f"drift: {self.parameter} {100 * self.change:+.2g} % over {self.over:.3g} s"
@@ -88,4 +89,4 @@ def parameter_drift(fit, data, name: str, values: dict, speed: float) -> Drift |
     change = slope * T / start if start != 0 else 0.0
     if p >= DRIFT_ALPHA or abs(change) < DRIFT_RELEVANT:
         return None
-    return Drift(name, float(change), T, float(p), rows)
+    return Drift(name, float(change), T, float(p), rows, (float(start), float(start + slope * T)))
