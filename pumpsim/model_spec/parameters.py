@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import functools
 import re
 from dataclasses import dataclass, field
 
@@ -242,8 +243,10 @@ DEFAULT_HARMONIC_SLOTS = 0  # a variant compiles exactly the configured harmonic
 SECTION_FALLBACK = {"friction.slot": "friction.housing", "contact.bottom": "contact.housing"}
 
 
+@functools.lru_cache(maxsize=None)
 def layout(structure: Structure) -> tuple[Parameter, ...]:
-    """Ordered parameter declarations for one compiled variant."""
+    """Ordered parameter declarations for one compiled variant (declarations are frozen: one tuple
+    per structure serves every config and design)."""
     ps = ROTOR + VANE + HOUSING
     for j in range(structure.harmonics):
         ps = ps + _harmonic(j)
@@ -252,6 +255,11 @@ def layout(structure: Structure) -> tuple[Parameter, ...]:
     if structure.model == "contact":
         ps = ps + _contact("housing") + _contact("bottom")
     return tuple(ps)
+
+
+@functools.lru_cache(maxsize=None)
+def layout_names(structure: Structure) -> tuple[str, ...]:
+    return tuple(p.name for p in layout(structure))
 
 
 def registry(structure: Structure | None = None) -> dict:
@@ -263,9 +271,14 @@ def registry(structure: Structure | None = None) -> dict:
 
 def section(prefix: str) -> list[Parameter]:
     """The static entries of one config section, e.g. "vane" or "friction.slot"."""
+    return list(_section(prefix))
+
+
+@functools.lru_cache(maxsize=None)
+def _section(prefix: str) -> tuple[Parameter, ...]:
     pool = ROTOR + VANE + HOUSING + OPERATION + EFFECTS + _friction("housing") + _friction("slot") \
         + _contact("housing") + _contact("bottom")
-    return [q for q in pool if q.name.rsplit(".", 1)[0] == prefix]
+    return tuple(q for q in pool if q.name.rsplit(".", 1)[0] == prefix)
 
 
 def _aliases() -> dict:
@@ -426,7 +439,7 @@ class ParameterVector:
 
     @property
     def names(self) -> list[str]:
-        return [p.name for p in layout(self.structure)]
+        return list(layout_names(self.structure))
 
     def index(self, name: str) -> int:
         names = self.names
