@@ -99,27 +99,27 @@ def _fast(structure):
 
 def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
     """Inverse dynamics at constant speed for a batch of designs of one compiled variant.
-    P: (designs, len(p)); theta: (n,) rotor angles shared by all designs; omega: (designs,).
-    Returns name -> (designs, n) for the torque and (designs, N, n) per vane.
+    P: (designs, len(p)); theta: (n,) rotor angles shared by all designs, or (designs, n);
+    omega: (designs,). Returns name -> (designs, n) for the torque and (designs, N, n) per vane.
 
-    One kernel call per design (the SIMD library when it exists, else the scalar one on NumPy
-    buffers), so a design's numbers never depend on which designs share its batch."""
+    On the SIMD library the batch is one call with one block of samples per design: the library
+    restarts its lanes at every block, so a design's numbers never depend on which designs share
+    its batch (bit for bit, tests). Else one scalar-kernel call per design on NumPy buffers."""
     P = np.atleast_2d(np.asarray(P, dtype=float))
-    theta = np.ascontiguousarray(theta, dtype=float)
-    D, n, N = P.shape[0], theta.size, kern.structure.vanes
-    out = {nm: np.empty((D, n) if _per_sample(nm) else (D, N, n)) for nm in outputs}
+    theta = np.asarray(theta, dtype=float)
+    D, n, N = P.shape[0], theta.shape[-1], kern.structure.vanes
+    omega = np.broadcast_to(np.asarray(omega, dtype=float), (D,))
     fast = _fast(kern.structure)
     if fast is not None:
-        buf = _MAPS.cache.setdefault(("fast-out", kern.structure, n), fast.output_array(n))
-        for d in range(D):
-            res = fast(theta, omega[d], 0.0, P[d], out=buf)
-            for nm in outputs:
-                out[nm][d] = res[nm]
-        return out
+        th = np.ascontiguousarray(np.broadcast_to(theta, (D, n))).reshape(-1)
+        res = fast(th, np.repeat(omega, n), 0.0, np.ascontiguousarray(P), block=n)
+        return {nm: (res[nm].reshape(D, n) if _per_sample(nm) else
+                     res[nm].reshape(N, D, n).transpose(1, 0, 2)) for nm in outputs}
+    out = {nm: np.empty((D, n) if _per_sample(nm) else (D, N, n)) for nm in outputs}
     args, res, run = _MAPS.buffered(kern, "inverse_dynamics", n, (1, 2, 3), outputs)
-    args[0][:] = theta
     args[2][0] = 0.0
     for d in range(D):
+        args[0][:] = theta if theta.ndim == 1 else theta[d]
         args[1][0] = omega[d]
         args[3][:] = P[d]
         run()
@@ -219,14 +219,16 @@ def _status(out):
     return "; ".join(msgs) or "ok"
 
 
-def _evaluate_one(study, kern, pr, nrev):
-    """(status, [(speed, outputs or None)] or None) of one prepared design."""
+def _evaluate_one(study, kern, pr, nrev, ev=None):
+    """(status, [(speed, outputs or None)] or None) of one prepared design; `ev`: its kernel
+    outputs at design_speeds when a batch computed them already (pre_evaluated)."""
     theta = revolution(pr.cfg.angle, nrev)
     speeds = design_speeds(study, pr.cfg)
     run = lambda ws: evaluate_designs(kern, np.repeat(pr.p[None, :], len(ws), axis=0), theta,  # noqa: E731
                                       np.asarray(ws))
     try:  # (the positions, hence the geometry verdict, do not depend on the speed)
-        ev = run(np.nan_to_num(speeds, nan=1.0))
+        if ev is None:
+            ev = run(np.nan_to_num(speeds, nan=1.0))
         alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
     except PumpsimError as e:
         return f"numerical: {e}", None
@@ -253,6 +255,29 @@ def _evaluate_one(study, kern, pr, nrev):
             out = None
         per_speed.append((w, out))
     return "ok", per_speed
+
+
+BATCH_DESIGNS = 64  # designs per kernel call: ~13 MB of outputs at 360 samples, 4 vanes
+
+
+def pre_evaluated(study, kern, prepared, members, nrev) -> dict:
+    """{design index: kernel outputs at its design_speeds} for the designs `members` of one
+    variant, BATCH_DESIGNS per kernel call (a batch that fails is left out: its designs then run
+    alone and each reports its own failure)."""
+    found: dict = {}
+    for lo in range(0, len(members), BATCH_DESIGNS):
+        rows = [(j, w) for j in members[lo:lo + BATCH_DESIGNS]
+                for w in np.nan_to_num(design_speeds(study, prepared[j].cfg), nan=1.0)]
+        try:
+            ev = evaluate_designs(kern, np.array([prepared[j].p for j, _ in rows]),
+                                  np.array([revolution(prepared[j].cfg.angle, nrev) for j, _ in rows]),
+                                  np.array([w for _, w in rows]))
+        except PumpsimError:
+            continue
+        js = np.array([j for j, _ in rows])
+        for j in members[lo:lo + BATCH_DESIGNS]:
+            found[j] = {nm: arr[js == j] for nm, arr in ev.items()}
+    return found
 
 
 CONTACT_REVOLUTIONS = 30  # simulated from an in-contact start; the last one is reported
@@ -320,12 +345,13 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict
             for j in members:
                 results[j] = (f"kernel: {e}", None)
             continue
+        batch = {} if study.model == "contact" else pre_evaluated(study, kern, prepared, members, nrev)
         for j in members:
             try:
                 if study.model == "contact":
                     results[j] = _evaluate_contact(study, prepared[j], nrev)
                 else:
-                    results[j] = _evaluate_one(study, kern, prepared[j], nrev)
+                    results[j] = _evaluate_one(study, kern, prepared[j], nrev, batch.get(j))
             except Exception as e:  # noqa: BLE001 - one design's failure never stops the study
                 interrupt.check()  # unless the failure was a signal's doing
                 results[j] = (f"error: {type(e).__name__}: {e}", None)
