@@ -7,7 +7,8 @@
     s = design.sensitivity(study)                            # Sobol S1/ST with intervals (SALib)
     r = design.optimize(study)                               # SLSQP with exact kernel gradients
 """
-from .execute import read_manifest, read_results, run_study
+from .execute import run_study
+from .store import read_manifest, read_results
 from .study import Study, load_study, study_from_dict
 
 

@@ -80,7 +80,7 @@ def _split(names, res, N, keep):
     return out
 
 
-def _fast(structure):
+def fast_kernel(structure):
     """The SIMD inverse dynamics (pumpsim.fastkernel) of a variant, or None where it cannot be
     built (then the scalar CasADi kernel runs). PUMPSIM_DESIGN_KERNEL=scalar forces the latter."""
     if os.environ.get("PUMPSIM_DESIGN_KERNEL", "") == "scalar":
@@ -109,7 +109,7 @@ def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
     theta = np.asarray(theta, dtype=float)
     D, n, N = P.shape[0], theta.shape[-1], kern.structure.vanes
     omega = np.broadcast_to(np.asarray(omega, dtype=float), (D,))
-    fast = _fast(kern.structure)
+    fast = fast_kernel(kern.structure)
     if fast is not None:
         th = np.ascontiguousarray(np.broadcast_to(theta, (D, n))).reshape(-1)
         res = fast(th, np.repeat(omega, n), 0.0, np.ascontiguousarray(P), block=n)

@@ -1,7 +1,7 @@
 """Run a study's designs on dask.distributed and keep the results as Parquet parts.
 
-- Default: a LocalCluster with one single-threaded worker process per core; `scheduler` (the
-  `--scheduler ADDRESS` option or `study.scheduler`) runs the same study on an existing cluster.
+- Default: a LocalCluster with one single-threaded worker process per core; `scheduler` (an
+  address, or `study.scheduler`) runs the same study on an existing cluster (cluster.py).
 - Tasks are batches of designs sized from a pilot run's time per design: on several workers by
   guided self-scheduling (guided_bounds: large batches first, >= TASK_SECONDS while more than two
   per worker remain, shrinking to ~TAIL_TASK_SECONDS so the workers finish together), else equal
@@ -10,19 +10,13 @@
   functions never travel. RunStats splits the workers' idle time by where it falls.
 - Every design's values are fixed on the client before any task runs (sampling.py), and each
   design is evaluated on its own, so the table is the same for 1 or 64 workers and any batching.
-- Each finished batch is written by the client as `part-NNNNN.parquet` (temporary file + rename);
-  `manifest.json` holds the study hash, kernel keys, package versions, seed and batch layout. A
-  rerun with the same study skips the parts already there (resume).
+- Each finished batch is written by the client as a Parquet part of the results folder
+  (store.py); a rerun with the same study skips the parts already there (resume).
 """
 from __future__ import annotations
 
 import contextlib
-import importlib.metadata
-import json
-import logging
 import math
-import os
-import platform
 import sys
 import time
 from dataclasses import dataclass, field
@@ -32,11 +26,13 @@ import numpy as np
 
 from .. import interrupt
 from ..errors import ConfigError, OutputError, SolverError
-from ..fsfaults import guard, probe_folder
-from ..io import atomic_path, write_text
-from ..locks import LOCK_FILES, study_folder
-from .outputs import BOOL_OUTPUTS, per_vane_name
+from ..fsfaults import guard
+from ..io import atomic_path
+from ..locks import study_folder
+from .cluster import connect, quiet_dask, worker_name
 from .sampling import design_matrix
+from .store import (PART, check_out_dir, columns, max_vanes, ordered, read_manifest, read_results,  # noqa: F401 (read_manifest: the CLI)
+                    rows_to_table, write_manifest)
 from .summary import coverage, coverage_text
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
@@ -46,30 +42,6 @@ TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the worke
 # 15 % idle at the end on the shared machine); 4 keeps the first to an eighth.
 GUIDED_SHARE = 4
 PILOT_DESIGNS = 6
-CONNECT_TIMEOUT = 5.0  # s: an unreachable scheduler fails this fast
-PART = "part-{:05d}.parquet"
-MANIFEST = "manifest.json"
-PACKAGES = ("pumpsim", "casadi", "numpy", "scipy", "dask", "distributed", "pyarrow", "SALib", "pymoo")
-
-
-def package_versions() -> dict:
-    out = {"python": platform.python_version()}
-    for name in PACKAGES:
-        try:
-            out[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            out[name] = None
-    return out
-
-
-def max_vanes(study) -> int:
-    if study.function is not None:
-        return 0
-    base = int(study.base["rotor"]["vanes"])
-    for v in study.variables:
-        if v.key == "rotor.vanes":
-            return int(max(v.values))
-    return base
 
 
 def structures(study) -> list:
@@ -101,43 +73,15 @@ def structures(study) -> list:
 def kernel_keys(study) -> dict:
     """Variant -> content key of the compiled library this process loads (or builds)."""
     from ..kernels import load_kernels
-    from .evaluate import _fast
+    from .evaluate import fast_kernel
 
     out = {}
     for st in structures(study):
         out[st.variant] = load_kernels(st).key
-        fast = _fast(st) if st.model == "constrained" else None
+        fast = fast_kernel(st) if st.model == "constrained" else None
         if fast is not None:
             out[f"{st.variant} (SIMD)"] = fast.key
     return out
-
-
-def columns(study) -> list[tuple[str, str]]:
-    """(name, type) of the result table in order: design, speed, keys, outputs, status."""
-    cols = [("design", "int")]
-    if study.function is None:
-        cols.append(("speed", "float"))
-    cols += [(k, "float") for k in study.keys]
-    for o in study.outputs:
-        cols.append((o, "bool" if o in BOOL_OUTPUTS else "float"))
-        if o == "friction_power":
-            cols += [(per_vane_name(i), "float") for i in range(max_vanes(study))]
-    cols.append(("status", "str"))
-    return cols
-
-
-def rows_to_table(study, rows):
-    import pyarrow as pa
-
-    types = {"int": pa.int64(), "float": pa.float64(), "bool": pa.bool_(), "str": pa.string()}
-    data, fields = {}, []
-    for name, typ in columns(study):
-        vals = [r.get(name) for r in rows]
-        if typ == "float":
-            vals = [math.nan if v is None else float(v) for v in vals]
-        data[name] = pa.array(vals, type=types[typ])
-        fields.append(pa.field(name, types[typ]))
-    return pa.table(data, schema=pa.schema(fields))
 
 
 @dataclass
@@ -206,16 +150,7 @@ def run_batch(study, ids, X):
     rows = evaluate_rows(study, X, ids, max_vanes(study))
     table = rows_to_table(study, rows)
     sec = time.perf_counter() - t0
-    return ids[0], table, sec, (_worker_name(), w0, w0 + sec, time.thread_time() - c0)
-
-
-def _worker_name() -> str:
-    try:
-        from distributed import get_worker
-
-        return get_worker().address
-    except (ImportError, ValueError):  # not inside a Dask task
-        return "local"
+    return ids[0], table, sec, (worker_name(), w0, w0 + sec, time.thread_time() - c0)
 
 
 def pilot_time_per_design(study, X) -> float:
@@ -235,101 +170,6 @@ def pilot_time_per_design(study, X) -> float:
             break
     return max(best / n, 1e-6)
 
-
-
-def check_out_dir(out, study_hash) -> dict | None:
-    """Before any work: the folder is new, or holds this same study (resume). Returns its manifest."""
-    if out is None:
-        return None
-    d = Path(out)
-    if not d.parent.is_dir():
-        raise ConfigError(f"--out: folder '{d.parent}' does not exist")
-    if d.exists() and not d.is_dir():
-        raise ConfigError(f"--out '{d}' exists and is not a folder")
-    probe_folder(d, "--out", create=True)
-    if not d.exists():
-        return None
-    mpath = d / MANIFEST
-    if not mpath.exists():
-        if any(p.name not in LOCK_FILES for p in d.iterdir()):
-            raise ConfigError(f"--out '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
-        return None
-    try:
-        man = json.loads(mpath.read_text())
-    except (OSError, json.JSONDecodeError) as e:
-        raise ConfigError(f"--out '{d}': unreadable {MANIFEST} ({e})") from None
-    if man.get("study_hash") != study_hash:
-        raise ConfigError(f"--out '{d}' holds results of a different study (hash {man.get('study_hash')}, "
-                          f"this study {study_hash}); choose another folder or remove it")
-    return man
-
-
-def _probe(address):
-    """A refused or unroutable TCP address fails at once instead of after Dask's retries."""
-    import socket
-    from urllib.parse import urlsplit
-
-    if "://" not in address:
-        address = "tcp://" + address
-    u = urlsplit(address)
-    if u.scheme not in ("tcp", "tls"):
-        return  # other transports (inproc, ucx): leave it to Dask
-    try:
-        host, port = u.hostname, u.port
-    except ValueError:
-        host = port = None
-    if not host or not port:
-        raise ConfigError(f"--scheduler: '{address}' is not a scheduler address (tcp://HOST:PORT)")
-    try:
-        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
-    except OSError as e:
-        raise ConfigError(f"cannot reach the Dask scheduler at '{address}' ({e.strerror or e}); "
-                          "is it running, and is the address right?") from None
-
-
-def connect(scheduler=None, workers=None, processes=True):
-    """A dask.distributed Client: on an existing scheduler (fails within CONNECT_TIMEOUT with a
-    ConfigError), or on a new LocalCluster (one single-threaded worker per core)."""
-    from dask.distributed import Client, LocalCluster
-
-    if scheduler:
-        _probe(scheduler)
-        try:
-            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
-            return client, client  # ours to close; the cluster is not
-        except Exception as e:  # timeouts, refused handshakes, something else on that port
-            raise ConfigError(f"no Dask scheduler answers at '{scheduler}' within {CONNECT_TIMEOUT:g} s "
-                              f"({type(e).__name__}: {str(e)[:200]})") from None
-    n = workers or os.cpu_count() or 1
-    logging.getLogger("distributed").setLevel(logging.ERROR)  # start/stop chatter is not ours to print
-    import warnings
-
-    # its HTTP endpoint moves to a free port when another cluster holds the default one
-    warnings.filterwarnings("ignore", message="Port .* is already in use", category=UserWarning)
-    # the workers' own logs: a failing task reaches the client as its exception, and a cluster
-    # torn down by an interruption would print lost-connection tracebacks from every worker
-    cluster = client = None
-    interrupt.progress("while the local Dask cluster started (no design done)")
-    try:
-        with interrupt.deferred():  # a half-started cluster cannot be closed (Dask complains at exit)
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                                   dashboard_address=None, silence_logs=logging.CRITICAL,
-                                   preload=["pumpsim.design.worker_setup"] if processes else None)
-            client = Client(cluster)
-    except BaseException:
-        _quiet_dask()
-        for x in (client, cluster):
-            if x is not None:
-                with contextlib.suppress(Exception):
-                    x.close()
-        raise
-    return client, cluster
-
-
-def _quiet_dask() -> None:
-    """A cluster torn down mid-run logs lost tasks and closed connections, even as CRITICAL: not
-    news to a user who stopped it."""
-    logging.getLogger("distributed").setLevel(logging.CRITICAL + 1)
 
 
 @dataclass
@@ -390,7 +230,7 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                         client, t0)
         except BaseException:
-            _quiet_dask()
+            quiet_dask()
             raise
         finally:
             if own is not None:
@@ -413,12 +253,12 @@ def _build_kernels(study) -> None:
     """Builds missing kernel variants once, before local workers look."""
     from ..kernels import load_kernels
 
-    from .evaluate import _fast
+    from .evaluate import fast_kernel
 
     for st in structures(study):
         load_kernels(st)
         if st.model == "constrained":
-            _fast(st)
+            fast_kernel(st)
 
 
 def _plan(study, X, man, batch_size, client) -> Plan:
@@ -465,18 +305,57 @@ def _idle(stats, spans, t_start, t_end) -> None:
     stats.idle_start += max(0, stats.workers - len(by_worker)) * (t_end - t_start)  # never given a task
 
 
-def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
-    import pandas as pd
+class _Collector:
+    """Takes each finished batch: writes its part (when there is a folder), keeps its table,
+    counts it for the progress bar, the interruption note and the test hook."""
 
-    stats = RunStats(designs=len(X))
-    interrupt.progress(_how_far(0, len(X), out))
-    _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
-    if study.function is None and not scheduler:
-        _build_kernels(study)
-    if man and study.function is None and not scheduler and man.get("kernel_keys") != kernel_keys(study):
+    def __init__(self, folder, n_designs, todo, done_designs, stats, progress, on_batch):
+        self.folder, self.n_designs, self.todo, self.stats = folder, n_designs, todo, stats
+        self.tables, self.spans, self.written, self.done_designs = {}, [], 0, done_designs
+        self.bar, self.on_batch = _bar(progress, len(todo)), on_batch
+        interrupt.progress(_how_far(done_designs, n_designs, folder))
+
+    def __call__(self, b, table, seconds, span):
+        self.stats.compute += seconds
+        self.spans.append(span)
+        if self.folder is not None:
+            import pyarrow.parquet as pq
+
+            with guard("writing the results part", self.folder / PART.format(b), "--out"):
+                with atomic_path(self.folder / PART.format(b)) as tmp:
+                    pq.write_table(table, tmp)
+        self.tables[b] = table
+        self.written += 1
+        self.done_designs += len(table.column("design").unique()) if len(table) else 0
+        interrupt.progress(_how_far(self.done_designs, self.n_designs, self.folder))
+        if self.bar is not None:
+            self.bar.update(1)
+        if self.on_batch is not None:
+            self.on_batch(self.written, len(self.todo))
+
+
+def _check_kernels(study, man, out, scheduler) -> None:
+    """Builds missing variants here (not on a remote cluster) and refuses to mix a resumed
+    folder's parts with results of other compiled kernels."""
+    if study.function is not None or scheduler:
+        return
+    _build_kernels(study)
+    if man and man.get("kernel_keys") != kernel_keys(study):
         raise ConfigError(f"--out '{out}' was written with other compiled kernels "
                           f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
                           "choose another folder or remove it")
+
+
+def _manifest(folder, study, plan, status, stats=None) -> None:
+    keys = kernel_keys(study) if study.function is None else {}
+    write_manifest(folder, study, plan, status, keys, stats)
+
+
+def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
+    stats = RunStats(designs=len(X))
+    interrupt.progress(_how_far(0, len(X), out))
+    _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
+    _check_kernels(study, man, out, scheduler)
     plan = _plan(study, X, man, batch_size, client)
     stats.batch_size, stats.batches = min(plan.batch_size, max(1, len(X))), plan.n_batches
     stats.guided = plan.bounds is not None
@@ -485,63 +364,46 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     if folder is not None:
         folder.mkdir(exist_ok=True)
         done = {b for b in range(plan.n_batches) if (folder / PART.format(b)).exists()}
-        write_manifest(folder, study, plan, "running")
+        _manifest(folder, study, plan, "running")
     stats.batches_skipped = len(done)
     todo = [b for b in range(plan.n_batches) if b not in done]
-    tables = {}
-    bar = _bar(progress, len(todo))
-    written = [0]
-    done_designs = [sum(len(plan.batch(b)[0]) for b in done)]
-    interrupt.progress(_how_far(done_designs[0], len(X), folder))
-
-    spans = []
-
-    def finish(b, table, seconds, span):
-        stats.compute += seconds
-        spans.append(span)
-        if folder is not None:
-            import pyarrow.parquet as pq
-
-            with guard("writing the results part", folder / PART.format(b), "--out"):
-                with atomic_path(folder / PART.format(b)) as tmp:
-                    pq.write_table(table, tmp)
-        tables[b] = table
-        written[0] += 1
-        done_designs[0] += len(table.column("design").unique()) if len(table) else 0
-        interrupt.progress(_how_far(done_designs[0], len(X), folder))
-        if bar is not None:
-            bar.update(1)
-        if on_batch is not None:
-            on_batch(written[0], len(todo))
-
+    got = _Collector(folder, len(X), todo, sum(len(plan.batch(b)[0]) for b in done), stats, progress, on_batch)
     try:
         stats.setup = time.perf_counter() - t0
         t1, w1 = time.perf_counter(), time.time()
-        _evaluate(study, plan, todo, workers, client, stats, finish)
+        _evaluate(study, plan, todo, workers, client, stats, got)
         stats.wall = time.perf_counter() - t1
-        _idle(stats, spans, w1, w1 + stats.wall)
+        _idle(stats, got.spans, w1, w1 + stats.wall)
     except interrupt.Interrupted as e:
-        if folder is not None and done_designs[0]:
-            e.notes.append(_kept(done_designs[0], folder))
+        if folder is not None and got.done_designs:
+            e.notes.append(_kept(got.done_designs, folder))
         raise
     except OutputError as e:  # a full disk, say: what was written stays usable
-        if folder is None or not done_designs[0]:
+        if folder is None or not got.done_designs:
             raise
-        raise OutputError(f"{e}; {_kept(done_designs[0], folder)}") from None
+        raise OutputError(f"{e}; {_kept(got.done_designs, folder)}") from None
     finally:
-        if bar is not None:
-            bar.close()
+        if got.bar is not None:
+            got.bar.close()
+    return _table(study, plan, folder, got.tables, stats), stats
+
+
+def _table(study, plan, folder, tables, stats):
+    """The result table: read back from the folder (and the manifest marked complete), or joined
+    from the batches' tables when there is no folder."""
+    import pandas as pd
+
     if folder is not None:
         df = read_results(folder)
-        gaps = coverage_text(coverage(df, len(X)))
-        write_manifest(folder, study, plan, "complete" if gaps is None else "incomplete", stats)
+        gaps = coverage_text(coverage(df, len(plan.X)))
+        _manifest(folder, study, plan, "complete" if gaps is None else "incomplete", stats)
         if gaps:  # parts from elsewhere (another layout, a copied file): the table is not this study
             raise SolverError(f"the results folder '{folder}' does not hold every design once: {gaps}; "
                               "remove it and run the study again")
-        return df, stats
+        return df
     parts = [tables[b].to_pandas() for b in sorted(tables)]
     df = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=[c for c, _ in columns(study)])
-    return _ordered(df), stats
+    return ordered(df)
 
 
 def _kept(done, folder) -> str:
@@ -581,52 +443,3 @@ def _bar(progress, total):
     return tqdm(total=total, unit="batch", file=sys.stderr, leave=False, desc="designs")
 
 
-def write_manifest(folder, study, plan, status, stats=None):
-    man = {
-        "study_hash": study.study_hash(), "study": study.path, "config": study.config_path,
-        "function": study.function, "sampler": study.sampler, "seed": study.seed,
-        "samples": study.samples, "designs": int(len(plan.X)), "batch_size": plan.batch_size,
-        "batch_bounds": plan.bounds, "batches": plan.n_batches, "part_pattern": PART, "keys": study.keys,
-        "speeds": study.speeds, "outputs": study.outputs, "model": study.model,
-        "revolution_samples": study.revolution_samples,
-        "limits": {k: list(v) for k, v in study.limits.items()},
-        "kernel_keys": kernel_keys(study), "versions": package_versions(),
-        "columns": [c for c, _ in columns(study)], "status": status,
-    }
-    if stats is not None:
-        man["run"] = stats.as_dict()
-    with guard("writing the study manifest", folder / MANIFEST, "--out"):
-        write_text(folder / MANIFEST, json.dumps(man, indent=1))
-
-
-def _ordered(df):
-    keys = [c for c in ("design", "speed") if c in df.columns]
-    return df.sort_values(keys, kind="stable").reset_index(drop=True)
-
-
-def read_manifest(folder) -> dict:
-    mpath = Path(folder) / MANIFEST
-    try:
-        return json.loads(mpath.read_text())
-    except OSError:
-        raise ConfigError(f"'{folder}' holds no study results ({MANIFEST} missing)") from None
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"'{mpath}' is not valid JSON: {e}") from None
-
-
-def read_results(folder, arrays: bool = False):
-    """The result table of a study folder as a pandas DataFrame (design, speed order), or with
-    arrays=True a dict of NumPy arrays by column."""
-    import pandas as pd
-    import pyarrow.parquet as pq
-
-    man = read_manifest(folder)
-    parts = sorted(Path(folder).glob("part-*.parquet"))
-    if parts:
-        df = pd.concat([pq.read_table(p).to_pandas() for p in parts], ignore_index=True)
-    else:
-        df = pd.DataFrame(columns=man.get("columns", []))
-    df = _ordered(df)
-    if arrays:
-        return {c: df[c].to_numpy() for c in df.columns}
-    return df

@@ -14,12 +14,11 @@ Several objectives: a Pareto front by pymoo's NSGA-II (population, generations i
 """
 from __future__ import annotations
 
-import math
 import time
 
 import numpy as np
 
-from ..errors import ConfigError, PumpsimError, SolverError
+from ..errors import ConfigError, SolverError
 from ..geometry import mouth_depth
 from ..kernels import load_kernels
 from .evaluate import (design_speeds, evaluate_rows, kernel_tangents, prepare, revolution)
@@ -162,84 +161,93 @@ def _constraint_report(study, outs, speeds) -> dict:
     return conres
 
 
+class _Scaled:
+    """The optimisation in the unit cube of the varied keys: objective and constraints scaled by
+    their start values, each design evaluated once for its value and gradient (the last one kept),
+    and the iterations recorded."""
+
+    def __init__(self, study, progress):
+        self.fn = DesignFunction(study)
+        self.lo = np.array([v.bounds[0] for v in study.variables])
+        self.hi = np.array([v.bounds[1] for v in study.variables])
+        self.span = self.hi - self.lo
+        self.x0 = _start_point(study, self.lo, self.hi)
+        self.name = study.objective[0]
+        self.cache, self.history, self.progress = {}, [], progress
+        self.outs0, _ = self.fn.evaluate(self.x0, gradient=False)
+        self.f_scale = max(abs(self.mean(self.outs0)), 1e-300)
+        self.cons = _constraint_terms(study, self.outs0)
+
+    def mean(self, outs) -> float:
+        return float(np.mean([x[self.name] for x in outs]))
+
+    def ev(self, z):
+        key = tuple(np.round(z, 15))
+        if key not in self.cache:
+            self.cache.clear()
+            self.cache[key] = self.fn.evaluate(self.lo + z * self.span)
+        return self.cache[key]
+
+    def f(self, z):
+        return self.mean(self.ev(z)[0]) / self.f_scale
+
+    def df(self, z):
+        return np.mean([x[self.name] for x in self.ev(z)[1]], axis=0) * self.span / self.f_scale
+
+    def c(self, z):
+        o = self.ev(z)[0]
+        return np.array([(o[k][n] - b if s == "lower" else b - o[k][n]) / sc for n, k, s, b, sc in self.cons])
+
+    def dc(self, z):
+        g = self.ev(z)[1]
+        return np.array([(g[k][n] if s == "lower" else -g[k][n]) * self.span / sc
+                         for n, k, s, b, sc in self.cons])
+
+    def record(self, z, *_):
+        viol = float(max([0.0, *(-self.c(z))])) if self.cons else 0.0
+        self.history.append({"design": self.fn.values(self.lo + z * self.span),
+                             "objective": self.mean(self.ev(z)[0]), "violation": viol})
+        if self.progress:
+            self.progress(len(self.history), self.history[-1])
+
+
 def _gradient_based(study, method, max_iter, tol, progress):
     from scipy.optimize import Bounds, NonlinearConstraint, minimize
 
-    fn = DesignFunction(study)
-    lo = np.array([v.bounds[0] for v in study.variables])
-    hi = np.array([v.bounds[1] for v in study.variables])
-    span = hi - lo
-    x0 = _start_point(study, lo, hi)
-    obj_name = study.objective[0]
-    cache = {}
-
-    def ev(z):
-        key = tuple(np.round(z, 15))
-        if key not in cache:
-            cache.clear()
-            cache[key] = fn.evaluate(lo + z * span)
-        return cache[key]
-
-    outs0, _ = fn.evaluate(x0, gradient=False)
-    f_scale = max(abs(np.mean([o[obj_name] for o in outs0])), 1e-300)
-    cons = _constraint_terms(study, outs0)
-
-    def f(z):
-        o, _ = ev(z)
-        return np.mean([x[obj_name] for x in o]) / f_scale
-
-    def df(z):
-        _, g = ev(z)
-        return np.mean([x[obj_name] for x in g], axis=0) * span / f_scale
-
-    def c(z):
-        o, _ = ev(z)
-        return np.array([(o[k][n] - b if s == "lower" else b - o[k][n]) / sc for n, k, s, b, sc in cons])
-
-    def dc(z):
-        _, g = ev(z)
-        return np.array([(g[k][n] if s == "lower" else -g[k][n]) * span / sc for n, k, s, b, sc in cons])
-
-    history = []
-
-    def record(z, *_):
-        o, _ = ev(z)
-        viol = float(max([0.0, *(-c(z))])) if cons else 0.0
-        history.append({"design": fn.values(lo + z * span), "objective": float(np.mean([x[obj_name] for x in o])),
-                        "violation": viol})
-        if progress:
-            progress(len(history), history[-1])
-
-    z0 = (x0 - lo) / span
-    record(z0)
+    pb = _Scaled(study, progress)
+    z0 = (pb.x0 - pb.lo) / pb.span
+    pb.record(z0)
     t0 = time.perf_counter()
-    try:
-        if method == "slsqp":
-            res = minimize(f, z0, jac=df, method="SLSQP", bounds=[(0.0, 1.0)] * len(z0),
-                           constraints=[{"type": "ineq", "fun": c, "jac": dc}] if cons else [],
-                           options={"maxiter": max_iter, "ftol": tol}, callback=record)
-        else:
-            nl = [NonlinearConstraint(c, 0.0, np.inf, jac=dc)] if cons else []
-            res = minimize(f, z0, jac=df, method="trust-constr", bounds=Bounds(0.0, 1.0), constraints=nl,
-                           options={"maxiter": max_iter, "gtol": tol, "xtol": tol}, callback=lambda z, *a: record(z))
-    except PumpsimError:
-        raise
-    x = lo + np.clip(res.x, 0, 1) * span
+    if method == "slsqp":
+        res = minimize(pb.f, z0, jac=pb.df, method="SLSQP", bounds=[(0.0, 1.0)] * len(z0),
+                       constraints=[{"type": "ineq", "fun": pb.c, "jac": pb.dc}] if pb.cons else [],
+                       options={"maxiter": max_iter, "ftol": tol}, callback=pb.record)
+    else:
+        nl = [NonlinearConstraint(pb.c, 0.0, np.inf, jac=pb.dc)] if pb.cons else []
+        res = minimize(pb.f, z0, jac=pb.df, method="trust-constr", bounds=Bounds(0.0, 1.0), constraints=nl,
+                       options={"maxiter": max_iter, "gtol": tol, "xtol": tol},
+                       callback=lambda z, *a: pb.record(z))
+    return _optimum(study, pb, method, res, t0)
+
+
+def _optimum(study, pb, method, res, t0) -> dict:
+    """The optimiser's result as the JSON of `pumpsim optimize`."""
+    fn = pb.fn
+    x = pb.lo + np.clip(res.x, 0, 1) * pb.span
     outs, grads = fn.evaluate(x)
     speeds = design_speeds(study, prepare(study, fn.values(x)).cfg)
     conres = _constraint_report(study, outs, speeds)
     feasible = all(v["satisfied"] for v in conres.values())
     return {
         "method": method, "success": bool(res.success) and feasible, "message": str(res.message),
-        "objective": {"minimize": obj_name, "value": float(np.mean([o[obj_name] for o in outs])),
-                      "start": float(np.mean([o[obj_name] for o in outs0]))},
-        "design": fn.values(x), "start": fn.values(x0),
-        "bounds": {k: [float(a), float(b)] for k, a, b in zip(study.keys, lo, hi)},
+        "objective": {"minimize": pb.name, "value": pb.mean(outs), "start": pb.mean(pb.outs0)},
+        "design": fn.values(x), "start": fn.values(pb.x0),
+        "bounds": {k: [float(a), float(b)] for k, a, b in zip(study.keys, pb.lo, pb.hi)},
         "constraints": conres, "feasible": feasible,
         "outputs": [{k: (bool(v) if isinstance(v, (bool, np.bool_)) else float(v)) for k, v in o.items()}
                     for o in outs],
-        "gradient": {k: float(gv) for k, gv in zip(study.keys, np.mean([g[obj_name] for g in grads], axis=0))},
-        "speeds": [float(w) for w in speeds], "iterations": history, "evaluations": fn.evaluations,
+        "gradient": {k: float(gv) for k, gv in zip(study.keys, np.mean([g[pb.name] for g in grads], axis=0))},
+        "speeds": [float(w) for w in speeds], "iterations": pb.history, "evaluations": fn.evaluations,
         "seconds": time.perf_counter() - t0,
     }
 

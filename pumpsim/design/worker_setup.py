@@ -1,4 +1,4 @@
-"""Preloaded into each worker process of the local Dask cluster (execute.connect).
+"""Preloaded into each worker process of the local Dask cluster (cluster.connect).
 
 A terminal's Ctrl-C reaches every process of its process group: the workers ignore it, and the
 run's own process, which owns the interruption, closes them (otherwise each worker prints its own

@@ -172,7 +172,7 @@ def sweep_study(folder, samples=300, batch=10):
 
 
 def designs_in(folder):
-    from pumpsim.design.execute import read_results
+    from pumpsim.design.store import read_results
 
     return read_results(folder)["design"].to_numpy()
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from pumpsim import design
-from pumpsim.design.execute import TAIL_TASK_SECONDS, TASK_SECONDS, guided_bounds, read_manifest
+from pumpsim.design.execute import TAIL_TASK_SECONDS, TASK_SECONDS, guided_bounds
+from pumpsim.design.store import read_manifest
 from pumpsim.design.study import study_from_dict
 from tests.conftest import EXAMPLES
 from tests.tolerances import CLOCK_ABS
