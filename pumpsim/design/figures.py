@@ -13,15 +13,15 @@ import math
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator, ScalarFormatter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
-from ..presentation import describe, engineering_scale  # noqa: E402
-from ..report import figure_html  # noqa: E402
-from .outputs import BOOL_OUTPUTS, UNITS  # noqa: E402
-from .study import base_value, schema_leaf  # noqa: E402
-from .summary import cpk, evaluated, is_constant, resolved, status_kind, within  # noqa: E402
+from ..presentation import describe, engineering_scale
+from ..report import figure_html
+from .outputs import BOOL_OUTPUTS, UNITS
+from .study import base_value, schema_leaf
+from .summary import cpk, evaluated, is_constant, resolved, status_kind, within
 
 MAX_SCATTER = 2000  # points per scatter panel
 MAX_PANELS = 16

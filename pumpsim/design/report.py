@@ -23,7 +23,14 @@ from ..presentation import describe, engineering_scale, fmt_number, provenance
 from ..report import Cell, provenance_html, provenance_line, table, write_page
 from . import figures as fg
 from .outputs import UNITS
-from .summary import evaluated, flag_counts, output_table, status_counts, within, yield_share
+from .summary import (
+    evaluated,
+    flag_counts,
+    output_table,
+    status_counts,
+    within,
+    yield_share,
+)
 
 CSS_EXTRA = "<style>td.text,th.text{text-align:left}tr.active td{background:#fff4e5}</style>"
 ACTIVE_REL = 1e-5  # a value this close to a bound (relative to the range or the bound) is on it
@@ -125,7 +132,7 @@ def _scaled_rows(stats, df, sample: bool):
     for r in stats:
         o = r["output"]
         f, unit = engineering_scale(r["unit"], df[o].to_numpy(dtype=float)) if r["unit"] else (1.0, "–")
-        s = (lambda x: None if x is None or (isinstance(x, float) and math.isnan(x)) else x * f)  # noqa: E731
+        s = (lambda x, f=f: None if x is None or (isinstance(x, float) and math.isnan(x)) else x * f)
         spec = (f"{r['n_within']} of {r['n_evaluated']}" + (f" ({100 * r['within']:.1f} %)" if sample else "")
                 if "within" in r else "")
         if sample:
@@ -153,9 +160,9 @@ def _grid_parts(df, study) -> list[str]:
     swept = ", ".join(f"{k} ({df[k].nunique()} values)" for k in study.keys)
     k1 = fg.grid_layout(df, study)[0]
     axis = fg.quantity(df, study, k1)[1] if k1 else ""
-    parts = [f"<p>Grid over {html.escape(swept)}: each row is one chosen design, not a draw from a "
+    parts = [(f"<p>Grid over {html.escape(swept)}: each row is one chosen design, not a draw from a "
              "distribution, so the page shows the outputs over the swept quantity, not statistics "
-             f"of a sample. x axis: {html.escape(axis)}.</p>"]
+             f"of a sample. x axis: {html.escape(axis)}.</p>")]
     if study.limits:
         ok = (df["status"] == "ok").to_numpy()
         inside = ok.copy()
@@ -310,8 +317,8 @@ def _constraint_table(res) -> str:
 
 def _front_parts(res, study) -> list[str]:
     objs = res["objectives"]
-    parts = [f"<p>NSGA-II (pymoo), population {res['population']}, {res['generations']} generations, "
-             f"{res['evaluations']} designs evaluated; {len(res['front'])} designs on the front.</p>"]
+    parts = [(f"<p>NSGA-II (pymoo), population {res['population']}, {res['generations']} generations, "
+             f"{res['evaluations']} designs evaluated; {len(res['front'])} designs on the front.</p>")]
     if len(objs) >= 2 and res["front"]:
         parts.append(fg.pareto_figure(res))
     if res["front"]:
@@ -337,12 +344,12 @@ def optimize_report(res, study, path, title=None) -> None:
     o = res["objective"]
     f, unit = engineering_scale(UNITS.get(o["minimize"], "-"), [o["start"], o["value"]])
     n_bounds = sum(bool(_at_bound(v, *res["bounds"][k])) for k, v in res["design"].items())
-    parts = [f"<p>{html.escape(res['method'])}: {html.escape(res['message'])}; minimize {o['minimize']}: "
+    parts = [(f"<p>{html.escape(res['method'])}: {html.escape(res['message'])}; minimize {o['minimize']}: "
              f"{o['start'] * f:.6g} → <b>{o['value'] * f:.6g} {unit}</b> after "
              f"{len(res['iterations']) - 1} iterations ({res['evaluations']} evaluations with exact "
              f"kernel gradients). {'Feasible.' if res['feasible'] else '<span class=warn>NOT feasible.</span>'} "
              f"{n_bounds} of {len(res['design'])} variables end on a bound (highlighted): the optimum "
-             "lies there, so widening that bound would move it.</p>",
+             "lies there, so widening that bound would move it.</p>"),
              "<h2>Design</h2>" + _design_table(res)]
     if res["constraints"]:
         parts.append("<h2>Constraints</h2><p>Active (highlighted): the optimum sits on the limit.</p>"

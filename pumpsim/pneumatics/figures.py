@@ -167,8 +167,8 @@ def operating_conditions(res, cfg) -> list[tuple[str, str]]:
              ("booster pressure: start → target", f"{s['start_pressure'] / 1e3:.4g} kPa → "
               + (f"{s['target_pressure'] / 1e3:.4g} kPa" if s.get("target_pressure") else "no target")),
              ("booster leak", f"{v['booster.leak'] * 1e6:.4g} mg/s at full vacuum"),
-             ("atmosphere, gas temperature", f"{v['gas.atmosphere'] / 1e3:.4g} kPa, "
-              f"{v['gas.temperature'] - 273.15:.4g} °C")]
+             ("atmosphere, gas temperature", (f"{v['gas.atmosphere'] / 1e3:.4g} kPa, "
+              f"{v['gas.temperature'] - 273.15:.4g} °C"))]
     return rows
 
 
@@ -201,7 +201,13 @@ def result_rows(res) -> list[tuple[str, str]]:
 
 
 def pumpdown_report(res, maps, cfg, path) -> None:
-    from ..report import figure_html, provenance_html, provenance_line, table, write_page
+    from ..report import (
+        figure_html,
+        provenance_html,
+        provenance_line,
+        table,
+        write_page,
+    )
 
     prov = provenance(cfg, kernel_key=_kernel_key(cfg, res.summary.get("model", "constrained")))
     fig, _ = pumpdown_panels(res, maps, cfg)
