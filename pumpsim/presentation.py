@@ -7,6 +7,8 @@ import datetime as _dt
 import hashlib
 import math
 import re
+import shlex
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +89,32 @@ def display_scale(unit: str, value: float | None) -> tuple[float, str]:
     return 1.0, UNIT_TEXT.get(unit, unit)
 
 
+# engineering units: SI unit -> [(smallest magnitude, factor, unit shown)], first match wins
+_ENGINEERING = {
+    "m": [(1e-3, 1e3, "mm"), (0.0, 1e6, "µm")],
+    "kg": [(1.0, 1.0, "kg"), (0.0, 1e3, "g")],
+    "Pa": [(1e6, 1e-6, "MPa"), (1e3, 1e-3, "kPa"), (0.0, 1.0, "Pa")],
+    "Pa·m/s": [(1e6, 1e-6, "MPa·m/s"), (1e3, 1e-3, "kPa·m/s"), (0.0, 1.0, "Pa·m/s")],
+    "W": [(1e3, 1e-3, "kW"), (1.0, 1.0, "W"), (0.0, 1e3, "mW")],
+    "N·m": [(0.1, 1.0, "N·m"), (0.0, 1e3, "mN·m")],
+    "m³/s": [(0.0, 6e4, "L/min")],
+    "m^3": [(1e-3, 1e3, "L"), (0.0, 1e6, "cm³")],
+}
+
+
+def engineering_scale(unit: str, values) -> tuple[float, str]:
+    """(factor, unit shown) so that the largest finite |value| x factor reads well: mm or µm for a
+    length, g for a small mass, kPa, mN·m, L/min; units without a rule stay SI."""
+    shown = UNIT_TEXT.get(unit, unit)
+    rules = _ENGINEERING.get(shown) or _ENGINEERING.get(unit)
+    if not rules:
+        return 1.0, shown
+    v = np.abs(np.asarray(values, dtype=float).ravel())
+    v = v[np.isfinite(v) & (v > 0)]
+    size = float(v.max()) if v.size else 0.0
+    return next((f, u) for lo, f, u in rules if size >= lo)
+
+
 def _decimals(value, stderr, digits):
     """Decimals that show the standard error to `digits` significant digits and a value larger
     than it to at least 4; None when fixed point would need more than 7 (then significant digits)."""
@@ -160,13 +188,27 @@ def samples_sha256(d) -> str:
     return h.hexdigest()
 
 
-def provenance(cfg=None, data=None, kernel_key=None) -> list[tuple[str, str]]:
+def command_line(argv=None) -> str:
+    """The command that made a result, as the user typed it ('pumpsim sweep study.toml ...')."""
+    argv = list(sys.argv if argv is None else argv)
+    path = Path(argv[0]) if argv and argv[0] else Path("python")
+    if path.name == "__main__.py":  # python -m pkg
+        prog = ["pumpsim"] if path.parent.name == "pumpsim" else ["python", "-m", path.parent.name]
+        return shlex.join([*prog, *argv[1:]])
+    return shlex.join([path.name, *argv[1:]])
+
+
+def provenance(cfg=None, data=None, kernel_key=None, files=(), command=None) -> list[tuple[str, str]]:
     """What a reader needs to reproduce a result: data file(s) and their SHA-256, the config (name,
-    path, SHA-256), the date (UTC), the pumpsim version and the compiled kernel's cache key.
+    path, SHA-256), other input `files` ([(label, path)], e.g. a study file) and their SHA-256, the
+    compiled kernel's cache key (or keys), the pumpsim version, the date (UTC) and the command.
     `data`: a Dataset, a path, or a list of them."""
     from . import __version__
 
     rows = []
+    for label, path in files:
+        rows.append((label, str(Path(path).resolve())))
+        rows.append((f"{label} SHA-256", sha256(path) or "(file not readable)"))
     items = data if isinstance(data, (list, tuple)) else ([data] if data is not None else [])
     for i, d in enumerate(items):
         src = getattr(d, "source", d)
@@ -187,10 +229,13 @@ def provenance(cfg=None, data=None, kernel_key=None) -> list[tuple[str, str]]:
             rows.append(("config SHA-256", sha256(cfg.path)))
     if kernel_key is None and cfg is not None:
         kernel_key = kernel_key_of(cfg)
+    if isinstance(kernel_key, (list, tuple)):
+        kernel_key = ", ".join(k for k in kernel_key if k)
     if kernel_key:
         rows.append(("compiled kernel", kernel_key))
     rows.append(("pumpsim version", __version__))
     rows.append(("date (UTC)", _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%S")))
+    rows.append(("command", command or command_line()))
     return rows
 
 

@@ -1,228 +1,84 @@
-"""Self-contained HTML reports for design reviews (figures embedded as PNG).
+"""Self-contained HTML reports for design reviews (figures embedded as PNG), each opening with
+one provenance line and ending with the provenance block (study and base config with their
+SHA-256, compiled kernels, pumpsim version, date, command).
 
-Sweep: status and yield, per-output statistics with spec limits and Cpk, histograms with the
-limits, a tornado of the largest influences (linear-regression swing of a +-1 sd change of each
-key, with the fit's R²), a scatter matrix of keys vs the chosen outputs, and for a grid the
-outputs over the swept keys (lines, or contours for two keys with 3+ values each).
-Sensitivity: Sobol' S1/ST bars with their 95 % intervals (or Morris mu*). Optimisation:
-convergence, the design found next to the start, both housing outlines.
+Sweep, tolerance study (a random sample: sobol, lhs, random): yield, per-output statistics with
+spec limits and Cpk, histograms, a tornado of the largest influences and a scatter matrix.
+Sweep, grid (deterministic points): no statistics of a sample -- each output over the swept
+quantity, the share of the evaluated designs within the limits, the designs the model could not
+evaluate marked and listed. Sensitivity: Sobol' S1/ST (or Morris mu*), one panel per distinct
+result, intervals clipped to [0, 1]. Optimisation: the design with units and active bounds,
+the constraints with the active ones flagged, convergence of every variable.
 """
 from __future__ import annotations
 
+import dataclasses
 import html
 import math
+from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from ..presentation import describe, engineering_scale, fmt_number, provenance
+from ..report import Cell, provenance_html, provenance_line, table, write_page
+from . import figures as fg
+from .outputs import UNITS
+from .summary import (
+    evaluated,
+    flag_counts,
+    output_table,
+    status_counts,
+    within,
+    yield_share,
+)
 
-from ..report import figure_html, table, write_page  # noqa: E402
-from .outputs import BOOL_OUTPUTS, UNITS  # noqa: E402
-from .summary import (cpk, flag_counts, is_constant, output_table, status_counts, within,  # noqa: E402
-                      yield_share)
-
-MAX_SCATTER = 2000  # points per scatter panel
-CSS_EXTRA = "<style>td.text,th.text{text-align:left}</style>"
-MAX_PANELS = 16
-
-
-def _label(o):
-    u = UNITS.get(o)
-    return f"{o} [{u}]" if u else o
+CSS_EXTRA = "<style>td.text,th.text{text-align:left}tr.active td{background:#fff4e5}</style>"
+ACTIVE_REL = 1e-5  # a value this close to a bound (relative to the range or the bound) is on it
 
 
-def _numeric_outputs(df, study):
-    return [o for o in study.outputs if o in df.columns and o not in BOOL_OUTPUTS
-            and np.isfinite(df[o].to_numpy(dtype=float)).any()]
+def study_kernels(study, df=None) -> list[str]:
+    """Variant and cache key of the compiled kernels a study's designs use (one per vane count
+    in the table); never builds one."""
+    if study.function is not None or not study.base:
+        return []
+    try:
+        from ..config import config_from_dict
+        from ..kernels import load_kernels
+
+        st = config_from_dict(study.base).structure_for(study.model)
+        counts = ({int(n) for n in df["rotor.vanes"].dropna()} if df is not None and "rotor.vanes" in df
+                  else {st.vanes})
+        out = []
+        for n in sorted(counts):
+            s = dataclasses.replace(st, vanes=n)
+            out.append(f"{s.variant}-{load_kernels(s, build=False).key}")
+        return out
+    except Exception:  # provenance must never break a report  # noqa: BLE001
+        return []
 
 
-def _chosen(df, study, n=4):
-    """Outputs to show against the inputs: those with limits first, then the spec's leading ones."""
-    nums = _numeric_outputs(df, study)
-    first = [o for o in study.limits if o in nums]
-    varying = [o for o in nums if o not in first and np.nanstd(df[o].to_numpy(dtype=float)) > 0]
-    return (first + varying)[:n]
+def study_provenance(study, df=None) -> list[tuple[str, str]]:
+    files = [("study file", study.path)] if Path(study.path).is_file() else []
+    if study.config_path:
+        files.append(("base config", study.config_path))
+    rows = provenance(kernel_key=study_kernels(study, df) or None, files=files)
+    rows.insert(len(files) * 2, ("study hash (study + base config)", study.study_hash()))
+    if study.function:
+        rows.insert(0, ("analytic function", study.function))
+    return rows
 
 
-def histograms(df, study) -> str:
-    outs = [o for o in _numeric_outputs(df, study)][:MAX_PANELS]
-    if not outs:
-        return ""
-    cols = 4
-    rows = math.ceil(len(outs) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(13, 2.6 * rows), squeeze=False)
-    for ax, o in zip(axes.ravel(), outs):
-        v = df[o].to_numpy(dtype=float)
-        v = v[np.isfinite(v)]
-        lim = study.limits.get(o)
-        title = o
-        if is_constant(v, o):
-            # no spread beyond rounding: say so instead of a histogram of round-off
-            ax.text(0.5, 0.5, "constant\n" + (f"{np.median(v):.6g}" if v.size else "no value"),
-                    ha="center", va="center", transform=ax.transAxes, fontsize=10)
-            ax.set_xticks([])
-            ax.set_yticks([])
-            ax.set_title(title, fontsize=9)
-            continue
-        ax.hist(v, bins=min(50, max(10, int(np.sqrt(v.size)))), color="#4a7fb5", alpha=0.85)
-        if lim:
-            for b, name in zip(lim, ("LSL", "USL")):
-                if b is not None:
-                    ax.axvline(b, color="#c0392b", ls="--", lw=1.5)
-                    ax.annotate(name, (b, 1), xycoords=("data", "axes fraction"), color="#c0392b",
-                                fontsize=8, ha="center", va="bottom")
-            inside = within(df[o].to_numpy(dtype=float), lim).mean()
-            title += f"\nin spec {100 * inside:.1f} %, Cpk {cpk(v, lim):.2f}"
-        ax.set_title(title, fontsize=9)
-        ax.set_xlabel(_label(o), fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4), useOffset=False)
-    for ax in axes.ravel()[len(outs):]:
-        ax.axis("off")
-    fig.tight_layout()
-    return figure_html(fig)
+def _page(path, title, parts, rows) -> None:
+    write_page(path, title, [f"<h1>{html.escape(title)}</h1>", _prov_line(rows), CSS_EXTRA, *parts,
+                             provenance_html(rows)])
 
 
-def regression_swings(df, keys, output):
-    """(swing per key for a +-1 sd change, R²) of a linear fit output ~ keys over the finite rows."""
-    X = df[keys].to_numpy(dtype=float)
-    y = df[output].to_numpy(dtype=float)
-    ok = np.isfinite(y) & np.isfinite(X).all(axis=1)
-    X, y = X[ok], y[ok]
-    sd = X.std(axis=0)
-    use = sd > 0
-    if y.size < use.sum() + 2 or not use.any():
-        return None, math.nan
-    Z = (X[:, use] - X[:, use].mean(axis=0)) / sd[use]
-    A = np.column_stack([np.ones(len(y)), Z])
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    resid = y - A @ coef
-    r2 = 1 - resid.var() / y.var() if y.var() > 0 else math.nan
-    sw = np.zeros(len(keys))
-    sw[use] = coef[1:]
-    return sw, r2
-
-
-def tornado(df, study) -> str:
-    keys = [k for k in study.keys if df[k].nunique() > 1]
-    outs = _chosen(df, study, 4)
-    if not keys or not outs:
-        return ""
-    fig, axes = plt.subplots(1, len(outs), figsize=(3.4 * len(outs) + 1, 0.5 * len(keys) + 1.6), squeeze=False)
-    for ax, o in zip(axes[0], outs):
-        sw, r2 = regression_swings(df, keys, o)
-        if sw is None:
-            ax.axis("off")
-            continue
-        order = np.argsort(np.abs(sw))
-        ypos = np.arange(len(keys))
-        ax.barh(ypos, np.abs(sw[order]), color="#c0392b", alpha=0.8, label="+1 sd")
-        ax.barh(ypos, -np.abs(sw[order]), color="#2c7fb8", alpha=0.8, label="−1 sd")
-        for y, s in zip(ypos, sw[order]):
-            ax.annotate("+" if s >= 0 else "−", (0, y), ha="center", va="center", fontsize=8, color="w")
-        ax.set_yticks(ypos, [keys[i] for i in order], fontsize=8)
-        ax.axvline(0, color="k", lw=0.8)
-        ax.set_title(f"{o}\n(linear fit R² = {r2:.3f})", fontsize=9)
-        ax.set_xlabel(f"change of {_label(o)}\nfor ±1 sd of the key", fontsize=8)
-        ax.tick_params(axis="x", labelsize=7)
-        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4), useOffset=False)
-    fig.tight_layout()
-    return figure_html(fig)
-
-
-def scatter_matrix(df, study) -> str:
-    keys = [k for k in study.keys if df[k].nunique() > 1][:6]
-    outs = _chosen(df, study, 4)
-    if not keys or not outs:
-        return ""
-    d = df if len(df) <= MAX_SCATTER else df.sample(MAX_SCATTER, random_state=0)
-    fig, axes = plt.subplots(len(outs), len(keys), figsize=(2.3 * len(keys) + 1, 2.0 * len(outs) + 0.5),
-                             squeeze=False)
-    ok = (d["status"] == "ok").to_numpy()
-    for i, o in enumerate(outs):
-        for j, k in enumerate(keys):
-            ax = axes[i, j]
-            ax.plot(d[k][ok], d[o][ok], ".", ms=2, color="#2c7fb8", alpha=0.6)
-            if (~ok).any():
-                ax.plot(d[k][~ok], d[o][~ok], "x", ms=3, color="#c0392b", alpha=0.7)
-            lim = study.limits.get(o)
-            for b in (lim or ()):
-                if b is not None:
-                    ax.axhline(b, color="#c0392b", ls="--", lw=1)
-            if i == len(outs) - 1:
-                ax.set_xlabel(k, fontsize=8)
-            if j == 0:
-                ax.set_ylabel(o, fontsize=8)
-            ax.tick_params(labelsize=6)
-            ax.ticklabel_format(style="sci", scilimits=(-3, 4), useOffset=False)
-            ax.xaxis.set_major_locator(MaxNLocator(3))
-    fig.tight_layout()
-    return figure_html(fig)
-
-
-def grid_plots(df, study) -> str:
-    keys = [k for k in study.keys if df[k].nunique() > 1]
-    outs = _numeric_outputs(df, study)
-    outs = [o for o in outs if np.nanstd(df[o].to_numpy(dtype=float)) > 0][:8] or outs[:4]
-    if not keys or not outs:
-        return ""
-    d = df[df["status"].str.split(":").str[0].isin(["ok", "lift_off", "paradox"])]
-    cols = 4
-    rows = math.ceil(len(outs) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(13, 2.9 * rows), squeeze=False)
-    k1 = keys[0]
-    k2 = keys[1] if len(keys) > 1 else None
-    from .study import schema_leaf
-
-    discrete = [k for k in keys if schema_leaf(k) == "int"]
-    if discrete and k2 is not None and k1 in discrete:  # lines over the continuous key, one per count
-        k1, k2 = k2, k1
-    contour = (k2 is not None and len(keys) == 2 and not discrete and d[k1].nunique() >= 3
-               and d[k2].nunique() >= 3)
-    for ax, o in zip(axes.ravel(), outs):
-        if contour:
-            pv = d.groupby([k2, k1])[o].mean().unstack()
-            Xg, Yg = np.meshgrid(pv.columns.to_numpy(), pv.index.to_numpy())
-            Z = pv.to_numpy(dtype=float)
-            if np.isfinite(Z).sum() >= 4 and np.nanstd(Z) > 0:
-                cs = ax.contourf(Xg, Yg, np.ma.masked_invalid(Z), levels=12, cmap="viridis")
-                fig.colorbar(cs, ax=ax).ax.tick_params(labelsize=6)
-            ax.plot(Xg[np.isfinite(Z)], Yg[np.isfinite(Z)], "k.", ms=2)
-            ax.set_xlabel(k1, fontsize=8)
-            ax.set_ylabel(k2, fontsize=8)
-        else:
-            groups = [(None, d)] if k2 is None else list(d.groupby(k2))
-            for val, g in groups:
-                g = g.groupby(k1)[o].mean()
-                ax.plot(g.index, g.to_numpy(), "o-", ms=3, label=None if val is None else f"{k2} = {val:g}")
-            if k2 is not None:
-                ax.legend(fontsize=6)
-            ax.set_xlabel(k1, fontsize=8)
-            for b in study.limits.get(o, ()):
-                if b is not None:
-                    ax.axhline(b, color="#c0392b", ls="--", lw=1)
-        ax.set_title(_label(o), fontsize=9)
-        ax.tick_params(labelsize=7)
-        ax.xaxis.set_major_locator(MaxNLocator(4))
-        ax.grid(alpha=0.3)
-    for ax in axes.ravel()[len(outs):]:
-        ax.axis("off")
-    fig.tight_layout()
-    return figure_html(fig)
-
-
-def _status_section(df) -> str:
-    bad = df[df["status"] != "ok"]
-    if bad.empty:
-        return "<p>Every design was evaluated (status ok).</p>"
-    rows = "".join(f"<tr><td>{int(r.design)}</td><td class=text>{html.escape(str(r.status))}</td></tr>"
-                   for r in bad.head(25).itertuples())
-    more = f"<p>… and {len(bad) - 25} more.</p>" if len(bad) > 25 else ""
-    return (f"<h3>Designs not ok (first 25)</h3>{CSS_EXTRA}<table><tr><th>design</th>"
-            f"<th class=text>status</th></tr>{rows}</table>" + more)
+def _prov_line(rows) -> str:
+    d = dict(rows)
+    study = d.get("study file", "").rsplit("/", 1)[-1]
+    sha = d.get("study file SHA-256", "")[:12]
+    head = f"study {html.escape(study)} (SHA-256 {sha}…) · " if study else ""
+    return provenance_line(rows).replace("<p class=note>", f"<p class=note>{head}", 1)
 
 
 def _operating_points(df, study) -> str:
@@ -239,207 +95,265 @@ def _operating_points(df, study) -> str:
                   f"({w.min() * 30 / np.pi:.0f}–{w.max() * 30 / np.pi:.0f} rpm)")
     else:
         u = sorted(set(w.tolist()))
-        speeds = f"{len(u)} speed(s): " + ", ".join(f"{x:.5g}" for x in u[:6]) + (" …" if len(u) > 6 else "") + " rad/s"
+        speeds = (f"{len(u)} speed(s): " + ", ".join(f"{x:.5g} rad/s ({x * 30 / np.pi:.0f} rpm)" for x in u[:6])
+                  + (" …" if len(u) > 6 else ""))
     text = f"{speeds}; {text}"
     if study.booster_pressure is not None:
         text += (f"; gas outputs in the gas model's periodic steady state with the booster held at "
-                 f"{study.booster_pressure / 1e3:.4g} kPa (spec §8)")
+                 f"{study.booster_pressure / 1e3:.4g} kPa")
     return text
 
 
-def _sweep_parts(df, study):
+def _status_section(df, study) -> str:
+    bad = df[df["status"] != "ok"]
+    if bad.empty:
+        return "<p>Every design was evaluated (status ok).</p>"
+    keys = [k for k in study.keys if k in df and df[k].nunique() > 1][:3]
+    scales = [fg.key_scale(k, df[k].to_numpy(dtype=float)) for k in keys]
+    rows = [(int(r["design"]), *[r[k] * f for k, (f, _) in zip(keys, scales)], Cell(str(r["status"]), False))
+            for _, r in bad.head(25).iterrows()]
+    more = f"<p>… and {len(bad) - 25} more.</p>" if len(bad) > 25 else ""
+    return (f"<h2>Designs not ok ({len(bad)}; the first 25)</h2>"
+            + table(["design", *[label for _, label in scales], "status"], rows) + more)
+
+
+def _intro(df, study) -> str:
     counts = status_counts(df)
-    parts = [f"<p>Study <code>{html.escape(study.path)}</code>: sampler {study.sampler}, seed {study.seed}, "
-             f"{df['design'].nunique()} designs, {_operating_points(df, study)}. Status: "
-             + ", ".join(f"{html.escape(k)} {n}" for k, n in counts.items()) + ". Flags: "
-             + ", ".join(f"{k} {n}" for k, n in flag_counts(df).items()) + ".</p>"]
+    return (f"<p>Study <code>{html.escape(study.path)}</code>: sampler {study.sampler}"
+            + ("" if study.sampler == "grid" else f", seed {study.seed}")
+            + f", {df['design'].nunique()} designs, {_operating_points(df, study)}. Status: "
+            + ", ".join(f"{html.escape(k)} {n}" for k, n in counts.items()) + ". Flags: "
+            + ", ".join(f"{k} {n}" for k, n in flag_counts(df).items()) + ".</p>")
+
+
+def _scaled_rows(stats, df, sample: bool):
+    """The output table's rows in engineering units; a constant output shows its one value."""
+    out = []
+    for r in stats:
+        o = r["output"]
+        f, unit = engineering_scale(r["unit"], df[o].to_numpy(dtype=float)) if r["unit"] else (1.0, "–")
+        s = (lambda x, f=f: None if x is None or (isinstance(x, float) and math.isnan(x)) else x * f)
+        spec = (f"{r['n_within']} of {r['n_evaluated']}" + (f" ({100 * r['within']:.1f} %)" if sample else "")
+                if "within" in r else "")
+        if sample:
+            spread = "constant" if r["constant"] else s(r["sd"])
+            cpk = "—" if r["constant"] or "cpk" not in r else f"{r['cpk']:.2f}"
+            out.append((o, unit, r["n"], s(r["mean"]), spread, s(r["min"]), s(r["max"]),
+                        s(r["lower"]), s(r["upper"]), spec, cpk if "within" in r else ""))
+        else:
+            out.append((o, unit, r["n"], s(r["min"]), "constant" if r["constant"] else s(r["max"]),
+                        s(r["lower"]), s(r["upper"]), spec))
+    return out
+
+
+def _failed_note(df) -> str:
+    kinds = fg.failed_kinds(df)
+    n = sum(kinds.values())
+    if not n:
+        return "every design was evaluated"
+    return (f"{n} design(s) not evaluated (" + ", ".join(f"{html.escape(k)} {c}" for k, c in kinds.items())
+            + ") are left out of the denominator")
+
+
+def _grid_parts(df, study) -> list[str]:
+    """A grid's page: its points are chosen, not drawn, so no yield, sd, Cpk or histogram."""
+    swept = ", ".join(f"{k} ({df[k].nunique()} values)" for k in study.keys)
+    k1 = fg.grid_layout(df, study)[0]
+    axis = fg.quantity(df, study, k1)[1] if k1 else ""
+    parts = [(f"<p>Grid over {html.escape(swept)}: each row is one chosen design, not a draw from a "
+             "distribution, so the page shows the outputs over the swept quantity, not statistics "
+             f"of a sample. x axis: {html.escape(axis)}.</p>")]
     if study.limits:
-        parts.append(f"<p><b>Yield {100 * yield_share(df, study.limits):.2f} %</b> (evaluated and within every "
-                     "spec limit; a design not evaluated counts as a failure).</p>")
-    stats = output_table(df, study.outputs, study.limits)
-    parts.append("<h2>Outputs</h2>" + table(
-        ["output", "unit", "n", "mean", "sd", "min", "max", "LSL", "USL", "in spec", "Cpk"],
-        [(r["output"], r["unit"], r["n"], r["mean"], r["sd"], r["min"], r["max"],
-          r["lower"], r["upper"], f"{100 * r['within']:.2f} %" if "within" in r else "",
-          r.get("cpk", "")) for r in stats]))
-    parts.append("<h2>Histograms with spec limits</h2>" + histograms(df, study))
-    if study.sampler == "grid":
-        parts.append("<h2>Outputs over the swept keys</h2>" + grid_plots(df, study))
-    else:
-        parts.append("<h2>Largest influences (tornado)</h2><p>Bars: change of the output for a ±1 sd "
-                     "change of each key, from a linear fit over all designs (R² says how much of the "
-                     "spread the fit explains).</p>" + tornado(df, study))
-    if study.sampler != "grid":
-        parts.append("<h2>Keys vs outputs</h2><p>Blue: evaluated designs; red crosses: designs with a "
-                     "status other than ok (lift-off, paradox).</p>" + scatter_matrix(df, study))
-    parts.append(_status_section(df))
+        ok = (df["status"] == "ok").to_numpy()
+        inside = ok.copy()
+        for o, lim in study.limits.items():
+            if o in df:
+                inside &= within(df[o].to_numpy(dtype=float), lim)
+        n_ev = int(evaluated(df).sum())
+        parts.append(f"<p><b>Within every limit: {int(inside.sum())} of the {n_ev} evaluated designs</b> "
+                     f"(lift-off and paradox designs count as outside); {_failed_note(df)}.</p>")
+    stats = output_table(df, study.outputs, study.limits, sample=False)
+    parts.append("<h2>Outputs over the grid</h2>" + table(
+        ["output", "unit", "designs evaluated", "min", "max", "LSL", "USL", "within limits"],
+        _scaled_rows(stats, df, sample=False)))
+    parts.append("<h2>Outputs over the swept quantity</h2><p>Outputs constant over the grid are not drawn "
+                 "(the table gives their value). Designs the model could not evaluate are crosses at the "
+                 "bottom of each panel, in their line's colour.</p>" + fg.grid_plots(df, study))
     return parts
+
+
+def _sample_parts(df, study) -> list[str]:
+    parts = []
+    if study.limits:
+        y = yield_share(df, study.limits)
+        se = math.sqrt(y * (1 - y) / len(df)) if len(df) else math.nan
+        parts.append(f"<p><b>Yield {100 * y:.1f} % ± {100 * se:.1f} %</b> (share of the {len(df)} designs "
+                     "evaluated and within every spec limit; a design not evaluated, lifting off or meeting "
+                     "a paradox counts as a failure; ± one binomial standard error). Per output, "
+                     f"<i>in spec</i> counts the evaluated designs only: {_failed_note(df)}.</p>")
+    stats = output_table(df, study.outputs, study.limits)
+    parts.append("<h2>Outputs</h2><p><i>constant</i>: the spread is below the solver's resolution; the "
+                 "value is shown rounded to it.</p>" + table(
+                     ["output", "unit", "n", "mean", "sd", "min", "max", "LSL", "USL", "in spec", "Cpk"],
+                     _scaled_rows(stats, df, sample=True)))
+    parts.append("<h2>Histograms with spec limits</h2>" + fg.histograms(df, study))
+    parts.append("<h2>Largest influences (tornado)</h2><p>Bars: change of the output for a ±1 sd "
+                 "change of each key, from a linear fit over all designs (R² says how much of the "
+                 "spread the fit explains).</p>" + fg.tornado(df, study))
+    parts.append("<h2>Keys vs outputs</h2><p>Blue: evaluated designs; red crosses: designs with a "
+                 "status other than ok (lift-off, paradox).</p>" + fg.scatter_matrix(df, study))
+    return parts
+
+
+def _sweep_parts(df, study) -> list[str]:
+    body = _grid_parts(df, study) if study.sampler == "grid" else _sample_parts(df, study)
+    return [_intro(df, study), *body, _status_section(df, study)]
 
 
 def sweep_report(df, study, path, title=None) -> None:
     title = title or f"pumpsim design study: {study.path}"
-    write_page(path, title, [f"<h1>{html.escape(title)}</h1>", *_sweep_parts(df, study)])
+    _page(path, title, _sweep_parts(df, study), study_provenance(study, df))
 
 
-def sobol_bars(res) -> str:
-    outs = list(res["indices"])[:MAX_PANELS]
-    if not outs:
-        return ""
-    cols = min(3, len(outs))
-    rows = math.ceil(len(outs) / cols)
-    keys = res["keys"]
-    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 0.35 * len(keys) * rows + 2.2 * rows), squeeze=False)
-    y = np.arange(len(keys))
-    for ax, o in zip(axes.ravel(), outs):
-        per = res["indices"][o]
-        if res["method"] == "sobol":
-            for off, (name, conf, color) in zip((-0.2, 0.2), (("S1", "S1_conf", "#2c7fb8"), ("ST", "ST_conf", "#c0392b"))):
-                v = [per[k][name] or 0.0 for k in keys]
-                e = [per[k][conf] or 0.0 for k in keys]
-                ax.barh(y + off, v, 0.38, xerr=e, color=color, alpha=0.85, label=name,
-                        error_kw={"lw": 1, "capsize": 2})
-            ax.set_xlim(min(0, ax.get_xlim()[0]), max(1.0, ax.get_xlim()[1]))
-            ax.set_xlabel("Sobol' index (95 % interval)", fontsize=8)
-        else:
-            v = [per[k]["mu_star"] for k in keys]
-            e = [per[k]["mu_star_conf"] for k in keys]
-            ax.barh(y, v, 0.6, xerr=e, color="#2c7fb8", label="mu*", error_kw={"lw": 1, "capsize": 2})
-            ax.set_xlabel("Morris mu* (per unit quantile)", fontsize=8)
-        ax.set_yticks(y, keys, fontsize=8)
-        ax.invert_yaxis()
-        ax.set_title(o, fontsize=9)
-        ax.legend(fontsize=7)
-        ax.grid(alpha=0.3, axis="x")
-    for ax in axes.ravel()[len(outs):]:
-        ax.axis("off")
-    fig.tight_layout()
-    return figure_html(fig)
+def _index_text(value, conf) -> tuple[str, str]:
+    """('0.96', '0.58 … 1.00'): a Sobol' index and its 95 % interval clipped to [0, 1], rounded
+    to what the interval resolves."""
+    d = fg.sobol_decimals(conf)
+    v, lo, hi = fg.clipped(value, conf)
+    return f"{v:.{d}f}", f"{lo:.{d}f} … {hi:.{d}f}"
+
+
+def _sensitivity_table(res) -> str:
+    rows = []
+    for outs, per in fg.distinct_results(res):
+        name = Cell("<br>".join(html.escape(o) for o in outs), False, raw=True)
+        for k in res["keys"]:
+            r = per[k]
+            if res["method"] == "sobol":
+                rows.append((name, k, *_index_text(r["S1"], r["S1_conf"]), *_index_text(r["ST"], r["ST_conf"])))
+            else:
+                d = fg.sobol_decimals(r["mu_star_conf"] / max(abs(r["mu_star"]), 1e-300)) if r["mu_star"] else 3
+                rows.append((name, k, *(f"{x:.{d}g}" if x is not None else "—" for x in
+                                        (r["mu_star"], r["mu_star_conf"], r["mu"], r["sigma"]))))
+            name = ""
+    head = (["outputs (identical indices)", "key", "S1", "S1 95 % interval", "ST", "ST 95 % interval"]
+            if res["method"] == "sobol" else ["outputs (identical indices)", "key", "mu*", "±95 %", "mu", "sigma"])
+    return table(head, rows)
 
 
 def sensitivity_report(res, study, path, title=None) -> None:
     title = title or f"pumpsim sensitivity: {study.path}"
-    parts = [f"<h1>{html.escape(title)}</h1>",
-             f"<p>{res['method']} from {res['designs']} designs (base N = {res['samples']}, seed {res['seed']}, "
+    groups = fg.distinct_results(res)
+    parts = [f"<p>{res['method']} from {res['designs']} designs (base N = {res['samples']}, seed {res['seed']}, "
              f"{res['resamples']} bootstrap resamples). Status: "
-             + ", ".join(f"{k} {n}" for k, n in res["status"].items()) + ".</p>"]
+             + ", ".join(f"{k} {n}" for k, n in res["status"].items()) + f". {len(res['indices'])} outputs "
+             f"carry {len(groups)} distinct result(s): outputs with identical indices share a panel and a "
+             "table block.</p>"]
     if res["method"] == "sobol":
-        rows = [(o, k, r["S1"], r["S1_conf"], r["ST"], r["ST_conf"]) for o, per in res["indices"].items()
-                for k, r in per.items()]
-        parts.append("<h2>Sobol' indices</h2>" + sobol_bars(res)
-                     + table(["output", "key", "S1", "±95 %", "ST", "±95 %"], rows))
+        parts.append("<h2>Sobol' indices</h2><p>S1: share of the output's variance from the key alone; ST: "
+                     "with all its interactions. The 95 % bootstrap intervals are clipped to [0, 1], where "
+                     "an index lives (an estimate outside is shown at the bound), and every value is "
+                     "rounded to the two significant digits of its interval's half-width (at most 3 "
+                     "decimals).</p>")
     else:
-        rows = [(o, k, r["mu_star"], r["mu_star_conf"], r["mu"], r["sigma"]) for o, per in res["indices"].items()
-                for k, r in per.items()]
-        parts.append("<h2>Morris screening</h2>" + sobol_bars(res)
-                     + table(["output", "key", "mu*", "±95 %", "mu", "sigma"], rows))
+        parts.append("<h2>Morris screening</h2>")
+    parts += [fg.sobol_bars(res), _sensitivity_table(res)]
     for s in res["skipped"]:
-        parts.append(f"<p class=warn>Not computed: {html.escape(s['output'])} ({html.escape(s['reason'])}).</p>")
+        why = ("constant: its spread is below the solver's resolution, no variance to share"
+               if s["reason"].startswith("constant") else s["reason"])
+        parts.append(f"<p class=warn>Not computed: {html.escape(s['output'])} ({html.escape(why)}).</p>")
     df = res.get("_table")
     if df is not None and len(df):
-        parts += ["<h2>The designs evaluated</h2>", *_sweep_parts(df, study)[1:]]
-    write_page(path, title, parts)
+        parts += ["<h2>The designs evaluated</h2>", *_sweep_parts(df, study)]
+    _page(path, title, parts, study_provenance(study, df))
 
 
-def outline(study, values):
-    """Housing outline, rotor circle and vanes at the start angle of the design `values`."""
-    from ..geometry import housing_samples, vane_positions
-    from ..kernels import load_kernels
-    from .evaluate import prepare
-
-    pr = prepare(study, values)
-    if pr.status != "ok":
-        return None
-    kern = load_kernels(pr.cfg.structure_for("constrained"))
-    _, pts, _ = housing_samples(kern, pr.p, 720)
-    s, _, _ = vane_positions(kern, pr.p, [pr.cfg.angle])
-    v = pr.values
-    N = pr.cfg.vanes
-    vanes = []
-    for i in range(N):
-        phi = v["rotor.first_slot_angle"] + 2 * math.pi * i / N + pr.cfg.angle
-        u = np.array([math.cos(phi + v["rotor.slot_tilt"]), math.sin(phi + v["rotor.slot_tilt"])])
-        ob = v["rotor.slot_radius"] * np.array([math.cos(phi), math.sin(phi)])
-        a = ob + s[i, 0] * u
-        vanes.append((a, a + v["vane.length"] * u))
-    return {"housing": pts, "rotor": v["rotor.radius"], "vanes": vanes}
+def _at_bound(x, lo, hi) -> str:
+    tol = ACTIVE_REL * max(abs(hi - lo), abs(lo), abs(hi), 1e-300)
+    return "at lower bound" if abs(x - lo) <= tol else "at upper bound" if abs(x - hi) <= tol else ""
 
 
-def outlines_figure(study, base_values, found_values) -> str:
-    fig, ax = plt.subplots(figsize=(6.5, 6.5))
-    for vals, color, name in ((base_values, "#7f7f7f", "start"), (found_values, "#c0392b", "found")):
-        g = outline(study, vals)
-        if g is None:
-            continue
-        h = g["housing"] * 1e3
-        ax.plot(np.append(h[0], h[0][0]), np.append(h[1], h[1][0]), color=color, lw=1.6, label=f"housing ({name})")
-        t = np.linspace(0, 2 * math.pi, 200)
-        ax.plot(g["rotor"] * 1e3 * np.cos(t), g["rotor"] * 1e3 * np.sin(t), color=color, lw=0.8, ls=":")
-        for a, b in g["vanes"]:
-            ax.plot([a[0] * 1e3, b[0] * 1e3], [a[1] * 1e3, b[1] * 1e3], color=color, lw=3, alpha=0.6,
-                    solid_capstyle="butt")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
-    ax.legend(fontsize=8, loc="upper right")
-    ax.grid(alpha=0.3)
-    ax.set_title("housing, rotor (dotted) and vanes at the start angle", fontsize=9)
-    fig.tight_layout()
-    return figure_html(fig)
+def _design_table(res) -> str:
+    o = res["objective"]["minimize"]
+    ounit = UNITS.get(o, "")
+    rows, cls = [], []
+    for k, v in res["design"].items():
+        lo, hi = res["bounds"][k]
+        f, unit = engineering_scale(describe(k)[1], [lo, hi])
+        flag = _at_bound(v, lo, hi)
+        rows.append((k, unit, res["start"][k] * f, v * f, lo * f, hi * f, flag or "inside",
+                     _gradient_text(res, k, f, unit, ounit)))
+        cls.append("active" if flag else None)
+    return table(["key", "unit", "start", "found", "lower bound", "upper bound", "bound active",
+                  f"d {o} / d key"], rows, row_classes=cls)
+
+
+def _gradient_text(res, k, f, unit, ounit) -> str:
+    """'30.65 W/g': the objective's derivative per shown unit of the key; 0 where its effect over
+    the whole range is below the solver's resolution."""
+    g = res["gradient"][k]
+    if g is None:
+        return "—"
+    lo, hi = res["bounds"][k]
+    if abs(g * (hi - lo)) <= 1e-9 * max(abs(res["objective"]["value"]), 1e-300):
+        g = 0.0
+    per = f" {ounit}/{unit}" if ounit and unit not in ("–", "?", "-") else (f" {ounit}" if ounit else "")
+    return fmt_number(g / f, 4) + per
+
+
+def _constraint_table(res) -> str:
+    rows, cls = [], []
+    for k, c in res["constraints"].items():
+        vals = [x for x in (c["value"], c["lower"], c["upper"]) if x is not None]
+        f, unit = engineering_scale(UNITS.get(k, "-"), vals)
+        active = [name for b, name in ((c["lower"], "lower"), (c["upper"], "upper"))
+                  if b is not None and abs(c["value"] - b) <= ACTIVE_REL * max(abs(b), 1e-300) + 1e-12]
+        rows.append((k, unit, c["value"] * f, None if c["lower"] is None else c["lower"] * f,
+                     None if c["upper"] is None else c["upper"] * f, "yes" if c["satisfied"] else "NO",
+                     f"active ({active[0]})" if active else "inactive"))
+        cls.append("active" if active else None)
+    return table(["output", "unit", "value", "lower", "upper", "satisfied", "active"], rows, row_classes=cls)
+
+
+def _front_parts(res, study) -> list[str]:
+    objs = res["objectives"]
+    parts = [(f"<p>NSGA-II (pymoo), population {res['population']}, {res['generations']} generations, "
+             f"{res['evaluations']} designs evaluated; {len(res['front'])} designs on the front.</p>")]
+    if len(objs) >= 2 and res["front"]:
+        parts.append(fg.pareto_figure(res))
+    if res["front"]:
+        cols = [(k, *engineering_scale(describe(k)[1], [f["design"][k] for f in res["front"]])) for k in study.keys]
+        outs = [(o, *engineering_scale(UNITS.get(o, "-"), [f["objectives"][o] for f in res["front"]]))
+                for o in objs]
+        rows = [(*[f["design"][k] * s for k, s, _ in cols], *[f["objectives"][o] * s for o, s, _ in outs])
+                for f in res["front"]]
+        parts.append(table([f"{k} [{u}]" for k, _, u in cols + outs], rows))
+        mid = res["front"][len(res["front"]) // 2]["design"]
+        start = {v.key: v.base for v in study.variables if v.base is not None}
+        parts.append("<h2>Base design and the middle of the front</h2>"
+                     + fg.outlines_figure(study, start, mid, ("base", "middle of the front")))
+    return parts
 
 
 def optimize_report(res, study, path, title=None) -> None:
     title = title or f"pumpsim optimisation: {study.path}"
-    parts = [f"<h1>{html.escape(title)}</h1>"]
+    rows_p = study_provenance(study)
     if res["method"] == "nsga2":
-        objs = res["objectives"]
-        parts.append(f"<p>NSGA-II (pymoo), population {res['population']}, {res['generations']} generations, "
-                     f"{res['evaluations']} designs evaluated; {len(res['front'])} designs on the front.</p>")
-        if len(objs) >= 2 and res["front"]:
-            fig, ax = plt.subplots(figsize=(6, 4.5))
-            F = np.array([[f["objectives"][o] for o in objs[:2]] for f in res["front"]])
-            ax.plot(F[:, 0], F[:, 1], "o-", color="#c0392b", ms=4)
-            ax.set_xlabel(_label(objs[0]))
-            ax.set_ylabel(_label(objs[1]))
-            ax.grid(alpha=0.3)
-            ax.set_title("Pareto front")
-            fig.tight_layout()
-            parts.append(figure_html(fig))
-        rows = [(*[f["design"][k] for k in study.keys], *[f["objectives"][o] for o in objs]) for f in res["front"]]
-        parts.append(table([*study.keys, *objs], rows))
-        if res["front"]:
-            mid = res["front"][len(res["front"]) // 2]["design"]
-            start = {v.key: v.base for v in study.variables if v.base is not None}
-            parts.append("<h2>Base design and the middle of the front</h2>" + outlines_figure(study, start, mid))
-        write_page(path, title, parts)
+        _page(path, title, _front_parts(res, study), rows_p)
         return
     o = res["objective"]
-    parts.append(f"<p>{html.escape(res['method'])}: {html.escape(res['message'])}; minimize {o['minimize']}: "
-                 f"{o['start']:.6g} → <b>{o['value']:.6g}</b> {UNITS.get(o['minimize'], '')} after "
-                 f"{len(res['iterations']) - 1} iterations ({res['evaluations']} evaluations with exact "
-                 f"kernel gradients). {'Feasible.' if res['feasible'] else '<span class=warn>NOT feasible.</span>'}</p>")
-    rows = [(k, res["start"][k], v, *res["bounds"][k], res["gradient"][k]) for k, v in res["design"].items()]
-    parts.append("<h2>Design</h2>" + table(["key", "start", "found", "lower bound", "upper bound",
-                                           f"d {o['minimize']} / d key"], rows))
+    f, unit = engineering_scale(UNITS.get(o["minimize"], "-"), [o["start"], o["value"]])
+    n_bounds = sum(bool(_at_bound(v, *res["bounds"][k])) for k, v in res["design"].items())
+    parts = [(f"<p>{html.escape(res['method'])}: {html.escape(res['message'])}; minimize {o['minimize']}: "
+             f"{o['start'] * f:.6g} → <b>{o['value'] * f:.6g} {unit}</b> after "
+             f"{len(res['iterations']) - 1} iterations ({res['evaluations']} evaluations with exact "
+             f"kernel gradients). {'Feasible.' if res['feasible'] else '<span class=warn>NOT feasible.</span>'} "
+             f"{n_bounds} of {len(res['design'])} variables end on a bound (highlighted): the optimum "
+             "lies there, so widening that bound would move it.</p>"),
+             "<h2>Design</h2>" + _design_table(res)]
     if res["constraints"]:
-        parts.append("<h3>Constraints</h3>" + table(
-            ["output", "value", "lower", "upper", "satisfied"],
-            [(k, c["value"], c["lower"], c["upper"], "yes" if c["satisfied"] else "NO")
-             for k, c in res["constraints"].items()]))
-    its = res["iterations"]
-    fig, ax = plt.subplots(1, 2 + min(len(study.keys), 2), figsize=(13, 3.2))
-    n = np.arange(len(its))
-    ax[0].plot(n, [h["objective"] for h in its], "o-")
-    ax[0].set_title(_label(o["minimize"]), fontsize=9)
-    ax[1].semilogy(n, [max(h["violation"], 1e-16) for h in its], "o-", color="#c0392b")
-    ax[1].set_title("largest constraint violation (scaled)", fontsize=9)
-    for a, k in zip(ax[2:], study.keys):
-        a.plot(n, [h["design"][k] for h in its], "o-", color="#2c7fb8")
-        a.set_title(k, fontsize=9)
-    for a in ax:
-        a.set_xlabel("iteration")
-        a.grid(alpha=0.3)
-        a.tick_params(labelsize=7)
-    fig.tight_layout()
-    parts.append("<h2>Convergence</h2>" + figure_html(fig))
-    parts.append("<h2>Start and found design</h2>" + outlines_figure(study, res["start"], res["design"]))
-    write_page(path, title, parts)
+        parts.append("<h2>Constraints</h2><p>Active (highlighted): the optimum sits on the limit.</p>"
+                     + _constraint_table(res))
+    parts.append("<h2>Convergence</h2>" + fg.convergence_figure(res, study))
+    parts.append("<h2>Start and found design</h2>" + fg.outlines_figure(study, res["start"], res["design"]))
+    _page(path, title, parts, rows_p)

@@ -3,8 +3,11 @@ summary `pumpsim sweep --summary` prints.
 
 Yield = share of rows (design x speed) that were evaluated (status `ok`) and meet every limit;
 a design that was not evaluated, lifts off or meets a friction paradox counts as a failure.
+In spec (per output) = share of the evaluated rows within that output's limits; the rows the
+model could not evaluate (geometry, numerical) are left out of the denominator and counted apart.
 Cpk = min(USL - mean, mean - LSL) / (3 sd) over the rows with a finite value (one-sided with one
 limit); it assumes a roughly normal output -- the histogram in the report shows whether it is.
+A grid's designs are not a sample: no yield, Cpk or spread is computed for them.
 """
 from __future__ import annotations
 
@@ -15,14 +18,38 @@ import numpy as np
 from ..tolerances import DESIGN_CONSTANT_ABS, DESIGN_CONSTANT_REL
 from .outputs import BOOL_OUTPUTS, UNITS
 
+EVALUATED = ("ok", "lift_off", "paradox")  # status kinds that carry output values
 
+
+def status_kind(df):
+    """The status's kind per row: the text before the first colon ('ok', 'geometry', ...)."""
+    return df["status"].astype(str).str.split(":").str[0]
+
+
+def evaluated(df) -> np.ndarray:
+    """Rows the model evaluated (with output values), lift-off and paradox included."""
+    return status_kind(df).isin(EVALUATED).to_numpy()
+
+
+def resolution(values, output) -> float:
+    """The smallest difference the solver resolves in these values of an output: relative to
+    their size plus an absolute floor per unit (a torque of 1e-13 N·m is rounding, not ripple)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    size = float(np.abs(v).max()) if v.size else 0.0
+    return DESIGN_CONSTANT_REL * size + DESIGN_CONSTANT_ABS.get(UNITS.get(output), 0.0)
 
 
 def is_constant(values, output) -> bool:
+    """No spread beyond the solver's resolution (or no value at all)."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
-    return not v.size or np.ptp(v) <= (DESIGN_CONSTANT_REL * np.abs(v).max()
-                                      + DESIGN_CONSTANT_ABS.get(UNITS.get(output), 0.0))
+    return not v.size or float(np.ptp(v)) <= resolution(v, output)
+
+
+def resolved(x, values, output):
+    """x, or 0.0 where it is below the resolution of the output's values (rounding noise)."""
+    return 0.0 if x is not None and math.isfinite(x) and abs(x) <= resolution(values, output) else x
 
 
 def within(values, lim) -> np.ndarray:
@@ -63,7 +90,10 @@ def yield_share(df, limits) -> float:
     return float(ok.mean())
 
 
-def output_table(df, outputs, limits) -> list[dict]:
+def output_table(df, outputs, limits, sample: bool = True) -> list[dict]:
+    """Per output: n, mean, sd, min, max, limits, whether it is constant (spread below the solver's
+    resolution), and with limits the in-spec share of the evaluated rows (and Cpk for a sample;
+    sample=False for a grid, whose points are chosen, not drawn)."""
     rows = []
     for o in outputs:
         if o not in df.columns or o in BOOL_OUTPUTS:
@@ -76,17 +106,25 @@ def output_table(df, outputs, limits) -> list[dict]:
              "sd": float(v.std(ddof=1)) if v.size > 1 else math.nan,
              "min": float(v.min()) if v.size else math.nan, "max": float(v.max()) if v.size else math.nan,
              "lower": lim[0], "upper": lim[1]}
+        r["constant"] = bool(v.size) and is_constant(v, o)
+        # rounding noise shown as what it is: 0 below the solver's resolution
+        r.update(mean=resolved(r["mean"], v, o), min=resolved(r["min"], v, o), max=resolved(r["max"], v, o))
+        if r["constant"]:
+            r["sd"] = 0.0
         if o in limits:
-            r["within"] = float(within(df[o].to_numpy(dtype=float), lim).mean())
-            r["cpk"] = cpk(v, lim)
+            ev = evaluated(df)
+            inside = within(df[o].to_numpy(dtype=float), lim)[ev]
+            r["within"] = float(inside.mean()) if inside.size else math.nan
+            r["n_within"], r["n_evaluated"], r["n_failed"] = int(inside.sum()), int(ev.sum()), int((~ev).sum())
+            if sample:
+                r["cpk"] = cpk(v, lim)
         rows.append(r)
     return rows
 
 
 def status_counts(df) -> dict:
     """Counts by the status's kind (the text before the first colon)."""
-    kinds = df["status"].astype(str).str.split(":").str[0]
-    return {k: int(n) for k, n in kinds.value_counts().items()}
+    return {k: int(n) for k, n in status_kind(df).value_counts().items()}
 
 
 def flag_counts(df) -> dict:
@@ -138,11 +176,16 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
     def f(x, w, p=5):
         return f"{'—':>{w}s}" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:>{w}.{p}g}"
 
-    for r in output_table(df, study_outputs, limits):
+    grid = bool(manifest) and manifest.get("sampler") == "grid"
+    table = output_table(df, study_outputs, limits, sample=not grid)
+    for r in table:
         ins = f"{100 * r['within']:7.2f}%" if "within" in r else f"{'':>8s}"
         lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(r['mean'], 11)} {f(r['sd'], 10, 4)} "
                      f"{f(r['min'], 11)} {f(r['max'], 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
                      f"{f(r.get('cpk'), 6, 3)}")
-    if limits:
+    failed = int((~evaluated(df)).sum()) if len(df) else 0
+    if limits and failed:
+        lines.append(f"in spec: share of the {len(df) - failed} evaluated rows ({failed} not evaluated)")
+    if limits and not grid:
         lines.append(f"yield (evaluated and within every limit): {100 * yield_share(df, limits):.2f} %")
     return "\n".join(lines)

@@ -1,16 +1,21 @@
-"""Pump-down figures and HTML report (spec §8): booster pressure with the target, current and
-speed, one cell's indicator (p-V) diagram at several booster pressures, the torque split into gas
-and friction (and inertia, the rest) over a revolution, and the pumping speed S(p) with the ultimate pressure."""
+"""Pump-down figures and HTML report: booster pressure with the target, current and speed, where
+the energy goes, one cell's indicator (p-V) diagram at several booster pressures, the torque split
+into gas and friction (and inertia, the rest) over a revolution, and the pumping speed S(p) with
+the ultimate pressure. The report opens with the operating conditions (supply voltage, booster
+volume, pressures, leak) and ends with the provenance block. Every legend sits outside its axes
+(it covers no curve) and every reference line is named in it.
+"""
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 
 import numpy as np
 
-from ..io import atomic_path, write_text
+from ..io import atomic_path
+from ..presentation import provenance
+
+RPM = 30 / math.pi
 
 
 def ultimate_pressure(maps, leak_flow) -> tuple[float, bool]:
@@ -25,84 +30,113 @@ def ultimate_pressure(maps, leak_flow) -> tuple[float, bool]:
     return float(max(maps.pressure[0] - net[0] / slope, 0.0)), True
 
 
-def _figure(res, maps, cfg):
+def _legend(ax, handles=None, ncol=2):
+    """Below the axes: it never covers a curve."""
+    kw = {} if handles is None else {"handles": handles}
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=ncol, fontsize=8, frameon=False, **kw)
+
+
+def _pressure_panel(a, res):
+    s, t = res.summary, res.time
+    a.plot(t, res.columns["booster_pressure"] / 1e3, "C0", label="booster pressure (full model)")
+    fp = s.get("fast_path")
+    if fp:
+        a.plot(fp["time"], np.array(fp["booster_pressure"]) / 1e3, "C3--", lw=1.2,
+               label="fast path (cycle-averaged maps)")
+    if s.get("target_pressure"):
+        a.axhline(s["target_pressure"] / 1e3, color="k", ls="--", lw=0.8,
+                  label=f"target {s['target_pressure'] / 1e3:.4g} kPa")
+    if s.get("time_to_target") is not None:
+        a.axvline(s["time_to_target"], color="C0", ls=":", lw=1.0,
+                  label=f"target reached at {s['time_to_target']:.3g} s")
+    a.set(xlabel="time [s]", ylabel="booster pressure [kPa]", title="Booster pump-down", ylim=(0, None))
+    _legend(a)
+
+
+def _current_panel(a, res):
+    """Current (left axis) and speed (right axis), one legend for both."""
+    s, t, c = res.summary, res.time, res.columns
+    h1 = a.plot(t, c["current"], "C1", lw=0.8,
+                label=f"motor current (peak {s['peak_current']:.1f} A, mean {s['mean_current']:.2f} A)")
+    a.set(xlabel="time [s]", ylabel="motor current [A]", title="Current and speed")
+    b = a.twinx()
+    h2 = b.plot(t, c["speed"] * RPM, "C2", lw=1.0, label=f"rotor speed (mean {s['mean_speed_rpm']:.0f} rpm)")
+    b.set_ylabel("rotor speed [rpm]", color="C2")
+    b.set_ylim(0, None)
+    a.set_ylim(0, None)
+    _legend(a, h1 + h2, ncol=1)
+
+
+def _energy_panel(a, res):
+    s = res.summary
+    q = np.array([s["gas_work"], s["friction_work"], s["copper_loss"], s["motor_friction_work"]])
+    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"]
+    a.barh(names, q, color=["C0", "C3", "C1", "C4"])
+    for y, v in enumerate(q):
+        a.text(v, y, f" {v:.0f} J", va="center", fontsize=8)
+    a.set_xlim(0, 1.2 * max(q.max(), 1e-300))
+    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J from the supply go")
+
+
+def _indicator_panel(a, maps, cfg, picks):
+    for d in picks:
+        a.plot(d["volume"] * 1e6, d["pressure"] / 1e3, label=f"booster at {d['booster_pressure'] / 1e3:.0f} kPa")
+    atm = cfg.pneumatic.values["gas.atmosphere"] / 1e3
+    a.axhline(atm, color="k", lw=0.7, ls=":", label=f"atmosphere {atm:.1f} kPa")
+    a.set(xlabel="cell volume [cm³]", ylabel="cell 0 pressure [kPa]", title="Indicator diagram (cell 0)")
+    _legend(a)
+
+
+def _torque_panel(a, d):
+    deg = np.degrees(d["angle"])
+    a.plot(deg, d["torque"], "k", label="shaft torque")
+    a.plot(deg, d["gas_torque"], "C0", label="gas torque")
+    a.plot(deg, d["friction_torque"], "C3", label="friction torque")
+    # the rest: the vanes' kinetic energy swinging in and out over a revolution (and the
+    # rotor's acceleration); without it the parts do not add up to the shaft torque
+    a.plot(deg, d["torque"] - d["gas_torque"] - d["friction_torque"], "C7:", label="inertia (the rest)")
+    a.axhline(0, color="0.5", lw=0.6)
+    a.set(xlabel="rotor angle [deg]", ylabel="torque [N·m]", xlim=(deg.min(), deg.max()),
+          title=f"Torque split over a revolution (booster {d['booster_pressure'] / 1e3:.0f} kPa)")
+    _legend(a)
+
+
+def _speed_panel(a, maps, cfg):
+    from .pumpdown import leak_flow
+
+    v = cfg.pneumatic.values
+    p_u, extrap = ultimate_pressure(maps, lambda p: leak_flow(v, p))
+    a.plot(maps.pressure / 1e3, maps.pumping_speed * 6e4, "C0o-", label="S(p), cycle averages")
+    a.axvline(p_u / 1e3, color="C3", ls="--",
+              label=f"ultimate pressure {p_u / 1e3:.1f} kPa" + (" (extrapolated)" if extrap else ""))
+    a.set(xlabel="booster pressure [kPa]", ylabel="pumping speed [L/min]", title="Pumping speed",
+          xlim=(0, None), ylim=(0, None))
+    _legend(a, ncol=1)
+
+
+def pumpdown_panels(res, maps, cfg):
+    """The report's six panels (the lower three need the maps); returns (figure, pyplot)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .pumpdown import _leak_area, _orifice
-
-    s = res.summary
-    t = res.time
-    c = res.columns
-    fig, ax = plt.subplots(2, 3, figsize=(16, 9))
-    a = ax[0, 0]
-    a.plot(t, c["booster_pressure"] / 1e3, "C0", label="full model")
-    if s.get("target_pressure"):
-        a.axhline(s["target_pressure"] / 1e3, color="k", ls="--", lw=0.8, label="target")
-    if s.get("time_to_target") is not None:
-        a.axvline(s["time_to_target"], color="C0", ls=":", lw=0.8)
-    fp = s.get("fast_path")
-    if fp:
-        a.plot(fp["time"], np.array(fp["booster_pressure"]) / 1e3, "C3--", lw=1.2,
-               label="fast path (cycle-averaged maps)")
-    a.set(xlabel="time [s]", ylabel="booster pressure [kPa]", title="Booster pump-down")
-    a.legend()
-    a.grid(alpha=0.3)
-    a = ax[0, 1]
-    a.plot(t, c["current"], "C1", lw=0.8)
-    a.set(xlabel="time [s]", ylabel="motor current [A]", title="Current and speed")
-    a.grid(alpha=0.3)
-    b = a.twinx()
-    b.plot(t, c["speed"] * 30 / math.pi, "C2", lw=1.0)
-    b.set_ylabel("speed [rpm]", color="C2")
-    a.text(0.98, 0.95, f"peak {s['peak_current']:.1f} A, mean {s['mean_current']:.1f} A\n"
-           f"energy {s['energy']:.0f} J", transform=a.transAxes, ha="right", va="top")
-    a = ax[0, 2]
-    q = np.array([s["gas_work"], s["friction_work"], s["copper_loss"], s["motor_friction_work"]])
-    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"]
-    a.barh(names, q, color=["C0", "C3", "C1", "C4"])
-    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J go")
-    a.grid(alpha=0.3, axis="x")
+    fig, ax = plt.subplots(2, 3, figsize=(14, 10), layout="constrained")
+    _pressure_panel(ax[0, 0], res)
+    _current_panel(ax[0, 1], res)
+    _energy_panel(ax[0, 2], res)
     if maps is not None:
-        a = ax[1, 0]
         picks = _picks(maps.revolutions)
-        for d in picks:
-            a.plot(d["volume"] * 1e6, d["pressure"] / 1e3, label=f"booster {d['booster_pressure'] / 1e3:.0f} kPa")
-        a.axhline(cfg.pneumatic.values["gas.atmosphere"] / 1e3, color="k", lw=0.6, ls=":")
-        a.set(xlabel="cell volume [cm³]", ylabel="cell 0 pressure [kPa]", title="Indicator diagram (cell 0)")
-        a.legend()
-        a.grid(alpha=0.3)
-        a = ax[1, 1]
-        d = picks[len(picks) // 2]
-        deg = np.degrees(d["angle"])
-        a.plot(deg, d["torque"], "k", label="shaft torque")
-        a.plot(deg, d["gas_torque"], "C0", label="gas torque")
-        a.plot(deg, d["friction_torque"], "C3", label="friction torque")
-        # the rest: the vanes' kinetic energy swinging in and out over a revolution (and the
-        # rotor's acceleration); without it the parts do not add up to the shaft torque
-        a.plot(deg, d["torque"] - d["gas_torque"] - d["friction_torque"], "C7:", label="inertia (the rest)")
-        a.set(xlabel="rotor angle [deg]", ylabel="torque [N m]",
-              title=f"Torque split over a revolution (booster {d['booster_pressure'] / 1e3:.0f} kPa)")
-        a.legend()
-        a.grid(alpha=0.3)
-        a = ax[1, 2]
-        v = cfg.pneumatic.values
-        area = _leak_area(v)
-        p_u, extrap = ultimate_pressure(maps, lambda p: _orifice(v["gas.atmosphere"], p, area, v))
-        a.plot(maps.pressure / 1e3, maps.pumping_speed * 6e4, "C0o-", label="S(p), cycle averages")
-        a.axvline(p_u / 1e3, color="C3", ls="--",
-                  label=f"ultimate {p_u / 1e3:.1f} kPa" + (" (extrapolated)" if extrap else ""))
-        a.set(xlabel="booster pressure [kPa]", ylabel="pumping speed [L/min]", title="Pumping speed",
-              xlim=(0, None), ylim=(0, None))
-        a.legend()
-        a.grid(alpha=0.3)
+        _indicator_panel(ax[1, 0], maps, cfg, picks)
+        _torque_panel(ax[1, 1], picks[len(picks) // 2])
+        _speed_panel(ax[1, 2], maps, cfg)
     else:
         for a in ax[1]:
             a.axis("off")
+    for a in ax.ravel():
+        if a.axison:
+            a.grid(alpha=0.3)
     fig.suptitle(f"pumpsim pump-down: {res.name}")
-    fig.tight_layout()
     return fig, plt
 
 
@@ -112,18 +146,44 @@ def _picks(revs, n=4):
 
 
 def pumpdown_figure(res, maps, cfg, path) -> None:
-    fig, plt = _figure(res, maps, cfg)
+    fig, plt = pumpdown_panels(res, maps, cfg)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
 
 
-def pumpdown_report(res, maps, cfg, path) -> None:
-    fig, plt = _figure(res, maps, cfg)
-    buf = io.BytesIO()
-    fig.savefig(buf, dpi=100, format="png")
-    plt.close(fig)
-    img = base64.b64encode(buf.getvalue()).decode()
+def operating_conditions(res, cfg) -> list[tuple[str, str]]:
+    """What the pump-down ran at: supply, booster, gas and the model."""
+    s, v = res.summary, cfg.pneumatic.values
+    model = "Model 1 (vanes free in their slots, penalty contacts)" if s.get("model") == "contact" else \
+        "Model 2 (vane tips on the housing)"
+    rows = [("configuration", cfg.name), ("model", f"{model}, {cfg.vanes} vanes")]
+    if cfg.pneumatic.motor:
+        rows += [("supply voltage", f"{v['motor.voltage']:.4g} V"),
+                 ("motor", f"R = {v['motor.resistance'] * 1e3:.4g} mΩ, k = {v['motor.constant'] * 1e3:.4g} mN·m/A")]
+    else:
+        rows.append(("drive", f"speed prescribed, {cfg.speed * RPM:.0f} rpm"))
+    rows += [("booster volume", f"{v['booster.volume'] * 1e3:.4g} L"),
+             ("booster pressure: start → target", f"{s['start_pressure'] / 1e3:.4g} kPa → "
+              + (f"{s['target_pressure'] / 1e3:.4g} kPa" if s.get("target_pressure") else "no target")),
+             ("booster leak", f"{v['booster.leak'] * 1e6:.4g} mg/s at full vacuum"),
+             ("atmosphere, gas temperature", (f"{v['gas.atmosphere'] / 1e3:.4g} kPa, "
+              f"{v['gas.temperature'] - 273.15:.4g} °C"))]
+    return rows
+
+
+def _kernel_key(cfg, model) -> str | None:
+    try:
+        from ..kernels import load_kernels
+        from .kernel import structure_of
+
+        st = structure_of(cfg, model)
+        return f"{st.variant}-{load_kernels(st, build=False).key}"
+    except Exception:  # provenance must never break a report  # noqa: BLE001
+        return None
+
+
+def result_rows(res) -> list[tuple[str, str]]:
     s = res.summary
     rows = [("time to target", _fmt(s["time_to_target"], "s")),
             ("final booster pressure", f"{s['final_pressure'] / 1e3:.2f} kPa"),
@@ -137,14 +197,26 @@ def pumpdown_report(res, maps, cfg, path) -> None:
                      f"{_fmt(fp['time_to_target'], 's')} / {fp['mean_current']:.2f} A"))
     st = s["solver"]
     rows.append(("CVODES", f"{st['nsteps']} steps, {st['njevals']} Jacobians, {st['wall_time']:.1f} s wall"))
-    table = "".join(f"<tr><th>{html.escape(a)}</th><td>{html.escape(b)}</td></tr>" for a, b in rows)
-    warn = "".join(f"<p class=w>{html.escape(w)}</p>" for w in res.warnings)
-    text = (f"<!doctype html><meta charset=utf-8><title>pump-down {html.escape(res.name)}</title>"
-            "<style>body{font-family:sans-serif;margin:2em;max-width:1700px}th{text-align:left;"
-            "padding-right:2em}td,th{padding:3px}.w{color:#a00}img{max-width:100%}</style>"
-            f"<h1>Pump-down: {html.escape(res.name)}</h1>{warn}<table>{table}</table>"
-            f"<img alt='pump-down figures' src='data:image/png;base64,{img}'>")
-    write_text(path, text)
+    return rows
+
+
+def pumpdown_report(res, maps, cfg, path) -> None:
+    from ..report import (
+        figure_html,
+        provenance_html,
+        provenance_line,
+        table,
+        write_page,
+    )
+
+    prov = provenance(cfg, kernel_key=_kernel_key(cfg, res.summary.get("model", "constrained")))
+    fig, _ = pumpdown_panels(res, maps, cfg)
+    parts = [f"<h1>Pump-down: {html.escape(res.name)}</h1>", provenance_line(prov),
+             *[f"<p class=warn>{html.escape(w)}</p>" for w in res.warnings],
+             "<h2>Operating conditions</h2>", table(["input", "value"], operating_conditions(res, cfg)),
+             "<h2>Results</h2>", table(["result", "value"], result_rows(res)),
+             "<h2>Figures</h2>", figure_html(fig), provenance_html(prov)]
+    write_page(path, f"pump-down {res.name}", parts)
 
 
 def work_row(s) -> tuple[str, str]:

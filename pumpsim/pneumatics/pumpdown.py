@@ -318,6 +318,11 @@ def fast_pumpdown(cfg, maps: PumpMaps, until=None, duration=120.0) -> dict:
             "time": [float(x) for x in sol.t], "booster_pressure": [float(x) for x in sol.y[0]]}
 
 
+def leak_flow(v, p_booster) -> float:
+    """The booster leak's mass flow [kg/s] at booster pressure p_booster (gas-table values v)."""
+    return _orifice(v["gas.atmosphere"], p_booster, _leak_area(v), v)
+
+
 def _leak_area(v):
     g, R, T = v["gas.gamma"], v["gas.gas_constant"], v["gas.temperature"]
     flux = v["gas.atmosphere"] / math.sqrt(R * T) * math.sqrt(g) * (2 / (g + 1)) ** ((g + 1) / (2 * (g - 1)))
