@@ -44,15 +44,11 @@ def _settings(study, method, samples, seed, resamples):
     return method, samples, seed, int(resamples), int(levels)
 
 
-def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **run_kw) -> dict:
-    """Sobol' or Morris indices per output (and speed) and varied key. run_kw go to run_study
-    (workers, scheduler, out, progress ...)."""
-    from SALib.analyze import morris as morris_analyze
-    from SALib.analyze import sobol as sobol_analyze
+def _sample(study, method, n, seed, levels):
+    """(SALib problem over the keys with a spread, unit-cube points U, design matrix X)."""
     from SALib.sample import morris as morris_sample
     from SALib.sample import sobol as sobol_sample
 
-    method, n, seed, resamples, levels = _settings(study, method, samples, seed, resamples)
     active = [v for v in study.variables if not v.spread_zero]
     if not active:
         raise ConfigError("no varied key has a spread: nothing to analyse")
@@ -75,6 +71,34 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
         else:
             X[:, c] = v.ppf(Q[:, j])
             j += 1
+    return problem, U, X
+
+
+def _analyse(method, problem, U, Y, seed, resamples, levels) -> dict:
+    """key -> indices of one output's values Y at the points U."""
+    from SALib.analyze import morris as morris_analyze
+    from SALib.analyze import sobol as sobol_analyze
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        if method == "sobol":
+            r = sobol_analyze.analyze(problem, Y, calc_second_order=False, num_resamples=resamples,
+                                      conf_level=0.95, seed=seed)
+            return {k: {"S1": _f(r["S1"][i]), "S1_conf": _f(r["S1_conf"][i]),
+                        "ST": _f(r["ST"][i]), "ST_conf": _f(r["ST_conf"][i])}
+                    for i, k in enumerate(problem["names"])}
+        r = morris_analyze.analyze(problem, U, Y, conf_level=0.95, num_resamples=resamples,
+                                   num_levels=levels, seed=seed)
+        return {k: {"mu": _f(r["mu"][i]), "mu_star": _f(r["mu_star"][i]),
+                    "mu_star_conf": _f(r["mu_star_conf"][i]), "sigma": _f(r["sigma"][i])}
+                for i, k in enumerate(problem["names"])}
+
+
+def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **run_kw) -> dict:
+    """Sobol' or Morris indices per output (and speed) and varied key. run_kw go to run_study
+    (workers, scheduler, out, progress ...)."""
+    method, n, seed, resamples, levels = _settings(study, method, samples, seed, resamples)
+    problem, U, X = _sample(study, method, n, seed, levels)
     df, stats = run_study(study, X=X, **run_kw)
     # operating points are separate analyses; a varied operation.speed is an input like any other
     speeds = sorted(df["speed"].unique()) if study.speeds and len(study.speeds) > 1 else [None]
@@ -89,24 +113,10 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
             if Y.size != U.shape[0] or not np.all(np.isfinite(Y)):
                 skipped.append({"output": name, "reason": f"{int(np.sum(~np.isfinite(Y)))} of "
                                 f"{U.shape[0]} designs have no value"})
-                continue
-            if is_constant(Y, o):
+            elif is_constant(Y, o):
                 skipped.append({"output": name, "reason": f"constant ({np.median(Y):.6g}): no variance to share"})
-                continue
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                if method == "sobol":
-                    r = sobol_analyze.analyze(problem, Y, calc_second_order=False, num_resamples=resamples,
-                                              conf_level=0.95, seed=seed)
-                    indices[name] = {k: {"S1": _f(r["S1"][i]), "S1_conf": _f(r["S1_conf"][i]),
-                                         "ST": _f(r["ST"][i]), "ST_conf": _f(r["ST_conf"][i])}
-                                     for i, k in enumerate(problem["names"])}
-                else:
-                    r = morris_analyze.analyze(problem, U, Y, conf_level=0.95, num_resamples=resamples,
-                                               num_levels=levels, seed=seed)
-                    indices[name] = {k: {"mu": _f(r["mu"][i]), "mu_star": _f(r["mu_star"][i]),
-                                         "mu_star_conf": _f(r["mu_star_conf"][i]), "sigma": _f(r["sigma"][i])}
-                                     for i, k in enumerate(problem["names"])}
+            else:
+                indices[name] = _analyse(method, problem, U, Y, seed, resamples, levels)
     return {"method": method, "samples": n, "designs": int(U.shape[0]), "seed": seed,
             "resamples": resamples, "keys": problem["names"],
             "speeds": [float(w) for w in speeds if w is not None], "indices": indices,

@@ -66,10 +66,15 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
     and its constants k (design_constants). da: the same arrays' tangents with a leading axis of
     directions; dpar: tangents of k's entries along those directions. Returns (values,
     derivatives); derivatives is {} without da."""
-    out, der = {}, {}
+    out, at = _values(a, k)
+    return out, ({} if da is None else _derivatives(a, k, da, dpar, out, at))
+
+
+def _values(a: dict, k: dict) -> tuple[dict, dict]:
+    """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse)."""
+    out = {}
     c_visc, L, lm, area = k["c_visc"], k["L"], k["lm"], k["tip_area"]
     t = a["torque"]
-    g = (lambda k: da[k]) if da is not None else (lambda k: None)
     out["mean_torque"] = t.mean()
     out["rms_torque"] = np.sqrt(np.mean(t * t))
     hi, lo = int(np.argmax(t)), int(np.argmin(t))
@@ -82,8 +87,7 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
     out["tip_friction_power"] = tip_v.sum()
     out["slot_friction_power"] = slot_v.sum()
     out["friction_power"] = out["tip_friction_power"] + out["slot_friction_power"]
-    per_vane = tip_v + slot_v
-    for i, x in enumerate(per_vane):
+    for i, x in enumerate(tip_v + slot_v):
         out[per_vane_name(i)] = x
     iN_hi, iN_lo = int(np.argmax(N)), int(np.argmin(N))
     out["max_normal_force"] = N.ravel()[iN_hi]
@@ -100,14 +104,23 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
     out["max_extension"] = ext.ravel()[ie_hi]
     out["lift_off"] = bool(out["min_normal_force"] < 0)
     out["paradox"] = bool(np.any(a["n_consistent"] < 0.5) or np.any(a["ambiguity"] > PARADOX_TOL))
-    if da is None:
-        return out, der
-    dt = g("torque")
+    at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, pv=pv, ipv=ipv, ext=ext,
+              ie_lo=ie_lo, ie_hi=ie_hi, vanes=tip_v.size)
+    return out, at
+
+
+def _derivatives(a: dict, k: dict, da: dict, dpar: dict, out: dict, at: dict) -> dict:
+    """Tangents of the outputs along da's directions (the extremes at the samples _values found)."""
+    der = {}
+    c_visc, area = k["c_visc"], k["tip_area"]
+    t, dt = a["torque"], da["torque"]
     der["mean_torque"] = dt.mean(axis=1)
     der["rms_torque"] = (dt * t).mean(axis=1) / out["rms_torque"]
-    der["ptp_torque"] = dt[:, hi] - dt[:, lo]
-    dN, dv, dmh = g("normal"), g("tip_slip"), g("mu_housing")
-    dsd, dF1, dF2, dmr = g("sdot"), g("slot1"), g("slot2"), g("mu_slot")
+    der["ptp_torque"] = dt[:, at["hi"]] - dt[:, at["lo"]]
+    N, v, mh = a["normal"], a["tip_slip"], a["mu_housing"]
+    sd, F1, F2, mr = a["sdot"], a["slot1"], a["slot2"], a["mu_slot"]
+    dN, dv, dmh = da["normal"], da["tip_slip"], da["mu_housing"]
+    dsd, dF1, dF2, dmr = da["sdot"], da["slot1"], da["slot2"], da["mu_slot"]
     dc = dpar["c_visc"][:, None, None]
     dtip = dmh * N * v + mh * dN * v + mh * N * dv + dc * v * v + 2 * c_visc * v * dv
     dslot = (dmr * sd * (np.abs(F1) + np.abs(F2)) + mr * dsd * (np.abs(F1) + np.abs(F2))
@@ -116,15 +129,16 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
     der["tip_friction_power"] = dtip_v.sum(axis=1)
     der["slot_friction_power"] = dslot_v.sum(axis=1)
     der["friction_power"] = der["tip_friction_power"] + der["slot_friction_power"]
-    for i in range(per_vane.size):
+    for i in range(at["vanes"]):
         der[per_vane_name(i)] = dtip_v[:, i] + dslot_v[:, i]
-    der["max_normal_force"] = _at(N, dN, iN_hi)[1]
-    der["min_normal_force"] = _at(N, dN, iN_lo)[1]
+    der["max_normal_force"] = _at(N, dN, at["iN_hi"])[1]
+    der["min_normal_force"] = _at(N, dN, at["iN_lo"])[1]
     dF = np.where(np.abs(F1) >= np.abs(F2), np.sign(F1) * dF1, np.sign(F2) * dF2)
-    der["max_slot_force"] = _at(F, dF, iF)[1]
+    der["max_slot_force"] = _at(at["F"], dF, at["iF"])[1]
+    pv = at["pv"]
     dpv = (dN * np.abs(v) + N * np.sign(v) * dv) / area - pv * (dpar["tip_area"] / area)[:, None, None]
-    der["max_tip_pv"] = _at(pv, dpv, ipv)[1]
-    dext = g("s") + (dpar["L"] - dpar["lm"])[:, None, None]
-    der["min_extension"] = _at(ext, dext, ie_lo)[1]
-    der["max_extension"] = _at(ext, dext, ie_hi)[1]
-    return out, der
+    der["max_tip_pv"] = _at(pv, dpv, at["ipv"])[1]
+    dext = da["s"] + (dpar["L"] - dpar["lm"])[:, None, None]
+    der["min_extension"] = _at(at["ext"], dext, at["ie_lo"])[1]
+    der["max_extension"] = _at(at["ext"], dext, at["ie_hi"])[1]
+    return der

@@ -255,12 +255,17 @@ def load_study(path) -> Study:
     return study_from_dict(_read_toml(p, "study"), base_dir=p.parent, path=str(p))
 
 
-def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
-    from .analytic import FUNCTIONS
+def _int_setting(st, key, default, lo, hi, what):
+    v = st.get(key, default)
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
+        raise ConfigError(f"study.{key} must be {what}, got {v!r}")
+    return v
 
-    st = _study_table(raw)
-    function = st.get("function")
-    base, cfg_path, base_cfg = _base_config(st, function, base_dir, FUNCTIONS)
+
+def _run_settings(st, function, base_cfg) -> tuple:
+    """(sampler, samples, seed, model, revolutions, revolution_samples) of the [study] table."""
     sampler = st.get("sampler", "sobol")
     if sampler not in SAMPLERS:
         raise ConfigError(f"study.sampler must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
@@ -269,24 +274,21 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
         raise ConfigError(f"study.samples must be an integer >= 1, got {samples!r}")
     if samples > 10_000_000:
         raise ConfigError(f"study.samples must be <= 10,000,000, got {samples}")
-    seed = st.get("seed", 0)
-    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
-        raise ConfigError(f"study.seed must be an integer >= 0, got {seed!r}")
+    seed = _int_setting(st, "seed", 0, 0, float("inf"), "an integer >= 0")
     model = st.get("model", "constrained")
     if model not in MODELS:
         raise ConfigError(f"study.model must be 'constrained' or 'contact', got {model!r}")
     if model == "contact" and function is None and not base_cfg.contact_given:
         raise ConfigError("study.model = \"contact\" needs [contact.housing] with a stiffness in the config")
-    revolutions = st.get("revolutions")
-    if revolutions is not None and (not isinstance(revolutions, int) or isinstance(revolutions, bool)
-                                    or not 2 <= revolutions <= 1000):
-        raise ConfigError(f"study.revolutions must be an integer in [2, 1000], got {revolutions!r}")
+    revolutions = _int_setting(st, "revolutions", None, 2, 1000, "an integer in [2, 1000]")
     nrev = st.get("revolution_samples", st.get("samples_per_revolution", 360))
     if not isinstance(nrev, int) or isinstance(nrev, bool) or not 8 <= nrev <= 100_000:
         raise ConfigError(f"study.revolution_samples must be an integer in [8, 100000], got {nrev!r}")
-    variables = _parse_variables(raw.get("vary", {}), function, base, sampler, FUNCTIONS)
-    speeds = _parse_speeds(st.get("speeds"), function, variables)
-    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS) + list(GAS_OUTPUTS)
+    return sampler, samples, seed, model, revolutions, nrev
+
+
+def _outputs_and_limits(raw, st, names, base, base_cfg) -> tuple:
+    """(outputs, limits, constraints, objective), every output name checked."""
     outputs = st.get("outputs", _available(names, base, base_cfg))
     if not isinstance(outputs, list) or not outputs:
         raise ConfigError("study.outputs must be a non-empty list of output names")
@@ -299,7 +301,20 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     constraints = _limits_table(raw.get("constraints", {}), "constraints")
     for o in constraints:
         _check_numeric_output(o, f"constraints.{o}", names)
-    objective = _parse_objective(raw.get("objective", {}), names)
+    return list(outputs), limits, constraints, _parse_objective(raw.get("objective", {}), names)
+
+
+def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
+    from .analytic import FUNCTIONS
+
+    st = _study_table(raw)
+    function = st.get("function")
+    base, cfg_path, base_cfg = _base_config(st, function, base_dir, FUNCTIONS)
+    sampler, samples, seed, model, revolutions, nrev = _run_settings(st, function, base_cfg)
+    variables = _parse_variables(raw.get("vary", {}), function, base, sampler, FUNCTIONS)
+    speeds = _parse_speeds(st.get("speeds"), function, variables)
+    names = list(FUNCTIONS[function].outputs) if function else list(OUTPUTS) + list(GAS_OUTPUTS)
+    outputs, limits, constraints, objective = _outputs_and_limits(raw, st, names, base, base_cfg)
     booster_pressure = None
     if function is None:
         asked = list(dict.fromkeys(list(outputs) + list(limits) + list(constraints) + objective))
@@ -314,7 +329,7 @@ def study_from_dict(raw: dict, base_dir=".", path="<study>") -> Study:
     warnings = [w for v in variables for w in plausibility_warnings(base, v)] if function is None else []
     return Study(path=path, base=base, config_path=None if cfg_path is None else str(cfg_path),
                  variables=variables, sampler=sampler, samples=samples, seed=seed, speeds=speeds,
-                 outputs=list(outputs), model=model, revolution_samples=nrev, limits=limits,
+                 outputs=outputs, model=model, revolution_samples=nrev, limits=limits,
                  objective=objective, constraints=constraints, optimize=opt, sensitivity=sens,
                  scheduler=scheduler, workers=workers, batch_size=batch, function=function, raw=raw,
                  revolutions=revolutions, warnings=warnings, booster_pressure=booster_pressure)
