@@ -126,7 +126,7 @@ def bench_compile():
         try:
             for name, model in (("ellipse_1vane", "constrained"), ("ellipse_4vanes", "constrained"),
                                 ("ellipse_4vanes", "contact")):
-                cfg = load_config(ROOT / "examples" / f"{name}.toml", check_geometry=False)
+                cfg = load_config(ROOT / "examples" / f"{name}.toml")
                 st = cfg.structure_for(model)
                 t0 = time.perf_counter()
                 d = build_variant(st)

@@ -87,7 +87,7 @@ def _fast(structure):
         return None
     key = ("fast", structure)
     if key not in _MAPS.cache:
-        from ..fastkernel import load_fast_kernel
+        from ..kernels import load_fast_kernel
 
         try:
             fk = load_fast_kernel(structure, fallback=True)

@@ -17,7 +17,7 @@ from ..kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels,
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
-from ..simulate import ripple_motion
+from ..motion import ripple_motion
 from .reversals import reversal_keep
 from .start import periodic_config_names, phase_and_speed_start
 

@@ -22,7 +22,7 @@ from .. import interrupt
 from ..errors import SolverError
 from ..tolerances import GAS_ATOL, GAS_RTOL
 from ..integrate import _illinois
-from .kernel import kernels, parameter_index, parameter_vector
+from ..kernels.pneumatic import kernels, parameter_index, parameter_vector
 from ..model_spec.parameters import REED_MODES
 
 EVENT_TIME_TOL = 1e-10  # s

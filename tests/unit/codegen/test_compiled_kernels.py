@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import pumpsim.codegen.build as build
-from pumpsim import kernels
+from pumpsim.kernels import scalar as kernels
 from pumpsim.codegen.model import build_model
 from pumpsim.contact import ode_with_jacobian
 from pumpsim.model_spec import manifest as mf
