@@ -35,7 +35,7 @@ def bench_inverse_dynamics(n=100_000):
     """Inverse dynamics at constant speed, 4 vanes, ellipse, n angle samples."""
     import casadi as ca
 
-    from pumpsim.codegen.model import build_model
+    from pumpsim.codegen.build import build_model
     from pumpsim.codegen.numpy_model import NumpyConstrainedModel
 
     cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")

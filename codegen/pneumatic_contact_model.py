@@ -2,7 +2,7 @@
 and slot-bottom penalty contacts, integrated together with the gas cells, ports, valves, leaks,
 booster and motor of the pneumatic model.
 
-The gas acts on each vane as in Model 2 (`_GasBuilder.gas_loads`): p_i on the +w side (cell i),
+The gas acts on each vane as in Model 2 (`GasBuilder.gas_loads`): p_i on the +w side (cell i),
 p_{i-1} on the -w side, p_slot under the vane; these loads enter the three vane equations, which
 are solved for (sddot, F1, F2) given the penalty forces (`contact_model.contact_vane`), and their
 moment enters the drive torque. A vane the gas pushes off the housing lifts (penetration < 0,
@@ -29,8 +29,8 @@ from pumpsim.model_spec.outputs import PUMP_CONTACT_OUTPUTS, VANE_OUTPUTS
 
 from . import pneumatic_model
 from .contact_model import contact_vane, housing_contact
-from .model import BuiltModel
-from .pneumatic_model import (_GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
+from .builder import BuiltModel
+from .pneumatic_model import (GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
                               energy_rows, flat, gas_flows, gas_state, implicit_rates, motor_drive,
                               parameter_symbols)
 
@@ -78,7 +78,7 @@ def contact_point_function(b) -> ca.Function:
 
 
 def build_pneumatic_contact_model(structure) -> BuiltModel:
-    b = _GasBuilder(structure)
+    b = GasBuilder(structure)
     N = structure.vanes
     vane_map = vane_gas_function(b).map(N)
     point_map = contact_point_function(b).map(N)

@@ -81,7 +81,7 @@ def _split(names, res, N, keep):
 
 
 def _fast(structure):
-    """The SIMD inverse dynamics (pumpsim.fastkernel) of a variant, or None where it cannot be
+    """The SIMD inverse dynamics (pumpsim.kernels.simd) of a variant, or None where it cannot be
     built (then the scalar CasADi kernel runs). PUMPSIM_DESIGN_KERNEL=scalar forces the latter."""
     if os.environ.get("PUMPSIM_DESIGN_KERNEL", "") == "scalar":
         return None
