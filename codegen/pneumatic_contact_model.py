@@ -116,10 +116,26 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
     qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power,
                         ca.sum2(od["contact_power"]), ca.sum2(od["load_power"]))
     rhs, jac, wd = implicit_rates(x, xdot, qdot, drive, p)
+    outs = _outputs(P, omega, cur, s, sd, (m, m_in, m_ex, m_b), (V, dVdt, lin, lex, vvol), gs, fl, drive, od,
+                    gas_power, fric_power)
+    out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p],
+                        [outs[k] for k in PUMP_CONTACT_OUTPUTS])
+    out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"],
+                              list(PUMP_CONTACT_OUTPUTS)))
+    cells = cell_geometry_function(cell_geometry(b, p, phis), p)
+    fns = {f.name(): f for f in (rhs, jac, out_fn, cells, _constrained_state(b, p, phis, facs))}
+    return BuiltModel(structure, b.params, fns)
+
+
+def _outputs(P, omega, cur, s, sd, masses, cells, gs, fl, drive, od, gas_power, fric_power) -> dict:
+    """pump_outputs' rows by name (PUMP_CONTACT_OUTPUTS) from the state's parts, the cells'
+    geometry (V, dV/dt, port lengths, vane volume), the gas, the flows and the drive."""
+    m, m_in, m_ex, m_b = masses
+    V, dVdt, lin, lex, vvol = cells
     tau, r_s = drive["torque"], drive["residual"]
     safe_omega = ca.if_else(ca.fabs(omega) > 1e-9, omega, 1.0)  # per-radian outputs at rest: 0
     at_rest = ca.fabs(omega) <= 1e-9
-    outs = dict(
+    return dict(
         torque=tau, omegadot=drive["omegadot_used"], current=cur, pressure=gs["pc"], volume=V,
         temperature=gs["Tc"], dvolume=ca.if_else(at_rest, 0 * dVdt, dVdt / safe_omega),
         inlet_pressure=gs["p_in"], exhaust_pressure=gs["p_ex"], booster_pressure=gs["p_b"],
@@ -137,13 +153,6 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
         potential_energy=od["potential_energy"].T, contact_power=ca.sum2(od["contact_power"]),
         volume_rate=dVdt,
     )
-    out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p],
-                        [outs[k] for k in PUMP_CONTACT_OUTPUTS])
-    out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"],
-                              list(PUMP_CONTACT_OUTPUTS)))
-    cells = cell_geometry_function(cell_geometry(b, p, phis), p)
-    fns = {f.name(): f for f in (rhs, jac, out_fn, cells, _constrained_state(b, p, phis, facs))}
-    return BuiltModel(structure, b.params, fns)
 
 
 def _constrained_state(b, p, phis, facs):
