@@ -91,9 +91,10 @@ class Builder:
     the contact-side selection; one subclass or function per variant assembles its exported
     functions from them."""
 
-    def __init__(self, structure: Structure):
+    def __init__(self, structure: Structure, params=None):
+        """params: the variant's parameter layout (default: the mechanical model's, layout())."""
         self.st = structure
-        self.params = layout(structure)
+        self.params = layout(structure) if params is None else params
         self.p = ca.SX.sym("p", len(self.params))
         self.P = {q.name: self.p[i] for i, q in enumerate(self.params)}
         self._mechanics()

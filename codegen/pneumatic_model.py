@@ -49,12 +49,7 @@ VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", 
 
 class GasBuilder(Builder):
     def __init__(self, structure):
-        self.st = structure
-        self.params = pneumatic_layout(structure)
-        self.p = ca.SX.sym("p", len(self.params))
-        self.P = {q.name: self.p[i] for i, q in enumerate(self.params)}
-        self._mechanics()
-        self._housing()
+        super().__init__(structure, pneumatic_layout(structure))
         self.geo = CellGeometry(self)
 
     def factors(self, p):

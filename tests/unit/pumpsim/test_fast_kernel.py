@@ -227,7 +227,7 @@ def test_vane_loops_vectorise_on_avx2_too(case, tmp_path):
     if "-mavx2" not in simd.native_target():
         pytest.skip("this CPU has no AVX2")
     flags = [f for f in simd.SIMD_CFLAGS if f != "-shared"]
-    proc = subprocess.run([simd.build.CC, *flags, "-mno-avx512f", "-fopt-info-vec-optimized", "-c",
+    proc = subprocess.run([simd.CC, *flags, "-mno-avx512f", "-fopt-info-vec-optimized", "-c",
                            str(fk.folder / fk.manifest["c_source"]), "-o", str(tmp_path / "avx2.o")],
                           capture_output=True, text=True, check=True)
     assert simd.unvectorised_loops(fk.manifest["loop_lines"], proc.stderr) == []
