@@ -20,8 +20,7 @@ $(DOCS_STAMP): $(STAMP)
 	touch $(DOCS_STAMP)
 
 codegen: install
-	$(BIN)/python -m pumpsim.variants examples/*.toml
-	$(BIN)/python -m pumpsim.fastkernel examples/*.toml
+	$(BIN)/python -m pumpsim.variants --simd examples/*.toml
 	$(BIN)/python -m pumpsim.variants bench/independent/rigs/*.toml  # the independent cross-check's rigs
 
 demo: codegen

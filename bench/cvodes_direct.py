@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT))
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.pneumatics import pumpdown as pdm  # noqa: E402
 from pumpsim.pneumatics import run  # noqa: E402
-from pumpsim.pneumatics.kernel import kernels, parameter_index, parameter_vector  # noqa: E402
+from pumpsim.kernels.pneumatic import kernels, parameter_index, parameter_vector  # noqa: E402
 from pumpsim.tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL  # noqa: E402
 
 DRIVER = r"""

@@ -190,8 +190,8 @@ def bench_simd(cfg, kern, p, theta, baseline: dict, best_of) -> dict:
     run): `baseline` maps those rows' names to seconds."""
     import numpy as np
 
-    from pumpsim.fastkernel import load_fast_kernel
-    from pumpsim.simulate import inverse_dynamics
+    from pumpsim.kernels import load_fast_kernel
+    from pumpsim.kernels import inverse_dynamics
 
     fast = load_fast_kernel(kern.structure, fallback=False)  # the bench measures the SIMD library or fails
     n = theta.size

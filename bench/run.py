@@ -35,7 +35,7 @@ def bench_inverse_dynamics(n=100_000):
     """Inverse dynamics at constant speed, 4 vanes, ellipse, n angle samples."""
     import casadi as ca
 
-    from pumpsim.codegen.model import build_model
+    from pumpsim.codegen.build import build_model
     from pumpsim.codegen.numpy_model import NumpyConstrainedModel
 
     cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
@@ -126,7 +126,7 @@ def bench_compile():
         try:
             for name, model in (("ellipse_1vane", "constrained"), ("ellipse_4vanes", "constrained"),
                                 ("ellipse_4vanes", "contact")):
-                cfg = load_config(ROOT / "examples" / f"{name}.toml", check_geometry=False)
+                cfg = load_config(ROOT / "examples" / f"{name}.toml")
                 st = cfg.structure_for(model)
                 t0 = time.perf_counter()
                 d = build_variant(st)

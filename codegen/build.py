@@ -9,18 +9,15 @@ temporary folder that is renamed into place (atomic on one file system).
 
 `python -m pumpsim.codegen.build --structure '{"model": "constrained", "vanes": 4, ...}'` builds one
 variant; `make codegen` builds the bundled examples' variants through the runtime
-(`python -m pumpsim.kernels`).
+(`python -m pumpsim.variants`).
 """
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -30,7 +27,8 @@ from pumpsim.errors import CodegenError
 from pumpsim.model_spec import manifest as mf
 from pumpsim.model_spec.parameters import Structure
 
-CC = os.environ.get("PUMPSIM_CC", "gcc")
+from .install import CC, install_library
+
 CFLAGS = ["-O2", "-fPIC", "-shared", "-std=c99"]
 # derivative functions compiled into the library (CasADi's external() finds them by name)
 # (forward mode: CVODES and the fits need few directions, and a full jacobian() over all of p would
@@ -78,13 +76,6 @@ def compile_library(structure, source: Path, log) -> tuple[Path, float]:
     return lib, time.perf_counter() - t0
 
 
-def _record_fingerprint(folder: Path, fingerprint: str | None) -> None:
-    m = mf.read_manifest(folder)
-    if fingerprint is not None and fingerprint not in m.setdefault("source_fingerprints", []):
-        m["source_fingerprints"].append(fingerprint)
-        mf.write_manifest(folder, m)
-
-
 def build_library(structure, simd: bool = False, log=None) -> Path:
     """The entry point the runtime uses (pumpsim.kernels.build_library): the variant's library, or
     with simd=True its SIMD inverse dynamics (codegen/simd.py); returns the folder."""
@@ -95,11 +86,29 @@ def build_library(structure, simd: bool = False, log=None) -> Path:
     return build_variant(structure, log=log)
 
 
+def build_model(structure: Structure):
+    """Every exported CasADi function of one variant (a `BuiltModel`; no compilation here), from
+    the variant's own builder."""
+    if structure.model == "pneumatic":  # spec §8: gas cells, valves, booster, motor
+        from .pneumatic_model import build_pneumatic_model
+
+        return build_pneumatic_model(structure)
+    if structure.model == "pneumatic-contact":  # spec §8 with Model 1: vanes free in their slots
+        from .pneumatic_contact_model import build_pneumatic_contact_model
+
+        return build_pneumatic_contact_model(structure)
+    if structure.model == "contact":  # Model 1
+        from .contact_model import build_contact_model
+
+        return build_contact_model(structure)
+    from .constrained_model import build_constrained_model
+
+    return build_constrained_model(structure)
+
+
 def build_variant(structure, log=None) -> Path:
     """Generate C, compile unless a library with the same key exists, write the manifest; return
     the variant folder."""
-    from .model import build_model
-
     log = log or (lambda msg: None)
     spec = None
 
@@ -119,64 +128,6 @@ def build_variant(structure, log=None) -> Path:
             f"(model {t_model:.1f} s, C compile {t_compile:.1f} s)")
 
     return install_library(structure, structure, OPTIONS, generate, compile_, built, log, stage="model")
-
-
-def install_library(named, structure, options: dict, generate, compile_, built, log, stage: str) -> Path:
-    """The one build procedure of every compiled library (the scalar variants here, the SIMD ones in
-    simd.py): in a temporary folder under generated/, `generate(folder)` -> (C source path, manifest
-    entries); its key (mf.content_key of the source, CasADi, `options`); a trusted library with that
-    key is reused (only this tree's source fingerprint recorded, no compiler run); else
-    `compile_(source)` -> (library path, manifest entries, seconds), the manifest is written and the
-    folder renamed into place (atomic; a concurrent build of the same key wins the race harmlessly),
-    and `built(final, generate seconds, compile seconds, entries)` reports it. `named` gives the
-    folder's variant name, `structure` the manifest's structure; `stage` names the generation time."""
-    fingerprint = mf.source_fingerprint()
-    base = mf.generated_dir()
-    base.mkdir(parents=True, exist_ok=True)
-    _sweep_stale_temporaries(base)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{named.variant}.tmp-", dir=base))
-    os.chmod(tmp, mf.umask_mode(directory=True))  # mkdtemp's 0700 would hide the kernels from colleagues
-    try:
-        t0 = time.perf_counter()
-        source, generated = generate(tmp)
-        t_gen = time.perf_counter() - t0
-        c_sha = hashlib.sha256(source.read_bytes()).hexdigest()
-        key = mf.content_key(c_sha, ca.__version__, options)
-        final = mf.variant_dir(named, key)
-        if mf.trusted_manifest(final, named.variant, ca.__version__, None) is not None:
-            _record_fingerprint(final, fingerprint)  # same library: nothing to compile
-            log(f"{final.name}: the model source changed, the generated code did not")
-            return final
-        lib, checks, t_compile = compile_(source)
-        manifest = {
-            "key": key, "variant": named.variant, "structure": structure.as_dict(), "library": lib.name,
-            "library_sha256": hashlib.sha256(lib.read_bytes()).hexdigest(), "c_source": source.name,
-            "c_source_sha256": c_sha, "casadi": ca.__version__, "options": options,
-            "schema": mf.SCHEMA_VERSION, "source_fingerprints": [fingerprint] if fingerprint else [],
-            **checks, **generated, "seconds": {stage: round(t_gen, 3), "compile": round(t_compile, 3)},
-        }
-        mf.write_manifest(tmp, manifest)
-        try:
-            os.replace(tmp, final)
-        except OSError:  # another process won the race: its build is as good as ours
-            if mf.read_manifest(final) is None:
-                raise
-            _record_fingerprint(final, fingerprint)
-        built(final, t_gen, t_compile, checks)
-        return final
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-
-
-def _sweep_stale_temporaries(folder: Path, age_s: float = 3600.0) -> None:
-    now = time.time()
-    for p in folder.glob(".*.tmp-*"):
-        try:
-            if now - p.stat().st_mtime > age_s:
-                shutil.rmtree(p, ignore_errors=True)
-        except OSError:
-            pass
 
 
 def main(argv=None) -> int:

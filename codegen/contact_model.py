@@ -17,7 +17,7 @@ import casadi as ca
 from pumpsim.model_spec import laws
 from pumpsim.model_spec.outputs import CONTACT_VANE_OUTPUTS, VANE_OUTPUTS
 
-from .model import CASADI_OPS, newton_omegadot, rotor_torque
+from .builder import CASADI_OPS, Builder, BuiltModel, newton_omegadot, rotor_torque
 
 RATE_COLUMNS = ("theta", "omega", "omegadot", "s", "sdot")  # what one vane's rates depend on
 
@@ -135,6 +135,14 @@ def vane_functions(b) -> dict:
         "vane_accel_jac": fn("vane_accel_jac", ["d_sddot"], [ca.jacobian(sdd, q)]),
         "vane_rates_jac": fn("vane_rates_jac", ["d_rates"], [ca.jacobian(ca.vertcat(sdd, share), q)]),
     }
+
+
+def build_contact_model(structure) -> BuiltModel:
+    """Every exported CasADi function of a contact-model (Model 1) variant."""
+    b = Builder(structure)
+    fns = build_contact_functions(b)
+    fns["housing_curve"] = b.housing_function()
+    return BuiltModel(structure, b.params, fns)
 
 
 def build_contact_functions(b) -> dict:

@@ -14,7 +14,7 @@ from pumpsim.model_spec.parameters import Structure, friction_args, layout
 
 from .housing import derive_housing
 from .mechanics import SYMBOL_NAMES, derive_vane
-from .model import SIGN_SETS
+from .builder import SIGN_SETS
 
 NEWTON_ITERATIONS = 6  # 2x2 Newton in (s, alpha) from a ray/circle fixed-point guess
 RAY_ITERATIONS = 4

@@ -2,7 +2,7 @@
 and slot-bottom penalty contacts, integrated together with the gas cells, ports, valves, leaks,
 booster and motor of the pneumatic model.
 
-The gas acts on each vane as in Model 2 (`_GasBuilder.gas_loads`): p_i on the +w side (cell i),
+The gas acts on each vane as in Model 2 (`GasBuilder.gas_loads`): p_i on the +w side (cell i),
 p_{i-1} on the -w side, p_slot under the vane; these loads enter the three vane equations, which
 are solved for (sddot, F1, F2) given the penalty forces (`contact_model.contact_vane`), and their
 moment enters the drive torque. A vane the gas pushes off the housing lifts (penetration < 0,
@@ -29,8 +29,8 @@ from pumpsim.model_spec.outputs import PUMP_CONTACT_OUTPUTS, VANE_OUTPUTS
 
 from . import pneumatic_model
 from .contact_model import contact_vane, housing_contact
-from .model import BuiltModel
-from .pneumatic_model import (_GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
+from .builder import BuiltModel
+from .pneumatic_model import (GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
                               energy_rows, flat, gas_flows, gas_state, implicit_rates, motor_drive,
                               parameter_symbols)
 
@@ -78,7 +78,7 @@ def contact_point_function(b) -> ca.Function:
 
 
 def build_pneumatic_contact_model(structure) -> BuiltModel:
-    b = _GasBuilder(structure)
+    b = GasBuilder(structure)
     N = structure.vanes
     vane_map = vane_gas_function(b).map(N)
     point_map = contact_point_function(b).map(N)
@@ -116,10 +116,26 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
     qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power,
                         ca.sum2(od["contact_power"]), ca.sum2(od["load_power"]))
     rhs, jac, wd = implicit_rates(x, xdot, qdot, drive, p)
+    outs = _outputs(P, omega, cur, s, sd, (m, m_in, m_ex, m_b), (V, dVdt, lin, lex, vvol), gs, fl, drive, od,
+                    gas_power, fric_power)
+    out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p],
+                        [outs[k] for k in PUMP_CONTACT_OUTPUTS])
+    out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"],
+                              list(PUMP_CONTACT_OUTPUTS)))
+    cells = cell_geometry_function(cell_geometry(b, p, phis), p)
+    fns = {f.name(): f for f in (rhs, jac, out_fn, cells, _constrained_state(b, p, phis, facs))}
+    return BuiltModel(structure, b.params, fns)
+
+
+def _outputs(P, omega, cur, s, sd, masses, cells, gs, fl, drive, od, gas_power, fric_power) -> dict:
+    """pump_outputs' rows by name (PUMP_CONTACT_OUTPUTS) from the state's parts, the cells'
+    geometry (V, dV/dt, port lengths, vane volume), the gas, the flows and the drive."""
+    m, m_in, m_ex, m_b = masses
+    V, dVdt, lin, lex, vvol = cells
     tau, r_s = drive["torque"], drive["residual"]
     safe_omega = ca.if_else(ca.fabs(omega) > 1e-9, omega, 1.0)  # per-radian outputs at rest: 0
     at_rest = ca.fabs(omega) <= 1e-9
-    outs = dict(
+    return dict(
         torque=tau, omegadot=drive["omegadot_used"], current=cur, pressure=gs["pc"], volume=V,
         temperature=gs["Tc"], dvolume=ca.if_else(at_rest, 0 * dVdt, dVdt / safe_omega),
         inlet_pressure=gs["p_in"], exhaust_pressure=gs["p_ex"], booster_pressure=gs["p_b"],
@@ -137,13 +153,6 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
         potential_energy=od["potential_energy"].T, contact_power=ca.sum2(od["contact_power"]),
         volume_rate=dVdt,
     )
-    out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p],
-                        [outs[k] for k in PUMP_CONTACT_OUTPUTS])
-    out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"],
-                              list(PUMP_CONTACT_OUTPUTS)))
-    cells = cell_geometry_function(cell_geometry(b, p, phis), p)
-    fns = {f.name(): f for f in (rhs, jac, out_fn, cells, _constrained_state(b, p, phis, facs))}
-    return BuiltModel(structure, b.params, fns)
 
 
 def _constrained_state(b, p, phis, facs):

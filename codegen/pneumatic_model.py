@@ -25,7 +25,7 @@ from pumpsim.model_spec.parameters import pneumatic_layout
 
 from . import gas
 from .cells import CellGeometry
-from .model import BuiltModel, _Builder
+from .builder import Builder, BuiltModel
 
 MOTOR_FRICTION_SPEED = 0.5  # rad/s: motor friction torque = friction * tanh(omega / this)
 # Newton steps on omegadot: the required torque is affine in omegadot on a contact-side branch, so
@@ -47,14 +47,9 @@ VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", 
                     "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip")
 
 
-class _GasBuilder(_Builder):
+class GasBuilder(Builder):
     def __init__(self, structure):
-        self.st = structure
-        self.params = pneumatic_layout(structure)
-        self.p = ca.SX.sym("p", len(self.params))
-        self.P = {q.name: self.p[i] for i, q in enumerate(self.params)}
-        self._mechanics()
-        self._housing()
+        super().__init__(structure, pneumatic_layout(structure))
         self.geo = CellGeometry(self)
 
     def factors(self, p):
@@ -172,7 +167,7 @@ def exposed_flank(o, side):
 
 
 def build_pneumatic_model(structure) -> BuiltModel:
-    b = _GasBuilder(structure)
+    b = GasBuilder(structure)
     N = structure.vanes
     dyn_map = b.vane_dynamics().map(N)
     p, P = parameter_symbols(b)

@@ -46,9 +46,11 @@ from pathlib import Path
 import casadi as ca
 
 from pumpsim.errors import CodegenError
+from pumpsim.model_spec.outputs import VANE_OUTPUTS
 from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, SUBSETS, simd_options, simd_variant
 
-from . import build
+from .builder import Builder
+from .install import CC, install_library
 
 CHUNK = 512  # samples per pass over the vanes: the vanes' torque shares stay in L1/L2 for the sum
 VECTOR_FUNCTIONS = ("sin", "cos", "atan2")  # the model's transcendentals with a libmvec variant
@@ -158,17 +160,15 @@ def emit_loop(f: ca.Function, name: str, per_sample: set[int]) -> str:
 def simd_functions(structure):
     """SX functions the library loops over: the vane body (exactly the scalar library's), the
     per-vane arguments taken from p (slot angle, friction factor) and the rotor's torque sum."""
-    from .model import VANE_OUTPUTS, _Builder
-
     if structure.model != "constrained":
         raise ValueError("the SIMD library covers the constrained model's inverse dynamics")
-    b = _Builder(structure)
+    b = Builder(structure)
     vane = b.vane_constrained()
     N = structure.vanes
     args = ca.Function("vane_arguments", [b.p], [b.slot_angles(b.p).T, b.factors(b.p).T],
                        ["p"], ["phi", "factor"])
     wd, shares = ca.SX.sym("omegadot"), ca.SX.sym("torque_share", N)
-    # as codegen.model.assemble: rotor inertia, bearing torque and the vanes' shares
+    # as constrained_model's assemble: rotor inertia, bearing torque and the vanes' shares
     tq = b.pget(b.p, "rotor.inertia") * wd + b.pget(b.p, "operation.bearing_torque") + ca.sum1(shares)
     torque = ca.Function("rotor_torque", [wd, shares, b.p], [tq], ["omegadot", "torque_share", "p"],
                          ["torque"])
@@ -323,7 +323,7 @@ def native_target() -> str:
     """The options gcc derives from -march=native on this CPU (-march, -mtune and every ISA
     -m flag). "" if gcc cannot say."""
     try:
-        proc = subprocess.run([build.CC, *SIMD_CFLAGS, "-###", "-x", "c", "-c", os.devnull, "-o",
+        proc = subprocess.run([CC, *SIMD_CFLAGS, "-###", "-x", "c", "-c", os.devnull, "-o",
                                os.devnull], capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.TimeoutExpired):
         return ""
@@ -348,10 +348,10 @@ def _compile(structure, source: Path, info: dict, log) -> tuple[Path, dict, floa
     log(f"compiling the SIMD library of {structure.variant}")
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run([build.CC, *SIMD_CFLAGS, "-fopt-info-vec-optimized", str(source), "-o",
+        proc = subprocess.run([CC, *SIMD_CFLAGS, "-fopt-info-vec-optimized", str(source), "-o",
                                str(lib), "-lm"], capture_output=True, text=True)
     except OSError as e:
-        raise CodegenError(f"SIMD library of {structure.variant}: cannot run '{build.CC}' ({e.strerror})") from None
+        raise CodegenError(f"SIMD library of {structure.variant}: cannot run '{CC}' ({e.strerror})") from None
     if proc.returncode != 0:
         raise CodegenError(f"compiling the SIMD library of {structure.variant} failed:\n{proc.stderr[-2000:]}")
     scalar = unvectorised_loops(info["loop_lines"], proc.stderr)
@@ -370,11 +370,11 @@ def _compile(structure, source: Path, info: dict, log) -> tuple[Path, dict, floa
 
 def build_simd(structure, log=None) -> Path:
     """Generate, compile and check the SIMD library; return its folder. The build procedure is
-    build_variant's (build.install_library): a key that exists is reused, builds are atomic renames."""
+    build_variant's (install.install_library): a key that exists is reused, builds are atomic renames."""
     log = log or (lambda msg: None)
     native = native_target()
     if not native:
-        raise CodegenError(f"{build.CC} cannot resolve -march=native here; no SIMD library")
+        raise CodegenError(f"{CC} cannot resolve -march=native here; no SIMD library")
     info = {}
 
     def generate(folder):
@@ -387,5 +387,5 @@ def build_simd(structure, log=None) -> Path:
     def built(final, t_gen, t_compile, checks):
         log(f"built {final.name} in {t_gen + t_compile:.1f} s (vector calls: {', '.join(checks['vector_symbols'])})")
 
-    return build.install_library(simd_variant(structure), structure, simd_options(native), generate,
+    return install_library(simd_variant(structure), structure, simd_options(native), generate,
                                  lambda source: _compile(structure, source, info, log), built, log, stage="generate")

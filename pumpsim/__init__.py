@@ -40,8 +40,9 @@ if CHECKOUT is not None:
     sys.meta_path[:] = [f for f in sys.meta_path if not isinstance(f, _CheckoutCodegen)]
     sys.meta_path.insert(0, _CheckoutCodegen(CHECKOUT / "codegen"))
 
+# name -> module (or "module:attribute" where the public name is another function's)
 _EXPORTS = {
-    "load_config": ".config", "PumpConfig": ".config", "simulate": ".simulate",
+    "load_config": ".checks:checked_config", "PumpConfig": ".config", "simulate": ".simulate",
     "SimulationResult": ".result", "PumpsimError": ".errors", "ConfigError": ".errors",
     "DataError": ".errors", "CodegenError": ".errors", "SolverError": ".errors",
     "IdentificationError": ".errors",
@@ -71,10 +72,11 @@ def __getattr__(name):
     if name == "__version__":
         globals()[name] = _version()
         return globals()[name]
-    module = _EXPORTS.get(name)
-    if module is None:
+    target = _EXPORTS.get(name)
+    if target is None:
         raise AttributeError(f"module 'pumpsim' has no attribute '{name}'")
-    value = getattr(importlib.import_module(module, __name__), name)
+    module, _, attribute = target.partition(":")
+    value = getattr(importlib.import_module(module, __name__), attribute or name)
     globals()[name] = value
     return value
 

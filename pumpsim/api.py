@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .config import PumpConfig, load_config
+from .checks import PumpConfig, checked_config
 from .data import DataOptions, Dataset, load_data
 from .errors import ConfigError, DataError
 
@@ -17,7 +17,7 @@ def as_config(config, force: bool = False) -> PumpConfig:
     if isinstance(config, PumpConfig):
         return config
     if isinstance(config, (str, Path)):
-        return load_config(config, force=force)
+        return checked_config(config, force=force)
     raise ConfigError(f"config must be a PumpConfig or a path to a TOML file, got {type(config).__name__}")
 
 

@@ -153,9 +153,9 @@ def _staged(outs):
 
 
 def _load_config(a):
-    from .config import load_config
+    from .checks import checked_config
 
-    cfg = load_config(a.config, force=getattr(a, "force", False))
+    cfg = checked_config(a.config, force=getattr(a, "force", False))
     _warn(cfg.warnings)
     return cfg
 

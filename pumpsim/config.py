@@ -145,7 +145,7 @@ class PumpConfig:
         values = {**self.values, **updates}
         fill_derived(values, self.given | set(updates))
         return dataclasses.replace(self, values=values)
-    warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
+    warnings: list = field(default_factory=list)  # unit-mistake warnings accepted under force (checks)
 
     def with_harmonics(self, harmonics) -> "PumpConfig":
         """This config with the housing harmonics [[k, A, gamma], ...] (replacing the old ones)."""
@@ -186,21 +186,21 @@ def harmonic_values(j, k, A, gamma) -> dict:
             f"housing.harmonics.{j}.phase": gamma}
 
 
-def load_config(path, check_geometry: bool = True, force: bool = False) -> PumpConfig:
-    """Read and validate a TOML configuration; values are SI (m, kg, s, rad, N).
+def load_config(path) -> PumpConfig:
+    """Read a TOML configuration and validate it against the parameter registry (keys, types,
+    bounds, defaults); values are SI (m, kg, s, rad, N). Every rejection is a `ConfigError` naming
+    the key path and the limit.
 
-    path: the .toml file (UTF-8, a BOM allowed). check_geometry: reject vanes that cannot reach or
-    fit the housing. force: accept magnitudes that look like a unit mistake (a length in mm, a mass
-    in g, a speed in rpm under operation.speed) with a warning in `cfg.warnings` instead of a
-    `ConfigError`. Every rejection is a `ConfigError` naming the key path and the limit.
+    path: the .toml file (UTF-8, a BOM allowed). The checks that need more than the file -- an
+    admissible geometry, magnitudes that look like a unit mistake -- are
+    `pumpsim.checks.checked_config`'s (the public `pumpsim.load_config` runs both).
 
     Example::
 
-        cfg = pumpsim.load_config("examples/test_rig.toml")
+        cfg = pumpsim.config.load_config("examples/test_rig.toml")
         cfg.speed          # rad/s (operation.speed, or operation.speed_rpm converted)
     """
     from .data import decode_text
-    from .plausibility import check_config
 
     p = Path(path)
     if p.is_dir():
@@ -216,11 +216,6 @@ def load_config(path, check_geometry: bool = True, force: bool = False) -> PumpC
         raise ConfigError(f"config '{path}' is not valid TOML: {e}") from None
     cfg = config_from_dict(raw, name_default=p.stem)
     cfg.path = str(p)
-    cfg.warnings = check_config(cfg, force)
-    if check_geometry:
-        from .geometry import check_geometry as _check
-
-        _check(cfg)
     return cfg
 
 

@@ -12,7 +12,8 @@ from . import interrupt
 from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
-from .kernels import load_kernels
+from .kernels import evaluate, load_kernels
+from .motion import sample_times
 from .result import LazyOutputs, SimulationResult, contact_warnings
 from .tolerances import ATOL, RK_MAX_STEP, RTOL
 
@@ -97,8 +98,6 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
         raise ConfigError(f"unknown simulate option(s): {', '.join(unknown)}")
     if not cfg.contact_given:
         raise ConfigError("the contact model needs [contact.housing] with a stiffness in the config")
-    from .simulate import sample_times
-
     initial = initial or cfg.initial_vane_state or "rotor"
     pv = cfg.parameters("contact")
     kern = load_kernels(pv.structure)
@@ -190,8 +189,6 @@ def _result(cfg, kern, dyn, drive, p, values, run) -> SimulationResult:
 
 
 def _grid(kern, name, xs, drive, p, outputs=None):
-    from .simulate import evaluate
-
     N = kern.structure.vanes
     n = xs.shape[0]
     samples = [xs[:, 0], xs[:, 1], np.full(n, drive)]

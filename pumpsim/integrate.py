@@ -194,7 +194,7 @@ def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, 
         crossed = [i for i in np.nonzero(np.sign(g_new) != np.sign(g))[0] if g[i] != 0.0]
         if not crossed:
             return x_new, g_new
-        roots = {i: _illinois(lambda d, i=i: switch_fn(integ.step(x, d)[None, :])[0][i], 0.0, dt,
+        roots = {i: illinois(lambda d, i=i: switch_fn(integ.step(x, d)[None, :])[0][i], 0.0, dt,
                               g[i], g_new[i], time_tol) for i in crossed}
         t_s = min(roots.values())
         simultaneous = [i for i, ti in roots.items() if ti <= t_s + 10 * time_tol]
@@ -210,7 +210,7 @@ def _cross_interval(integ, switch_fn, x, g, t, t_end, events, time_tol, done_t, 
     return x, g
 
 
-def _illinois(f, a, b, fa, fb, tol, max_iter=60):
+def illinois(f, a, b, fa, fb, tol, max_iter=60):
     """Root of f on [a, b] (f(a), f(b) of opposite signs); returns a point just past it."""
     side = 0
     for _ in range(max_iter):

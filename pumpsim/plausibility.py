@@ -154,8 +154,7 @@ def model_torque_range(cfg, speed):
     """RMS of the model torque over one revolution at `speed` for COF 0 and COF 2 (housing and slot,
     statics scaled by the configured ratios): the range a fit of mu can reach."""
     from .config import as_array
-    from .kernels import load_kernels
-    from .simulate import sampled_inverse_dynamics
+    from .kernels import load_kernels, sampled_inverse_dynamics
 
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)

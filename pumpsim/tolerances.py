@@ -5,7 +5,7 @@
 POSITION_TOL = 1e-10  # m
 # Relative spread of the slot-wall forces between consistent contact-side sets beyond which they
 # are different solutions (a friction paradox); the consistency test itself is at 1e-9
-# (codegen.model.CONSISTENCY_TOL), so rounding never reaches this.
+# (codegen.builder.CONSISTENCY_TOL), so rounding never reaches this.
 PARADOX_TOL = 1e-6
 # Integrator defaults (simulate, the CLI, the Integrator): relative tolerance, and the absolute
 # tolerance of positions [rad, m] (speeds: ATOL * omega_0 in the contact model, see

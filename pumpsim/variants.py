@@ -28,10 +28,10 @@ def structures_of(path, models=None) -> list:
         from .design.study import load_study
 
         return list(dict.fromkeys(structures(load_study(path))))
-    cfg = load_config(path, check_geometry=False)
+    cfg = load_config(path)
     out = [cfg.structure_for(m) for m in models or ["constrained"]]
     if cfg.pneumatic is not None:  # spec §8 configs also get their gas-cell variant
-        from .pneumatics.kernel import structure_of
+        from .kernels.pneumatic import structure_of
 
         out += [structure_of(cfg, m) for m in ["constrained"] + (["contact"] if cfg.contact_given else [])]
     return list(dict.fromkeys(out))
@@ -40,7 +40,7 @@ def structures_of(path, models=None) -> list:
 def build_for(paths, models=None, simd: bool = True, log=print) -> None:
     """Load, building when missing or stale, every variant the files need (structures_of) and, with
     simd, the SIMD inverse dynamics of the Model 2 ones; one line per library."""
-    from .fastkernel import load_fast_kernel
+    from .kernels import load_fast_kernel
 
     seen = set()
     for path in paths:
@@ -58,13 +58,15 @@ def build_for(paths, models=None, simd: bool = True, log=print) -> None:
                     log(f"{st.variant}: no SIMD library on this machine: {exc}")
 
 
-def main(argv=None) -> int:  # python -m pumpsim.variants CONFIG ... (make codegen)
+def main(argv=None) -> int:  # python -m pumpsim.variants [--simd] CONFIG ... (make codegen)
     ap = argparse.ArgumentParser(description="Load (and build when missing or stale) the compiled "
                                              "kernels of configuration files.")
     ap.add_argument("configs", nargs="+", help="TOML configs whose variants to load")
     ap.add_argument("--model", choices=MODELS, action="append")
+    ap.add_argument("--simd", action="store_true",
+                    help="also the SIMD inverse dynamics of the constrained variants")
     args = ap.parse_args(argv)
-    build_for(args.configs, args.model, simd=False, log=lambda m: print(m, flush=True))
+    build_for(args.configs, args.model, simd=args.simd, log=lambda m: print(m, flush=True))
     return 0
 
 

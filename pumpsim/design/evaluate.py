@@ -81,13 +81,13 @@ def _split(names, res, N, keep):
 
 
 def fast_kernel(structure):
-    """The SIMD inverse dynamics (pumpsim.fastkernel) of a variant, or None where it cannot be
+    """The SIMD inverse dynamics (pumpsim.kernels.simd) of a variant, or None where it cannot be
     built (then the scalar CasADi kernel runs). PUMPSIM_DESIGN_KERNEL=scalar forces the latter."""
     if os.environ.get("PUMPSIM_DESIGN_KERNEL", "") == "scalar":
         return None
     key = ("fast", structure)
     if key not in _MAPS.cache:
-        from ..fastkernel import load_fast_kernel
+        from ..kernels import load_fast_kernel
 
         try:
             fk = load_fast_kernel(structure, fallback=True)

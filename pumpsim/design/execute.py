@@ -64,7 +64,7 @@ def structures(study) -> list:
         if study.model == "contact":
             out.append(cfg.structure_for("contact"))
         if study.booster_pressure is not None:
-            from ..pneumatics.kernel import structure_of
+            from ..kernels.pneumatic import structure_of
 
             out.append(structure_of(cfg))
     return out

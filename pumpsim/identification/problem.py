@@ -17,7 +17,7 @@ from ..kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels,
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
-from ..simulate import ripple_motion
+from ..motion import ripple_motion
 from .reversals import reversal_keep
 from .start import periodic_config_names, phase_and_speed_start
 
@@ -454,7 +454,7 @@ def sample_blocks(n: int):
 
 def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
     """`sample_torque(kern, 0, n)` evaluated at NumPy theta, tau, g, gd (n samples), z and ripple
-    order k: through the SIMD inverse dynamics (pumpsim.fastkernel; the same model to ~1e-14 of the
+    order k: through the SIMD inverse dynamics (pumpsim.kernels.simd; the same model to ~1e-14 of the
     torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map.
     The SIMD path computes the torque alone, block by block into one array: at 10^6 samples its
     speed and acceleration temporaries are those of a block, not of the record."""

@@ -73,7 +73,7 @@ CORRELATED = 0.95  # |correlation| above which two estimates are named as hard t
 def fit_map(cfg):
     """What parameter_map needs for the pneumatic layout: (index by name, the config's parameter
     vector, the COF ratios mu keeps, the slot COF, the derived defaults that follow their inputs)."""
-    from ..pneumatics.kernel import parameter_vector, structure_of
+    from ..kernels.pneumatic import parameter_vector, structure_of
 
     p0 = parameter_vector(cfg)
     names = [q.name for q in pneumatic_layout(structure_of(cfg))]
@@ -93,7 +93,7 @@ class BenchLogProblem(Problem):
 
     def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
                  atol=BENCH_FIT_ATOL):
-        from ..pneumatics.kernel import kernels
+        from ..kernels.pneumatic import kernels
 
         if cfg.pneumatic is None or not cfg.pneumatic.motor:
             raise ConfigError(f"{cfg.path or cfg.name}: a bench log is fitted with the pump-down model: the config "
@@ -221,7 +221,7 @@ class BenchModel:
 
     def __init__(self, cfg, time, voltage, start_pressure, omega0=0.0, rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL,
                  kern=None):
-        from ..pneumatics.kernel import kernels, structure_of
+        from ..kernels.pneumatic import kernels, structure_of
 
         self.cfg, self.rtol, self.atol = cfg, rtol, atol
         self.kern = kernels(cfg) if kern is None else kern

@@ -12,7 +12,7 @@ from scipy import stats
 
 from ..diagnostics import synchronous_speed_scan
 from ..model_spec.parameters import MEASUREMENT_BY_NAME, registry
-from ..simulate import sampled_inverse_dynamics
+from ..kernels import sampled_inverse_dynamics
 
 _GRID = np.linspace(0, 2 * math.pi, 720, endpoint=False)  # model over one revolution
 

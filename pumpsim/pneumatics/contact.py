@@ -21,7 +21,7 @@ from ..result import contact_warnings
 from ..tolerances import ATOL, CONTACT_GAS_ATOL, CONTACT_GAS_RTOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
-from .kernel import kernels, parameter_vector, structure_of
+from ..kernels.pneumatic import kernels, parameter_vector, structure_of
 from .simulate import CELL_COLUMNS, GasSolution, cell_outputs, gas_run_times
 
 QUAD_NAMES = run.QUAD_NAMES + ("contact_work", "load_work")

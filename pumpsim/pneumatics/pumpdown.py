@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
 from . import run
-from .kernel import kernels, parameter_index, parameter_vector, structure_of
+from ..kernels.pneumatic import kernels, parameter_index, parameter_vector, structure_of
 
 DEFAULT_DURATION = 120.0  # s: the longest pump-down when no --duration is given
 MAP_BOOSTER_VOLUME = 1.0e3  # m^3: the booster pressure does not move during a map run
@@ -113,7 +113,7 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     target = _target(cfg, until)
     if target is None and duration is None:
         raise ConfigError("give --until PA, --duration T or booster.target in the config")
-    from ..simulate import sample_times
+    from ..motion import sample_times
 
     sample_times(DEFAULT_DURATION if duration is None else duration, rate)  # finite, > 0, sample limit
     for name, val in (("rtol", rtol), ("atol", atol)):

@@ -20,9 +20,9 @@ import numpy as np
 
 from .. import interrupt
 from ..errors import SolverError
+from ..integrate import illinois
 from ..tolerances import GAS_ATOL, GAS_RTOL
-from ..integrate import _illinois
-from .kernel import kernels, parameter_index, parameter_vector
+from ..kernels.pneumatic import kernels, parameter_index, parameter_vector
 from ..model_spec.parameters import REED_MODES
 
 EVENT_TIME_TOL = 1e-10  # s
@@ -229,6 +229,31 @@ def _reed_switch(kern, p, X, mode):
     return o["reed_force"][:, None]
 
 
+def booster_pressure(st, p):
+    """The booster pressure [Pa] of states X (..., n_x): its gas mass at the gas temperature."""
+    ib = 3 + 2 * st.vanes + 2
+    v_b = p[parameter_index(st, "booster.volume")]
+    RT = p[parameter_index(st, "gas.gas_constant")] * p[parameter_index(st, "gas.temperature")]
+    return lambda X: X[..., ib] * RT / v_b
+
+
+@dataclass
+class _Trace:
+    """The output rows of a run: time, state, quadratures and valve mode (None: an event inside
+    the interval before)."""
+
+    times: list
+    xs: list
+    qs: list
+    modes: list
+
+    def add(self, t, x, q, mode):
+        self.times.append(t)
+        self.xs.append(x)
+        self.qs.append(q)
+        self.modes.append(mode)
+
+
 def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, atol=GAS_ATOL,
               progress=None, max_steps=2_000_000, kern=None, scale=None, drive=None) -> PumpdownRun:
     """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
@@ -238,7 +263,6 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     kern = kernels(cfg) if kern is None else kern
     p = parameter_vector(cfg) if p is None else np.asarray(p, float)
     st = kern.structure
-    N = st.vanes
     x0 = initial_state(cfg, kern, p) if x0 is None else np.asarray(x0, float)
     reed = p[parameter_index(st, "valve.reed")] > 0.5
     mode = float(p[parameter_index(st, "valve.mode")]) if reed else 0.0
@@ -246,24 +270,16 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     integ = PumpIntegrator(kern, p, rtol, atol, scale, max_steps, drive)
     dt = 1.0 / rate
     n_total = int(math.floor(duration * rate + 1e-9))
-    times, xs, qs, modes = [0.0], [x0], [np.zeros(integ.nq)], [mode]
+    trace = _Trace([0.0], [x0], [np.zeros(integ.nq)], [mode])
     events = []
     t, x, q = 0.0, x0.copy(), np.zeros(integ.nq)
-    ib = 3 + 2 * N + 2
-    v_b = p[parameter_index(st, "booster.volume")]
-    RT = p[parameter_index(st, "gas.gas_constant")] * p[parameter_index(st, "gas.temperature")]
-    p_booster = lambda X: X[..., ib] * RT / v_b  # noqa: E731
+    p_booster = booster_pressure(st, p)
     t_target = None
     wall0 = _time.perf_counter()
     k = 0
     while k < n_total:
         m = min(CHUNK, n_total - k)
-        try:
-            X, Q = integ.grid(x, mode, dt, m, t)
-        except SolverError as e:
-            raise SolverError(f"the gas model's integration failed between t = {t:.6g} s and "
-                              f"{t + m * dt:.6g} s (theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
-                              f"{p_booster(x):.6g} Pa): {e}") from None
+        X, Q = _grid(integ, x, mode, dt, m, t, p_booster)
         cut = _first_reed_switch(kern, p, x, X, mode) if reed else m
         stop_row = None
         if until is not None:
@@ -272,42 +288,46 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
                 stop_row = int(below[0])
                 cut = stop_row
         for r in range(cut):
-            times.append(t + (r + 1) * dt)
-            xs.append(X[r])
-            qs.append(q + Q[r])
-            modes.append(mode)
+            trace.add(t + (r + 1) * dt, X[r], q + Q[r], mode)
         if cut:
             t, x, q = t + cut * dt, X[cut - 1].copy(), q + Q[cut - 1]
             k += cut
         if stop_row is not None:  # locate the target crossing inside the next interval
-            pa = p_booster(x) - until
-            d = _illinois(lambda d: p_booster(integ.step(x, mode, d, t)[0]) - until, 0.0, dt, pa,
-                          p_booster(X[stop_row]) - until, EVENT_TIME_TOL)
+            d = illinois(lambda d: p_booster(integ.step(x, mode, d, t)[0]) - until, 0.0, dt,
+                          p_booster(x) - until, p_booster(X[stop_row]) - until, EVENT_TIME_TOL)
             xe, qe = integ.step(x, mode, d, t)
             t_target = t + d
-            times.append(t_target)
-            xs.append(xe)
-            qs.append(q + qe)
-            modes.append(mode)
+            trace.add(t_target, xe, q + qe, mode)
             break
         if cut < m:  # a reed event inside [t, t + dt]
             x, q, mode = _reed_interval(integ, kern, p, x, q, mode, t, dt, events)
             t = t + dt
             k += 1
-            times.append(t)
-            xs.append(x.copy())
-            qs.append(q.copy())
-            modes.append(None)  # an event inside the interval before: no single mode there
+            trace.add(t, x.copy(), q.copy(), None)
         interrupt.progress(f"at simulated t = {t:.6g} s of {duration:.6g} s (booster {p_booster(x):.6g} Pa)")
         if progress:
             progress(t, p_booster(x))
-    X = np.array(xs)
+    return _finished(integ, kern, p, trace, events, t_target, wall0)
+
+
+def _grid(integ, x, mode, dt, m, t, p_booster):
+    """m output steps from (t, x); a failure names the interval and the state it started from."""
+    try:
+        return integ.grid(x, mode, dt, m, t)
+    except SolverError as e:
+        raise SolverError(f"the gas model's integration failed between t = {t:.6g} s and "
+                          f"{t + m * dt:.6g} s (theta {x[0]:.6g} rad, omega {x[1]:.6g} rad/s, booster "
+                          f"{p_booster(x):.6g} Pa): {e}") from None
+
+
+def _finished(integ, kern, p, trace, events, t_target, wall0) -> PumpdownRun:
+    X = np.array(trace.xs)
     stats = dict(integ.stats)
     stats.update(integrator_calls=integ.calls, events=len(events),
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall)
     outs = evaluate_outputs(kern, X, p)
-    peak = peak_current(integ, np.array(times), X, modes)
-    return PumpdownRun(np.array(times), X, np.array(qs), outs, stats, events, t_target, p, peak)
+    peak = peak_current(integ, np.array(trace.times), X, trace.modes)
+    return PumpdownRun(np.array(trace.times), X, np.array(trace.qs), outs, stats, events, t_target, p, peak)
 
 
 def peak_current(integ, times, X, modes) -> float:
@@ -330,7 +350,7 @@ def peak_current(integ, times, X, modes) -> float:
         return abs(i[k])
     x_a, mode, d = X[a], modes[a + 1], times[a + 1] - times[a]
     t_a = times[a]
-    root = _illinois(lambda s: rate(integ.step(x_a, mode, s, t_a)[0], t_a + s), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
+    root = illinois(lambda s: rate(integ.step(x_a, mode, s, t_a)[0], t_a + s), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
     return max(abs(i[k]), abs(integ.step(x_a, mode, root, t_a)[0][2]))
 
 
@@ -358,7 +378,7 @@ def _reed_interval(integ, kern, p, x, q, mode, t, dt, events):
         crossed = [i for i in range(g0.size) if np.sign(g1[i]) != np.sign(g0[i]) and g0[i] != 0.0]
         if not crossed:
             return x1, q + q1, mode
-        roots = {i: _illinois(lambda d, i=i: _reed_switch(kern, p, integ.step(x, mode, d, t)[0][None, :],
+        roots = {i: illinois(lambda d, i=i: _reed_switch(kern, p, integ.step(x, mode, d, t)[0][None, :],
                                                              mode)[0][i],
                               0.0, t_end - t, g0[i], g1[i], EVENT_TIME_TOL) for i in crossed}
         i, d = min(roots.items(), key=lambda kv: kv[1])

@@ -20,7 +20,7 @@ from ..result import Solution, contact_warnings
 from ..tolerances import ATOL, RTOL
 from ..model_spec.parameters import pneumatic_layout
 from . import run
-from .kernel import kernels, parameter_vector
+from ..kernels.pneumatic import kernels, parameter_vector
 
 CELL_COLUMNS = ("pressure", "volume", "temperature")
 
@@ -75,7 +75,7 @@ def check_drive(cfg) -> None:
 def gas_run_times(cfg, duration, rate, method):
     """The output times of a gas-model simulate (both models), after checking its options: cvodes
     only, a speed or motor drive; duration default two revolutions (speed) or 0.1 s (motor)."""
-    from ..simulate import sample_times
+    from ..motion import sample_times
 
     if method != "cvodes":
         raise ConfigError(f"--method {method}: the gas model integrates with cvodes only")
@@ -99,8 +99,7 @@ def simulate(cfg, duration=None, rate=10000.0, method="cvodes", rtol=RTOL, atol=
 
 def _solution(cfg, r, kern) -> GasSolution:
     from ..config import as_array
-    from ..kernels import load_kernels
-    from ..simulate import sampled_inverse_dynamics
+    from ..kernels import load_kernels, sampled_inverse_dynamics
 
     N = cfg.vanes
     o, X = r.outputs, r.states

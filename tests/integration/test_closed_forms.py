@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import CLOSED_FORM_REL
 

@@ -13,7 +13,7 @@ from pumpsim.contact import TOUCHING
 from pumpsim.kernels import load_kernels
 from pumpsim.pneumatics import contact as pc
 from pumpsim.pneumatics import run
-from pumpsim.simulate import evaluate
+from pumpsim.kernels import evaluate
 from tests.pneumatic_helpers import speed_config
 from tests.tolerances import (CONTACT_GAS_ENERGY_REL, GAS_CONTACT_MECH_REL, PARTITION_LINEARITY_REL,
                               PENALTY_FALL_PER_DECADE, PENALTY_OFFSET_FACTOR, STICTION_MEAN_TORQUE_REL,

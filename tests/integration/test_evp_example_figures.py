@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from pumpsim.pneumatics.kernel import kernels, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
 from tests.conftest import EXAMPLES, ROOT
 from tests.pneumatic_helpers import evp_config
 from tests.tolerances import QUOTED_FIGURE_REL

@@ -9,8 +9,8 @@ import pytest
 from pumpsim.config import as_array
 from pumpsim.kernels import load_kernels
 from pumpsim.pneumatics import run
-from pumpsim.pneumatics.kernel import kernels, parameter_vector
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
+from pumpsim.kernels import inverse_dynamics
 from tests.pneumatic_helpers import evp_config, speed_config
 from tests.tolerances import EQUAL_PRESSURE_REL, GAS_BUDGET_ATOL, GAS_BUDGET_RTOL, GAS_ENERGY_REL, LOAD_POWER_REL, MOTOR_RESIDUAL_ABS
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pumpsim.pneumatics import run
-from pumpsim.pneumatics.kernel import kernels, parameter_index, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_index, parameter_vector
 from tests.pneumatic_helpers import IDEAL, speed_config
 from tests.tolerances import CHOKED_FLAT_REL, ISENTROPIC_REL, ISOTHERMAL_REL, MASS_CONSERVATION_REL, ORIFICE_REL, PUMPDOWN_LAW_REL, ULTIMATE_PRESSURE_REL
 

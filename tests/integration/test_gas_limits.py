@@ -8,7 +8,7 @@ import pytest
 from pumpsim.model_spec.parameters import GAS_PARAMETERS
 from pumpsim.pneumatics import pumpdown as pdm
 from pumpsim.pneumatics import run
-from pumpsim.pneumatics.kernel import kernels, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
 from pumpsim.tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
 from tests.pneumatic_helpers import IDEAL, evp_config, speed_config
 from tests.tolerances import PUMPDOWN_RANGE_REL, QUASI_STATIC_GRID, ULTIMATE_PRESSURE_REL

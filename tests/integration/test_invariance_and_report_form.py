@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import (CONSTRAINT_ABS, DRIVE_ROW_REL, REPORT_FORM_REL,
                               ROTATION_INVARIANCE_REL, SDDOT_FLOOR_ABS)

@@ -4,7 +4,7 @@ import pytest
 
 from pumpsim.model_spec import laws
 from pumpsim.model_spec.parameters import friction_args
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import POWER_BALANCE_REL, ZERO_MEAN_TORQUE_REL
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pumpsim.pneumatics import run
-from pumpsim.pneumatics.kernel import kernels, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
 from tests.pneumatic_helpers import speed_config
 from tests.tolerances import REED_FORCE_REL, REED_OPEN_REL, REED_STOP_REL
 

@@ -12,7 +12,7 @@ from pumpsim.data import Dataset, speed_trend
 from pumpsim.diagnose import diagnose
 from pumpsim.identification import identify, make_problem
 from pumpsim.kernels import load_kernels
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import ROOT
 from tests.tolerances import COMPILED_REL, EFFECT_FINAL_RMS, EFFECT_MU_REL
 

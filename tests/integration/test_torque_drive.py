@@ -46,7 +46,7 @@ def test_torque_drive_matches_inverse_dynamics():
     motion (from the inverse kernel at the integrated omegadot) equals the applied torque."""
     cfg = spinning(make_config("ellipse_4vanes"), omega0=150.0, torque=0.05)
     res = pumpsim.simulate(cfg, duration=0.02, rate=2000.0, rtol=FORWARD_INVERSE_RTOL, atol=POSITION_ATOL)
-    from pumpsim.simulate import evaluate, inverse_dynamics
+    from pumpsim.kernels import evaluate, inverse_dynamics
     from tests.conftest import kernel_and_p
 
     kern, p, _ = kernel_and_p(cfg)

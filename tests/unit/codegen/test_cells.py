@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from pumpsim.pneumatics.kernel import kernels, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
 from tests.pneumatic_helpers import ellipse_radius, gas_config
 from tests.tolerances import CELL_DERIVATIVE_REL, CELL_IDENTITY_REL, PORT_ARC_REL
 

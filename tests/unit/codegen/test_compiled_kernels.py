@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import pumpsim.codegen.build as build
-from pumpsim import kernels
-from pumpsim.codegen.model import build_model
+from pumpsim.kernels import scalar as kernels
+from pumpsim.codegen.build import build_model
 from pumpsim.contact import ode_with_jacobian
 from pumpsim.model_spec import manifest as mf
 from pumpsim.model_spec.parameters import Structure
@@ -143,7 +143,7 @@ def test_changed_model_expression_triggers_rebuild(private_cache, monkeypatch):
     """A source change the fingerprint sees sends the runtime to the builder; a changed expression
     gives new C, a new key and a compile; an unchanged expression gives the old key and no
     compile (the manifest then lists both fingerprints)."""
-    import pumpsim.codegen.model
+    import pumpsim.codegen.builder
 
     st = Structure(vanes=2)
     calls = _count_compiles(monkeypatch)
@@ -154,7 +154,7 @@ def test_changed_model_expression_triggers_rebuild(private_cache, monkeypatch):
     assert k2.key == k1.key and len(calls) == 1
     assert {fingerprint, fingerprint + "-refactored"} <= set(mf.read_manifest(k2.folder)["source_fingerprints"])
     monkeypatch.setattr(mf, "source_fingerprint", lambda folders=None: fingerprint + "-edited")
-    monkeypatch.setattr(pumpsim.codegen.model, "CONSISTENCY_TOL", 2e-9)  # an edited expression
+    monkeypatch.setattr(pumpsim.codegen.builder, "CONSISTENCY_TOL", 2e-9)  # an edited expression
     k3 = kernels.load_kernels(st)
     assert k3.key != k1.key and len(calls) == 2 and k3.folder != k1.folder
 

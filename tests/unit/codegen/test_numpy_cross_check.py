@@ -3,7 +3,7 @@
 import numpy as np
 
 from pumpsim.codegen.numpy_model import NumpyConstrainedModel
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import NUMPY_CROSS_REL
 

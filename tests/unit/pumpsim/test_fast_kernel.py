@@ -1,4 +1,4 @@
-"""SIMD inverse dynamics (codegen.simd, pumpsim.fastkernel) against the scalar library; p per
+"""SIMD inverse dynamics (codegen.simd, pumpsim.kernels.simd) against the scalar library; p per
 design, per block and per sample; the cache refuses stale libraries."""
 import subprocess
 
@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import pumpsim.codegen.simd as simd
-from pumpsim import fastkernel
+from pumpsim.kernels import simd as kernel_simd
 from pumpsim.model_spec import manifest as mf
 from pumpsim.model_spec import simd as simd_contract
 from pumpsim.errors import CodegenError, ConfigError
 from pumpsim.model_spec.parameters import Structure
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config
 from tests.tolerances import SIMD_REL
 
@@ -23,7 +23,7 @@ def case(request):
     cfg = make_config("ellipse_4vanes", **{"rotor.slot_tilt": 0.1, "vane.tip_radius": 0.001},
                       **CASES[request.param])
     kern, p, pv = kernel_and_p(cfg)
-    return kern, fastkernel.load_fast_kernel(pv.structure, fallback=False), p, pv
+    return kern, kernel_simd.load_fast_kernel(pv.structure, fallback=False), p, pv
 
 
 def random_motion(rng, n):
@@ -170,19 +170,19 @@ def test_bad_arguments_are_named(case):
 @pytest.fixture
 def private_cache(tmp_path, monkeypatch):
     monkeypatch.setenv("PUMPSIM_GENERATED", str(tmp_path))
-    monkeypatch.setattr(fastkernel, "_LOADED", {})
+    monkeypatch.setattr(kernel_simd, "_LOADED", {})
     return tmp_path
 
 
 def test_stale_foreign_or_tampered_simd_library_is_refused(private_cache, monkeypatch):
     st = Structure(vanes=2, harmonics=0)
-    k = fastkernel.load_fast_kernel(st, fallback=False)
+    k = kernel_simd.load_fast_kernel(st, fallback=False)
     assert k.manifest["options"]["cpu"] == simd_contract.cpu_signature()
 
     def refused():
-        monkeypatch.setattr(fastkernel, "_LOADED", {})
+        monkeypatch.setattr(kernel_simd, "_LOADED", {})
         with pytest.raises(CodegenError, match="missing or stale"):
-            fastkernel.load_fast_kernel(st, build=False)
+            kernel_simd.load_fast_kernel(st, build=False)
 
     with monkeypatch.context() as m:  # a worker with other instruction-set flags builds its own
         m.setattr(simd_contract, "cpu_signature", lambda: "another-cpu")
@@ -205,9 +205,9 @@ def test_a_scalar_loop_fails_the_build_and_falls_back(private_cache, monkeypatch
     monkeypatch.setattr(simd, "SIMD_CFLAGS", [f for f in simd.SIMD_CFLAGS if f != "-fno-math-errno"])
     with pytest.raises(CodegenError, match="left loop_vane_shared, loop_vane_samples, loop_vane_torque_shared, "
                                            ".* scalar"):
-        fastkernel.load_fast_kernel(pv.structure, fallback=False)
-    monkeypatch.setattr(fastkernel, "_LOADED", {})
-    fb = fastkernel.load_fast_kernel(pv.structure)
+        kernel_simd.load_fast_kernel(pv.structure, fallback=False)
+    monkeypatch.setattr(kernel_simd, "_LOADED", {})
+    fb = kernel_simd.load_fast_kernel(pv.structure)
     assert not fb.simd and "scalar" in fb.reason
     theta, omega, omegadot = random_motion(np.random.default_rng(1), 50)
     P = designs(pv, np.random.default_rng(2), 2)
@@ -227,7 +227,7 @@ def test_vane_loops_vectorise_on_avx2_too(case, tmp_path):
     if "-mavx2" not in simd.native_target():
         pytest.skip("this CPU has no AVX2")
     flags = [f for f in simd.SIMD_CFLAGS if f != "-shared"]
-    proc = subprocess.run([simd.build.CC, *flags, "-mno-avx512f", "-fopt-info-vec-optimized", "-c",
+    proc = subprocess.run([simd.CC, *flags, "-mno-avx512f", "-fopt-info-vec-optimized", "-c",
                            str(fk.folder / fk.manifest["c_source"]), "-o", str(tmp_path / "avx2.o")],
                           capture_output=True, text=True, check=True)
     assert simd.unvectorised_loops(fk.manifest["loop_lines"], proc.stderr) == []

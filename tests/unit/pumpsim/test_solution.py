@@ -5,7 +5,8 @@ import pytest
 import pumpsim
 from pumpsim.result import Solution
 from pumpsim.result import REPORTED
-from pumpsim.simulate import sampled_inverse_dynamics, speed_profile
+from pumpsim.kernels import sampled_inverse_dynamics
+from pumpsim.motion import speed_profile
 from tests.conftest import kernel_and_p, make_config
 
 

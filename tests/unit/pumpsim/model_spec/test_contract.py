@@ -26,7 +26,7 @@ def _modules_after(code, cwd=ROOT, env=None):
 
 
 def test_codegen_imports_no_runtime_module():
-    mods = _modules_after("import pumpsim.codegen, pumpsim.codegen.build, pumpsim.codegen.model, "
+    mods = _modules_after("import pumpsim.codegen, pumpsim.codegen.build, pumpsim.codegen.builder, pumpsim.codegen.constrained_model, "
                           "pumpsim.codegen.contact_model, pumpsim.codegen.numpy_model")
     loaded = [m for m in mods if m.split(".")[0] == "pumpsim" and not m.startswith("pumpsim.codegen")]
     runtime = [m for m in loaded if m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
@@ -65,7 +65,7 @@ def test_no_import_anywhere_crosses_the_contract():
                 and m not in CONTRACT_MODULES and not m.startswith("pumpsim.model_spec.")]
     assert crossing == []
     into_codegen = [(f, m) for f, m in _imports("pumpsim", "pumpsim") if m.startswith("pumpsim.codegen")]
-    assert into_codegen == [("pumpsim/kernels.py", "pumpsim.codegen.build")]
+    assert into_codegen == [("pumpsim/kernels/cache.py", "pumpsim.codegen.build")]
 
 
 def test_runtime_imports_no_codegen_and_no_sympy():
@@ -79,7 +79,7 @@ def test_runtime_imports_no_codegen_and_no_sympy():
 
 
 def test_fingerprint_ignores_comments_and_docstrings_not_expressions():
-    src = (ROOT / "codegen" / "model.py").read_text()
+    src = (ROOT / "codegen" / "builder.py").read_text()
     base = mf.file_fingerprint(src)
     commented = src.replace("import math\n", "import math  # a new comment\n# and a line\n", 1)
     redocumented = src.replace('"""3x3 linear solve by Cramer', '"""A reworded docstring; 3x3 solve by Cramer', 1)
@@ -90,12 +90,12 @@ def test_fingerprint_ignores_comments_and_docstrings_not_expressions():
 
 
 def _tree_copy(tmp_path, edit=None):
-    """A copy of the source tree (pumpsim/, codegen/) with `edit` applied to codegen/model.py."""
+    """A copy of the source tree (pumpsim/, codegen/) with `edit` applied to codegen/builder.py."""
     tree = tmp_path / "src"
     for pkg in ("pumpsim", "codegen"):
         shutil.copytree(ROOT / pkg, tree / pkg, ignore=shutil.ignore_patterns("__pycache__"))
     if edit:
-        model = tree / "codegen" / "model.py"
+        model = tree / "codegen" / "builder.py"
         model.write_text(edit(model.read_text()))
     return tree
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pumpsim.model_spec import laws
-from pumpsim.simulate import inverse_dynamics
+from pumpsim.kernels import inverse_dynamics
 from tests.conftest import kernel_and_p, make_config, one_revolution
 from tests.tolerances import CONTINUITY_MARGIN, LAW_ABS
 

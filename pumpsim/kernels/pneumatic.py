@@ -1,12 +1,13 @@
-"""The pneumatic model's compiled kernel and parameter vector for a configuration."""
+"""The pneumatic model's compiled kernel (a gas variant of spec §8) and parameter vector for a
+configuration."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..config import PumpConfig
 from ..errors import ConfigError
-from ..kernels import load_kernels
 from ..model_spec.parameters import PneumaticStructure, pneumatic_layout
+from .scalar import load_kernels
 
 
 def structure_of(cfg: PumpConfig, model: str = "constrained") -> PneumaticStructure:

@@ -7,35 +7,34 @@ one revolution each) or one per sample. No CasADi objects are involved: ctypes h
 pointers to float64 arrays and it writes into one preallocated (1 + 17 N, n) array (pass `out=` to
 reuse it: fresh pages cost ~0.2 us per sample). `outputs=` names the outputs wanted: the call then
 runs the smallest entry point that computes them (model_spec.simd.SUBSETS: the torque alone, one
-row; the simulation's reported columns) and the buffer has only that entry's rows. ctypes releases the GIL during the call, so
-`threads > 1` splits the samples over threads.
+row; the simulation's reported columns) and the buffer has only that entry's rows. ctypes
+releases the GIL during the call, so `threads > 1` splits the samples over threads.
 
 Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key over C source and
 options, library hash, this tree's source fingerprint) plus this CPU's instruction-set flags and C
 library (pumpsim.model_spec.simd); a missing or mismatched library is built through
-kernels.build_library (codegen's one entry point), imported only then (PUMPSIM_NO_BUILD=1: refused). On a machine where no
-SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel` returns
+kernels.cache.build_library (codegen's one entry point; PUMPSIM_NO_BUILD=1: refused). On a
+machine where no SIMD library can be built (gcc leaves the loops scalar, no vector math) `load_fast_kernel` returns
 the same interface over the scalar CasADi kernel (`.simd` False; fallback=False raises instead).
 
-`python -m pumpsim.fastkernel CONFIG ...` loads (building when needed) the SIMD libraries of
-configuration files' constrained variants; `make codegen` runs it on the bundled examples.
+`fast_kernel(structure)` is the SIMD library where this machine has one (else None), and
+`sampled_inverse_dynamics` evaluates through the fastest kernel available.
 """
 from __future__ import annotations
 
-import argparse
 import ctypes
-import sys
+import os
 from concurrent.futures import ThreadPoolExecutor
 
 import casadi as ca
 import numpy as np
 
-from .errors import CodegenError, ConfigError
-from .kernels import build_library, building_allowed, log_build
-from .model_spec import manifest as mf
-from .model_spec.outputs import VANE_OUTPUTS
-from .model_spec.parameters import Structure, layout
-from .model_spec.simd import SUBSETS, find_simd
+from ..errors import CodegenError, ConfigError
+from ..model_spec.outputs import VANE_OUTPUTS
+from ..model_spec.parameters import Structure, layout
+from ..model_spec.simd import SUBSETS, find_simd
+from .cache import build_library, building_allowed, log_build, memo_key
+from .scalar import default_threads, evaluate, inverse_dynamics, load_kernels
 
 _LOADED: dict = {}
 _c_long, _ptr = ctypes.c_long, ctypes.c_void_p
@@ -198,8 +197,6 @@ class ScalarInverseDynamics(FastInverseDynamics):
     simd = False
 
     def __init__(self, structure: Structure, reason: str):
-        from .kernels import load_kernels
-
         self.structure, self.reason = structure, reason
         self.kern = load_kernels(structure)
         self.key, self.folder, self.manifest = self.kern.key, self.kern.folder, self.kern.manifest
@@ -208,8 +205,6 @@ class ScalarInverseDynamics(FastInverseDynamics):
         self._set_layouts(SUBSETS)
 
     def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1, outputs=None):
-        from .simulate import evaluate
-
         theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
         key = self.entry_for(outputs)
         out = self._out_array(out, key, n)
@@ -238,16 +233,16 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
     behind the same interface (`.simd` False, `.reason` says why, logged); fallback=False raises."""
     if structure.model != "constrained":
         raise ConfigError("the fast inverse dynamics exist for the constrained model only")
-    fingerprint = mf.source_fingerprint()
-    memo = (structure, fingerprint, str(mf.generated_dir()))
+    memo = memo_key(structure)
     if memo in _LOADED:
         return _LOADED[memo]
+    fingerprint, folder_name = memo[1], memo[2]
     folder, manifest = find_simd(structure, ca.__version__, fingerprint)
     if manifest is None:
         if not building_allowed(build):
             raise CodegenError(
                 f"SIMD kernel for {structure.variant} is missing or stale for this source and CPU "
-                f"(source {fingerprint}, in {mf.generated_dir()}); build it with `pumpsim kernels build CONFIG` "
+                f"(source {fingerprint}, in {folder_name}); build it with `pumpsim kernels build CONFIG` "
                 "or unset PUMPSIM_NO_BUILD")
         log = log or log_build
         try:
@@ -265,27 +260,33 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
     return _LOADED[memo]
 
 
-def main(argv=None) -> int:
-    from .config import load_config
+FAST_THREADED = 20000  # samples from which a SIMD call is split over threads (below: ~1 ms, not worth it)
+_FAST: dict = {}
 
-    ap = argparse.ArgumentParser(description="Load (and build when missing or stale) the SIMD inverse "
-                                             "dynamics of configuration files' constrained variants.")
-    ap.add_argument("configs", nargs="+", help="TOML configs whose variants to load")
-    args = ap.parse_args(argv)
-    seen = set()
-    for path in args.configs:
-        st = load_config(path, check_geometry=False).structure_for("constrained")
-        if st in seen:
-            continue
-        seen.add(st)
+
+def fast_kernel(structure: Structure):
+    """The SIMD inverse dynamics of a constrained variant (load_fast_kernel, built beside the
+    scalar library when missing), or None where it cannot be built or PUMPSIM_FIT_KERNEL=scalar:
+    then callers use the CasADi map. Looked up once per variant and process."""
+    if os.environ.get("PUMPSIM_FIT_KERNEL", "") == "scalar" or structure.model != "constrained":
+        return None
+    memo = memo_key(structure)
+    if memo not in _FAST:
         try:
-            k = load_fast_kernel(st, fallback=False, log=lambda m: print(m, flush=True))
-        except CodegenError as exc:  # the scalar kernels still work: say so, do not fail make
-            print(f"{st.variant}: no SIMD library on this machine: {exc}", flush=True)
-            continue
-        print(f"{st.variant} (SIMD): {k.folder}")
-    return 0
+            fk = load_fast_kernel(structure, fallback=True)
+        except CodegenError:  # e.g. PUMPSIM_NO_BUILD with no SIMD library: the scalar kernel runs
+            fk = None
+        _FAST[memo] = fk if fk is not None and fk.simd else None
+    return _FAST[memo]
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def sampled_inverse_dynamics(kern, p, theta, omega, omegadot, outputs=None) -> dict:
+    """inverse_dynamics through the fastest kernel this machine has: for a constrained variant the
+    SIMD library (FastInverseDynamics; the entry point that computes only `outputs`, written into
+    one buffer, split over threads from FAST_THREADED samples), else the CasADi map. The same
+    names and shapes; the same numbers to ~1e-14 of each output's scale."""
+    fast = fast_kernel(kern.structure)
+    if fast is None:
+        return inverse_dynamics(kern, p, theta, omega, omegadot, outputs)
+    threads = default_threads() if np.size(theta) >= FAST_THREADED else 1
+    return fast(theta, omega, omegadot, p, outputs=outputs, threads=threads)
