@@ -145,7 +145,7 @@ class Diagnosis(dict):
         return self[key] if key in self or key == "history" else default
 
     def __str__(self):
-        from .diagnose import step_table
+        from .diagnosis.result import step_table
 
         return step_table(self)
 
@@ -184,7 +184,7 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
         d = pumpsim.diagnose("examples/ellipse_4vanes.toml", "examples/data/ellipse_hidden_effects.csv")
         print(d["effects"])
     """
-    from .diagnose import diagnose as _diagnose
+    from .diagnosis import diagnose as _diagnose
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)

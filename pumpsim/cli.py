@@ -418,7 +418,7 @@ def register_diagnose(sub):
 
 def cmd_diagnose(a) -> int:
     from .api import diagnose
-    from .diagnose import tty_progress
+    from .diagnosis import tty_progress
 
     outs = _outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)

@@ -392,7 +392,7 @@ def bic_chain(history) -> list | None:
     """BIC of every model in the history with ONE prewhitening filter (AR(1) of the baseline
     residual), so a step's "before" is the previous step's "after". The workflow's own decision
     prewhitens each step with the residual it starts from; its ΔBIC is shown beside this."""
-    from .diagnose import _bic, _whitened_rss
+    from .diagnosis.state import bic as _bic, whitened_rss as _whitened_rss
 
     if not history:
         return None
@@ -531,7 +531,7 @@ def _final_table(out, history, steps, cfg) -> str:
             row[4] = Cell(nb(f"not determined ({fmt_estimate(nd['estimate'] * f, se)})"), True, raw=True)
         rows.append(row)
     if last is not None:
-        from .diagnose import _polar
+        from .diagnosis.estimates import to_polar as _polar
 
         for effect, (raw, k) in polar_names.items():
             if not all(n in last.estimates and last.estimates[n].identifiable for n in raw):

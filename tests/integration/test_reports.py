@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import pumpsim
-from pumpsim.diagnose import candidates, diagnose, step_table
+from pumpsim.diagnosis import candidates, diagnose
+from pumpsim.diagnosis.result import step_table
 from pumpsim.presentation import OPTIMISTIC, PLUS_MINUS, describe
 from pumpsim.report import bic_chain, diagnosis_report
 from tests.conftest import ROOT, make_config
