@@ -10,5 +10,7 @@ from .effects import EFFECTS, Candidate, Effect, candidates, clearance, plausibl
 from .result import DiagnosisResult
 from .workflow import diagnose, tty_progress
 
-__all__ = ["EFFECTS", "Candidate", "DiagnosisResult", "Effect", "candidates", "clearance", "diagnose", "plausible",
+Diagnosis = DiagnosisResult  # the API reference's name for it
+
+__all__ = ["EFFECTS", "Candidate", "Diagnosis", "DiagnosisResult", "Effect", "candidates", "clearance", "diagnose", "plausible",
            "tty_progress"]

@@ -6,18 +6,18 @@ import math
 
 import numpy as np
 
-from ..diagnostics import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test,
-                           order_spectrum, systematic_rms)
-from ..diagnostics import noise_sigma
+from ..diagnostics import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test, order_spectrum,
+                           systematic_rms)
 
-from .options import RELEVANT, SEARCH_ALPHA, UNEXPLAINED_ALPHA
+from .options import OPTIONS, DiagnosisOptions
 from .state import full_mask, split_rows
 
 
 class Detection:
     """Detector results for one fit: per measurement, combined, and the systematic part."""
 
-    def __init__(self, res, datasets, fitted):
+    def __init__(self, res, datasets, fitted, opts: DiagnosisOptions = OPTIONS):
+        self.opts = opts
         # on the samples the fit's reversal-aware cost kept (dropped, not zero-filled): the mask
         # follows the model, not the noise, so under the null the kept samples are still
         # independent with one variance and every detector's null distribution holds
@@ -31,20 +31,20 @@ class Detection:
         self.sigma = max(_noise_sigma(d) for d in self.per)
 
     def searching(self):
-        """The residual departs from noise at the family level SEARCH_ALPHA (Bonferroni over the
+        """The residual departs from noise at the family level `search_alpha` (Bonferroni over the
         detectors and measurements): four detectors each at 5 % would search on ~19 % of pure-noise
         records (and pay for it in time and false-name chances); naming is guarded further by the
         score and LR tests."""
-        return self.p["family"] < SEARCH_ALPHA
+        return self.p["family"] < self.opts.search_alpha
 
     def consistent(self):
-        return self.p["family"] >= UNEXPLAINED_ALPHA or self.systematic < RELEVANT * self.sigma
+        return self.p["family"] >= self.opts.unexplained_alpha or self.systematic < self.opts.relevant * self.sigma
 
     def to_json(self):
         per = [{d: {"statistic": m[d]["statistic"] if "statistic" in m[d] else m[d].get("q", m[d].get("z")),
                     "p_value": m[d]["p_value"]} for d in (*VERDICT_DETECTORS, "kurtosis")} for m in self.per]
         return {"combined_p": self.p, "per_measurement": per, "systematic_rms": self.systematic,
-                "noise_sigma": self.sigma, "relevance_floor": RELEVANT * self.sigma}
+                "noise_sigma": self.sigma, "relevance_floor": self.opts.relevant * self.sigma}
 
 
 def _noise_sigma(det):
@@ -57,7 +57,7 @@ def _noise_sigma(det):
 
 def kurtosis_off_reversals(run, state, current) -> list:
     """The kurtosis test per measurement on the residual at the samples the reversal-aware cost
-    keeps at the final fit (independent finding F8: a phase within its standard error moves a few
+    keeps at the final fit (a phase within its standard error moves a few
     Coulomb steps across a sample, each leaving one residual sample of the step's height; those
     samples are the ones next to a model step)."""
     prob = state.problem(reversals=0.0)
@@ -77,7 +77,7 @@ def noise_scatter(run, fit, verdict) -> float:
     return max([verdict.sigma] + [broadband_sigma(r) for r in split_rows(fit.residual, rows)])
 
 
-def where_unexplained(res, datasets, verdict):
+def where_unexplained(res, datasets, verdict, opts: DiagnosisOptions = OPTIONS):
     """Where an unexplained residual lies: spectral peaks (shaft orders, Hz) of the first
     measurement and, when the synchronous F-test rejects, the rotor angles of the largest
     departures of the angle-domain average."""
@@ -87,7 +87,7 @@ def where_unexplained(res, datasets, verdict):
     out = [{"order": round(p["order"], 3), "frequency": round(p["frequency"], 3), "amplitude": p["amplitude"]}
            for p in spec["peaks"][:5]]
     sf = verdict.per[0]["synchronous_f"]
-    if sf["applicable"] and sf["p_value"] < UNEXPLAINED_ALPHA:
+    if sf["applicable"] and sf["p_value"] < opts.unexplained_alpha:
         avg = np.nan_to_num(sf["average"])
         B = avg.size
         se = math.sqrt(sf["within_var"] / max(np.mean(sf["counts"][sf["counts"] > 0]), 1))

@@ -22,11 +22,16 @@ def clearance(cfg: PumpConfig) -> float:
     return min(v["housing.a"], v["housing.b"]) - v["rotor.radius"]
 
 
+def harmonic_pair(k: int) -> list:
+    """Two housing-harmonic slots of order k, phases 0 and pi/(2k), zero amplitudes a and b:
+    a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b), so the fit needs no
+    phase wrapping and the absent defect (a = b = 0) is a regular point."""
+    return [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]]
+
+
 def with_harmonic_pair(cfg: PumpConfig, k: int) -> PumpConfig:
-    """The config with two more housing-harmonic slots of order k, phases 0 and pi/(2k), zero
-    amplitudes a and b: a cos(k phi) + b sin(k phi) = A cos(k (phi - gamma)) is linear in (a, b),
-    so the fit needs no phase wrapping and the absent defect (a = b = 0) is a regular point."""
-    return cfg.with_harmonics(cfg.harmonics + [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]])
+    """The config with a harmonic pair of order k added (harmonic_pair)."""
+    return cfg.with_harmonics(cfg.harmonics + harmonic_pair(k))
 
 
 def is_harmonic_amplitude(key: str) -> bool:
@@ -59,25 +64,49 @@ def _vane_spread_implausible(cfg: PumpConfig, v: dict, context: dict) -> list:
     return out
 
 
-def _out_of_round_polar(res, names, k) -> dict:
-    """A cos(k (phi - gamma)): the housing's phase gamma is the harmonic pair's phase over k."""
-    A, ph = to_polar(res, names, k)
-    return {"amplitude": A, "phase": {"value": ph["value"] / k, "stderr": ph["stderr"] / k}}
+@dataclass(frozen=True)
+class PolarForm:
+    """How an effect fitted as a pair a cos(k x) + b sin(k x) (linear in a, b: no phase wrapping, a
+    regular absent point) reads as an amplitude and a phase: labels, display scale and unit."""
+
+    title: str  # the effect at order k, e.g. "out-of-round" -> "out-of-round k = 4"
+    amplitude: str  # in a step's parameter list
+    amplitude_meaning: str  # in the final-parameter table
+    scale: float  # display factor of the amplitude
+    unit: str  # display unit of the amplitude
+    phase: str
+    phase_meaning: str
+    per_order: bool = False  # the physical phase is the pair's phase over k (an angle on the housing)
+
+    def describe(self, res, names, k) -> dict:
+        """{"amplitude", "phase"} ({value, stderr} each, SI) of the pair `names` fitted in `res`."""
+        A, ph = to_polar(res, names, k)
+        if self.per_order:
+            ph = {"value": ph["value"] / k, "stderr": ph["stderr"] / k}
+        return {"amplitude": A, "phase": ph}
 
 
-def _ripple_polar(res, names, k) -> dict:
-    """omega = omega0 (1 + A cos(k theta + phase))."""
-    A, ph = to_polar(res, names, k)
-    return {"amplitude": A, "phase": ph}
+OUT_OF_ROUND_FORM = PolarForm("out-of-round", "radial amplitude", "radial amplitude A_k", 1e6, "µm", "phase γ",
+                              "phase γ_k (A cos k(α − γ))", per_order=True)
+RIPPLE_FORM = PolarForm("speed ripple", "amplitude", "amplitude (ω = ω0 (1 + A cos(kθ + φ)))", 100, "% of ω0",
+                        "phase", "phase φ")
+
+
+def _relative(cfg: PumpConfig, value: float) -> float:
+    return abs(value)
 
 
 @dataclass(frozen=True)
 class Effect:
-    """One effect of the library, declared once: its fitted parameters (per shaft order), how it
-    enters the model, how its score test probes it and how its parameters map onto the registry's
-    plausibility ranges (model_spec.parameters). The workflow loops over these declarations."""
-    name: str
+    """One effect of the library, declared once: what it is, its fitted parameters (per shaft
+    order), how it enters the model, how its score test probes it, how its parameters map onto
+    the registry's plausibility ranges (model_spec.parameters) and how they read. The workflow,
+    the result and the report loop over these declarations: a new effect is one declaration here
+    plus its term in the model (identification/problem.py)."""
+
+    name: str  # its name in the JSON (spec section 7)
     params: Callable[[PumpConfig, int | None], list]  # (config, order) -> fitted names for Problem
+    description: str = ""  # one line: what a named effect means for the pump
     orders: Callable[[PumpConfig], Iterable] = lambda cfg: (None,)  # shaft orders tried (None: no order)
     min_vanes: int = 1
     harmonic_pair: bool = False  # enters the config as a harmonic pair of its order
@@ -91,14 +120,16 @@ class Effect:
     probe_step: Callable | None = None
     one_sided: bool = False  # a parameter >= 0 at its absent value 0: one-sided probes
     # non-smooth (friction reversals move): also a grid of finite sizes where the first order is
-    # blind in some direction (score_test)
+    # blind in some direction (screen.score_test)
     finite_probes: bool = False
     start_floor: tuple = ()  # (name, least start value) pairs for the refit
-    describe: Callable | None = None  # (result, names, order) -> extra JSON fields (amplitude, phase)
+    polar: PolarForm | None = None  # a harmonic pair read as amplitude and phase
     claims: Callable[[str], bool] | None = None  # names whose range `implausible` checks instead of the registry
     implausible: Callable | None = None  # (config, values, context) -> reasons
     # (config, current values) -> its parameters' absent values where they are not the config's
     absent: Callable | None = None
+    # (config, value) -> the standard error above which an estimate is not a result (None: always one)
+    resolution: Callable[[PumpConfig, float], float] | None = None
 
 
 def _slot_cof_tied(cfg: PumpConfig, values: dict) -> dict:
@@ -108,29 +139,38 @@ def _slot_cof_tied(cfg: PumpConfig, values: dict) -> dict:
 
 
 EFFECTS = (
-    Effect("rotor_eccentricity", lambda cfg, k: ["housing.center.0", "housing.center.1"], symmetric=True,
-           probe_step=lambda state, prob: probe_scale(state), finite_probes=True),
+    Effect("rotor_eccentricity", lambda cfg, k: ["housing.center.0", "housing.center.1"],
+           "the rotor axis is off the housing centre", symmetric=True,
+           probe_step=lambda state, prob: probe_scale(state), finite_probes=True,
+           resolution=lambda cfg, v: clearance(cfg)),
     Effect("housing_out_of_round",
            lambda cfg, k: [f"housing.harmonics.{j}.amplitude" for j in (len(cfg.harmonics), len(cfg.harmonics) + 1)],
-           orders=lambda cfg: range(2, 9), harmonic_pair=True, symmetric=True,
-           probe_step=lambda state, prob: probe_scale(state), describe=_out_of_round_polar,
-           claims=is_harmonic_amplitude, implausible=_out_of_round_implausible),
-    Effect("speed_ripple", lambda cfg, k: ["ripple_cos", "ripple_sin"], orders=lambda cfg: range(1, 2 * cfg.vanes + 1),
-           ripple=True, describe=_ripple_polar),
-    Effect("torque_offset", lambda cfg, k: ["torque_offset"]),
+           "the bore has k lobes (k = 2: oval)", orders=lambda cfg: range(2, 9), harmonic_pair=True,
+           symmetric=True, probe_step=lambda state, prob: probe_scale(state), polar=OUT_OF_ROUND_FORM,
+           claims=is_harmonic_amplitude, implausible=_out_of_round_implausible,
+           resolution=lambda cfg, v: clearance(cfg)),
+    Effect("speed_ripple", lambda cfg, k: ["ripple_cos", "ripple_sin"], "the drive's speed pulses k times a revolution",
+           orders=lambda cfg: range(1, 2 * cfg.vanes + 1), ripple=True, polar=RIPPLE_FORM,
+           resolution=lambda cfg, v: 0.05),
+    Effect("torque_offset", lambda cfg, k: ["torque_offset"], "the torque sensor reads a constant offset"),
     # one-sided (T >= 0): probe a twentieth of a radian of lag; and a line of finite lags (a lag of
     # a sample or more, 0.3 ms at 5 kHz on an independent record, is far outside its quadratic model)
-    Effect("sensor_lag", lambda cfg, k: ["lag"], probe_step=lambda state, prob: 0.05 / prob.speed_of(prob.x0),
-           one_sided=True, start_floor=(("lag", 1e-6),), finite_probes=True),
-    Effect("viscous_tip_friction", lambda cfg, k: ["effects.viscous_tip_friction"]),
+    Effect("sensor_lag", lambda cfg, k: ["lag"], "the torque sensor lags (first-order low-pass)",
+           probe_step=lambda state, prob: 0.05 / prob.speed_of(prob.x0), one_sided=True,
+           start_floor=(("lag", 1e-6),), finite_probes=True, resolution=_relative),
+    Effect("viscous_tip_friction", lambda cfg, k: ["effects.viscous_tip_friction"],
+           "the vane tips see a friction force growing with slip speed", resolution=_relative),
     # a vane of another material or finish: its tip and slot COFs scaled together (vane 0 is the
     # reference; the reported mu is the mean over the vanes)
     Effect("vane_friction_spread", lambda cfg, k: [f"effects.vane_friction_factor.{i}" for i in range(1, cfg.vanes)],
-           min_vanes=2, implausible=_vane_spread_implausible),
+           "the vanes' COFs differ (another material or finish)", min_vanes=2,
+           implausible=_vane_spread_implausible, resolution=_relative),
     # the configured slot/tip COF ratio is off (the slot COF is the one rigs rarely measure; a tip
     # COF rising with slip speed looks like this at one speed): mu_slot free, its range a COF's
-    Effect("slot_friction", lambda cfg, k: ["mu_slot"], absent=_slot_cof_tied),
+    Effect("slot_friction", lambda cfg, k: ["mu_slot"], "the slot COF is not the configured share of the tip's",
+           absent=_slot_cof_tied, resolution=_relative),
 )
+BY_NAME = {e.name: e for e in EFFECTS}
 
 
 NOT_RANGED = ("theta0", "speed", "delay")  # measurement parameters without a plausibility range
@@ -154,10 +194,12 @@ def plausible(cfg: PumpConfig, values: dict, torque_rms: float, mean_torque: flo
     return out
 
 
-@dataclass
+@dataclass(frozen=True)
 class Candidate:
+    """An effect of the library at one shaft order (None: an effect without an order)."""
+
     kind: Effect
-    params: list  # parameter names for Problem
+    params: tuple  # parameter names for Problem
     order: int | None = None  # shaft order (out-of-round, speed ripple)
 
     @property
@@ -190,7 +232,7 @@ class Candidate:
 def candidates(cfg: PumpConfig, added: set, detected: Iterable = ()) -> list:
     """The library's candidates, plus a speed ripple at each of the `detected` orders (above the
     library's: detected_ripple_orders)."""
-    return [Candidate(e, e.params(cfg, k), k) for e in EFFECTS if e.name not in added and cfg.vanes >= e.min_vanes
+    return [Candidate(e, tuple(e.params(cfg, k)), k) for e in EFFECTS if e.name not in added and cfg.vanes >= e.min_vanes
             for k in list(e.orders(cfg)) + (list(detected) if e.ripple else [])]
 
 
@@ -206,12 +248,19 @@ def absent_values(run, names) -> dict:
     return {n: 0.0 if is_harmonic_amplitude(n) or n not in run.cfg.values else run.cfg.values[n] for n in names}
 
 
-def owner_of(name, cfg) -> str:
-    """A fitted name as the engineer reads it: a named effect's parameter as that effect (as the
-    library declares its parameters: an out-of-round's harmonic amplitude, the housing centre, the
-    ripple pair, the lag), a baseline parameter as itself."""
+def effect_of(name, cfg) -> Effect | None:
+    """The effect of the library whose parameter the fitted `name` is (as the library declares its
+    parameters: an out-of-round's harmonic amplitude, the housing centre, the ripple pair, the
+    lag); None for a baseline parameter."""
     n = base_name(name)
     for e in EFFECTS:
         if (e.claims is not None and e.claims(n)) or any(n in e.params(cfg, k) for k in e.orders(cfg)):
-            return e.name
-    return n
+            return e
+    return None
+
+
+def owner_of(name, cfg) -> str:
+    """A fitted name as the engineer reads it: a named effect's parameter as that effect, a
+    baseline parameter as itself."""
+    e = effect_of(name, cfg)
+    return base_name(name) if e is None else e.name

@@ -3,8 +3,10 @@ score test, second-order terms and finite probes where the first order is blind)
 the BIC of its one-step nonlinear fit."""
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
@@ -12,24 +14,24 @@ from scipy import stats
 
 from ..diagnostics import order_lines
 
-from .effects import Candidate, EFFECTS, clearance, owner_of
-from .options import BLIND_DIRECTION, COLLINEAR, PROBE_SAMPLES, PROFILE_STEPS, RIPPLE_ORDER_MAX, SCORE_ALPHA, SEARCHED, TIED_SUBSETS
+from .effects import EFFECTS, Candidate, Effect, clearance, owner_of
+from .options import OPTIONS, DiagnosisOptions
 from .state import State, ar1, bic, common_keep, on_kept, prewhiten, split_rows, sum_squares
 
 
 def detected_ripple_orders(run, current, added: set, fixed: int) -> tuple:
     """The speed-ripple orders above the library's that the current residual singles out (per
     measurement, Bonferroni over them) and whether any order was examined. The detector's family
-    level is one candidate's share of the screen's, SCORE_ALPHA / (fixed + 1), and the screen counts
+    level is one candidate's share of the screen's, run.opts.score_alpha / (fixed + 1), and the screen counts
     it as one more candidate: a false opening and the fixed candidates' false alarms together stay
-    within SCORE_ALPHA (union bound)."""
+    within run.opts.score_alpha (union bound)."""
     ripple = next(e for e in EFFECTS if e.ripple)
     if ripple.name in added or current.angle is None:
         return [], False
     library = set(ripple.orders(run.cfg))
-    orders = [k for k in range(1, RIPPLE_ORDER_MAX + 1) if k not in library]
+    orders = [k for k in range(1, run.opts.ripple_order_max + 1) if k not in library]
     rows = np.cumsum([0] + [d.n for d in run.datasets])
-    alpha = SCORE_ALPHA / (fixed + 1) / len(run.datasets)
+    alpha = run.opts.score_alpha / (fixed + 1) / len(run.datasets)
     found, examined = set(), False
     for r, a in zip(split_rows(current.residual, rows), split_rows(current.angle, rows)):
         lines = order_lines(r, a, orders, alpha)
@@ -64,15 +66,15 @@ def _second_order_columns(prob, x0, nb, J0e, h, Jb, one_sided=False):
     return np.column_stack(cols), pairs
 
 
-def _probe_window(state, cand, prob, Jb):
-    """The candidate's problem and the fitted parameters' Jacobian on the first PROBE_SAMPLES
+def _probe_window(state, cand, prob, Jb, opts: DiagnosisOptions = OPTIONS):
+    """The candidate's problem and the fitted parameters' Jacobian on the first opts.probe_samples
     samples (one measurement): the probes only choose a start, which is then judged on the whole
     screening window; ~120 model runs per candidate would otherwise cost ~120 x the window."""
     d = state.data
-    if isinstance(d, (list, tuple)) or d.n <= PROBE_SAMPLES:
+    if isinstance(d, (list, tuple)) or d.n <= opts.probe_samples:
         return prob, Jb
-    pw = cand.problem(state.on(d.window(0, PROBE_SAMPLES)))
-    return pw, Jb[:PROBE_SAMPLES]
+    pw = cand.problem(state.on(d.window(0, opts.probe_samples)))
+    return pw, Jb[:opts.probe_samples]
 
 
 def _probe_grid(prob, Jb, nb, h, directions=16, radii=(0.5, 1, 2, 4, 8, 16), one_sided=False):
@@ -136,7 +138,7 @@ def _rank_one_start(coef, pairs, q):
     return e if e[int(np.argmax(np.abs(e)))] >= 0 else -e
 
 
-def _independent_subsets(Me) -> list:
+def _independent_subsets(Me, opts: DiagnosisOptions = OPTIONS) -> list:
     """Column subsets of the projected candidate columns Me that span what they all span, the
     pivoted QR's choice first. Parameters the data cannot tell apart to first order (on an ellipse,
     vanes i and i + N/2 see the same housing; after mu is projected out, every vane of a 4-vane
@@ -156,92 +158,143 @@ def _independent_subsets(Me) -> list:
     full = np.linalg.svd(A[:, first], compute_uv=False)[-1]
     out = [first]
     for subset in itertools.combinations(range(q), rank):
-        if list(subset) != first and len(out) < TIED_SUBSETS and \
+        if list(subset) != first and len(out) < opts.tied_subsets and \
                 np.linalg.svd(A[:, subset], compute_uv=False)[-1] > 0.5 * full:
             out.append(list(subset))
     return out
 
 
-def score_test(state: State, cand: Candidate, start=True):
-    """LM statistic for adding `cand` at the current fit (prewhitened GLS score test). Returns the
-    statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
-    the refit with the nonlinear residual there. `start` may be a column subset of the
-    candidate's parameters (one of several the data cannot tell apart): the start is then made
-    with only those moved."""
+@dataclass(frozen=True)
+class Score:
+    """A candidate's score test at the current fit and, when asked for, its one-step fit."""
+
+    lm: float  # Lagrange-multiplier statistic (prewhitened, projected off the fitted directions)
+    dof: int
+    p_value: float
+    params: tuple  # the candidate's parameters the test moved (a tied subset, or all)
+    second_order: bool  # by the second-order terms (the first order vanishes by symmetry)
+    partner: str | None  # the fitted parameter a nearly collinear candidate could hide in
+    searched: bool = False  # its one-step fit is the best of a probe search
+    start: dict | None = None  # the one-step fit's values: the refit's start
+    one_step_rss: float | None = None  # RSS of the one-step fit on the samples both keep
+    base_rss: float | None = None  # RSS of the current model on the same samples
+    n: int = 0  # their number
+    base: tuple | None = None  # (RSS, n) of the current model on its own samples
+    tied: tuple = ()  # the Scores of the other subsets the data cannot tell apart (refitted too)
+
+
+@dataclass(frozen=True)
+class _Linear:
+    """The candidate's problem linearised at the current fit, prewhitened and projected."""
+
+    prob: object
+    keep0: object  # the current model's samples (the candidate at its absent values)
+    rows: object
+    J1: np.ndarray  # the candidate's first-order columns on those samples
+    rs: np.ndarray  # the current residual
+    Je: np.ndarray  # the candidate's columns (second-order ones where the first order is blind)
+    pairs: list | None  # (i, j) of each second-order column
+    r_w: np.ndarray
+    Jb_w: np.ndarray
+    Je_w: np.ndarray
+    Q: np.ndarray  # orthonormal basis of the fitted directions
+    Me: np.ndarray  # the candidate's columns projected off them
+    Mr: np.ndarray  # the residual projected off them
+
+
+def _linearised(state: State, cand: Candidate) -> _Linear:
     prob = cand.problem(state)
     nb = len(state.names)
     m, Je = prob.model_and_jacobian(prob.x0, range(nb, len(prob.names)))  # the candidate's columns
-    keep0 = prob.keep_at(prob.x0)  # the current model's samples (the candidate at its absent values)
+    keep0 = prob.keep_at(prob.x0)
     rows = slice(None) if keep0 is None else keep0
-    J1 = Je[rows]
-    rs = prob.y - m
-    Jb = state.jacobian()
-    eff = cand.kind
+    J1, rs, Jb, eff = Je[rows], prob.y - m, state.jacobian(), cand.kind
     quad = (_second_order_columns(prob, prob.x0, nb, Je, eff.probe_step(state, prob), Jb, one_sided=eff.one_sided)
             if eff.probe_step is not None else None)
+    pairs = None
     if quad is not None:
         Je, pairs = quad
     rho = ar1(rs[rows])
     r_w, Jb_w, Je_w = prewhiten(rs[rows], rho), prewhiten(Jb[rows], rho), prewhiten(Je[rows], rho)
     # project out the fitted directions
     Q, _ = np.linalg.qr(Jb_w) if Jb_w.shape[1] else (np.zeros((r_w.size, 0)), None)
-    proj = lambda A: A - Q @ (Q.T @ A)  # noqa: E731
-    Me, Mr = proj(Je_w), proj(r_w)
-    subsets = _independent_subsets(Me) if quad is None else [list(range(Me.shape[1]))]
-    if len(subsets) > 1 and start is True:  # tied: the subset whose one-step fit is best, not the pivot's
-        tried = [score_test(state, cand, start=subset) for subset in subsets]
-        best = min(tried, key=lambda o: o["one_step_rss"] / max(o["n"], 1))
-        best["tied"] = [o for o in tried if o is not best]  # refitted too (refit)
-        return best
-    keep = list(start) if isinstance(start, list) else subsets[0]
-    params = list(cand.params) if quad is not None else [cand.params[i] for i in keep]
-    if len(keep) < Me.shape[1]:
-        Je, Je_w, Me = Je[:, keep], Je_w[:, keep], Me[:, keep]
-    # collinearity of each candidate direction with the fitted ones
-    cos = [float(np.linalg.norm(Q.T @ Je_w[:, j]) / max(np.linalg.norm(Je_w[:, j]), 1e-300))
+    return _Linear(prob, keep0, rows, J1, rs, Je, pairs, r_w, Jb_w, Je_w, Q,
+                   Je_w - Q @ (Q.T @ Je_w), r_w - Q @ (Q.T @ r_w))
+
+
+def _partner(state: State, lin: _Linear, Je_w, opts: DiagnosisOptions) -> str | None:
+    """The fitted parameter most collinear with a candidate direction nearly inside the fitted span."""
+    cos = [float(np.linalg.norm(lin.Q.T @ Je_w[:, j]) / max(np.linalg.norm(Je_w[:, j]), 1e-300))
            for j in range(Je_w.shape[1])]
-    partner = None
-    if Jb_w.shape[1] and max(cos) > COLLINEAR:
-        j = int(np.argmax(cos))
-        c = [abs(np.dot(Jb_w[:, i], Je_w[:, j])) / (np.linalg.norm(Jb_w[:, i]) * np.linalg.norm(Je_w[:, j]) + 1e-300)
-             for i in range(Jb_w.shape[1])]
-        partner = state.names[int(np.argmax(c))]
-    dof = max(r_w.size - Jb_w.shape[1], 1)
-    sigma2 = float(Mr @ Mr) / dof
+    Jb_w = lin.Jb_w
+    if not (Jb_w.shape[1] and max(cos) > opts.collinear):
+        return None
+    j = int(np.argmax(cos))
+    c = [abs(np.dot(Jb_w[:, i], Je_w[:, j])) / (np.linalg.norm(Jb_w[:, i]) * np.linalg.norm(Je_w[:, j]) + 1e-300)
+         for i in range(Jb_w.shape[1])]
+    return state.names[int(np.argmax(c))]
+
+
+def score_test(state: State, cand: Candidate, start=True, opts: DiagnosisOptions = OPTIONS) -> Score:
+    """LM statistic for adding `cand` at the current fit (prewhitened GLS score test): the
+    statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
+    the refit with the nonlinear residual there. `start` may be a column subset of the
+    candidate's parameters (one of several the data cannot tell apart): the start is then made
+    with only those moved."""
+    lin = _linearised(state, cand)
+    quad = lin.pairs is not None
+    subsets = _independent_subsets(lin.Me, opts) if not quad else [list(range(lin.Me.shape[1]))]
+    if len(subsets) > 1 and start is True:  # tied: the subset whose one-step fit is best, not the pivot's
+        tried = [score_test(state, cand, start=subset, opts=opts) for subset in subsets]
+        best = min(tried, key=lambda o: o.one_step_rss / max(o.n, 1))
+        return dataclasses.replace(best, tied=tuple(o for o in tried if o is not best))  # refitted too
+    keep = list(start) if isinstance(start, list) else subsets[0]
+    params = tuple(cand.params) if quad else tuple(cand.params[i] for i in keep)
+    Je_w, Me = lin.Je_w, lin.Me
+    if len(keep) < Me.shape[1]:
+        Je_w, Me = Je_w[:, keep], Me[:, keep]
+    partner = _partner(state, lin, Je_w, opts)
+    Mr = lin.Mr
+    sigma2 = float(Mr @ Mr) / max(lin.r_w.size - lin.Jb_w.shape[1], 1)
     scale = np.linalg.norm(Me, axis=0)
     scale[scale == 0] = 1.0
     coef, _, rank, _ = np.linalg.lstsq(Me / scale, Mr, rcond=1e-10)
     lm = float((Mr @ (Me / scale)) @ coef) / max(sigma2, 1e-300)
-    coef = coef / scale
     q = max(int(rank), 1)
-    out = {"lm": lm, "dof": q, "p_value": float(stats.chi2.sf(lm, q)), "params": params,
-           "second_order": quad is not None, "partner": partner, "searched": False}
+    score = Score(lm, q, float(stats.chi2.sf(lm, q)), params, quad, partner)
     if start is False:
-        return out
-    # the joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
-    # cheap look past the linearisation, used to choose which candidates to refit
-    step = _rank_one_start(coef, pairs, len(cand.params)) if quad is not None else coef
+        return score
+    return _with_one_step(state, cand, lin, score, coef / scale, Je_w, opts)
+
+
+def _with_one_step(state, cand, lin: _Linear, score: Score, coef, Je_w, opts) -> Score:
+    """The joint one-step estimate (fitted parameters move too) and the nonlinear model there: a
+    cheap look past the linearisation, used to choose which candidates to refit."""
+    prob, nb, rs, keep0 = lin.prob, len(state.names), lin.rs, lin.keep0
+    step = _rank_one_start(coef, lin.pairs, len(cand.params)) if score.second_order else coef
     x1 = prob.x0.copy()
-    x1[[nb + cand.params.index(n) for n in params]] += step
+    x1[[nb + cand.params.index(n) for n in score.params]] += step
     if nb:
-        x1[:nb] += np.linalg.lstsq(Jb_w, r_w - Je_w @ coef, rcond=None)[0]
+        x1[:nb] += np.linalg.lstsq(lin.Jb_w, lin.r_w - Je_w @ coef, rcond=None)[0]
     x1 = np.clip(x1, prob.lower, prob.upper)
     if cand.symmetric:  # a step beyond the quadratic model's reach: back inside a tenth of the clearance
         x1[nb:] = _capped(x1[nb:], 0.5 * clearance(state.cfg))
     c1 = _cost(prob, x1, keep0)
     if not np.isfinite(c1[1]):
-        c1 = (rs, float(np.mean(rs[rows] ** 2)), keep0)
+        c1 = (rs, float(np.mean(rs[lin.rows] ** 2)), keep0)
         x1 = prob.x0.copy()
-    x1, c1 = _profiled(prob, Jb, nb, x1, c1, keep0)
+    Jb = state.jacobian()
+    x1, c1 = _profiled(prob, Jb, nb, x1, c1, keep0, opts)
     # its one-step fit is then the best of many: judged at the searched level
-    out["searched"] = bool(eff.finite_probes and (quad is not None or len(cand.params) == 1 or _direction_blind(J1)))
-    if out["searched"]:
-        x1, c1 = _probed(state, cand, prob, Jb, nb, x1, c1, keep0)
+    searched = bool(cand.kind.finite_probes and (score.second_order or len(cand.params) == 1
+                                                 or _direction_blind(lin.J1, opts)))
+    if searched:
+        x1, c1 = _probed(state, cand, prob, Jb, nb, x1, c1, keep0, opts)
     common = common_keep(keep0, c1[2])  # the one-step and the current model on one sample set
     (rss1, n1), (rss0, _) = sum_squares(c1[0], common), sum_squares(rs, common)
-    out.update(start={n: v for n, v in zip(prob.names, x1) if n in state.names + params},
-               one_step_rss=rss1, base_rss=rss0, n=n1, base=sum_squares(rs, keep0))
-    return out
+    return dataclasses.replace(score, searched=searched, one_step_rss=rss1, base_rss=rss0, n=n1,
+                               start={n: v for n, v in zip(prob.names, x1) if n in state.names + list(score.params)},
+                               base=sum_squares(rs, keep0))
 
 
 def _capped(e, cap):
@@ -260,7 +313,7 @@ def _cost(prob, x, keep0):
     return r, float(np.mean(on_kept(r, keep) ** 2)), keep
 
 
-def _profiled(prob, Jb, nb, x1, c1, keep0):
+def _profiled(prob, Jb, nb, x1, c1, keep0, opts: DiagnosisOptions = OPTIONS):
     """The one-step fit profiled over the fitted parameters: with the candidate's parameters at
     their one-step values, Gauss-Newton steps of the fitted ones on the NONLINEAR residual there
     (Jacobian Jb of the current fit). The joint linear step cannot see what the candidate does to
@@ -273,7 +326,7 @@ def _profiled(prob, Jb, nb, x1, c1, keep0):
     if not nb:
         return x1, c1
     best = (x1, c1)
-    for _ in range(PROFILE_STEPS):
+    for _ in range(opts.profile_steps):
         x = best[0].copy()
         k = common_keep(keep0, best[1][2])
         x[:nb] += np.linalg.lstsq(on_kept(Jb, k), on_kept(best[1][0], k), rcond=None)[0]
@@ -285,65 +338,110 @@ def _profiled(prob, Jb, nb, x1, c1, keep0):
     return best
 
 
-def _probed(state, cand, prob, Jb, nb, x1, c1, keep0):
+def _probed(state, cand, prob, Jb, nb, x1, c1, keep0, opts: DiagnosisOptions = OPTIONS):
     """The better of the one-step fit (x1, r1) and the finite probes' best. For a non-smooth
     effect (the torque reacts through friction-reversal instants) where the first order is blind,
     in all directions (second-order score) or in one (a defect on a rig symmetric about an axis:
     the y shift of a centred 1-vane ellipse, where the linear step moves the other direction only)."""
-    xp = _probe_grid(*_probe_window(state, cand, prob, Jb), nb, cand.kind.probe_step(state, prob),
+    xp = _probe_grid(*_probe_window(state, cand, prob, Jb, opts), nb, cand.kind.probe_step(state, prob),
                      one_sided=cand.kind.one_sided)
     cp = _cost(prob, xp, keep0)
     return (xp, cp) if cp[1] < c1[1] else (x1, c1)
 
 
-def _direction_blind(J) -> bool:
+def _direction_blind(J, opts: DiagnosisOptions = OPTIONS) -> bool:
     """Whether the first-order sensitivity of a defect with several directions vanishes in one of
-    them (a column's norm below BLIND_DIRECTION of the largest, or all zero)."""
+    them (a column's norm below opts.blind_direction of the largest, or all zero)."""
     norms = np.linalg.norm(J, axis=0)
-    return J.shape[1] > 1 and float(norms.min()) <= BLIND_DIRECTION * float(norms.max())
+    return J.shape[1] > 1 and float(norms.min()) <= opts.blind_direction * float(norms.max())
 
 
-def rank_candidates(state, scored, tests=None):
+@dataclass(frozen=True, eq=False)
+class Ranked:
+    """A candidate of one screen with its score, the BIC of its one-step fit and whether it is
+    significant (score p, or one-step likelihood ratio where it was searched, below the level)."""
+
+    cand: Candidate
+    score: Score
+    bic: float
+    significant: bool
+
+
+def rank_candidates(state, scored, tests=None, opts: DiagnosisOptions = OPTIONS) -> list[Ranked]:
     """All candidates by one criterion: the BIC of their one-step nonlinear fit (score step, or
     second-order/probe start where the first order is blind). Significant: score p or one-step
     likelihood ratio below alpha / (number of tests: the candidates, by default)."""
     k0 = len(state.names)
-    alpha = SCORE_ALPHA / max(tests or len(scored), 1)
+    alpha = opts.score_alpha / max(tests or len(scored), 1)
     out = []
     for c, s in scored:
-        q = len(s["params"])
+        q = len(s.params)
         # each one-step fit against the current model on the samples both keep (reversal-aware
         # cost); the candidates compared by that BIC difference, added to the current model's BIC
         # on its own samples (the intersection of ~30 candidates' masks would keep few samples)
-        n, rss0 = s["n"], s["base_rss"]
-        rss1 = min(s["one_step_rss"], rss0)
+        n, rss0 = s.n, s.base_rss
+        rss1 = min(s.one_step_rss, rss0)
         lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
         lr_p = float(stats.chi2.sf(lr, max(q, 1)))
-        sig = s["p_value"] < alpha or ((s["second_order"] or s.get("searched", False)) and lr_p < alpha / SEARCHED)
-        rss_b, n_b = s["base"]
-        out.append({"cand": c, "score": s, "bic": bic(rss_b, n_b, k0) - lr + q * math.log(n),
-                    "significant": bool(sig)})
-    out.sort(key=lambda r_: r_["bic"])
+        sig = s.p_value < alpha or ((s.second_order or s.searched) and lr_p < alpha / opts.searched)
+        rss_b, n_b = s.base
+        out.append(Ranked(c, s, bic(rss_b, n_b, k0) - lr + q * math.log(n), bool(sig)))
+    out.sort(key=lambda r_: r_.bic)
     return out
 
 
-def screen_table(ranking, alpha, effects, state) -> dict:
+@dataclass(frozen=True)
+class ScreenRow:
+    """One candidate of a screen as the report shows it."""
+
+    candidate: str  # its label: effect(k=order)
+    effect: Effect
+    order: int | None
+    p_value: float
+    score: float
+    dof: int
+    significant: bool
+    one_step_bic: float
+    one_step_rms: float | None
+    collinear_with: str | None
+
+    def to_json(self) -> dict:
+        return {"candidate": self.candidate, "effect": self.effect.name, "order": self.order,
+                "p_value": self.p_value, "score": self.score, "dof": self.dof, "significant": self.significant,
+                "one_step_bic": self.one_step_bic, "one_step_rms": self.one_step_rms,
+                "collinear_with": self.collinear_with}
+
+
+@dataclass(frozen=True)
+class Screen:
+    """One search step's screen: after which model, at which level, every candidate by score
+    p-value, and the one chosen (None: nothing accepted)."""
+
+    after: str
+    alpha: float
+    candidates: tuple
+    chosen: str | None = None
+
+    def to_json(self) -> dict:
+        return {"after": self.after, "alpha": self.alpha, "candidates": [r.to_json() for r in self.candidates],
+                "chosen": self.chosen}
+
+
+def screen_table(ranking, alpha, effects) -> Screen:
     """One screen's candidates for the report, by score p-value: what was tested, how strongly."""
-    rows = [{"candidate": r["cand"].label, "effect": r["cand"].effect, "order": r["cand"].order,
-             "p_value": r["score"]["p_value"], "score": r["score"]["lm"], "dof": r["score"]["dof"],
-             "significant": r["significant"], "one_step_bic": r["bic"],
-             "one_step_rms": math.sqrt(r["score"]["one_step_rss"] / r["score"]["n"])
-             if "one_step_rss" in r["score"] else None,
-             "collinear_with": r["score"]["partner"]} for r in ranking]
-    rows.sort(key=lambda r: (r["p_value"], -r["score"]))
-    return {"after": effects[-1] if effects else "baseline", "alpha": alpha, "candidates": rows, "chosen": None}
+    rows = [ScreenRow(r.cand.label, r.cand.kind, r.cand.order, r.score.p_value, r.score.lm, r.score.dof,
+                      r.significant, r.bic,
+                      math.sqrt(r.score.one_step_rss / r.score.n) if r.score.one_step_rss is not None else None,
+                      r.score.partner) for r in ranking]
+    rows.sort(key=lambda r: (r.p_value, -r.score))
+    return Screen(effects[-1] if effects else "baseline", alpha, tuple(rows))
 
 
 def note_confounded(scored, alpha, confounded, cfg):
     """A candidate nearly collinear with a fitted parameter whose own (projected) score is not
     significant could hide inside that parameter: report the pair."""
     for c, s in scored:
-        if s["partner"] is not None and s["p_value"] >= alpha:
-            pair = [c.effect, owner_of(s["partner"], cfg)]
+        if s.partner is not None and s.p_value >= alpha:
+            pair = [c.effect, owner_of(s.partner, cfg)]
             if pair not in confounded:
                 confounded.append(pair)

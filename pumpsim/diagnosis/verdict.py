@@ -1,6 +1,8 @@
-"""The verdict's notes: confounded pairs, a drifting COF, and the method line."""
+"""The verdict: exactly one of three, its notes (confounded pairs, heavy tails, a drifting COF)
+and the method line."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -9,7 +11,8 @@ from ..identification import base_name
 from ..identification.drift import parameter_drift
 
 from .effects import candidates, owner_of
-from .options import COLLINEAR, CONTENDERS, LR_ALPHA, UNEXPLAINED_ALPHA
+from .log import Collinear, HeavyTails, SmallRemainder, VaneMultiples
+from .options import OPTIONS, DiagnosisOptions
 from .state import State, identify
 
 
@@ -30,14 +33,16 @@ def drift_findings(run, state) -> list:
     return [found] if found is not None else []
 
 
-METHOD = ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
-          f"(family {UNEXPLAINED_ALPHA:g}, Bonferroni over detectors and measurements); candidates: "
-          "prewhitened score tests (second order where symmetry cancels the first) and one-step "
-          f"nonlinear fits ranked by BIC; the {CONTENDERS} best refitted, physical ranges enforced, "
-          f"acceptance by prewhitened likelihood ratio (p < {LR_ALPHA:g}) and BIC on the whole record")
+def method_text(opts: DiagnosisOptions = OPTIONS) -> str:
+    """The method in one sentence (the result's `method`)."""
+    return ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
+            f"(family {opts.unexplained_alpha:g}, Bonferroni over detectors and measurements); candidates: "
+            "prewhitened score tests (second order where symmetry cancels the first) and one-step "
+            f"nonlinear fits ranked by BIC; the {opts.contenders} best refitted, physical ranges enforced, "
+            f"acceptance by prewhitened likelihood ratio (p < {opts.lr_alpha:g}) and BIC on the whole record")
 
 
-def _separable_at_another_speed(state, effect, partner):
+def _separable_at_another_speed(state, effect, partner, opts: DiagnosisOptions = OPTIONS):
     """Would a second measurement at 0.6 x this speed separate `effect` from `partner`? The pair's
     sensitivities at both speeds stacked: still collinear means no speed separates them."""
     cand = next((c for c in candidates(state.cfg, set()) if c.effect == effect), None)
@@ -61,25 +66,54 @@ def _separable_at_another_speed(state, effect, partner):
     Q = np.linalg.qr(P)[0]
     for j in range(B.shape[1]):  # a candidate direction inside the partner's span at both speeds
         b = B[:, j]
-        if np.linalg.norm(Q.T @ b) > COLLINEAR * (np.linalg.norm(b) + 1e-300):
+        if np.linalg.norm(Q.T @ b) > opts.collinear * (np.linalg.norm(b) + 1e-300):
             return False
     return True
 
 
-def confounded_notes(confounded, state, screen_data, measurements):
+def confounded_notes(confounded, state, screen_data, measurements, opts: DiagnosisOptions = OPTIONS) -> list:
+    """Per confounded pair, whether a second speed would separate it; and where housing-fixed
+    defects can appear at all."""
     notes = []
     scr = state.on(screen_data)
     for a, b in confounded:
-        if measurements > 1:
-            notes.append(f"{a} and {b} have nearly collinear effects even on these {measurements} measurements")
-            continue
-        sep = _separable_at_another_speed(scr, a, b)
-        if sep is False:
-            notes.append(f"{a} and {b} have nearly collinear effects on this data, and would at any speed")
-        else:
-            notes.append(f"{a} and {b} have nearly collinear effects on this data: a measurement at a "
-                         "second speed would separate them")
-    N = state.cfg.vanes
-    notes.append(f"with {N} identical, equally spaced vanes, housing-fixed defects appear only at "
-                 f"multiples of {N} shaft orders")
+        sep = None if measurements > 1 else _separable_at_another_speed(scr, a, b, opts)
+        notes.append(Collinear(a, b, measurements, sep))
+    notes.append(VaneMultiples(state.cfg.vanes))
+    return notes
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Exactly one of: consistent with noise (possibly after named effects, possibly with a
+    remainder below the relevance bar, said with its size); named effects and an unexplained
+    remainder; nothing named and unexplained -- and a drift, when one was found."""
+
+    consistent: bool
+    text: str
+    drifts: tuple  # identification.drift.Drift per drifting parameter
+
+
+def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS) -> Verdict:
+    consistent = detection.consistent()
+    # never "consistent with noise" while a detector rejects: a remainder below the relevance bar is
+    # still said, with its size
+    quiet = ("consistent with noise" if detection.p["family"] >= opts.unexplained_alpha else
+             f"a systematic remainder of {detection.systematic:.3g} N m below the relevance bar")
+    text = (quiet + (" after the named effects" if effects else "")) if consistent else \
+        ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
+    if drifts:
+        text += "; " + ", ".join(d.text() for d in drifts)
+    return Verdict(consistent, text, tuple(drifts))
+
+
+def verdict_notes(detection, kurtosis: dict, consistent: bool, opts: DiagnosisOptions = OPTIONS) -> list:
+    """What the verdict adds to the log: a remainder below the relevance bar, heavy tails."""
+    notes = []
+    if consistent and detection.p["family"] < opts.unexplained_alpha:
+        notes.append(SmallRemainder(detection.systematic, opts.relevant, detection.sigma))
+    # claimed like a systematic residual: significant AND relevant (the tails add at least
+    # `relevant` x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
+    if kurtosis["p_value"] < opts.unexplained_alpha and kurtosis["excess_rms"] >= opts.relevant * kurtosis["mad_sigma"]:
+        notes.append(HeavyTails(kurtosis["excess_rms"], kurtosis["mad_sigma"]))
     return notes

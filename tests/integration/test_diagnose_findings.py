@@ -249,7 +249,7 @@ def test_an_effect_a_later_one_supersedes_is_dropped(monkeypatch):
     def hidden_at_first(state, cand, start=True):
         out = score(state, cand, start)
         if start and cand.effect == "rotor_eccentricity" and len(state.names) <= 2:  # mu, theta0
-            out.update(one_step_rss=1e9, p_value=1.0, searched=False, second_order=False)
+            out = dataclasses.replace(out, one_step_rss=1e9, p_value=1.0, searched=False, second_order=False)
         return out
 
     monkeypatch.setattr(dg, "score_test", hidden_at_first)

@@ -6,7 +6,9 @@ from scipy import stats
 from tests.tolerances import HOMOGENEITY_MEAN_ABS, HOMOGENEITY_RATE_ABS
 
 from pumpsim.diagnosis import stationarity as diag
-from pumpsim.diagnosis.options import STATIONARY_ALPHA
+from pumpsim.diagnosis.options import OPTIONS
+
+STATIONARY_ALPHA = OPTIONS.stationary_alpha
 
 
 def _design(n=400, segments=4):
@@ -26,10 +28,10 @@ def test_homogeneity_holds_its_level_under_the_null():
     drift = 0.5 * seg  # the nuisance's value changes from segment to segment
     out = [diag.homogeneity(J, J @ b + drift + rng.normal(0, sigma, J.shape[0]), seg, sigma, N)
            for _ in range(2000)]
-    assert all(h["dof"] == 6 for h in out)
-    p = np.array([h["p_value"] for h in out])
+    assert all(h.dof == 6 for h in out)
+    p = np.array([h.p_value for h in out])
     assert abs(np.mean(p < 0.05) - 0.05) < HOMOGENEITY_RATE_ABS
-    assert abs(np.mean([h["statistic"] for h in out]) - 6) < HOMOGENEITY_MEAN_ABS
+    assert abs(np.mean([h.statistic for h in out]) - 6) < HOMOGENEITY_MEAN_ABS
     assert stats.kstest(p, "uniform").pvalue > 0.001
 
 
@@ -38,7 +40,7 @@ def test_homogeneity_rejects_an_effect_that_changes_between_segments():
     rng = np.random.default_rng(3)
     b = np.where(seg[:, None] < 2, [0.7, -0.2], [0.2, 0.1])  # not the same effect in both halves
     r = np.sum(J * b, axis=1) + rng.normal(0, 0.3, J.shape[0])
-    assert diag.homogeneity(J, r, seg, 0.3)["p_value"] < STATIONARY_ALPHA
+    assert diag.homogeneity(J, r, seg, 0.3).p_value < STATIONARY_ALPHA
 
 
 def test_segments_are_whole_revolutions():
