@@ -26,7 +26,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from .diagnostics import order_spectrum, synchronous_average  # noqa: E402
 from .io import write_text  # noqa: E402
-from .plotting import _wrapped, tidy_axis  # noqa: E402
+from .plotting import wrapped_angle, tidy_axis  # noqa: E402
 from .presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate,  # noqa: E402
                            fmt_interval, fmt_number, parameter_text, provenance)
 
@@ -250,9 +250,9 @@ def torque_overlay(res, data=None, label="fitted model", show_initial=True):
         ax.plot(d, np.asarray(res.measured)[sl], ".", ms=1.5, color="0.55" if j == 0 else "0.75",
                 label=f"{pre}measured ({len(d)} samples)")
         if show_initial and getattr(res, "initial_model", None) is not None:
-            ax.plot(*_wrapped(d[last], np.asarray(res.initial_model)[sl][last]), lw=1.0, ls="--",
+            ax.plot(*wrapped_angle(d[last], np.asarray(res.initial_model)[sl][last]), lw=1.0, ls="--",
                     color="C1" if len(segs) == 1 else f"C{j}", label=f"{pre}initial model{tag}")
-        ax.plot(*_wrapped(d[last], np.asarray(res.fitted)[sl][last]), color=f"C{j}", lw=1.3,
+        ax.plot(*wrapped_angle(d[last], np.asarray(res.fitted)[sl][last]), color=f"C{j}", lw=1.3,
                 label=f"{pre}{label}{tag}")
     ax.set_xlim(0, 360)
     ax.set_xticks(range(0, 361, 45))

@@ -77,7 +77,7 @@ def lowest_orders(sig) -> list:
     """Per housing-shape effect (a harmonic pair per order), its lowest significant order: a
     machined or clamped housing's out-of-round is dominated by its lowest orders (ovality k = 2,
     then trilobing), while the one-step fits that rank the orders cannot be trusted for a defect
-    that acts through the friction reversals (F13/F14: a 15 um oval's one-step fit left 5.4 sigma,
+    that acts through the friction reversals (a 15 um oval's one-step fit left 5.4 sigma,
     its refit 1.0) -- so it is refitted whatever its one-step rank."""
     out = {}
     for r in sig:
@@ -117,7 +117,7 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
     Jacobian columns (identification/problem.py: they carry the friction reversals' motion), and
     with `polar` also from opts.refit_starts directions about its absent value at the one-step
     estimate's radius (at least opts.refit_radius) and at half of it, a few steps each, the lowest cost fitted to
-    convergence: the cost is a staircase in its parameters (F13/F14) whose valley a fit from the
+    convergence: the cost is a staircase in its parameters whose valley a fit from the
     one-step start often misses (the grid's 15 um oval on the 4-vane ellipse: 1.61 sigma from the
     one-step start, 1.02 from a polar start, the truth's valley 1.017; an eccentricity's one-step
     estimate can be the mirror image of the truth)."""
