@@ -246,8 +246,8 @@ def test_an_effect_a_later_one_supersedes_is_dropped(monkeypatch):
     ds = Dataset(ds.time, ds.torque, speed=ds.speed * (1 + 1e-2 * np.random.default_rng(3).standard_normal(ds.n)))
     score = dg.score_test
 
-    def hidden_at_first(state, cand, start=True):
-        out = score(state, cand, start)
+    def hidden_at_first(state, cand, start=True, **kw):
+        out = score(state, cand, start, **kw)
         if start and cand.effect == "rotor_eccentricity" and len(state.names) <= 2:  # mu, theta0
             out = dataclasses.replace(out, one_step_rss=1e9, p_value=1.0, searched=False, second_order=False)
         return out
