@@ -38,7 +38,7 @@ sys.path.insert(0, str(ROOT))
 import pumpsim  # noqa: E402
 from pumpsim.config import config_from_dict  # noqa: E402
 from pumpsim.data import Dataset  # noqa: E402
-from pumpsim.diagnose import diagnose  # noqa: E402
+from pumpsim.diagnosis import diagnose  # noqa: E402
 from pumpsim.geometry import check_geometry  # noqa: E402
 from pumpsim.identification import identify  # noqa: E402
 from pumpsim.sensor import measured_torque  # noqa: E402

@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.data import Dataset  # noqa: E402
-from pumpsim.diagnose import diagnose  # noqa: E402
+from pumpsim.diagnosis import diagnose  # noqa: E402
 from pumpsim.simulate import simulate  # noqa: E402
 
 RATE = 20000.0

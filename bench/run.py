@@ -278,7 +278,7 @@ def bench_diagnose(duration=0.5, rate=10000.0):
     import dataclasses
 
     from pumpsim.data import Dataset
-    from pumpsim.diagnose import diagnose
+    from pumpsim.diagnosis import diagnose
     from pumpsim.simulate import simulate
 
     base = load_config(ROOT / "examples" / "ellipse_4vanes.toml")

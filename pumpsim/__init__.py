@@ -46,7 +46,7 @@ _EXPORTS = {
     "SimulationResult": ".result", "PumpsimError": ".errors", "ConfigError": ".errors",
     "DataError": ".errors", "CodegenError": ".errors", "SolverError": ".errors",
     "IdentificationError": ".errors",
-    "identify": ".api", "diagnose": ".api", "Diagnosis": ".api",
+    "identify": ".api", "diagnose": ".api", "Diagnosis": ".diagnosis", "DiagnosisResult": ".diagnosis",
     "load_data": ".data", "Dataset": ".data", "DataOptions": ".data",
     "IdentificationResult": ".identification",
 }

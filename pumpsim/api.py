@@ -126,37 +126,8 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
     return res
 
 
-class Diagnosis(dict):
-    """The discrepancy workflow's result: the JSON output's keys (baseline, steps, effects, final,
-    verdict, unexplained, confounded, ...) as a dict; `.history` holds the fits behind each step;
-    `print(d)` shows the step table."""
-
-    def __init__(self, out):
-        """From a diagnose.DiagnosisResult."""
-        super().__init__(out.to_json())
-        self.history = out.history
-
-    def __missing__(self, key):
-        if key == "history":  # the report reads the fits behind the steps
-            return self.history
-        raise KeyError(key)
-
-    def get(self, key, default=None):
-        return self[key] if key in self or key == "history" else default
-
-    def __str__(self):
-        from .diagnose import step_table
-
-        return step_table(self)
-
-    def __repr__(self):
-        eff = ", ".join(self.get("effects", [])) or "none"
-        return (f"<Diagnosis: effects {eff}; final RMS {self['final']['rms']:.4g} N m; "
-                f"unexplained {self.get('unexplained')}; confounded {self.get('confounded')}>")
-
-
 def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None,
-             speed_tolerance=None, budget=None) -> Diagnosis:
+             speed_tolerance=None, budget=None):
     """The discrepancy workflow: fit the baseline (mu, theta0 and the speed when the data has none),
     test the residual, then name and add the effects the model lacks (the discrepancy workflow
     of the documentation's explanation section).
@@ -176,7 +147,10 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
 
     Returns
     -------
-    Diagnosis: a dict with the JSON output's keys; `print(d)` shows the step table.
+    DiagnosisResult: `d["key"]` reads the JSON output (baseline, steps, effects, final, verdict,
+    unexplained, confounded, notes, ...), `d.to_json()` is all of it; `d.steps`, `d.screens` and
+    `d.history` (the fit behind each model: `d.history[0].result` is the baseline's) are typed;
+    `print(d)` shows the step table.
 
     Example::
 
@@ -184,7 +158,7 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
         d = pumpsim.diagnose("examples/ellipse_4vanes.toml", "examples/data/ellipse_hidden_effects.csv")
         print(d["effects"])
     """
-    from .diagnose import diagnose as _diagnose
+    from .diagnosis import diagnose as _diagnose
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
@@ -195,4 +169,4 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     for w in warnings:  # accepted under force: say so where the user looks
         if progress:
             progress(f"warning: {w}")
-    return Diagnosis(_diagnose(cfg, datasets, progress=progress, speed_tolerance=speed_tolerance, budget=budget))
+    return _diagnose(cfg, datasets, progress=progress, speed_tolerance=speed_tolerance, budget=budget)

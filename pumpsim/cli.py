@@ -418,7 +418,7 @@ def register_diagnose(sub):
 
 def cmd_diagnose(a) -> int:
     from .api import diagnose
-    from .diagnose import tty_progress
+    from .diagnosis import tty_progress
 
     outs = _outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     cfg = _load_config(a)
@@ -435,7 +435,7 @@ def cmd_diagnose(a) -> int:
     print(out)
     from .report import diagnosis_report
 
-    _write_fit_outputs(outs, a, dict(out), lambda path: diagnosis_report(
+    _write_fit_outputs(outs, a, out.to_json(), lambda path: diagnosis_report(
         out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data))
     return 0
 

@@ -74,7 +74,7 @@ def tidy_axis(ax, values=None, axis="y"):
         (ax.set_ylim if axis == "y" else ax.set_xlim)(mid - half, mid + half)
 
 
-def _wrapped(x, y):
+def wrapped_angle(x, y):
     """Break a line where the angle wraps from 360 back to 0 (NaN gaps)."""
     jump = np.nonzero(np.abs(np.diff(x)) > 180)[0] + 1
     return np.insert(x, jump, np.nan), np.insert(y, jump, np.nan)
@@ -118,8 +118,8 @@ class _Drawer:
             ax.plot(self.t, y, **style)
             return
         if self.turns > 1:
-            ax.plot(*_wrapped(self.rel, y), **dict(style, lw=0.7, alpha=0.35))
-        ax.plot(*_wrapped(self.rel[self.bold], y[self.bold]), **dict(style, lw=style.get("lw", 1.4)))
+            ax.plot(*wrapped_angle(self.rel, y), **dict(style, lw=0.7, alpha=0.35))
+        ax.plot(*wrapped_angle(self.rel[self.bold], y[self.bold]), **dict(style, lw=style.get("lw", 1.4)))
 
     def finish(self, ax):
         if self.x == "time":

@@ -250,30 +250,6 @@ def kernel_key_of(cfg, model: str = "constrained") -> str | None:
         return None
 
 
-def step_parameters(step) -> list[str]:
-    """A diagnosis step's parameters as an engineer reads them: order, amplitude and phase with
-    units (out-of-round in µm, speed ripple in % of ω0), other parameters with their units; the
-    (a, b) components behind an amplitude stay in the JSON."""
-    p = step["params"]
-    items = []
-    if "order" in p:
-        items.append(f"order k = {p['order']}")
-    if "amplitude" in p:
-        A, ph = p["amplitude"], p["phase"]
-        phase = f"{fmt_estimate(ph['value'], ph['stderr'])} rad ({math.degrees(ph['value']):.3g}°)"
-        if step["effect"] == "housing_out_of_round":
-            items.append(f"radial amplitude {fmt_estimate(A['value'] * 1e6, A['stderr'] * 1e6)} µm")
-            items.append(f"phase γ {phase}")
-        else:  # speed ripple: omega = omega0 (1 + A cos(k theta + phase)), A relative
-            items.append(f"amplitude {fmt_estimate(A['value'] * 100, A['stderr'] * 100)} % of ω0")
-            items.append(f"phase {phase}")
-        return items
-    for name, v in p.items():
-        if isinstance(v, dict):
-            items.append(parameter_text(name, v["value"], v["stderr"]))
-    return items
-
-
 def parameter_text(name, value, stderr) -> str:
     """'mu 0.16999 ± 0.00038', 'housing centre x … 12.1 ± 0.4 µm': name, estimate ± s.e., unit."""
     if value is None:

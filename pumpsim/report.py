@@ -6,13 +6,8 @@ version, compiled kernel), shows every parameter with its unit, and uses "±" fo
 exactly as the terminal output does (`presentation.PLUS_MINUS`). When the residual is not white the
 intervals are flagged as optimistic, with the AR(1) inflation factor that would widen them.
 
-What the diagnosis report reads (a dict or an object with these keys/attributes): `baseline`
-{rms, params}, `steps` [{effect, params, rms_before, rms_after, p_value, bic_before, bic_after,
-all_params}], `final` {rms, params, residual_white, runs_p_value, ljung_box_p_value},
-`unexplained`, `unexplained_where`, `confounded`, `notes`, `method`, optionally `verdict`,
-`screens` (the candidate ranking per step) or `ranking` (one list), and `history`
-([{label, result}] with each model's IdentificationResult: residual, time, speed, angle,
-estimates).
+The diagnosis report draws a `pumpsim.diagnosis.DiagnosisResult` and nothing else: every figure
+and statistic it shows (BIC, amplitudes and phases) is one the result carries.
 """
 from __future__ import annotations
 
@@ -31,9 +26,9 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from .diagnostics import order_spectrum, synchronous_average  # noqa: E402
 from .io import write_text  # noqa: E402
-from .plotting import _wrapped, tidy_axis  # noqa: E402
+from .plotting import wrapped_angle, tidy_axis  # noqa: E402
 from .presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate,  # noqa: E402
-                           fmt_interval, fmt_number, parameter_text, provenance, step_parameters)
+                           fmt_interval, fmt_number, parameter_text, provenance)
 
 CSS = ("body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1150px;margin:1.5em auto;color:#222;"
        "line-height:1.35}h1{font-size:1.5em}h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}"
@@ -255,9 +250,9 @@ def torque_overlay(res, data=None, label="fitted model", show_initial=True):
         ax.plot(d, np.asarray(res.measured)[sl], ".", ms=1.5, color="0.55" if j == 0 else "0.75",
                 label=f"{pre}measured ({len(d)} samples)")
         if show_initial and getattr(res, "initial_model", None) is not None:
-            ax.plot(*_wrapped(d[last], np.asarray(res.initial_model)[sl][last]), lw=1.0, ls="--",
+            ax.plot(*wrapped_angle(d[last], np.asarray(res.initial_model)[sl][last]), lw=1.0, ls="--",
                     color="C1" if len(segs) == 1 else f"C{j}", label=f"{pre}initial model{tag}")
-        ax.plot(*_wrapped(d[last], np.asarray(res.fitted)[sl][last]), color=f"C{j}", lw=1.3,
+        ax.plot(*wrapped_angle(d[last], np.asarray(res.fitted)[sl][last]), color=f"C{j}", lw=1.3,
                 label=f"{pre}{label}{tag}")
     ax.set_xlim(0, 360)
     ax.set_xticks(range(0, 361, 45))
@@ -378,34 +373,6 @@ def _iteration_figure(res, harmonics=None):
 
 # -- diagnosis -------------------------------------------------------------------------------------
 
-def _get(out, key, default=None):
-    if isinstance(out, dict):
-        return out.get(key, default)
-    return getattr(out, key, default)
-
-
-def _history(out):
-    return _get(out, "history") or []
-
-
-def bic_chain(history) -> list | None:
-    """BIC of every model in the history with ONE prewhitening filter (AR(1) of the baseline
-    residual), so a step's "before" is the previous step's "after". The workflow's own decision
-    prewhitens each step with the residual it starts from; its ΔBIC is shown beside this."""
-    from .diagnose import _bic, _whitened_rss
-
-    if not history:
-        return None
-    rho = min(max(ar1(history[0]["result"].residual), -0.99), 0.99)
-    out = []
-    for h in history:
-        r = h["result"]
-        rss, n = _whitened_rss(np.asarray(r.residual, dtype=float), rho)
-        k = sum(1 for e in r.estimates.values() if e.identifiable)
-        out.append(_bic(rss, n, k))
-    return out, rho
-
-
 _NUMBER_WITH_ERROR = re.compile(r"[-+]?[0-9][0-9.]*(?:e[-+]?[0-9]+)? ± [0-9.]+(?:e[-+]?[0-9]+)?"
                                 r"(?: (?:rad|µm|mm|m|N·m|N·s/m|rad/s|s|kg|% of ω0))?(?: \([^)]*\))?")
 
@@ -424,101 +391,81 @@ def _nb_list(items) -> str:
 
 
 def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, provenance_rows=None) -> None:
-    """Write the HTML report of a diagnosis (see the module docstring for what it reads)."""
+    """Write the HTML report of a DiagnosisResult `out` to `path` (cfg and data: for the provenance
+    block and the joint fit's measurements)."""
     rows_p = provenance_rows if provenance_rows is not None else provenance(cfg, data)
-    history = _history(out)
-    steps = _get(out, "steps", [])
-    final = _get(out, "final")
+    final = out.final
     parts = [f"<h1>{html.escape(title)}</h1>", provenance_line(rows_p)]
-    named = [s["effect"] for s in steps]
+    named = out.effects
     verdict = (f"Effects named: <b>{html.escape(', '.join(named))}</b>." if named else
                "No effect of the library is named.")
     white = final["residual_white"]
-    rms_final, rms_base = f"{final['rms']:.4g} N·m", f"{_get(out, 'baseline')['rms']:.4g} N·m"
+    rms_final, rms_base = f"{final['rms']:.4g} N·m", f"{out.baseline['rms']:.4g} N·m"
     verdict += (f" Final residual RMS {nb(rms_final)} (baseline {nb(rms_base)}), "
                 f"{'white' if white else '<b>not white</b>'} at 5 % "
                 f"(runs p = {final['runs_p_value']:.3g}, Ljung–Box p = {final['ljung_box_p_value']:.3g}).")
-    parts.append(f"<p class={'ok' if white and not _get(out, 'unexplained') else 'warn'}>{verdict}</p>")
-    if _get(out, "unexplained"):
+    parts.append(f"<p class={'ok' if white and not out.unexplained else 'warn'}>{verdict}</p>")
+    if out.unexplained:
         parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Where: "
-                     + ", ".join(nb(_where_text(w)) for w in _get(out, "unexplained_where", [])) + ".</p>")
-    if _get(out, "verdict"):
-        parts.append(f"<p>Verdict: {html.escape(str(_get(out, 'verdict')))}.</p>")
-    for a, b in _get(out, "confounded", []):
+                     + ", ".join(nb(_where_text(w)) for w in out.unexplained_where) + ".</p>")
+    parts.append(f"<p>Verdict: {html.escape(out.verdict)}.</p>")
+    for a, b in out.confounded:
         parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} have nearly collinear "
                      f"effects on this data, which cannot tell them apart: {html.escape(a)} is not named "
                      "(see the notes).</p>")
-    last_res = history[-1]["result"] if history else None
+    last_res = out.history[-1].result if out.history else None
     parts.append(interval_warning(white, final["runs_p_value"], final["ljung_box_p_value"],
                                   None if last_res is None else last_res.residual))
-    parts.append(_steps_table(out, history, steps))
-    parts.append(_final_table(out, history, steps, cfg))
-    screens = _screens(out)
-    if screens:
+    parts += [_steps_table(out), _final_table(out)]
+    if out.screens:
         parts.append("<h2>Candidate ranking</h2><p class=note>Each screen tests every candidate of the library "
                      "by a score (Lagrange-multiplier) test at the current fit, no refit; the significant ones "
                      "(p below the Bonferroni level) are ranked by p-value, the best few refitted and compared "
                      "by BIC. ΔBIC &lt; 0 favours the candidate.</p>")
-        for i, sc in enumerate(screens):
-            parts.append(_ranking_table(i, sc))
-    for d in _get(out, "drift", []) or []:
-        parts.append(f"<h2>{html.escape(d['text'])}</h2>" + _drift_figure(d))
-    notes = _get(out, "notes", [])
-    if notes:
-        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
-    parts.append(f"<p class=note>Method: {html.escape(str(_get(out, 'method', '')))}.</p>")
-    for h in history:
-        r = h["result"]
-        parts.append(f"<h2>Model after: {html.escape(h['label'])} (RMS {r.rms:.4g} N·m)</h2>")
-        parts.append(torque_overlay(r, data, label=f"model ({h['label']})", show_initial=False))
-        parts.append(residual_figures(r, data))
+        parts += [_ranking_table(i, sc) for i, sc in enumerate(out.screens)]
+    parts += [f"<h2>{html.escape(d['text'])}</h2>" + _drift_figure(d) for d in out.drift]
+    if out.notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in out.notes) + "</ul>")
+    parts.append(f"<p class=note>Method: {html.escape(out.method)}.</p>")
+    for h in out.history:
+        parts.append(f"<h2>Model after: {html.escape(h.label)} (RMS {h.result.rms:.4g} N·m)</h2>")
+        parts.append(torque_overlay(h.result, data, label=f"model ({h.label})", show_initial=False))
+        parts.append(residual_figures(h.result, data))
     parts.append(provenance_html(rows_p))
     write_page(path, title, parts)
 
 
-def _steps_table(out, history, steps) -> str:
-    chain = bic_chain(history) if len(history) == len(steps) + 1 else None
-    base = _get(out, "baseline")
-    headers = ["step", "RMS [N·m]", "RMS change", "score-test p", "BIC", "ΔBIC (step's test)",
+BIC_NOTE = ("BIC = n ln(RSS/n) + k ln n of the prewhitened residual, as each step's acceptance test computes "
+            "it: both models on the samples both keep, prewhitened with the AR(1) coefficient of the residual "
+            "the step starts from -- so a step's 'before' is not the row above's 'after'.")
+
+
+def _steps_table(out) -> str:
+    base = out.baseline
+    headers = ["step", "RMS [N·m]", "RMS change", "score-test p", "BIC before", "BIC after", "ΔBIC",
                "parameters (± s.e.)"]
     base_items = [parameter_text(n, v["value"], v["stderr"]) for n, v in base["params"].items()]
-    rows = [[Cell("baseline"), Cell(f"{base['rms']:.5g}", True), Cell("", True), Cell("", True),
-             Cell("—" if chain is None else f"{chain[0][0]:.1f}", True), Cell("", True),
-             Cell(_nb_list(base_items), raw=True)]]
-    for i, s in enumerate(steps):
-        change = (s["rms_after"] - s["rms_before"]) / s["rms_before"] * 100 if s["rms_before"] else float("nan")
-        rows.append([Cell(s["effect"]), Cell(f"{s['rms_after']:.5g}", True), Cell(f"{change:+.1f} %", True),
-                     Cell(f"{s['p_value']:.2g}", True),
-                     Cell("—" if chain is None else f"{chain[0][i + 1]:.1f}", True),
-                     Cell(f"{s['bic_after'] - s['bic_before']:+.1f}", True),
-                     Cell(_nb_list(step_parameters(s)), raw=True)])
-    note = (f"BIC = n ln(RSS/n) + k ln n of each model's residual, all prewhitened with one AR(1) filter "
-            f"(ρ = {chain[1]:.3f}, the baseline residual's), so each step's 'before' is the row above. "
-            "ΔBIC is the workflow's acceptance test, which prewhitens with the AR(1) coefficient of the "
-            "residual that step starts from." if chain else
-            "ΔBIC is the workflow's acceptance test (prewhitened with the AR(1) coefficient of the residual "
-            "the step starts from).")
+    rows = [[Cell("baseline"), Cell(f"{base['rms']:.5g}", True), Cell("", True), Cell("", True), Cell("", True),
+             Cell("", True), Cell("", True), Cell(_nb_list(base_items), raw=True)]]
+    for s in out.steps:
+        change = (s.rms_after - s.rms_before) / s.rms_before * 100 if s.rms_before else float("nan")
+        rows.append([Cell(s.effect.name), Cell(f"{s.rms_after:.5g}", True), Cell(f"{change:+.1f} %", True),
+                     Cell(f"{s.p_value:.2g}", True), Cell(f"{s.bic_before:.1f}", True),
+                     Cell(f"{s.bic_after:.1f}", True), Cell(f"{s.delta_bic:+.1f}", True),
+                     Cell(_nb_list(s.parameter_texts()), raw=True)])
     return ("<h2>Steps</h2>" + table(headers, rows)
-            + f"<p class=note>{html.escape(note)} {html.escape(PLUS_MINUS)}.</p>")
+            + f"<p class=note>{html.escape(BIC_NOTE)} {html.escape(PLUS_MINUS)}.</p>")
 
 
-def _final_table(out, history, steps, cfg) -> str:
+def _final_table(out) -> str:
     """Every parameter of the final model with its unit; out-of-round and ripple coefficients as
-    amplitude and phase (from the final fit, delta-method standard errors)."""
-    harmonics = list(getattr(cfg, "harmonics", []) or [])
-    polar_names = {}
-    for s in steps:
-        if "amplitude" in s["params"]:
-            raw = [n for n, v in s["params"].items() if isinstance(v, dict) and n not in ("amplitude", "phase")]
-            polar_names[s["effect"]] = (raw, s["params"].get("order"))
-        if s["effect"] == "housing_out_of_round":
-            k = s["params"]["order"]
-            harmonics += [[k, 0.0, 0.0], [k, 0.0, math.pi / (2 * k)]]
+    amplitude and phase (the result's, at the final fit)."""
+    harmonics = out.final_harmonics
+    last = out.history[-1].result if out.history else None
+    skip = {n for s in out.steps if s.effect.polar is not None
+            for n, v in s.params.items() if isinstance(v, dict) and n not in ("amplitude", "phase")}
     rows = []
-    last = history[-1]["result"] if history else None
-    skip = {n for raw, _ in polar_names.values() for n in raw}
-    params = _get(out, "final")["params"]
-    for n, v in params.items():
+    for n, v in out.final["params"].items():
         if n in skip:
             continue
         e = last.estimates.get(n) if last is not None else None
@@ -530,21 +477,10 @@ def _final_table(out, history, steps, cfg) -> str:
             se = None if nd.get("stderr") is None else nd["stderr"] * f
             row[4] = Cell(nb(f"not determined ({fmt_estimate(nd['estimate'] * f, se)})"), True, raw=True)
         rows.append(row)
-    if last is not None:
-        from .diagnose import _polar
-
-        for effect, (raw, k) in polar_names.items():
-            if not all(n in last.estimates and last.estimates[n].identifiable for n in raw):
-                continue
-            A, ph = _polar(last, raw, k)
-            if effect == "housing_out_of_round":
-                rows.append(_polar_row(f"out-of-round k = {k}", "radial amplitude A_k", A, 1e6, "µm"))
-                rows.append(_polar_row(f"out-of-round k = {k}", "phase γ_k (A cos k(α − γ))",
-                                       {"value": ph["value"] / k, "stderr": ph["stderr"] / k}, 1.0, "rad"))
-            else:
-                rows.append(_polar_row(f"speed ripple k = {k}", "amplitude (ω = ω0 (1 + A cos(kθ + φ)))", A,
-                                       100, "% of ω0"))
-                rows.append(_polar_row(f"speed ripple k = {k}", "phase φ", ph, 1.0, "rad"))
+    for p in out.final_polar:
+        form, name = p.effect.polar, f"{p.effect.polar.title} k = {p.order}"
+        rows.append(_polar_row(name, form.amplitude_meaning, p.amplitude, form.scale, form.unit))
+        rows.append(_polar_row(name, form.phase_meaning, p.phase, 1.0, "rad"))
     return ("<h2>Final model parameters</h2>" + table(["parameter", "meaning", "unit", "estimate ± s.e."],
                                                       [[r[0], r[1], r[2], r[4]] for r in rows])
             + f"<p class=note>{html.escape(PLUS_MINUS)}.</p>")
@@ -564,28 +500,13 @@ def _where_text(w) -> str:
     return ", ".join(f"{k} {v}" for k, v in w.items())
 
 
-def _screens(out) -> list:
-    """The candidate screens: `screens` (one per step: after, alpha, candidates, chosen) or a flat
-    `ranking` list (one screen; rows with effect/candidate, p_value/score_p_value, significant)."""
-    screens = _get(out, "screens")
-    if screens:
-        return screens
-    ranking = _get(out, "ranking")
-    if not ranking:
-        return []
-    rows = [dict(r, candidate=r.get("candidate", r.get("effect")),
-                 p_value=r.get("p_value", r.get("score_p_value"))) for r in ranking]
-    return [{"after": "the last step", "alpha": None, "candidates": rows, "chosen": None}]
-
-
 # ranking columns: header, key, format; a column is shown when some row has the key
 RANKING_COLUMNS = [("score-test p", "p_value", ".2g"), ("one-step RMS [N·m]", "one_step_rms", ".5g"),
-                   ("one-step BIC", "one_step_bic", ".1f"), ("refit ΔBIC", "refit_delta_bic", "+.1f"),
-                   ("refit LR p", "refit_lr_p_value", ".2g")]
+                   ("one-step BIC", "one_step_bic", ".1f")]
 
 
 def _ranking_table(i, screen) -> str:
-    cands = screen["candidates"]
+    cands = [r.to_json() for r in screen.candidates]
     cols = [c for c in RANKING_COLUMNS if any(r.get(c[1]) is not None for r in cands)]
     headers = ["rank", "candidate"] + [c[0] for c in cols[:1]] + ["significant"] + [c[0] for c in cols[1:]] \
         + ["collinear with"]
@@ -593,18 +514,17 @@ def _ranking_table(i, screen) -> str:
     for k, r in enumerate(cands, 1):
         vals = [Cell("—" if r.get(key) is None else format(r[key], f), True) for _, key, f in cols]
         rows.append([Cell(str(k), True), Cell(r["candidate"])] + vals[:1]
-                    + [Cell("yes" if r.get("significant") else "no")] + vals[1:]
-                    + [Cell(r.get("collinear_with") or "")])
-        classes.append("chosen" if r["candidate"] == screen.get("chosen") else None)
-    chosen = screen.get("chosen")
+                    + [Cell("yes" if r["significant"] else "no")] + vals[1:]
+                    + [Cell(r["collinear_with"] or "")])
+        classes.append("chosen" if r["candidate"] == screen.chosen else None)
     shown = RANKING_SHOWN
     visible = table(headers, rows[:shown], row_classes=classes[:shown])
     if len(rows) > shown:
         visible += (f"<details><summary>all {len(rows)} candidates</summary>"
                     + table(headers, rows, row_classes=classes) + "</details>")
-    head = (f"<h3>Screen {i + 1} (after {html.escape(screen['after'])}): "
-            f"{'chose ' + html.escape(chosen) if chosen else 'nothing accepted'}"
-            + (f"; Bonferroni level {screen['alpha']:.2g}" if screen.get("alpha") else "") + "</h3>")
+    head = (f"<h3>Screen {i + 1} (after {html.escape(screen.after)}): "
+            f"{'chose ' + html.escape(screen.chosen) if screen.chosen else 'nothing accepted'}"
+            + (f"; Bonferroni level {screen.alpha:.2g}" if screen.alpha else "") + "</h3>")
     return head + visible
 
 

@@ -162,7 +162,7 @@ def _measured(rig, comps, t, theta0, nominal_mean):
 # an effect is scored 'absorbed' (nothing to name; naming it is no error) when the part of its
 # contribution no change of mu or theta0 can mimic is below ABSORBED_Z noise sigmas over the whole
 # record, or below ABSORBED_SIZE sigma RMS per sample: a change smaller than a quarter of the noise is
-# what diagnose declares it will not name (pumpsim/diagnose.py NAMED_SIZE), and at one speed it is, for a pump
+# what diagnose declares it will not name (pumpsim/diagnosis/options.py named_size), and at one speed it is, for a pump
 # engineer, a COF change (e.g. lubricated tips on a near-constant slip speed)
 ABSORBED_Z = 5.0
 ABSORBED_SIZE = 0.25

@@ -77,7 +77,7 @@ print(d)
 # The record was made with two defects: a speed ripple of 0.2 % at order 1 and a 15 µm lobe at
 # order 4 (``examples/make_measurements.py`` in the source tree). Compare them with the table.
 #
-# The result is a dictionary with the JSON's fields:
+# The result reads like the JSON (``d.to_json()`` is all of it):
 print("effects:", d["effects"])
 print("verdict:", d["verdict"])
 mu = d["final"]["params"]["mu"]
@@ -88,8 +88,8 @@ print(f"final mu (mean over the vanes): {mu['value']:.4f} ± {mu['stderr']:.4f}"
 # -------------------------------
 # The final model's torque against the record over the first revolution, beside the nominal
 # model's:
-base = d.history[0]["result"]  # the fits behind the steps: first the baseline,
-final = d.history[-1]["result"]  # last the fit with every named effect
+base = d.history[0].result  # the fits behind the steps: first the baseline,
+final = d.history[-1].result  # last the fit with every named effect
 rev = 2 * np.pi / fit.speed
 keep = fit.time - fit.time[0] < rev
 fig, ax = plt.subplots(figsize=(8, 3.6))

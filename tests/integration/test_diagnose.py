@@ -9,7 +9,7 @@ import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from tests.conftest import ROOT, make_config
 
 

@@ -8,7 +8,7 @@ import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from pumpsim.identification import identify
 from pumpsim.identification.drift import DRIFT_ALPHA, parameter_drift, trend
 from tests.conftest import make_config

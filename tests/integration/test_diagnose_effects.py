@@ -8,7 +8,7 @@ import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from pumpsim.sensor import measured_torque
 from tests.conftest import make_config
 from tests.tolerances import EFFECT_FINAL_RMS, EFFECT_MU_REL, EFFECT_PARAM_REL, SENSOR_TRUTH_SUBSTEPS

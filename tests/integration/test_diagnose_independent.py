@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import pumpsim
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from tests.tolerances import EFFECT_PARAM_REL
 
 ROOT = Path(__file__).resolve().parents[2]

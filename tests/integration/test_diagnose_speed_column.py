@@ -7,7 +7,7 @@ import pytest
 
 import pumpsim
 from pumpsim.data import Dataset
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from tests.conftest import make_config
 
 

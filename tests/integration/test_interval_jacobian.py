@@ -12,7 +12,7 @@ import pytest
 import pumpsim
 from bench.diagnose_grid import make_case, rig
 from pumpsim.data import Dataset
-from pumpsim.diagnose import _with_harmonic_pair
+from pumpsim.diagnosis.effects import with_harmonic_pair
 from pumpsim.identification import identify, make_problem, problem
 from tests.tolerances import INTERVAL_COS_GAIN, INTERVAL_VALLEY_RMS
 
@@ -24,7 +24,7 @@ def _oval_record():
     truth = nominal.with_harmonics(nominal.harmonics + [[K, AMPLITUDE, PHASE]])
     sim = pumpsim.simulate(truth, duration=0.1, rate=10000.0)
     ref = pumpsim.simulate(nominal, duration=0.1, rate=10000.0)
-    cfg = _with_harmonic_pair(nominal, K)
+    cfg = with_harmonic_pair(nominal, K)
     j = len(nominal.harmonics)
     names = [f"housing.harmonics.{j}.amplitude", f"housing.harmonics.{j + 1}.amplitude"]
     effect = float(np.sqrt(np.mean((sim.torque - ref.torque) ** 2)))
@@ -70,7 +70,7 @@ def test_gauss_newton_on_interval_columns_reaches_the_oval_where_the_exact_jacob
     while the exact pointwise Jacobian stalls on the staircase at 1.5-2.4 sigma."""
     nominal, ds, info = make_case("tilted3", "housing_out_of_round", 5, 0, False)
     base = identify(nominal, ds, ["mu", "theta0", "speed"])
-    cfg = _with_harmonic_pair(nominal, K)
+    cfg = with_harmonic_pair(nominal, K)
     j = len(nominal.harmonics)
     names = [f"housing.harmonics.{j}.amplitude", f"housing.harmonics.{j + 1}.amplitude"]
     params = ["mu", "theta0", "speed"] + names

@@ -1,11 +1,10 @@
 """HTML reports: provenance with the right SHA-256, "±" meaning the same on the terminal and in the
 HTML, units on every parameter, the optimistic-interval warning exactly when the residual is not
-white, amplitude/phase instead of raw harmonic coefficients, the candidate ranking, a BIC chain
-whose "before" is the previous "after", integer iteration ticks, self-contained pages."""
+white, amplitude/phase instead of raw harmonic coefficients, the candidate ranking, the result's own
+BIC figures, integer iteration ticks, self-contained pages."""
 import dataclasses
 import hashlib
 import html
-import math
 import re
 import subprocess
 import sys
@@ -15,9 +14,9 @@ import numpy as np
 import pytest
 
 import pumpsim
-from pumpsim.diagnose import candidates, diagnose, step_table
+from pumpsim.diagnosis import candidates, diagnose
 from pumpsim.presentation import OPTIMISTIC, PLUS_MINUS, describe
-from pumpsim.report import bic_chain, diagnosis_report
+from pumpsim.report import diagnosis_report
 from tests.conftest import ROOT, make_config
 from tests.integration.test_diagnose_effects import measurement
 from tests.tolerances import DISPLAY_SE_REL, DISPLAY_VALUE_SE, EFFECT_PARAM_REL, OPTIMISTIC_FACTOR_MIN
@@ -95,7 +94,7 @@ def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_d
     assert re.search(r"radial amplitude [0-9.]+ ± [0-9.]+ µm", text)
     amp = float(re.search(r"radial amplitude ([0-9.]+) ±", text).group(1))
     assert abs(amp - 20.0) < EFFECT_PARAM_REL * 20.0  # the truth: 20 µm
-    assert PLUS_MINUS in text and PLUS_MINUS in step_table(out)
+    assert PLUS_MINUS in text and PLUS_MINUS in out.summary()
     # the candidate ranking: every library candidate of the first screen, the chosen one marked
     assert "Candidate ranking" in text and "<tr class=chosen>" in page
     first = out["screens"][0]
@@ -114,29 +113,21 @@ def test_diagnosis_report_reads_like_an_engineers_table(tmp_path, out_of_round_d
     assert f"{h} (of the samples)" in text
 
 
-def test_diagnosis_report_reads_a_result_object_with_a_flat_ranking(tmp_path, out_of_round_diagnosis):
-    """The documented interface: attributes instead of keys, `history`, `verdict`, one `ranking`."""
+def test_diagnosis_report_shows_the_results_own_bic(tmp_path, out_of_round_diagnosis):
+    """One definition of BIC on the page: the steps table shows each step's BIC before and after
+    and their difference exactly as the result carries them (the acceptance test's), and an
+    accepted step lowers it."""
     cfg, ds, out = out_of_round_diagnosis
-    ranking = [{"effect": r["candidate"], "score_p_value": r["p_value"], "one_step_bic": -1.5,
-                "significant": r["significant"]} for r in out["screens"][0]["candidates"]]
-    obj = SimpleNamespace(**{k: v for k, v in out.to_json().items() if k not in ("screens", "ranking", "verdict")},
-                          history=out.history, ranking=ranking, verdict="housing out of round")
     rep = tmp_path / "d.html"
-    diagnosis_report(obj, rep, cfg=cfg, data=ds)
-    text = re.sub(r"\s+", " ", _text(html.unescape(rep.read_text())))
-    assert "Verdict: housing out of round" in text and "one-step BIC" in text and "-1.5" in text
-    assert "radial amplitude" in text and PLUS_MINUS in text
-
-
-def test_bic_chain_before_equals_previous_after(out_of_round_diagnosis):
-    _, _, out = out_of_round_diagnosis
-    chain, rho = bic_chain(out.history)
-    assert len(chain) == len(out["steps"]) + 1 and -1 < rho < 1
-    # each model's value is computed once, so a step's "before" is the previous step's "after" by
-    # construction; the chain falls where the workflow accepted an effect
-    assert all(b < a for a, b in zip(chain, chain[1:]))
-    # and it is the workflow's own BIC where the prewhitening agrees (the baseline step)
-    assert math.isclose(chain[0], out["steps"][0]["bic_before"], rel_tol=1e-9)
+    diagnosis_report(out, rep, cfg=cfg, data=ds)
+    page = html.unescape(rep.read_text())
+    for s in out.steps:
+        assert s.bic_after < s.bic_before
+        row = re.search(rf"<td class=t>{s.effect.name}</td>(.*?)</tr>", page).group(1)
+        cells = re.findall(r"<td class=n>([^<]*)</td>", row)
+        assert f"{s.bic_before:.1f}" in cells and f"{s.bic_after:.1f}" in cells
+        assert f"{s.bic_after - s.bic_before:+.1f}" in cells
+    assert out["steps"][0]["bic_before"] == out.steps[0].bic_before  # the JSON carries the same figures
 
 
 def test_iteration_axes_have_integer_ticks_and_labels_are_not_clipped(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 from pumpsim.config import as_array, load_config
 from pumpsim.data import Dataset, speed_trend
-from pumpsim.diagnose import diagnose
+from pumpsim.diagnosis import diagnose
 from pumpsim.identification import identify, make_problem
 from pumpsim.kernels import load_kernels
 from pumpsim.kernels import inverse_dynamics

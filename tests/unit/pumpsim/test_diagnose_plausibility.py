@@ -5,7 +5,7 @@ import math
 import pytest
 
 from bench.diagnose_grid import rig
-from pumpsim.diagnose import clearance, plausible
+from pumpsim.diagnosis import clearance, plausible
 from pumpsim.model_spec import parameters as reg
 
 TORQUE_RMS, MEAN_TORQUE = 0.14, 0.13  # N m, the test rig's scale

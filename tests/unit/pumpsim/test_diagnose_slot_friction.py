@@ -9,7 +9,8 @@ import pumpsim
 from bench.diagnose_grid import rig
 from bench.independent.run import score
 from pumpsim.data import Dataset
-from pumpsim.diagnose import State, candidates, plausible
+from pumpsim.diagnosis import candidates, plausible
+from pumpsim.diagnosis.state import State
 from tests.tolerances import COMPILED_REL
 
 TORQUE_RMS, MEAN_TORQUE = 0.14, 0.13  # N m, the test rig's scale

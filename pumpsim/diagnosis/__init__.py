@@ -1,0 +1,16 @@
+"""The discrepancy workflow: find where model and measurement disagree, name the missing physical
+effect, add it, refit, show the gap shrink -- and say "unexplained" rather than guess.
+
+A pipeline of concepts, one module each (docs/explanation/discrepancy-workflow.md explains the
+statistics): `options` (the workflow's levels and sizes), `effects` (the effect library, one
+declaration per effect), `detectors` (is a residual noise?), `screen` (score tests and probes of
+every candidate), `refit`, `selection` (accept, rival, stationarity, drop), `verdict`, `result`
+(`DiagnosisResult`) and `workflow` (the `diagnose` driver)."""
+from .effects import EFFECTS, Candidate, Effect, candidates, clearance, plausible
+from .result import DiagnosisResult
+from .workflow import diagnose, tty_progress
+
+Diagnosis = DiagnosisResult  # the API reference's name for it
+
+__all__ = ["EFFECTS", "Candidate", "Diagnosis", "DiagnosisResult", "Effect", "candidates", "clearance", "diagnose", "plausible",
+           "tty_progress"]

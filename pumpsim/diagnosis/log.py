@@ -1,0 +1,191 @@
+"""The step log of a diagnosis: what each step decided beside the effects it named, as typed
+records. The result's `notes` are their sentences, in the order the steps made them."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class Note:
+    """One record of the step log."""
+
+    def text(self) -> str:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class SpeedColumnDrift(Note):
+    measurement: int
+    relative_change: float
+
+    def text(self) -> str:
+        return (f"speed column of measurement {self.measurement} drifts ({100 * self.relative_change:.2g} % over "
+                "the record): the model's angle and speed follow its smoothed trend")
+
+
+@dataclass(frozen=True)
+class SpeedHeld(Note):
+    """The baseline fit did not determine a measurement's speed: held where the evidence put it."""
+
+    measurement: int
+    why: str
+    held_at: str
+    value: float
+
+    def text(self) -> str:
+        return (f"speed of measurement {self.measurement} not determined by the fit ({self.why}): held at the "
+                f"{self.held_at} value {self.value:.6g} rad/s")
+
+
+@dataclass(frozen=True)
+class SpeedRefined(Note):
+    """A held speed refined in its band: once an effect made the torque depend on the angle
+    (band None), or because at the held speed an effect's segments disagreed (band named)."""
+
+    band: str | None = None
+
+    def text(self) -> str:
+        if self.band is None:
+            return "speed refined in its band once the named effect made the torque depend on the angle"
+        return (f"speed refined in {self.band}: at the held speed the effect's parameters disagreed between "
+                "segments of the record")
+
+
+@dataclass(frozen=True)
+class BaselineImplausible(Note):
+    reason: str
+
+    def text(self) -> str:
+        return f"baseline: {self.reason} -- check the config and the data's units"
+
+
+@dataclass(frozen=True)
+class Rejected(Note):
+    """A contender refused for physical reasons (a range, a measured speed column)."""
+
+    label: str
+    reasons: tuple
+    by_speed_column: bool = False  # refuted by a measured speed column (the next contenders get their chance)
+
+    def text(self) -> str:
+        return f"{self.label} rejected: " + "; ".join(self.reasons)
+
+    def to_json(self) -> dict:
+        return {"effect": self.label, "reasons": list(self.reasons)}
+
+
+@dataclass(frozen=True)
+class TooSmall(Note):
+    """A significant contender whose torque change is below the naming size."""
+
+    label: str
+    size: float
+    factor: float
+    scatter: float
+
+    def text(self) -> str:
+        return (f"{self.label} not named: it changes (explains) the torque by {self.size:.3g} N m RMS, below "
+                f"{self.factor:g} x the noise's scatter {self.scatter:.3g} N m")
+
+
+@dataclass(frozen=True)
+class NotStationary(Note):
+    label: str
+    statistic: float
+    dof: int
+    p_value: float
+    alpha: float
+
+    def text(self) -> str:
+        return (f"{self.label} not named: not stationary -- its parameters fitted on segments of the record "
+                f"disagree (chi2 {self.statistic:.3g} on {self.dof} dof, p {self.p_value:.2g} < {self.alpha:g}): "
+                "the synchronous shadow of a disturbance that is not shaft-fixed")
+
+
+@dataclass(frozen=True)
+class Dropped(Note):
+    effect: str
+    by: str
+    reason: str
+
+    def text(self) -> str:
+        return f"{self.effect} dropped once {self.by} was added: {self.reason}"
+
+
+@dataclass(frozen=True)
+class Rivals(Note):
+    first: str
+    second: str
+    decisive: float
+
+    def text(self) -> str:
+        return (f"{self.first} and {self.second} explain the remaining residual equally well "
+                f"(within {self.decisive:g} BIC): neither is named")
+
+
+@dataclass(frozen=True)
+class SmallRemainder(Note):
+    systematic: float
+    relevant: float
+    sigma: float
+
+    def text(self) -> str:
+        return (f"a systematic residual of {self.systematic:.3g} N m remains, below {self.relevant:g} x the noise "
+                f"sigma ({self.sigma:.3g} N m): not claimed as a discrepancy")
+
+
+@dataclass(frozen=True)
+class HeavyTails(Note):
+    excess_rms: float
+    sigma: float
+
+    def text(self) -> str:
+        return (f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add {self.excess_rms:.3g} N m "
+                f"RMS above the noise sigma {self.sigma:.3g} N m")
+
+
+@dataclass(frozen=True)
+class Collinear(Note):
+    """A confounded pair: whether a second speed would separate it (None: not known)."""
+
+    first: str
+    second: str
+    measurements: int
+    separable: bool | None
+
+    def text(self) -> str:
+        pair = f"{self.first} and {self.second} have nearly collinear effects"
+        if self.measurements > 1:
+            return f"{pair} even on these {self.measurements} measurements"
+        if self.separable is False:
+            return f"{pair} on this data, and would at any speed"
+        return f"{pair} on this data: a measurement at a second speed would separate them"
+
+
+@dataclass(frozen=True)
+class VaneMultiples(Note):
+    vanes: int
+
+    def text(self) -> str:
+        return (f"with {self.vanes} identical, equally spaced vanes, housing-fixed defects appear only at "
+                f"multiples of {self.vanes} shaft orders")
+
+
+@dataclass(frozen=True)
+class Drifting(Note):
+    finding: str  # the drift's own sentence (identification.drift.Drift.text)
+    segments: int
+    p_value: float
+
+    def text(self) -> str:
+        return (f"{self.finding} (a straight line through {self.segments} segment fits, p {self.p_value:.2g}): the "
+                "model's constant value is its mean over the record")
+
+
+@dataclass(frozen=True)
+class BudgetReached(Note):
+    seconds: float
+    cut: tuple
+
+    def text(self) -> str:
+        return (f"time budget of {self.seconds:g} s reached: not done -- " + "; ".join(self.cut)
+                + " (a larger time budget does them)")
