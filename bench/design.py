@@ -19,7 +19,7 @@ from pumpsim.design import load_study  # noqa: E402
 from pumpsim.design.cli import override_samples  # noqa: E402
 from pumpsim.design.cluster import connect  # noqa: E402
 from pumpsim.design.execute import run_study  # noqa: E402
-from pumpsim.design.report import sweep_report  # noqa: E402
+from pumpsim.report.design import sweep_report  # noqa: E402
 
 STUDY = ROOT / "examples" / "studies" / "test_rig_tolerances.toml"
 

@@ -24,7 +24,7 @@ from .errors import PumpsimError
 from .tolerances import ATOL, RTOL
 
 REPORT_SUFFIXES = (".html", ".htm")
-FIGURE = object()  # an output whose type the figure writer decides (pumpsim.plotting.figure_format)
+FIGURE = object()  # an output whose type the figure writer decides (pumpsim.report.simulation.figure_format)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -121,7 +121,7 @@ def _outputs(a, inputs, **options):
     for attr, suffixes in options.items():
         path = getattr(a, attr, None)
         if suffixes is FIGURE:
-            from .plotting import figure_format
+            from .report.simulation import figure_format
 
             outs.add("--" + attr.replace("_", "-"), path, kind=figure_format)
         else:
@@ -384,7 +384,7 @@ def cmd_identify(a) -> int:
             print(file=sys.stderr)
         _warn(w for w in res.warnings if w not in cfg.warnings)
     print(res)
-    from .report import identification_report
+    from .report.identification import identification_report
 
     _write_fit_outputs(outs, a, res.to_json(), lambda path: identification_report(
         res, path, title=f"pumpsim identification: {cfg.name}", cfg=cfg, data=data))
@@ -433,7 +433,7 @@ def cmd_diagnose(a) -> int:
     if sys.stderr.isatty():
         print(file=sys.stderr)
     print(out)
-    from .report import diagnosis_report
+    from .report.diagnosis import diagnosis_report
 
     _write_fit_outputs(outs, a, out.to_json(), lambda path: diagnosis_report(
         out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data))

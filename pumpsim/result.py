@@ -183,7 +183,7 @@ class Solution:
             res = pumpsim.simulate(pumpsim.load_config("examples/test_rig.toml"))
             res.plot("out.png")
         """
-        from .plotting import plot_simulation
+        from .report.simulation import plot_simulation
 
         plot_simulation(self, path, name=name, x=x)
 

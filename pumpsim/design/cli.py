@@ -51,7 +51,7 @@ def _json_safe(obj):
 
 def cmd_sweep(a) -> int:
     from .execute import check_out_dir, read_manifest, run_study
-    from .report import sweep_report
+    from ..report.design import sweep_report
     from .summary import summary_text
 
     study = _load(a.study)
@@ -117,7 +117,7 @@ def override_samples(study, n):
 def cmd_sensitivity(a) -> int:
     from ..io import write_text
     from .indices import sensitivity
-    from .report import sensitivity_report
+    from ..report.design import sensitivity_report
     from .study import load_study
 
     study = _load(a.study)
@@ -153,7 +153,7 @@ def sensitivity_text(res) -> str:
 def cmd_optimize(a) -> int:
     from ..io import write_text
     from .optimiser import optimize
-    from .report import optimize_report
+    from ..report.design import optimize_report
     from .study import load_study
 
     study = _load(a.study)

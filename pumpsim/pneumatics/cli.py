@@ -97,7 +97,7 @@ def cmd_pumpdown(a) -> int:
         if a.json:
             write_text(tmp["--json"], json.dumps(res.summary, indent=1, default=float))
         if a.plot or a.report:
-            from .figures import pumpdown_figure, pumpdown_report
+            from ..report.pumpdown import pumpdown_figure, pumpdown_report
 
             if a.plot:
                 pumpdown_figure(res, maps, cfg, tmp["--plot"])

@@ -11,7 +11,6 @@ import pytest
 from pumpsim import design, simulate
 from pumpsim.cli import main
 from pumpsim.design.analytic import ishigami_indices
-from pumpsim.design.execute import run_study
 from pumpsim.design.store import MANIFEST, read_manifest, read_results
 from pumpsim.design.optimiser import gradient_check
 from pumpsim.design.study import study_from_dict

@@ -8,8 +8,8 @@ import re
 import numpy as np
 
 from pumpsim import design
-from pumpsim.design.figures import distinct_results
-from pumpsim.design.report import optimize_report, sensitivity_report, sweep_report
+from pumpsim.report.design_figures import distinct_results
+from pumpsim.report.design import optimize_report, sensitivity_report, sweep_report
 from pumpsim.presentation import sha256
 from tests.conftest import EXAMPLES
 

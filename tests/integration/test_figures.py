@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 
 import pumpsim  # noqa: E402
-from pumpsim.plotting import simulation_figure, torque_orders, vane_groups  # noqa: E402
+from pumpsim.report.simulation import simulation_figure, torque_orders, vane_groups  # noqa: E402
 from tests.conftest import ROOT, make_config  # noqa: E402
 from tests.tolerances import AXIS_SPAN_MIN_REL, ORDER_AMPLITUDE_ABS
 

@@ -7,7 +7,7 @@ import pytest
 
 from pumpsim.pneumatics import pumpdown as pdm
 from pumpsim.pneumatics import run
-from pumpsim.kernels.pneumatic import kernels, parameter_index, parameter_vector
+from pumpsim.kernels.pneumatic import kernels, parameter_vector
 from tests.integration.test_gas_dynamics import textbook_flow
 from tests.pneumatic_helpers import evp_config, speed_config
 from tests.tolerances import (CLOSED_FORM_REL, HOSE_TIME_CONSTANT_REL, ORIFICE_REL,

@@ -84,7 +84,7 @@ def test_simulate_figure_of_a_gas_run_has_the_cell_pressures_and_current():
     current); a mechanical run's figure has neither."""
     import matplotlib.pyplot as plt
 
-    from pumpsim.plotting import simulation_figure
+    from pumpsim.report.simulation import simulation_figure
     from tests.pneumatic_helpers import evp_config
 
     def labels(res):

@@ -5,7 +5,7 @@ import re
 import numpy as np
 
 from pumpsim.pneumatics import pumpdown as pdm
-from pumpsim.pneumatics.figures import pumpdown_panels
+from pumpsim.report.pumpdown import pumpdown_panels
 from tests.pneumatic_helpers import evp_config
 from tests.tolerances import ROUNDING_REL
 
@@ -27,7 +27,7 @@ def test_torque_split_panel_adds_up_to_the_shaft_torque():
 
 def test_report_carries_operating_conditions_provenance_and_legends_off_the_curves(tmp_path):
     from pumpsim.config import load_config
-    from pumpsim.pneumatics.figures import pumpdown_report
+    from pumpsim.report.pumpdown import pumpdown_report
     from tests.conftest import EXAMPLES
 
     cfg = load_config(EXAMPLES / "evp_booster.toml")  # from its file: the config's SHA-256 is known

@@ -16,7 +16,7 @@ import pytest
 import pumpsim
 from pumpsim.diagnosis import candidates, diagnose
 from pumpsim.presentation import OPTIMISTIC, PLUS_MINUS, describe
-from pumpsim.report import diagnosis_report
+from pumpsim.report.diagnosis import diagnosis_report
 from tests.conftest import ROOT, make_config
 from tests.integration.test_diagnose_effects import measurement
 from tests.tolerances import DISPLAY_SE_REL, DISPLAY_VALUE_SE, EFFECT_PARAM_REL, OPTIMISTIC_FACTOR_MIN
@@ -136,7 +136,7 @@ def test_iteration_axes_have_integer_ticks_and_labels_are_not_clipped(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from pumpsim import report
+    from pumpsim.report import identification as report
 
     cfg = make_config("test_rig")
     res = pumpsim.simulate(cfg, duration=0.02, rate=10000)
@@ -182,7 +182,7 @@ def test_estimates_are_rounded_to_their_standard_error(value, stderr):
 
 
 def test_provenance_falls_back_on_the_results_own_record():
-    from pumpsim.report import provenance_of
+    from pumpsim.report.html import provenance_of
 
     own = {"config": "examples/test_rig.toml", "data": [{"name": "a.csv", "sha256": "ab" * 32}],
            "kernel_key": "constrained-n4-h0-123"}

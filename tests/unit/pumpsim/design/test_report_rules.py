@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pumpsim.design import figures as fg
-from pumpsim.design.report import _index_text
+from pumpsim.report import design_figures as fg
+from pumpsim.report.design import _index_text
 from pumpsim.design.study import study_from_dict
 from pumpsim.design.summary import output_table, summary_text
 from pumpsim.presentation import command_line, engineering_scale

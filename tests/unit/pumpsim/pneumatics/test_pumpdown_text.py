@@ -5,7 +5,7 @@ import re
 import numpy as np
 import pytest
 
-from pumpsim.pneumatics.figures import work_row
+from pumpsim.report.pumpdown import work_row
 from pumpsim.pneumatics.pumpdown import PumpdownResult
 from tests.tolerances import ROUNDING_REL
 

@@ -18,10 +18,10 @@ import numpy as np
 from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
 from ..presentation import describe, engineering_scale
-from ..report import figure_html
-from .outputs import BOOL_OUTPUTS, UNITS
-from .study import base_value, schema_leaf
-from .summary import cpk, evaluated, is_constant, resolved, status_kind, within
+from .html import figure_html
+from ..design.outputs import BOOL_OUTPUTS, UNITS
+from ..design.study import base_value, schema_leaf
+from ..design.summary import cpk, evaluated, is_constant, resolved, status_kind, within
 
 MAX_SCATTER = 2000  # points per scatter panel
 MAX_PANELS = 16
@@ -398,7 +398,7 @@ def outline(study, values):
     """Housing outline, rotor circle and vanes at the start angle of the design `values`."""
     from ..geometry import housing_samples, vane_positions
     from ..kernels import load_kernels
-    from .evaluate import prepare
+    from ..design.evaluate import prepare
 
     pr = prepare(study, values)
     if pr.status != "ok":

@@ -102,7 +102,7 @@ def _torque_panel(a, d):
 
 
 def _speed_panel(a, maps, cfg):
-    from .pumpdown import leak_flow
+    from ..pneumatics.pumpdown import leak_flow
 
     v = cfg.pneumatic.values
     p_u, extrap = ultimate_pressure(maps, lambda p: leak_flow(v, p))
@@ -175,7 +175,7 @@ def operating_conditions(res, cfg) -> list[tuple[str, str]]:
 def _kernel_key(cfg, model) -> str | None:
     try:
         from ..kernels import load_kernels
-        from .kernel import structure_of
+        from ..kernels.pneumatic import structure_of
 
         st = structure_of(cfg, model)
         return f"{st.variant}-{load_kernels(st, build=False).key}"
@@ -201,7 +201,7 @@ def result_rows(res) -> list[tuple[str, str]]:
 
 
 def pumpdown_report(res, maps, cfg, path) -> None:
-    from ..report import (
+    from .html import (
         figure_html,
         provenance_html,
         provenance_line,
@@ -221,7 +221,7 @@ def pumpdown_report(res, maps, cfg, path) -> None:
 
 def work_row(s) -> tuple[str, str]:
     """The report's shaft-work row: every part, so that the equation closes (pumpdown.work_split)."""
-    from .pumpdown import work_split
+    from ..pneumatics.pumpdown import work_split
 
     parts = work_split(s)
     return ("shaft work = " + " + ".join(name for name, _ in parts),

@@ -23,8 +23,8 @@ import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import MaxNLocator, MultipleLocator, ScalarFormatter  # noqa: E402
 
-from .io import atomic_path  # noqa: E402
-from .tolerances import FLAT_RTOL, IDENTICAL_RTOL  # noqa: E402
+from ..io import atomic_path  # noqa: E402
+from ..tolerances import FLAT_RTOL, IDENTICAL_RTOL  # noqa: E402
 
 RPM = 60 / (2 * math.pi)
 FORMATS = ("png", "svg", "pdf")
@@ -41,7 +41,7 @@ def figure_format(path) -> str:
     name = str(path).replace("\\", "/").rsplit("/", 1)[-1]
     ext = name.rsplit(".", 1)[-1].lower() if "." in name else "png"
     if ext not in FORMATS:
-        from .errors import ConfigError
+        from ..errors import ConfigError
 
         raise ConfigError(f"figure '{path}': format '.{ext}' is not supported; use one of "
                           + ", ".join("." + f for f in FORMATS))

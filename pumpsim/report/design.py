@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from ..presentation import describe, engineering_scale, fmt_number, provenance
-from ..report import Cell, provenance_html, provenance_line, table, write_page
-from . import figures as fg
-from .outputs import UNITS
-from .summary import (
+from .html import Cell, provenance_html, provenance_line, table, write_page
+from . import design_figures as fg
+from ..design.outputs import UNITS
+from ..design.summary import (
     evaluated,
     flag_counts,
     output_table,
