@@ -43,12 +43,16 @@ _CONFIG_DOC = {
 UNIT_TEXT = {"-": "–", "N m": "N·m", "kg m^2": "kg·m²", "N s/m": "N·s/m", "rad": "rad", "m": "m"}
 
 
-def _registry_unit(name: str) -> str | None:
+def _registry_entry(name: str):
     from .model_spec.parameters import Structure, layout
 
     generic = re.sub(r"^(housing\.harmonics|effects\.vane_friction_factor)\.\d+", r"\1.0", name)
-    units = {p.name: p.unit for p in layout(Structure(model="contact", vanes=1, harmonics=1))}
-    return units.get(generic)
+    return {p.name: p for p in layout(Structure(model="contact", vanes=1, harmonics=1))}.get(generic)
+
+
+def _registry_unit(name: str) -> str | None:
+    q = _registry_entry(name)
+    return None if q is None else q.unit
 
 
 def split_measurement(name: str):
@@ -78,8 +82,9 @@ def describe(name: str, harmonics=None) -> tuple[str, str]:
     m = re.fullmatch(r"effects\.vane_friction_factor\.(\d+)", base)
     if m:
         return f"housing-COF factor of vane {m.group(1)}{suffix}", "-"
-    unit = _registry_unit(base) or "?"
-    return _CONFIG_DOC.get(base, base) + suffix, unit
+    q = _registry_entry(base)
+    label = _CONFIG_DOC.get(base) or (f"{base} ({q.doc})" if q is not None and q.doc else base)
+    return label + suffix, (q.unit if q is not None else "?")
 
 
 def display_scale(unit: str, value: float | None) -> tuple[float, str]:
