@@ -14,7 +14,6 @@ independent with one variance: the detectors run on the kept samples (dropped, n
 """
 from __future__ import annotations
 
-import math
 
 import numpy as np
 
