@@ -26,7 +26,7 @@ from pumpsim.model_spec import laws
 from pumpsim.model_spec.outputs import VANE_OUTPUTS, check_signature
 from pumpsim.model_spec.parameters import Parameter, Structure, friction_args, layout
 
-from .housing import derive_housing
+from .housing import base_ray, derive_housing, parameter_names
 from .mechanics import SYMBOL_NAMES, derive_vane
 from .to_casadi import lambdify_casadi
 
@@ -140,21 +140,13 @@ class Builder:
     def _housing(self):
         K = self.st.harmonics
         hc = derive_housing(K)
-        args = [hc.alpha] + [hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")]
-        for trip in hc.harmonic_syms:
-            args += list(trip)
-        f = lambdify_casadi(args, [*hc.point, *hc.normal, hc.radius, hc.curvature_sign])
+        f = lambdify_casadi([hc.alpha] + hc.symbols, [*hc.point, *hc.normal, hc.radius, hc.curvature_sign])
+        names = parameter_names(K)
         al = ca.SX.sym("alpha")
-        hp = ca.SX.sym("hp", 5 + 3 * K)
+        hp = ca.SX.sym("hp", len(names))
         out = f(al, *[hp[i] for i in range(hp.shape[0])])
         self.housing_raw = ca.Function("housing_raw", [al, hp], [ca.vertcat(*out)])
-        P = self.P
-        hvals = [P["housing.a"], P["housing.b"], P["housing.center.0"], P["housing.center.1"],
-                 P["housing.angle"]]
-        for j in range(K):
-            hvals += [P[f"housing.harmonics.{j}.order"], P[f"housing.harmonics.{j}.amplitude"],
-                      P[f"housing.harmonics.{j}.phase"]]
-        self.hp_of_p = ca.vertcat(*hvals)
+        self.hp_of_p = ca.vertcat(*[self.P[n] for n in names])
 
     def housing(self, alpha):
         o = self.housing_raw(alpha, self.hp_of_p)
@@ -194,11 +186,7 @@ class Builder:
         d = Ob_i - ch
         dx, dy = cp * d[0] + sp_ * d[1], -sp_ * d[0] + cp * d[1]
         ux, uy = cp * u_i[0] + sp_ * u_i[1], -sp_ * u_i[0] + cp * u_i[1]
-        ia2, ib2 = 1 / self.P["housing.a"] ** 2, 1 / self.P["housing.b"] ** 2
-        qa = ux * ux * ia2 + uy * uy * ib2
-        qb = dx * ux * ia2 + dy * uy * ib2
-        qc = dx * dx * ia2 + dy * dy * ib2 - 1
-        lam = (-qb + ca.sqrt(ca.fmax(qb * qb - qa * qc, 0.0))) / qa
+        lam = base_ray(dx, dy, ux, uy, self.P["housing.a"], self.P["housing.b"], ca)
         X = Ob_i + lam * u_i
         return ca.atan2(X[1] - ch[1], X[0] - ch[0])
 

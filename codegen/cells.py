@@ -22,17 +22,17 @@ power of the pressure loads equals Sum p_i dV_i/dt.
 """
 from __future__ import annotations
 
-import math
 
 import casadi as ca
 import numpy as np
+
+from .housing import TWO_PI, base_radius, base_sector_area
 
 # Gauss-Legendre nodes for the harmonic part of a cell's housing-arc area (the ellipse part is
 # closed form): the integrand is analytic and small (A_k / r ~ 1e-3); 32 nodes reach rounding
 # for orders up to ~10 over a full turn (tests compare with adaptive quadrature).
 HARMONIC_NODES = 32
 PORT_NODES = 3  # arc length of a port overlap
-TWO_PI = 2 * math.pi
 
 
 def _cross(a, b):
@@ -121,8 +121,8 @@ class CellGeometry:
         """(1/2 int C x C' dalpha, arc length) over alpha in [a0, a0 + span].
 
         With C = c + r(alpha) e(alpha): C x C' = r^2 + d/dalpha [r (cx sin alpha - cy cos alpha)],
-        and the ellipse's 1/2 int r0^2 is the sector area (ab/2) [atan2(a sin b, b cos b)]
-        (b = alpha - psi), so only the harmonic part r^2 - r0^2 (small) needs quadrature:
+        and the base curve's 1/2 int r0^2 is its sector area in closed form (codegen/housing.py),
+        so only the harmonic part r^2 - r0^2 (small) needs quadrature:
         Gauss-Legendre with HARMONIC_NODES nodes (none without harmonics). The arc length (only
         for the wall area of the heat exchange) is the mean-radius estimate r(mid) * span."""
         b = self.b
@@ -130,21 +130,13 @@ class CellGeometry:
         a, bb, psi = P["housing.a"], P["housing.b"], P["housing.angle"]
         cx, cy = P["housing.center.0"], P["housing.center.1"]
         a1 = a0 + span
-
-        def ell(al):
-            return ca.atan2(a * ca.sin(al - psi), bb * ca.cos(al - psi))
-
-        d_theta = ell(a1) - ell(a0)
-        d_theta = d_theta - TWO_PI * ca.floor(d_theta / TWO_PI)
-        if full_turn:
-            d_theta = TWO_PI + 0.0 * d_theta
-        green = 0.5 * a * bb * d_theta
+        green = base_sector_area(a, bb, psi, a0, a1, full_turn, ca)
 
         def radius(al):
             return b.housing(al)["r"]
 
         def r0(al):
-            return a * bb / ca.sqrt((bb * ca.cos(al - psi)) ** 2 + (a * ca.sin(al - psi)) ** 2)
+            return base_radius(a, bb, al, psi, ca)
 
         green += 0.5 * (radius(a1) * (cx * ca.sin(a1) - cy * ca.cos(a1))
                         - radius(a0) * (cx * ca.sin(a0) - cy * ca.cos(a0)))

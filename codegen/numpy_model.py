@@ -12,7 +12,7 @@ import sympy as sp
 from pumpsim.model_spec import laws
 from pumpsim.model_spec.parameters import Structure, friction_args, layout
 
-from .housing import derive_housing
+from .housing import derive_housing, parameter_names
 from .mechanics import SYMBOL_NAMES, derive_vane
 from .builder import SIGN_SETS
 
@@ -28,8 +28,7 @@ class _NumpyModel:
         self.names = [q.name for q in layout(structure)]
         self.mech = derive_vane()
         self.hc = derive_housing(structure.harmonics)
-        self.hsyms = ([self.hc.sym[n] for n in ("a", "b", "cx", "cy", "psi")]
-                      + [x for t in self.hc.harmonic_syms for x in t])
+        self.hsyms = self.hc.symbols
 
 
 class NumpyConstrainedModel(_NumpyModel):
@@ -128,9 +127,7 @@ GEOMETRY_ORDER = ("slot_radius", "slot_tilt", "rotor_radius", "L", "h", "m", "J"
 
 def _unpack(v, harmonics, rho=None):
     """Parameter values by name -> housing list, geometry dict and list, friction lists."""
-    hp = [v["housing.a"], v["housing.b"], v["housing.center.0"], v["housing.center.1"], v["housing.angle"]]
-    for j in range(harmonics):
-        hp += [v[f"housing.harmonics.{j}.{k}"] for k in ("order", "amplitude", "phase")]
+    hp = [v[n] for n in parameter_names(harmonics)]  # a, b, centre, psi, harmonics
     g = dict(slot_radius=v["rotor.slot_radius"], slot_tilt=v["rotor.slot_tilt"],
              rotor_radius=v["rotor.radius"], L=v["vane.length"], h=v["vane.thickness"],
              m=v["vane.mass"], J=v["vane.inertia"], rho=v["vane.tip_radius"] if rho is None else rho)

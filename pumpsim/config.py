@@ -13,19 +13,21 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError
+from .model_spec import housings
 from .model_spec.parameters import (CONTACT_LAWS, DEFAULT_HARMONIC_SLOTS, MEASUREMENT_BY_NAME, MODELS,
-                                    REQUIRED, DERIVED, SECTION_FALLBACK, ParameterVector, Structure,
-                                    checked_tolerance, derive, layout, section)
+                                    REQUIRED, DERIVED, SECTION_FALLBACK, Bound, Parameter, ParameterVector,
+                                    Structure, checked_tolerance, derive, layout, registry, section)
 from .pneumatics import config as _pneumatic_config
 
 RPM = 2 * math.pi / 60
 
-# Config keys that are not registry numbers: structure, shapes, lists, the operating point.
+# Config keys that are not registry numbers: structure, shapes, lists, the operating point (the
+# housing shapes' own keys come from their registry, model_spec/housings.py).
 # Types: "num", "int", "str", "list"; (type, required, default).
 _OTHER_KEYS = {
     "": {"name": ("str", False, None)},
-    "housing": {"shape": ("str", True, None), "radius": ("num", False, None),
-                "harmonics": ("list", False, []), "center": ("list", False, [0.0, 0.0])},
+    "housing": {"shape": ("str", True, None), "harmonics": ("list", False, []),
+                "center": ("list", False, [0.0, 0.0])},
     "rotor": {"vanes": ("int", True, None)},
     "contact.housing": {"law": ("str", False, "impact")},
     "contact.bottom": {"law": ("str", False, "impact")},
@@ -45,18 +47,24 @@ _LIST_VALUED = ("housing.center.0", "housing.center.1")  # given as housing.cent
 def _schema() -> dict:
     """The config schema: every registry number of a section, plus the other keys."""
     schema = dict(_OTHER_KEYS[""])
+    by_shape = {t for s in housings.SHAPES.values() for k in s.keys for t, _ in k.sets}
     for sec in SECTIONS:
         node = schema
         for part in sec.split("."):
             node = node.setdefault(part, {})
         for q in section(sec):
             if q.name not in _LIST_VALUED:
-                config_alias = any("." in a for a in q.aliases)  # housing.radius gives a, b
-                required = (q.default is REQUIRED and not q.derived and not config_alias
+                required = (q.default is REQUIRED and not q.derived and q.name not in by_shape
                             and sec not in OPTIONAL_SECTIONS)
                 node[q.name.rsplit(".", 1)[1]] = ("num", required, q.default)
         node.update(_OTHER_KEYS.get(sec, {}))
+    schema["housing"] = _with_shape_keys(schema["housing"])
     return schema
+
+
+def _with_shape_keys(node: dict) -> dict:
+    """The [housing] schema with every registered shape's keys (each required by its shape only)."""
+    return {**node, **{name: ("num", False, None) for name in housings.keys() if name not in node}}
 
 
 _SCHEMA = _schema()
@@ -64,6 +72,12 @@ _SCHEMA = _schema()
 _SCHEMA.update(_pneumatic_config.SCHEMA)
 for _table, _keys in _pneumatic_config.EXTRA_KEYS.items():
     _SCHEMA[_table].update(_keys)
+
+
+def schema() -> dict:
+    """The config schema (table -> key -> (type, required, default), nested by table) with the
+    keys of every housing shape registered now: what `config_from_dict` checks a file against."""
+    return {**_SCHEMA, "housing": _with_shape_keys(_SCHEMA["housing"])}
 
 
 def _is_num(v):
@@ -241,37 +255,63 @@ def _take(c: dict, sec: str, values: dict, given: set, source: str | None = None
 
 
 def _validate(values: dict, shape: str) -> None:
-    """Every registry entry with a value within its bounds (the message names key and limit)."""
+    """Every registry entry with a value within its bounds (the message names key and limit);
+    the entries a housing shape sets are checked as the shape's keys."""
+    by_shape = housings.SHAPES[shape]
     for q in layout(Structure("contact", 1, 0)):
-        if q.name not in values or (shape == "circle" and q.name == "housing.b"):
+        found = by_shape.key_setting(q.name)
+        if q.name not in values:
             continue
-        q.check(values, "housing.radius" if shape == "circle" and q.name == "housing.a" else None)
+        if found is None:
+            q.check(values)
+        elif found[0].sets[0][0] == q.name:  # a key setting several entries is checked once
+            k, factor = found
+            shape_key_parameter(k).check({**values, k.path: values[q.name] / factor})
+
+
+def shape_key_parameter(k: "housings.ShapeKey") -> Parameter:
+    """A housing shape key as a registry entry: the unit, bounds and plausible range of the first
+    compiled parameter it sets, divided by its factor (a diameter: twice a semi-axis's)."""
+    target, factor = k.sets[0]
+    q = registry()[target]
+
+    def scaled(b: Bound) -> Bound:
+        if isinstance(b.value, str):
+            return dataclasses.replace(b, factor=b.factor / factor)
+        return dataclasses.replace(b, value=b.value / factor)
+
+    plausible = q.plausible
+    if plausible is not None and factor != 1.0:
+        plausible = None if any(isinstance(x, str) for x in plausible) else tuple(x / factor for x in plausible)
+    return dataclasses.replace(q, name=k.path, lower=scaled(q.lower), upper=scaled(q.upper),
+                               plausible=plausible, doc=k.doc, aliases=())
 
 
 def _housing(h: dict, values: dict, given: set) -> str:
-    """housing.shape with its size: radius (a circle, both semi-axes) or a and b."""
-    shape = h["shape"]
-    if shape == "circle":
-        for k in ("a", "b"):
-            if h[k] is not None:
-                raise ConfigError(f"housing.{k} is for shape = \"ellipse\"; a circle takes housing.radius")
-        if h["radius"] is None:
-            raise ConfigError("missing required key 'housing.radius' (shape = \"circle\")")
-        values["housing.a"] = values["housing.b"] = h["radius"]
-        given.update(("housing.a", "housing.b"))
-    elif shape == "ellipse":
-        if h["radius"] is not None:
-            raise ConfigError("housing.radius is for shape = \"circle\"; an ellipse takes housing.a and housing.b")
-        for k in ("a", "b"):
-            if h[k] is None:
-                raise ConfigError(f"missing required key 'housing.{k}' (shape = \"ellipse\")")
-    else:
-        raise ConfigError(f"housing.shape must be \"circle\" or \"ellipse\", got {shape!r}")
+    """housing.shape with its size: the registered shape's keys (all of them, no other shape's)
+    give the compiled base curve's parameters."""
+    shape = housings.SHAPES.get(h["shape"])
+    if shape is None:
+        raise ConfigError(housings.unknown_shape(h["shape"]))
+    own = {k.name for k in shape.keys}
+    for name in housings.keys():
+        if name not in own and h.get(name) is not None:
+            raise ConfigError(housings.foreign_key(name, shape))
+    for k in shape.keys:
+        if h[k.name] is None:
+            raise ConfigError(f"missing required key '{k.path}' (shape = \"{shape.name}\")")
+    set_values = shape.parameters({k.name: h[k.name] for k in shape.keys})
+    values.update(set_values)
+    given.update(set_values)
+    if shape.check is not None:
+        problem = shape.check({k.name: h[k.name] for k in shape.keys})
+        if problem:
+            raise ConfigError(problem)
     center = h["center"]
     if len(center) != 2 or not all(_is_num(x) for x in center):
         raise ConfigError(f"housing.center must be a list of two numbers, got {center!r}")
     values.update({"housing.center.0": float(center[0]), "housing.center.1": float(center[1])})
-    return shape
+    return shape.name
 
 
 def _harmonics(harm: list, a: float, b: float) -> dict:
@@ -366,7 +406,7 @@ def _effects(ef: dict, vanes: int, mode: str):
 def config_from_dict(raw: dict, name_default: str = "pump") -> PumpConfig:
     """Validate a parsed config: registry numbers by loops over the registry (bounds, defaults,
     derived defaults), then the keys that are not numbers."""
-    c = _walk(raw, _SCHEMA, "")
+    c = _walk(raw, schema(), "")
     vanes = c["rotor"]["vanes"]
     if not 1 <= vanes <= 16:
         raise ConfigError(f"rotor.vanes must be {'>= 1' if vanes < 1 else '<= 16'}, got {vanes}")

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from .errors import ConfigError, DataError
+from .model_spec.housings import config_key
 
 # A vane tip faster than this is no vane pump (automotive pumps run at 10-30 m/s, large
 # industrial ones below 40 m/s): an operation.speed given in rpm gives ~10x.
@@ -53,9 +54,10 @@ def config_problems(cfg) -> list[str]:
     out = []
     for key in ("rotor.radius", "housing.a", "housing.b", "vane.length", "vane.thickness"):
         if v[key] > MAX_LENGTH:
-            shown = "housing.radius" if key.startswith("housing.") and cfg.shape == "circle" else key
-            out.append(f"{shown} = {v[key]:g} m is larger than any vane pump: config values are SI "
-                       f"(metres); {v[key]:g} mm is {v[key] / 1000:g}")
+            shown, factor = config_key(cfg.shape, key)  # as the file gives it (housing.radius)
+            given = v[key] / factor
+            out.append(f"{shown} = {given:g} m is larger than any vane pump: config values are SI "
+                       f"(metres); {given:g} mm is {given / 1000:g}")
             return out  # one length in mm: the rest follow, and mass checks would mislead
     L, h = v["vane.length"], v["vane.thickness"]
     heaviest = MAX_DENSITY * L * h * MAX_AXIAL_LENGTH

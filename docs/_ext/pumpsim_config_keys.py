@@ -2,7 +2,8 @@
 
 The key list, types, required flags and defaults come from the config schema (``pumpsim.config``);
 units, allowed ranges, derived defaults and descriptions from the parameter registry
-(``pumpsim.model_spec.parameters``). Keys that are not registry numbers (shapes, lists, the operating
+(``pumpsim.model_spec.parameters``), ``housing.shape`` and the shapes' keys from the housing-shape
+registry (``pumpsim.model_spec.housings``). Keys that are not registry numbers (lists, the operating
 point) and registry entries without a description get theirs from ``EXTRA`` below. A key with no
 description at all is a build warning, so the page cannot fall behind the code (``make docs``
 treats warnings as errors). The tables are plain reStructuredText from `rst_lines`, which needs no
@@ -18,11 +19,6 @@ from pathlib import Path
 # registry's. Choices are spelled out here; the registry holds numbers only.
 EXTRA = {
     "name": ("-", "The pump's name, used in messages, figures and reports (default: the file name)."),
-    "housing.shape": ("-", '``"circle"`` (give ``radius``) or ``"ellipse"`` (give ``a`` and ``b``).'),
-    "housing.radius": ("m", 'Radius of a circular housing (sets both semi-axes); required for '
-                            '``shape = "circle"``.'),
-    "housing.a": ("", 'Semi-axis along the housing x axis; required for ``shape = "ellipse"``.'),
-    "housing.b": ("", 'Semi-axis along the housing y axis; required for ``shape = "ellipse"``.'),
     "housing.center": ("m", "``[x, y]``: the housing centre relative to the rotor axis. A non-zero "
                             "centre is an eccentric rotor."),
     "housing.angle": ("", "Rotation ψ of the housing shape (semi-axes and harmonics) about its centre."),
@@ -100,7 +96,6 @@ EXTRA = {
 # config key -> the registry entry that holds its unit and limits (the config sets it under
 # another name, or as a list / a derived quantity)
 REGISTRY_OF = {
-    "housing.radius": "housing.a",
     "housing.center": "housing.center.0",
     "effects.vane_friction_factors": "effects.vane_friction_factor.0",
     "ports.width": "ports.inlet.width",
@@ -121,7 +116,7 @@ SECTION_TITLES = {
 }
 GAS_SECTIONS = ("gas", "ports", "valve", "leak", "booster", "motor")
 # keys that lead their table (what decides the others), then the schema's order
-FIRST = {"housing": ("shape", "radius", "a", "b", "center", "angle", "harmonics"), "rotor": ("vanes",),
+FIRST = {"housing": ("shape", "<shape keys>", "center", "angle", "harmonics"), "rotor": ("vanes",),
          "operation": ("mode", "speed", "speed_rpm", "torque", "angle"), "valve": ("type",),
          "contact.housing": ("law",), "contact.bottom": ("law",)}
 EMPTY = "–"  # an empty cell (a bare "-" would be a list item)
@@ -200,9 +195,43 @@ def _default(kind, required, default, q) -> str:
     return EMPTY
 
 
+def _quoted(items, last="or") -> str:
+    items = [f"``{x}``" for x in items]
+    return items[0] if len(items) == 1 else f"{', '.join(items[:-1])} {last} {items[-1]}"
+
+
+def housing_shapes() -> dict:
+    """key -> (registry entry or None, description) of housing.shape and every housing shape's
+    keys, from the housing-shape registry (``pumpsim.model_spec.housings``)."""
+    from pumpsim.config import shape_key_parameter
+    from pumpsim.model_spec import housings
+
+    shapes = "; ".join(f'``"{s.name}"``: {s.description} (give {_quoted([k.name for k in s.keys], "and")})'
+                       for s in housings.SHAPES.values())
+    out = {"housing.shape": (None, f"One of the registered shapes: {shapes}. Each sets the compiled "
+                                   "base curve, an ellipse with semi-axes ``housing.a``, ``housing.b``, "
+                                   "to which ``harmonics`` add.")}
+    for name, owners in housings.keys().items():
+        k = housings.key(name)
+        required = _quoted([f'shape = "{s}"' for s in owners])
+        out[k.path] = (shape_key_parameter(k), f"{k.doc}; required for {required}.")
+    return out
+
+
+def _first(section: str) -> tuple:
+    """The keys that lead `section`'s table, the housing shapes' keys in the registry's order."""
+    from pumpsim.model_spec import housings
+
+    lead = FIRST.get(section, ())
+    if "<shape keys>" in lead:
+        i = lead.index("<shape keys>")
+        lead = (*lead[:i], *housings.keys(), *lead[i + 1:])
+    return lead
+
+
 def rows():
     """(section, key, type, unit, default, range, description) for every config key."""
-    from pumpsim.config import _SCHEMA
+    from pumpsim.config import schema
     from pumpsim.model_spec import parameters as P
 
     reg = {q.name: q for q in P.layout(P.Structure("contact", 1, 1))}
@@ -210,10 +239,14 @@ def rows():
     reg.update({q.name: q for q in P._harmonic(0)})
     for name, config_key in P.GAS_CONFIG_KEYS.items():
         REGISTRY_OF.setdefault(config_key, name)
+    shapes = housing_shapes()
     out, missing = [], []
-    for key, (kind, required, default) in _keys(_SCHEMA):
+    for key, (kind, required, default) in _keys(schema()):
         q = reg.get(REGISTRY_OF.get(key, key))
         unit, text = EXTRA.get(key, ("", ""))
+        if key in shapes:
+            q, text = shapes[key]
+            unit = unit or ("-" if q is None else "")
         unit = _unit(unit or (q.unit if q is not None else ""))
         doc = text or (q.doc[:1].upper() + q.doc[1:] + "." if q is not None and q.doc else "")
         if not doc:
@@ -240,7 +273,7 @@ def rst_lines(which: str) -> list[str]:
             continue
         if not keys:
             continue
-        lead = FIRST.get(section, ())
+        lead = _first(section)
         keys.sort(key=lambda r: lead.index(r[1]) if r[1] in lead else len(lead))
         title = SECTION_TITLES.get(section, f"[{section}]")
         if which == "gas" and section in ("rotor", "vane"):
@@ -272,11 +305,13 @@ def setup(app):
 
         def run(self):
             import pumpsim.config
+            import pumpsim.model_spec.housings
             import pumpsim.model_spec.parameters
             import pumpsim.pneumatics.config
 
-            # the page follows the registry and the schema
-            for module in (pumpsim.config, pumpsim.model_spec.parameters, pumpsim.pneumatics.config):
+            # the page follows the registries and the schema
+            for module in (pumpsim.config, pumpsim.model_spec.housings, pumpsim.model_spec.parameters,
+                           pumpsim.pneumatics.config):
                 self.env.note_dependency(module.__file__)
             self.env.note_dependency(__file__)
             for key in rows()[1]:

@@ -16,8 +16,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..config import _SCHEMA, config_from_dict
+from ..config import config_from_dict, schema
 from ..errors import ConfigError
+from ..model_spec.housings import COMPILED, config_key
 from .outputs import BOOL_OUTPUTS, OUTPUTS
 from .pneumatic import GAS_OUTPUTS, check_gas_outputs
 from .sampling import DISTRIBUTIONS, SAMPLERS, Variable, parse_variable
@@ -83,7 +84,7 @@ def _num(v):
 
 def schema_leaf(key: str):
     """The schema entry of a config key path ('num', 'int' or a list index), or None."""
-    node = _SCHEMA
+    node = schema()
     parts = key.split(".")
     for i, part in enumerate(parts):
         if not isinstance(node, dict) or part not in node:
@@ -163,8 +164,10 @@ def base_value(base: dict, key: str):
     cfg = config_from_dict(base)
     if key == SPEED_KEY:
         return float(cfg.speed)
-    if key == "housing.radius" and cfg.shape == "circle":
-        return cfg.values["housing.a"]
+    for target in COMPILED:  # a housing shape's key (housing.radius)
+        path, factor = config_key(cfg.shape, target)
+        if path == key != target:
+            return cfg.values[target] / factor
     if key in cfg.values:
         return float(cfg.values[key])
     return None

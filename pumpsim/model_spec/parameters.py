@@ -20,6 +20,7 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import ConfigError
+from . import housings
 
 INF = math.inf
 REQUIRED = None  # default of an entry the config must give
@@ -41,6 +42,7 @@ class Bound:
         if not isinstance(self.value, str):
             return self.label or f"{self.value:g}"
         ref = self.value if self.factor == 1 else f"{self.value}/{1 / self.factor:g}"
+        ref = f"{self.factor:g} * {self.value}" if self.factor > 1 else ref
         return f"{ref} ({_fmt(self.at(values), unit)} {unit})"
 
 
@@ -63,7 +65,7 @@ class Parameter:
     derived: str = ""  # formula of a derived default in other entries' names (evaluated below)
     below: str = ""  # another entry this one must stay below (v_static < v_dynamic)
     identifiable: bool = True  # may be fitted (--params)
-    aliases: tuple = ()  # other names that set this entry (housing.radius sets a and b; mu)
+    aliases: tuple = ()  # other names that set this entry (mu; housing shape keys: housings.py)
     plausible: tuple | None = None  # physical plausibility range [SI]: diagnose, sweeps (see PLAUSIBLE)
     plausible_why: str = ""  # the physics behind the range, quoted when a value leaves it
     norm: str = ""  # entries sharing a norm key: the range bounds their Euclidean norm
@@ -171,8 +173,7 @@ def _harmonic(j: int) -> list[Parameter]:
 # the rotor touches the housing where the centre offset reaches the radial gap
 ECCENTRICITY = dict(plausible=(0.0, "clearance"), norm="eccentricity",
                     plausible_why="below the smallest rotor-housing clearance")
-HOUSING_SIZE = dict(lower=Bound("rotor.radius", open=True), aliases=("housing.radius",),
-                    plausible=(5e-3, 0.1))
+HOUSING_SIZE = dict(lower=Bound("rotor.radius", open=True), plausible=(5e-3, 0.1))
 ROTOR = [
     Parameter("rotor.radius", "m", lower=POSITIVE, plausible=(5e-3, 0.1)),
     Parameter("rotor.inertia", "kg m^2", lower=POSITIVE, plausible=(1e-8, 1e-2)),
@@ -192,8 +193,9 @@ VANE = [
               upper=Bound("vane.length", open=True, factor=0.5)),
 ]
 HOUSING = [
-    Parameter("housing.a", "m", **HOUSING_SIZE, doc="semi-axis along housing x (circle: radius)"),
-    Parameter("housing.b", "m", **HOUSING_SIZE, doc="semi-axis along housing y (circle: radius)"),
+    # the base curve's semi-axes: a housing shape (housings.py) sets them from its config keys
+    Parameter("housing.a", "m", **HOUSING_SIZE, doc="semi-axis along housing x"),
+    Parameter("housing.b", "m", **HOUSING_SIZE, doc="semi-axis along housing y"),
     Parameter("housing.center.0", "m", 0.0, **ECCENTRICITY),
     Parameter("housing.center.1", "m", 0.0, **ECCENTRICITY),
     Parameter("housing.angle", "rad", 0.0),
@@ -286,7 +288,7 @@ def _aliases() -> dict:
     for q in ROTOR + VANE + HOUSING + _friction("housing") + _friction("slot"):
         for a in q.aliases:
             out.setdefault(a, []).append(q.name)
-    return {a: tuple(t) for a, t in out.items()}
+    return {**{a: tuple(t) for a, t in out.items()}, **housings.aliases()}
 
 
 ALIASES = _aliases()  # alias -> the entries it sets (housing.radius -> a, b; mu -> the dynamic COF)

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
+from ..model_spec.parameters import alias_targets
 from ..presentation import describe, engineering_scale
 from .html import figure_html
 from ..design.outputs import BOOL_OUTPUTS, UNITS
@@ -48,7 +49,7 @@ def output_scale(o, values) -> tuple[float, str]:
 
 def key_scale(key, values) -> tuple[float, str]:
     """(factor, axis label) of a varied config key: 'housing.b [mm]'."""
-    unit = describe("housing.a" if key == "housing.radius" else key)[1]
+    unit = describe((alias_targets(key) or (key,))[0])[1]  # housing.radius: a semi-axis's
     f, shown = engineering_scale(unit, values)
     return f, (key if shown in ("–", "-", "?", "") else f"{key} [{shown}]")
 

@@ -48,3 +48,18 @@ def test_numeric_registry_keys_carry_their_unit_and_limits():
     assert by_key["vane.inertia"][1].startswith("``vane.mass")  # a derived default shows its formula
     assert by_key["gas.heat_transfer"][0] == "W/(m² K)"
     assert by_key["vane.mass"][2].endswith("typical 0.1 to 50 g")  # plausibility in engineering units
+
+
+def test_the_housing_shapes_come_from_their_registry(monkeypatch):
+    from pumpsim.model_spec import housings
+    from tests.unit.pumpsim.model_spec.test_housings import ROUND
+
+    monkeypatch.setitem(housings.SHAPES, ROUND.name, ROUND)
+    table, missing = _extension().rows()
+    assert missing == []
+    by_key = {f"{s}.{k}": (unit, allowed, doc) for s, k, _t, unit, _d, allowed, doc in table}
+    for name in housings.SHAPES:
+        assert f'``"{name}"``' in by_key["housing.shape"][2]
+    unit, allowed, doc = by_key["housing.diameter"]
+    assert unit == "m" and allowed.startswith("> 2 × rotor.radius")  # the semi-axes' bound, doubled
+    assert doc == 'Bore diameter; required for ``shape = "round"``.'
