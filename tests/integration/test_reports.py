@@ -190,3 +190,20 @@ def test_provenance_falls_back_on_the_results_own_record():
     assert rows["data file"] == "a.csv" and rows["data file SHA-256"] == "ab" * 32
     assert rows["compiled kernel"] == "constrained-n4-h0-123" and rows["config"] == "examples/test_rig.toml"
     assert rows["pumpsim version"] == pumpsim.__version__
+
+
+@pytest.mark.parametrize("runs_p,lb_p,consistent,says", [
+    (0.40, 0.30, True, "white at 5 %"),
+    (0.40, 3e-19, True, "not white at 5 %"),  # a remainder below the relevance bar: consistent, not white
+    (0.01, 0.30, False, "not white at 5 %"),
+])
+def test_diagnosis_banner_says_what_the_whiteness_tests_say(tmp_path, out_of_round_diagnosis, runs_p, lb_p,
+                                                            consistent, says):
+    cfg, ds, out = out_of_round_diagnosis
+    final = {**out.final, "runs_p_value": runs_p, "ljung_box_p_value": lb_p, "residual_white": consistent}
+    rep = tmp_path / "d.html"
+    diagnosis_report(dataclasses.replace(out, final=final), rep, cfg=cfg, data=ds)
+    banner = re.sub(r"\s+", " ", _text(html.unescape(rep.read_text()).split("<h2>")[0]))
+    assert f"{says} (runs p = {runs_p:.3g}, Ljung–Box p = {lb_p:.3g})" in banner
+    assert ("below the relevance bar" in banner) == (consistent and min(runs_p, lb_p) < 0.05)
+    assert ("Intervals are optimistic" in banner) == (min(runs_p, lb_p) < 0.05)
