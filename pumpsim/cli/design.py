@@ -1,27 +1,12 @@
-"""`pumpsim sweep | sensitivity | optimize STUDY` (spec §9). Registered by pumpsim.cli."""
+"""`pumpsim sweep | sensitivity | optimize STUDY`: the design studies of a study file (spec §9)."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
-import sys
-
-from ..cli import _staged
 from ..errors import ConfigError
-
-
-def _outputs(inputs, **paths):
-    """The output files, checked before any work starts (writable, not a folder, not an input,
-    no two the same) and held against other runs; written together by `_staged`."""
-    from ..io import Outputs
-    from ..locks import hold_files
-
-    outs = Outputs(inputs)
-    for option, path in paths.items():
-        outs.add(f"--{option}", path)
-    outs.check()
-    hold_files({f"--{option}": path for option, path in paths.items()})
-    return outs
+from .common import outputs, staged
 
 
 def _idle_text(stats) -> str:
@@ -37,7 +22,7 @@ def _workers(n):
 
 
 def _load(path):
-    from .study import load_study
+    from ..design.study import load_study
 
     study = load_study(path)
     for w in study.warnings:
@@ -50,16 +35,15 @@ def _json_safe(obj):
 
 
 def cmd_sweep(a) -> int:
-    from .execute import check_out_dir, read_manifest, run_study
-    from .report import sweep_report
-    from .summary import summary_text
+    from ..design.execute import check_out_dir, read_manifest, run_study
+    from ..design.summary import summary_text
 
     study = _load(a.study)
     if a.samples is not None:
         override_samples(study, a.samples)
     if a.summary:
         return _summary(a, study)
-    outs = _outputs([a.study], csv=a.csv, report=a.report)
+    outs = outputs(a, [a.study], csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
                           batch_size=a.batch_size)
@@ -69,10 +53,12 @@ def cmd_sweep(a) -> int:
     print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
           f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
           f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.csv:
             df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
         if a.report:
+            from ..design.report import sweep_report
+
             sweep_report(df, study, tmp["--report"])
     return 0
 
@@ -80,8 +66,8 @@ def cmd_sweep(a) -> int:
 def _summary(a, study) -> int:
     """--summary: the table so far; exit 1 when a design appears more than once (a mixed folder)."""
     from ..locks import holder_of
-    from .execute import check_out_dir, read_manifest, read_results
-    from .summary import coverage, summary_text
+    from ..design.execute import check_out_dir, read_manifest, read_results
+    from ..design.summary import coverage, summary_text
 
     if not a.out:
         raise ConfigError("--summary reads the results folder given by --out DIR")
@@ -115,20 +101,20 @@ def override_samples(study, n):
 
 
 def cmd_sensitivity(a) -> int:
+    from ..design.indices import sensitivity
     from ..io import write_text
-    from .indices import sensitivity
-    from .report import sensitivity_report
-    from .study import load_study
 
     study = _load(a.study)
-    outs = _outputs([a.study], json=a.json, report=a.report)
+    outs = outputs(a, [a.study], json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
                       workers=_workers(a.workers))
     print(sensitivity_text(res))
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.json:
             write_text(tmp["--json"], json.dumps(_json_safe(res), indent=1))
         if a.report:
+            from ..design.report import sensitivity_report
+
             sensitivity_report(res, study, tmp["--report"])
     return 0
 
@@ -151,19 +137,19 @@ def sensitivity_text(res) -> str:
 
 
 def cmd_optimize(a) -> int:
+    from ..design.optimiser import optimize
     from ..io import write_text
-    from .optimiser import optimize
-    from .report import optimize_report
-    from .study import load_study
 
     study = _load(a.study)
-    outs = _outputs([a.study], json=a.json, report=a.report)
+    outs = outputs(a, [a.study], json=None, report=None)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.json:
             write_text(tmp["--json"], json.dumps(res, indent=1))
         if a.report:
+            from ..design.report import optimize_report
+
             optimize_report(res, study, tmp["--report"])
     return 0 if res["success"] else 1
 
@@ -190,7 +176,7 @@ def optimize_text(res) -> str:
     return "\n".join(lines)
 
 
-def add_design_commands(sub) -> None:
+def register(sub) -> None:
     """Register sweep, sensitivity and optimize on the pumpsim sub-command parser."""
     def cluster(p):
         g = p.add_argument_group("execution (dask.distributed)")
@@ -227,5 +213,3 @@ def add_design_commands(sub) -> None:
     op.add_argument("--max-iter", type=int, dest="max_iter")
     op.set_defaults(func=cmd_optimize)
 
-
-__all__ = ["add_design_commands"]

@@ -1,4 +1,4 @@
-"""`pumpsim pumpdown` (spec §8): registered on pumpsim's parser by pumpsim.cli."""
+"""`pumpsim pumpdown CONFIG`: evacuate the booster (spec §8)."""
 from __future__ import annotations
 
 import json
@@ -7,9 +7,10 @@ import sys
 
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from .common import REPORT_SUFFIXES, add_force, load_config, outputs, staged
 
 
-def add_pumpdown_command(sub) -> None:
+def register(sub) -> None:
     pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy")
     pd.add_argument("config")
     pd.add_argument("--until", type=float, help="target booster pressure [Pa] (default booster.target)")
@@ -31,42 +32,23 @@ def add_pumpdown_command(sub) -> None:
     pd.add_argument("--atol", type=float, default=None,
                     help=f"absolute tolerance relative to each state's starting size (default "
                          f"{PUMPDOWN_ATOL:g}; {CONTACT_PUMPDOWN_ATOL:g} with --model contact)")
-    from ..cli import _add_force
-
-    _add_force(pd)
-    pd.set_defaults(func=cmd_pumpdown)
-
-
-def _outputs(a):
-    """Every output path checked before any work starts (writable, not a folder, not the config,
-    no two the same file, the right type), written together at the end (pumpsim.io.Outputs)."""
-    from ..cli import REPORT_SUFFIXES
-    from ..io import Outputs
-
-    outs = Outputs([a.config])
-    for opt, suffixes in (("out", None), ("plot", (".png",)), ("json", None), ("report", REPORT_SUFFIXES)):
-        outs.add(f"--{opt}", getattr(a, opt), suffixes)
-    outs.check()
-    from ..locks import hold_files
-
-    hold_files({f"--{opt}": getattr(a, opt) for opt in ("out", "plot", "json", "report")})
-    return outs
+    add_force(pd)
+    pd.set_defaults(func=run)
 
 
 def _progress(t, pb):
     print(f"\r  t = {t:7.3f} s, booster {pb / 1e3:6.2f} kPa", end="", file=sys.stderr, flush=True)
 
 
-def cmd_pumpdown(a) -> int:
-    from ..cli import _load_config, _staged
+def run(a) -> int:
     from ..io import write_text
-    from . import pumpdown as pdm
+    from ..pneumatics import pumpdown as pdm
 
-    outs = _outputs(a)
+    outs = outputs(a, [a.config], out=None, plot=(".png",), json=None, report=REPORT_SUFFIXES)
     if a.model == "contact" and (a.fast or a.plot or a.report):
         raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
                           "without --model contact")
-    cfg = _load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
+    cfg = load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
     if cfg.pneumatic is None:
         raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
     progress = _progress if sys.stderr.isatty() else None
@@ -91,13 +73,13 @@ def cmd_pumpdown(a) -> int:
               f"{fast['time'][-1]:.3f} s, mean current {fast['mean_current']:.2f} A {made}")
     for w in res.warnings:
         print(f"pumpsim: warning: {w}", file=sys.stderr)
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.out:
             res.to_csv(tmp["--out"])
         if a.json:
             write_text(tmp["--json"], json.dumps(res.summary, indent=1, default=float))
         if a.plot or a.report:
-            from .figures import pumpdown_figure, pumpdown_report
+            from ..pneumatics.figures import pumpdown_figure, pumpdown_report
 
             if a.plot:
                 pumpdown_figure(res, maps, cfg, tmp["--plot"])

@@ -1,0 +1,223 @@
+"""What every command shares: the parser class and option types, the shared option groups, the
+output files (declared before any work, written together at the end) and the messages on stderr.
+
+Imports here stay light (argparse and the standard library): building the parser for `--help`,
+`--version` or a bad option must not load the numerical stack.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import re
+import sys
+
+REPORT_SUFFIXES = (".html", ".htm")
+FIGURE = object()  # an output whose type the figure writer decides (pumpsim.plotting.figure_format)
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):  # bad options are bad input: status 2 with the usage line
+        message = re.sub(r"^argument (--[\w-]+): must", r"\1 must", message)
+        self.print_usage(sys.stderr)
+        print(f"pumpsim: error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
+class Help(argparse.ArgumentDefaultsHelpFormatter):
+    """--help shows every default."""
+
+
+# --- option types ---------------------------------------------------------------------------
+
+def positive_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be > 0 (and finite), got {text}")
+    return v
+
+
+def tolerance(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+    if not 0 < v < 1:
+        raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text}")
+    return v
+
+
+def positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got '{text}'") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
+    return v
+
+
+def rate_or_auto(text):
+    return "auto" if text.strip().lower() == "auto" else positive_float(text)
+
+
+# --- progress and messages on stderr --------------------------------------------------------
+
+def progress_printer(total):
+    """Simulated-time progress on a terminal; silent in pipes and tests."""
+    if not sys.stderr.isatty():
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover
+        return None
+    bar = tqdm(total=total, unit="s sim", unit_scale=True, leave=False, file=sys.stderr,
+               bar_format="{l_bar}{bar}| {n:.4g}/{total:.4g} s simulated [{elapsed}<{remaining}]")
+    state = {"t": 0.0}
+
+    def update(t):
+        bar.update(max(0.0, t - state["t"]))
+        state["t"] = t
+        if t >= total:
+            bar.close()
+
+    return update
+
+
+def fit_log():
+    """One line per fit iteration on a terminal (long fits show they are alive)."""
+    if not sys.stderr.isatty():
+        return None
+
+    def log(entry):
+        print(f"\r\033[Kpumpsim: iteration {entry.get('iteration', '')} residual RMS {entry['rms']:.6g} N m",
+              end="", file=sys.stderr, flush=True)
+
+    return log
+
+
+def warn(lines):
+    for w in lines:
+        print(f"pumpsim: warning: {w}", file=sys.stderr)
+
+
+# --- shared options -------------------------------------------------------------------------
+
+def add_force(p):
+    p.add_argument("--force", action="store_true",
+                   help="proceed although the unit/plausibility checks suspect a unit mistake")
+
+
+def add_data_options(p):
+    g = p.add_argument_group("data (units from the header, e.g. 'torque [N*mm]', else SI)")
+    g.add_argument("--time-column", default="time", help="time column / channel / variable")
+    g.add_argument("--torque-column", default="torque", help="torque column")
+    g.add_argument("--speed-column", default="speed", help="speed column (used when present)")
+    g.add_argument("--angle-column", default="angle", help="angle column (used when present)")
+    g.add_argument("--time-unit", help="s, ms or us (default: the header's unit, else s)")
+    g.add_argument("--torque-unit", help="N*m, N*mm, mN*m or N*cm (default: the header's unit, else N*m)")
+    g.add_argument("--speed-unit", help="rad/s, rpm or rev/s (default: the header's unit, else rad/s)")
+    g.add_argument("--resample", type=rate_or_auto, metavar="HZ|auto",
+                   help="interpolate onto a uniform grid at this rate [Hz] ('auto': the measured sample "
+                        "rate), also across gaps in time, which are refused otherwise")
+    g.add_argument("--steady", action="store_true",
+                   help="fit only the constant-speed section (needs a speed column)")
+
+
+def add_fit_outputs(p):
+    """What identify and diagnose share: JSON, HTML report, data options and --force."""
+    p.add_argument("--json", help="write the result as JSON")
+    p.add_argument("--report", help="self-contained HTML report (.html)")
+    add_force(p)
+    add_data_options(p)
+
+
+# --- inputs ---------------------------------------------------------------------------------
+
+def load_config(a):
+    from ..config import load_config as load
+
+    cfg = load(a.config, force=getattr(a, "force", False))
+    warn(cfg.warnings)
+    return cfg
+
+
+def read_data(a, path, nominal_speed):
+    """load_data with the command's data options; what it did to the data (resampled, time from a
+    sample rate, jittered steps) is said on stderr."""
+    from ..data import load_data
+
+    ds = load_data(path, data_options(a), nominal_speed=nominal_speed)
+    for note in ds.notes:
+        print(f"pumpsim: {ds.name}: {note}", file=sys.stderr)
+    return ds
+
+
+def data_options(a):
+    from ..data import DataOptions
+
+    return DataOptions(time=a.time_column, torque=a.torque_column, speed=a.speed_column,
+                       angle=a.angle_column, torque_unit=a.torque_unit, speed_unit=a.speed_unit,
+                       time_unit=a.time_unit, resample=a.resample, steady=a.steady)
+
+
+# --- outputs --------------------------------------------------------------------------------
+
+def option_name(attr: str) -> str:
+    return "--" + attr.replace("_", "-")
+
+
+def outputs(a, inputs, **options):
+    """The run's output files: options maps an attribute of `a` to its allowed suffixes (None: any,
+    FIGURE: what the figure writer accepts). Checked now, before any work (writable, not a folder,
+    not an input, no two the same), held against other runs, written later inside `staged()`."""
+    from ..io import Outputs
+    from ..locks import hold_files
+
+    outs = Outputs(inputs)
+    for attr, suffixes in options.items():
+        path = getattr(a, attr, None)
+        if suffixes is FIGURE:
+            from ..plotting import figure_format
+
+            outs.add(option_name(attr), path, kind=figure_format)
+        else:
+            outs.add(option_name(attr), path, suffixes)
+    outs.check()
+    hold_files({option_name(attr): getattr(a, attr, None) for attr in options})
+    return outs
+
+
+@contextlib.contextmanager
+def staged(outs):
+    """outs.staged() with a file-system fault while writing named: the output, what to do (exit 2)."""
+    from .. import fsfaults
+
+    tmps = {}
+    try:
+        with outs.staged() as tmp:
+            tmps.update(tmp)
+            yield tmp
+    except OSError as e:
+        named = os.path.abspath(str(e.filename)) if e.filename is not None else None
+        same = [o for o, t in tmps.items() if os.path.abspath(t) == named]
+        if same:
+            raise fsfaults.error(e, "writing", fsfaults.target_of(tmps[same[0]]), same[0]) from None
+        every = ", ".join(f"{o} '{fsfaults.target_of(t)}'" for o, t in tmps.items())
+        raise fsfaults.error(e, f"writing {every}" if every else "writing the outputs") from None
+
+
+def write_fit_outputs(outs, a, document: dict, write_report) -> None:
+    """--json (the document) and --report (write_report(path)), renamed into place together."""
+    import json
+
+    from ..io import write_text
+
+    with staged(outs) as tmp:
+        if a.json:
+            write_text(tmp["--json"], json.dumps(document, indent=1))
+        if a.report:
+            write_report(tmp["--report"])
