@@ -16,7 +16,7 @@ import os
 import sys
 
 from . import design, diagnose, example, identify, kernels, pumpdown, simulate, study
-from .common import Parser
+from .common import Parser, Version
 
 # One module per command: its `register(sub)` adds the parser and sets `func`. New commands append here.
 COMMANDS = [simulate, identify, diagnose, study, design, pumpdown, kernels, example]
@@ -26,9 +26,7 @@ def build_parser():
     ap = Parser(prog="pumpsim", description="Rotary vane vacuum pump simulation and identification. "
                 "Config values are SI (m, kg, s, rad, N); exit status 0 ok, 2 bad input, 1 numerical "
                 "failure or unusable fit.")
-    from .. import __version__
-
-    ap.add_argument("--version", action="version", version=f"pumpsim {__version__}")
+    ap.add_argument("--version", action=Version, help="show program's version number and exit")
     sub = ap.add_subparsers(dest="command", required=True, parser_class=Parser)
     for command in COMMANDS:
         command.register(sub)

@@ -24,6 +24,20 @@ class Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+class Version(argparse.Action):
+    """--version: the installed version, looked up only when asked (importlib.metadata is slow to
+    import, and --help or a command does not need it)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings=option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .. import __version__
+
+        print(f"pumpsim {__version__}")
+        parser.exit()
+
+
 class Help(argparse.ArgumentDefaultsHelpFormatter):
     """--help shows every default."""
 
