@@ -1,4 +1,4 @@
-"""The `pumpsim` command line (spec §7): one module per command, `common` for what they share,
+"""The `pumpsim` command line: one module per command, `common` for what they share,
 `app` for the parser and the exit status (0 ok, 2 bad input, 1 numerical failure or unusable fit,
 130/143 interrupted; see pumpsim.cli.app).
 

@@ -11,12 +11,14 @@ no partial file); 141 the reader of the output went away.
 """
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
 import sys
+import time
 
 from . import design, diagnose, example, identify, kernels, pumpdown, simulate, study
-from .common import Parser, Version
+from .common import LOG, Parser, Version, add_verbosity, messages
 
 # One module per command: its `register(sub)` adds the parser and sets `func`. New commands append here.
 COMMANDS = [simulate, identify, diagnose, study, design, pumpdown, kernels, example]
@@ -27,9 +29,12 @@ def build_parser():
                 "Config values are SI (m, kg, s, rad, N); exit status 0 ok, 2 bad input, 1 numerical "
                 "failure or unusable fit.")
     ap.add_argument("--version", action=Version, help="show program's version number and exit")
+    add_verbosity(ap)
     sub = ap.add_subparsers(dest="command", required=True, parser_class=Parser)
     for command in COMMANDS:
         command.register(sub)
+    for p in sub.choices.values():  # -v / -q also after the command's name
+        add_verbosity(p, default=argparse.SUPPRESS)
     return ap
 
 
@@ -53,8 +58,10 @@ def _main(argv) -> int:
     from .. import interrupt, locks
 
     try:
-        with locks.session():
+        with messages(a.verbose, a.quiet), locks.session():
+            start = time.perf_counter()
             status = a.func(a)
+            LOG.debug("%s took %.2f s (exit status %d)", a.command, time.perf_counter() - start, status)
             if interrupt.pending():  # a signal some native code took for its own failure, then went on
                 late = interrupt.Interrupted()
                 late.notes.append("the run had ended: its outputs are written, complete")

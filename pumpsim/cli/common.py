@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import os
 import re
 import sys
 
+LOG = logging.getLogger("pumpsim")  # progress, notes on the data, warnings: stderr, -v/-q
 REPORT_SUFFIXES = (".html", ".htm")
 FIGURE = object()  # an output whose type the figure writer decides (pumpsim.plotting.figure_format)
 
@@ -44,31 +46,29 @@ class Help(argparse.ArgumentDefaultsHelpFormatter):
 
 # --- option types ---------------------------------------------------------------------------
 
-def positive_float(text):
+def _converted(text, convert, what):
     try:
-        v = float(text)
+        return convert(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+        raise argparse.ArgumentTypeError(f"must be {what}, got '{text}'") from None
+
+
+def positive_float(text):
+    v = _converted(text, float, "a number")
     if not (v > 0 and v < float("inf")):
         raise argparse.ArgumentTypeError(f"must be > 0 (and finite), got {text}")
     return v
 
 
 def tolerance(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number, got '{text}'") from None
+    v = _converted(text, float, "a number")
     if not 0 < v < 1:
         raise argparse.ArgumentTypeError(f"must be in (0, 1), got {text}")
     return v
 
 
 def positive_int(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer, got '{text}'") from None
+    v = _converted(text, int, "an integer")
     if v < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
     return v
@@ -79,10 +79,70 @@ def rate_or_auto(text):
 
 
 # --- progress and messages on stderr --------------------------------------------------------
+# Results go to stdout with print(); what the run says about itself goes through the `pumpsim`
+# logger: INFO (notes on the data, progress on a terminal) unless -q, DEBUG with -v. Errors, and
+# why a finished fit is unusable, are always printed.
+
+def add_verbosity(p, default=0):
+    g = p.add_argument_group("messages")
+    g.add_argument("-v", "--verbose", action="count", default=default,
+                   help="say more on stderr (timings, the library's debug messages)")
+    g.add_argument("-q", "--quiet", action="count", default=default,
+                   help="only warnings and errors on stderr, no progress (-qq: errors only)")
+
+
+class _Stderr(logging.StreamHandler):
+    """Writes to the sys.stderr of the moment (a redirected or captured stream included)."""
+
+    def __init__(self):
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, _):
+        pass
+
+
+class _Prefixed(logging.Formatter):
+    def format(self, record):
+        text = record.getMessage()
+        if record.levelno >= logging.ERROR:
+            return f"pumpsim: error: {text}"
+        if record.levelno >= logging.WARNING:
+            return f"pumpsim: warning: {text}"
+        return f"pumpsim: {text}"
+
+
+@contextlib.contextmanager
+def messages(verbose: int = 0, quiet: int = 0):
+    """The `pumpsim` logger on stderr for one command at the level -v/-q ask for; restored after
+    (a command run in-process leaves the caller's logging as it was)."""
+    level = min(logging.ERROR, max(logging.DEBUG, logging.INFO + 10 * (quiet - verbose)))
+    handler = _Stderr()
+    handler.setFormatter(_Prefixed())
+    saved = LOG.level, LOG.propagate, LOG.handlers[:]
+    LOG.handlers[:] = [handler]
+    LOG.setLevel(level)
+    LOG.propagate = False
+    try:
+        yield
+    finally:
+        LOG.setLevel(saved[0])
+        LOG.propagate = saved[1]
+        LOG.handlers[:] = saved[2]
+
+
+def live() -> bool:
+    """Progress lines are for a terminal, and not with -q."""
+    return sys.stderr.isatty() and LOG.isEnabledFor(logging.INFO)
+
 
 def progress_printer(total):
-    """Simulated-time progress on a terminal; silent in pipes and tests."""
-    if not sys.stderr.isatty():
+    """Simulated-time progress on a terminal; silent in pipes, tests and with -q."""
+    if not live():
         return None
     try:
         from tqdm import tqdm
@@ -103,7 +163,7 @@ def progress_printer(total):
 
 def fit_log():
     """One line per fit iteration on a terminal (long fits show they are alive)."""
-    if not sys.stderr.isatty():
+    if not live():
         return None
 
     def log(entry):
@@ -115,7 +175,11 @@ def fit_log():
 
 def warn(lines):
     for w in lines:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
+        LOG.warning("%s", w)
+
+
+def info(text):
+    LOG.info("%s", text)
 
 
 # --- shared options -------------------------------------------------------------------------
@@ -155,6 +219,7 @@ def load_config(a):
     from ..config import load_config as load
 
     cfg = load(a.config, force=getattr(a, "force", False))
+    LOG.debug("config %s: %s", a.config, cfg.name)
     warn(cfg.warnings)
     return cfg
 
@@ -165,8 +230,9 @@ def read_data(a, path, nominal_speed):
     from ..data import load_data
 
     ds = load_data(path, data_options(a), nominal_speed=nominal_speed)
+    LOG.debug("data %s: %d samples", path, ds.n)
     for note in ds.notes:
-        print(f"pumpsim: {ds.name}: {note}", file=sys.stderr)
+        info(f"{ds.name}: {note}")
     return ds
 
 

@@ -1,4 +1,4 @@
-"""`pumpsim sweep | sensitivity | optimize STUDY`: the design studies of a study file (spec §9)."""
+"""`pumpsim sweep | sensitivity | optimize STUDY`: the design studies of a study file."""
 from __future__ import annotations
 
 import json
@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from .common import outputs, staged
+from .common import live, outputs, staged, warn
 
 
 def _idle_text(stats) -> str:
@@ -25,8 +25,7 @@ def _load(path):
     from ..design.study import load_study
 
     study = load_study(path)
-    for w in study.warnings:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
+    warn(study.warnings)
     return study
 
 
@@ -46,7 +45,7 @@ def cmd_sweep(a) -> int:
     outs = outputs(a, [a.study], csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
-                          batch_size=a.batch_size)
+                          batch_size=a.batch_size, progress=None if live() else False)
     man = read_manifest(a.out) if a.out else None
     print(summary_text(df, study.outputs, study.limits, man))
     size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
@@ -107,7 +106,7 @@ def cmd_sensitivity(a) -> int:
     study = _load(a.study)
     outs = outputs(a, [a.study], json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
-                      workers=_workers(a.workers))
+                      workers=_workers(a.workers), progress=None if live() else False)
     print(sensitivity_text(res))
     with staged(outs) as tmp:
         if a.json:
@@ -119,7 +118,16 @@ def cmd_sensitivity(a) -> int:
     return 0
 
 
+def _unit(output: str) -> str:
+    """The unit of an output, also of one named per speed ('ptp_torque@300')."""
+    from ..design.outputs import UNITS
+
+    return UNITS.get(output.split("@")[0], "")
+
+
 def sensitivity_text(res) -> str:
+    from ..presentation import resolved
+
     lines = [f"{res['method']} indices from {res['designs']} designs (seed {res['seed']})"]
     if res["method"] == "sobol":
         lines.append(f"{'output':26s} {'key':28s} {'S1':>8s} {'±95%':>7s} {'ST':>8s} {'±95%':>7s}")
@@ -129,8 +137,9 @@ def sensitivity_text(res) -> str:
     else:
         lines.append(f"{'output':26s} {'key':28s} {'mu*':>11s} {'±95%':>10s} {'sigma':>11s}")
         for o, per in res["indices"].items():
-            for k, r in per.items():
-                lines.append(f"{o:26s} {k:28s} {r['mu_star']:11.4g} {r['mu_star_conf']:10.3g} {r['sigma']:11.4g}")
+            for k, r in per.items():  # Morris effects are in the output's unit: round-off shown as 0
+                mu, conf, sigma = (resolved(r[n], _unit(o)) for n in ("mu_star", "mu_star_conf", "sigma"))
+                lines.append(f"{o:26s} {k:28s} {mu:11.4g} {conf:10.3g} {sigma:11.4g}")
     for s in res["skipped"]:
         lines.append(f"not computed: {s['output']} ({s['reason']})")
     return "\n".join(lines)
@@ -155,22 +164,29 @@ def cmd_optimize(a) -> int:
 
 
 def optimize_text(res) -> str:
+    from ..presentation import fmt_limit, fmt_number, resolved
+
+    def value(x, output):
+        return fmt_number(resolved(x, _unit(output)))
+
     if res["method"] == "nsga2":
         lines = [f"NSGA-II Pareto front of {', '.join(res['objectives'])}: {len(res['front'])} designs, "
                  f"{res['evaluations']} evaluations, {res['seconds']:.1f} s"]
         for f in res["front"]:
             lines.append("  " + ", ".join(f"{k} = {v:.6g}" for k, v in f["design"].items()) + "  ->  "
-                         + ", ".join(f"{k} = {v:.6g}" for k, v in f["objectives"].items()))
+                         + ", ".join(f"{k} = {value(v, k)}" for k, v in f["objectives"].items()))
         return "\n".join(lines)
     o = res["objective"]
     lines = [f"{res['method']}: {res['message']} after {len(res['iterations']) - 1} iterations, "
              f"{res['evaluations']} evaluations, {res['seconds']:.2f} s",
-             f"minimize {o['minimize']}: {o['start']:.6g} (start) -> {o['value']:.6g}"]
+             f"minimize {o['minimize']}: {value(o['start'], o['minimize'])} (start) -> "
+             f"{value(o['value'], o['minimize'])} {_unit(o['minimize'])}".rstrip()]
     for k, v in res["design"].items():
-        lines.append(f"  {k:28s} {res['start'][k]:.6g} -> {v:.6g}   bounds {res['bounds'][k]}")
+        lo, hi = res["bounds"][k]
+        lines.append(f"  {k:28s} {res['start'][k]:.6g} -> {v:.6g}   bounds {fmt_limit(lo)} .. {fmt_limit(hi)}")
     for k, c in res["constraints"].items():
-        lines.append(f"  constraint {k}: {c['value']:.6g} (lower {c['lower']}, upper {c['upper']}) "
-                     f"{'ok' if c['satisfied'] else 'VIOLATED'}")
+        lines.append(f"  constraint {k}: {value(c['value'], k)} (lower {fmt_limit(c['lower'])}, upper "
+                     f"{fmt_limit(c['upper'])}) {'ok' if c['satisfied'] else 'VIOLATED'}")
     if not res["success"]:
         lines.append("the optimiser did not reach a feasible optimum")
     return "\n".join(lines)

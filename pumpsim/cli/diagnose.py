@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, add_fit_outputs, load_config, outputs, read_data, REPORT_SUFFIXES, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, live, load_config, outputs, read_data, write_fit_outputs
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
 
@@ -39,9 +39,9 @@ def run(a) -> int:
         raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
     samples = sum(d.n for d in data)
     budget = BUDGET_PER_5000 * max(1.0, samples / 5000) if a.budget is None else (a.budget or None)
-    out = diagnose(cfg, data, force=a.force, progress=tty_progress(), speed_tolerance=a.speed_tolerance,
+    out = diagnose(cfg, data, force=a.force, progress=tty_progress() if live() else None, speed_tolerance=a.speed_tolerance,
                    budget=budget)
-    if sys.stderr.isatty():
+    if live():
         print(file=sys.stderr)
     print(out)
 

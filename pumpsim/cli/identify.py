@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, add_fit_outputs, fit_log, load_config, outputs, positive_int, read_data, \
-    REPORT_SUFFIXES, warn, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, fit_log, info, live, load_config, outputs, \
+    positive_int, read_data, warn, write_fit_outputs
 
 BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
 
@@ -87,12 +87,12 @@ def run(a) -> int:
     else:
         from ..api import identify
 
-        if sys.stderr.isatty():
+        if live():
             print(f"pumpsim: fitting {', '.join(params)} to {data.n:,} samples of {data.name}", end="",
                   file=sys.stderr, flush=True)
         res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
                        initial=initial, max_iter=a.max_iter, force=a.force, log=fit_log())
-        if sys.stderr.isatty():
+        if live():
             print(file=sys.stderr)
         warn(w for w in res.warnings if w not in cfg.warnings)
     print(res)
@@ -121,11 +121,11 @@ def run_bench(a, cfg, outs) -> int:
         raise ConfigError("--report: the HTML report of a bench-log fit is not available yet; use --json")
     log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
     for note in log.notes:
-        print(f"pumpsim: {log.name}: {note}", file=sys.stderr)
-    live = sys.stderr.isatty()
+        info(f"{log.name}: {note}")
+    shown = live()
     fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
-                         _bench_progress if live else None)
-    if live:
+                         _bench_progress if shown else None)
+    if shown:
         print(file=sys.stderr)
     print(fit)
     write_fit_outputs(outs, a, fit.to_json(), None)

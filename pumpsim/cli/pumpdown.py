@@ -1,4 +1,4 @@
-"""`pumpsim pumpdown CONFIG`: evacuate the booster (spec §8)."""
+"""`pumpsim pumpdown CONFIG`: evacuate the booster (pressure, current, energy)."""
 from __future__ import annotations
 
 import json
@@ -7,7 +7,7 @@ import sys
 
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
-from .common import REPORT_SUFFIXES, add_force, load_config, outputs, staged
+from .common import REPORT_SUFFIXES, add_force, live, load_config, outputs, staged, warn
 
 
 def register(sub) -> None:
@@ -50,8 +50,8 @@ def run(a) -> int:
                           "without --model contact")
     cfg = load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
     if cfg.pneumatic is None:
-        raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
-    progress = _progress if sys.stderr.isatty() else None
+        raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster]")
+    progress = _progress if live() else None
     res = pdm.pumpdown(cfg, until=a.until, duration=a.duration, rate=a.rate, rtol=a.rtol, atol=a.atol,
                        progress=progress, model=a.model)
     if progress:
@@ -71,8 +71,7 @@ def run(a) -> int:
               if t_f is not None else
               f"  fast path: target not reached; booster {fast['final_pressure'] / 1e3:.2f} kPa at "
               f"{fast['time'][-1]:.3f} s, mean current {fast['mean_current']:.2f} A {made}")
-    for w in res.warnings:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
+    warn(res.warnings)
     with staged(outs) as tmp:
         if a.out:
             res.to_csv(tmp["--out"])

@@ -1,11 +1,9 @@
 """`pumpsim simulate CONFIG`: one run of the constrained or the contact model."""
 from __future__ import annotations
 
-import sys
-
 from ..tolerances import ATOL, RTOL
 from .common import FIGURE, Help, add_force, load_config, outputs, positive_float, positive_int, \
-    progress_printer, staged, tolerance, warn
+    info, progress_printer, staged, tolerance, warn
 
 
 def register(sub):
@@ -73,7 +71,7 @@ def run(a) -> int:
             if isinstance(e, Interrupted):
                 e.notes.append(f"the {part.time.size} samples computed before it are in {kept}")
             else:
-                print(f"pumpsim: the samples computed before the failure are in {kept}", file=sys.stderr)
+                info(f"the samples computed before the failure are in {kept}")
         raise
     _write(outs, a, res, cfg)
     print(res.summary())

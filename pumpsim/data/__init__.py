@@ -1,4 +1,4 @@
-"""Measured data (spec §6): CSV, MATLAB .mat and NI TDMS files -> a validated `Dataset`.
+"""Measured data: CSV, MATLAB .mat and NI TDMS files -> a validated `Dataset`.
 
 Columns: time (s, strictly increasing), torque (N m), optional speed (rad/s), optional angle (rad).
 Options map other column/channel names and units (torque in N mm, speed in rpm), resample to a

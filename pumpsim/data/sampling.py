@@ -110,7 +110,7 @@ def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
 
 def steady_section(ds: Dataset, tolerance: float = 0.01) -> Dataset:
     """The longest run of samples whose speed stays within tolerance of that run's median speed
-    (the report fitted only the constant-speed part of a run-up)."""
+    (a constant-speed fit of a run-up uses only that part)."""
     if ds.speed is None:
         raise DataError("the constant-speed section needs a speed column (or drop the steady option)")
     w = ds.speed

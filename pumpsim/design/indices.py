@@ -21,7 +21,9 @@ import warnings
 import numpy as np
 
 from ..errors import ConfigError
+from ..presentation import resolved
 from .execute import run_study
+from .outputs import UNITS
 from .summary import is_constant
 
 METHODS = ("sobol", "morris")
@@ -91,7 +93,8 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
                                 f"{U.shape[0]} designs have no value"})
                 continue
             if is_constant(Y, o):
-                skipped.append({"output": name, "reason": f"constant ({np.median(Y):.6g}): no variance to share"})
+                median = resolved(float(np.median(Y)), UNITS.get(o, ""))  # round-off of 0 shown as 0
+                skipped.append({"output": name, "reason": f"constant ({median:.6g}): no variance to share"})
                 continue
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

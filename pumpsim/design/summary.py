@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from ..presentation import resolved
 from ..tolerances import DESIGN_CONSTANT_ABS, DESIGN_CONSTANT_REL
 from .outputs import BOOL_OUTPUTS, UNITS
 
@@ -140,8 +141,12 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
 
     for r in output_table(df, study_outputs, limits):
         ins = f"{100 * r['within']:7.2f}%" if "within" in r else f"{'':>8s}"
-        lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(r['mean'], 11)} {f(r['sd'], 10, 4)} "
-                     f"{f(r['min'], 11)} {f(r['max'], 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
+        # values below the solvers' resolution are round-off: shown as 0, not as 2.6e-13
+        size = max(abs(r["min"]), abs(r["max"])) if r["n"] else 0.0
+        mean, lo, hi = (resolved(r[k], r["unit"]) for k in ("mean", "min", "max"))
+        sd = resolved(r["sd"], r["unit"], size)
+        lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(mean, 11)} {f(sd, 10, 4)} "
+                     f"{f(lo, 11)} {f(hi, 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
                      f"{f(r.get('cpk'), 6, 3)}")
     if limits:
         lines.append(f"yield (evaluated and within every limit): {100 * yield_share(df, limits):.2f} %")
