@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from pumpsim.design import load_study  # noqa: E402
-from pumpsim.design.cli import override_samples  # noqa: E402
+from pumpsim.cli.design import override_samples  # noqa: E402
 from pumpsim.design.cluster import connect  # noqa: E402
 from pumpsim.design.execute import run_study  # noqa: E402
 from pumpsim.report.design import sweep_report  # noqa: E402

@@ -19,7 +19,7 @@ sys.path.insert(0, str(ROOT))
 
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.pneumatics import pumpdown as pdm  # noqa: E402
-from pumpsim.pneumatics.cli import map_pressures  # noqa: E402
+from pumpsim.cli.pumpdown import map_pressures  # noqa: E402
 from pumpsim.kernels.pneumatic import kernels  # noqa: E402
 
 

@@ -388,7 +388,7 @@ import resource, sys, time
 sys.path.insert(0, {root!r})
 import numpy as np
 import pyarrow, pyarrow.csv
-from pumpsim.data import _read_csv, load_data
+from pumpsim.data import load_data, read_csv
 def rss(): return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 path, how = sys.argv[1], sys.argv[2]
 before = rss()
@@ -396,7 +396,7 @@ t0 = time.perf_counter()
 if how == "load_data":
     n = load_data(path).n
 elif how in ("pyarrow_reader", "row_by_row"):
-    src = _read_csv(__import__("pathlib").Path(path), lambda names: {{k: k for k in names}}, fast=how != "row_by_row")
+    src = read_csv(__import__("pathlib").Path(path), lambda names: {{k: k for k in names}}, fast=how != "row_by_row")
     n = len(src.cols["time"])
 else:
     n = np.loadtxt(path, delimiter=",", skiprows=1).shape[0]

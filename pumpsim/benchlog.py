@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import (SPEED_UNITS, TIME_UNITS, _column, _read_csv, _read_mat, _read_tdms, _resolution, _where,
-                   time_gaps, unit_key)
+from .data import (SPEED_UNITS, TIME_UNITS, match_column, read_csv, read_mat, read_tdms, row_name, time_gaps,
+                   time_resolution, unit_key)
 from .diagnostics import noise_sigma
 from .errors import DataError
 
@@ -94,11 +94,11 @@ class BenchLog:
 
 
 def _reader(p: Path):
-    return {".mat": _read_mat, ".tdms": _read_tdms}.get(p.suffix.lower(), _read_csv)
+    return {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
 
 
 def _pick(names, columns: dict) -> dict:
-    found = {k: _column(v, names) for k, v in columns.items() if v}
+    found = {k: match_column(v, names) for k, v in columns.items() if v}
     return {k: v for k, v in found.items() if v in names}
 
 
@@ -186,7 +186,7 @@ def _load(p: Path, cfg, cols: dict, time_unit, speed_unit) -> BenchLog:
                             f"'{name.get('time', name['current'])}' has {n}")
         bad = np.nonzero(~np.isfinite(arr))[0]
         if bad.size:
-            raise DataError(f"{_where(src.rows, bad[0], where, name[key])}: {key} is not a finite number")
+            raise DataError(f"{row_name(src.rows, bad[0], where, name[key])}: {key} is not a finite number")
     si, factor, kind = {}, {}, None
     for key, arr in used.items():
         head = src.units.get(name[key])
@@ -196,7 +196,7 @@ def _load(p: Path, cfg, cols: dict, time_unit, speed_unit) -> BenchLog:
         kind = k if key == "booster_pressure" else kind
     if "time" in used:
         t = si["time"]
-        _check_time(t, _resolution(used["time"]) * factor["time"], src.rows, where, name["time"])
+        _check_time(t, time_resolution(used["time"]) * factor["time"], src.rows, where, name["time"])
     _check_pressure(si["booster_pressure"], kind, cfg, src.rows, where, name["booster_pressure"])
     _check_voltage(si["voltage"], cfg, where, name["voltage"])
     return BenchLog(t, si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
@@ -207,13 +207,13 @@ def _check_time(t, resolution, rows, where, column) -> None:
     bad = np.nonzero(dt <= 0)[0]
     if bad.size:
         b = bad[0]
-        raise DataError(f"{_where(rows, b + 1, where, column)}: time must be strictly increasing "
+        raise DataError(f"{row_name(rows, b + 1, where, column)}: time must be strictly increasing "
                         f"({t[b + 1]:.10g} s after {t[b]:.10g} s)")
     gaps = time_gaps(t, resolution)
     if gaps.gaps.size:
         i = int(gaps.gaps[0])
         size = t[i + 1] - t[i]
-        raise DataError(f"{_where(rows, i + 1, where, column)}: a gap of {size:.6g} s in time after {t[i]:.10g} s "
+        raise DataError(f"{row_name(rows, i + 1, where, column)}: a gap of {size:.6g} s in time after {t[i]:.10g} s "
                         f"({size / gaps.step:.3g} sample intervals of {gaps.step:.6g} s); the model is driven "
                         "by the logged voltage sample by sample: cut the log at the gap or fill it")
 
@@ -229,7 +229,7 @@ def _check_pressure(pb, kind, cfg, rows, where, column) -> None:
     neg = np.nonzero(pb <= 0)[0]
     if neg.size:
         head = "is not positive" if kind == "absolute" else "is not positive: a gauge pressure?"
-        raise DataError(f"{_where(rows, neg[0], where, column)}: booster_pressure {pb[neg[0]]:.6g} Pa {head} "
+        raise DataError(f"{row_name(rows, neg[0], where, column)}: booster_pressure {pb[neg[0]]:.6g} Pa {head} "
                         f"The model needs absolute pressure: {fix}")
     if kind is None and cfg is not None and cfg.pneumatic is not None:
         start = cfg.pneumatic.booster_start

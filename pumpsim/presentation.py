@@ -172,6 +172,32 @@ def fmt_number(x, sig: int = 6) -> str:
     return f"{x:.{sig}g}".replace("e-0", "e-").replace("e+0", "e+")
 
 
+def resolution(unit: str) -> float:
+    """The smallest magnitude of a quantity in `unit` (N·m, W, N, m, Pa·m/s) the solvers resolve:
+    below it a value is the round-off of zero (a concentric pump's torque ripple is ~1e-16 N·m).
+    0.0 for a unit without a stated resolution."""
+    from .tolerances import DESIGN_CONSTANT_ABS
+
+    return DESIGN_CONSTANT_ABS.get(unit, 0.0)
+
+
+def resolved(x, unit: str, scale: float = 0.0):
+    """`x` as a reader should see it: 0.0 when it is below the solvers' resolution for `unit` plus
+    DESIGN_CONSTANT_REL of `scale` (the size of the quantity `x` is a spread or change of), else
+    `x` unchanged (also None and NaN)."""
+    from .tolerances import DESIGN_CONSTANT_REL
+
+    if x is None or isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        return x
+    limit = resolution(unit) + DESIGN_CONSTANT_REL * abs(scale if scale is not None and math.isfinite(scale) else 0.0)
+    return 0.0 if abs(x) <= limit else x
+
+
+def fmt_limit(x, sig: int = 6) -> str:
+    """A bound or limit that may be absent: 'none' instead of Python's None."""
+    return "none" if x is None else fmt_number(x, sig)
+
+
 def sha256(path) -> str | None:
     try:
         h = hashlib.sha256()

@@ -21,7 +21,9 @@ import warnings
 import numpy as np
 
 from ..errors import ConfigError
+from ..presentation import resolved
 from .execute import run_study
+from .outputs import UNITS
 from .summary import is_constant
 
 METHODS = ("sobol", "morris")
@@ -114,7 +116,8 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
                 skipped.append({"output": name, "reason": f"{int(np.sum(~np.isfinite(Y)))} of "
                                 f"{U.shape[0]} designs have no value"})
             elif is_constant(Y, o):
-                skipped.append({"output": name, "reason": f"constant ({np.median(Y):.6g}): no variance to share"})
+                median = resolved(float(np.median(Y)), UNITS.get(o, ""))  # round-off of 0 shown as 0
+                skipped.append({"output": name, "reason": f"constant ({median:.6g}): no variance to share"})
             else:
                 indices[name] = _analyse(method, problem, U, Y, seed, resamples, levels)
     return {"method": method, "samples": n, "designs": int(U.shape[0]), "seed": seed,

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from ..presentation import resolved
 from ..tolerances import DESIGN_CONSTANT_ABS, DESIGN_CONSTANT_REL
 from .outputs import BOOL_OUTPUTS, UNITS
 
@@ -47,7 +48,7 @@ def is_constant(values, output) -> bool:
     return not v.size or float(np.ptp(v)) <= resolution(v, output)
 
 
-def resolved(x, values, output):
+def resolved_among(x, values, output):
     """x, or 0.0 where it is below the resolution of the output's values (rounding noise)."""
     return 0.0 if x is not None and math.isfinite(x) and abs(x) <= resolution(values, output) else x
 
@@ -108,7 +109,8 @@ def output_table(df, outputs, limits, sample: bool = True) -> list[dict]:
              "lower": lim[0], "upper": lim[1]}
         r["constant"] = bool(v.size) and is_constant(v, o)
         # rounding noise shown as what it is: 0 below the solver's resolution
-        r.update(mean=resolved(r["mean"], v, o), min=resolved(r["min"], v, o), max=resolved(r["max"], v, o))
+        r.update(mean=resolved_among(r["mean"], v, o), min=resolved_among(r["min"], v, o),
+                 max=resolved_among(r["max"], v, o))
         if r["constant"]:
             r["sd"] = 0.0
         if o in limits:
@@ -180,8 +182,12 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
     table = output_table(df, study_outputs, limits, sample=not grid)
     for r in table:
         ins = f"{100 * r['within']:7.2f}%" if "within" in r else f"{'':>8s}"
-        lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(r['mean'], 11)} {f(r['sd'], 10, 4)} "
-                     f"{f(r['min'], 11)} {f(r['max'], 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
+        # values below the solvers' resolution are round-off: shown as 0, not as 2.6e-13
+        size = max(abs(r["min"]), abs(r["max"])) if r["n"] else 0.0
+        mean, lo, hi = (resolved(r[k], r["unit"]) for k in ("mean", "min", "max"))
+        sd = resolved(r["sd"], r["unit"], size)
+        lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(mean, 11)} {f(sd, 10, 4)} "
+                     f"{f(lo, 11)} {f(hi, 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
                      f"{f(r.get('cpk'), 6, 3)}")
     failed = int((~evaluated(df)).sum()) if len(df) else 0
     if limits and failed:

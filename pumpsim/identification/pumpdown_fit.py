@@ -465,34 +465,3 @@ class _AsData:
         self.angle = None
 
 
-def cmd_identify_bench(a, cfg, outs, params, initial, write_outputs, progress=None) -> int:
-    """`pumpsim identify CONFIG LOG` on a bench log (the command line recognised its columns)."""
-    import sys
-
-    from ..benchlog import read_bench_log
-
-    for flag, given in (("--transient", a.transient), ("--steady", a.steady), ("--resample", a.resample)):
-        if given:
-            raise ConfigError(f"{flag} is for torque data; a bench log is fitted as logged: drop {flag}")
-    if a.report:
-        raise ConfigError("--report: the HTML report of a bench-log fit is not available yet; use --json")
-    log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
-    for note in log.notes:
-        print(f"pumpsim: {log.name}: {note}", file=sys.stderr)
-    fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
-                         _progress if progress is not None else None)
-    if progress is not None:
-        print(file=sys.stderr)
-    print(fit)
-    write_outputs(outs, a, fit.to_json(), None)
-    problems = fit.problems()
-    if problems:
-        print("pumpsim: the fit is not a usable estimate: " + "; ".join(problems), file=sys.stderr)
-        return 1
-    return 0
-
-
-def _progress(entry):
-    import sys
-
-    print(f"\r\033[Kpumpsim: residual RMS {entry['rms']:.6g} noise sigmas", end="", file=sys.stderr, flush=True)

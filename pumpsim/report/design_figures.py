@@ -22,7 +22,7 @@ from ..presentation import describe, engineering_scale
 from .html import figure_html
 from ..design.outputs import BOOL_OUTPUTS, UNITS
 from ..design.study import base_value, schema_leaf
-from ..design.summary import cpk, evaluated, is_constant, resolved, status_kind, within
+from ..design.summary import cpk, evaluated, is_constant, resolved_among, status_kind, within
 
 MAX_SCATTER = 2000  # points per scatter panel
 MAX_PANELS = 16
@@ -119,7 +119,7 @@ def histograms(df, study) -> str:
         f, label = output_scale(o, v)
         ax.set_title(label, fontsize=9)
         if is_constant(v, o):  # no spread beyond the solver's resolution: no histogram of round-off
-            val = resolved(float(np.median(v)), v, o) if v.size else None
+            val = resolved_among(float(np.median(v)), v, o) if v.size else None
             ax.text(0.5, 0.5, "constant\n" + (f"{val * f:.6g} {label.split('[')[-1].rstrip(']')}"
                                               if val is not None else "no value")
                     + "\n(spread below the solver's resolution)", ha="center", va="center",

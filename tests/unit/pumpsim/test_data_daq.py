@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pumpsim.cli import main
-from pumpsim.data import DataOptions, _read_csv, _RowNumbers, load_data, time_gaps
+from pumpsim.data import DataOptions, RowNumbers, load_data, read_csv, time_gaps
 from pumpsim.errors import DataError
 from tests.conftest import EXAMPLES
 
@@ -262,13 +262,13 @@ def test_both_readers_give_identical_arrays(tmp_path, name):
         p.write_bytes(b"\xef\xbb\xbf" + (EXAMPLES / "data" / "ellipse_hidden_effects.csv").read_bytes())
     else:
         p = EXAMPLES / "data" / name
-    fast, slow = _read_csv(p, _pick_all), _read_csv(p, _pick_all, fast=False)
+    fast, slow = read_csv(p, _pick_all), read_csv(p, _pick_all, fast=False)
     assert fast.cols.keys() == slow.cols.keys() and fast.units == slow.units
     for k in fast.cols:
         assert np.array_equal(fast.cols[k], slow.cols[k]), k
     expect_fast = name in FAST or name in ("test_rig_measurement.csv", "ellipse_hidden_effects.csv",
                                            "utf16.txt", "bom.csv")
-    assert isinstance(fast.rows, _RowNumbers) == expect_fast
+    assert isinstance(fast.rows, RowNumbers) == expect_fast
     n = len(next(iter(fast.cols.values())))
     assert [fast.rows[i] for i in range(n)] == [slow.rows[i] for i in range(n)]
 

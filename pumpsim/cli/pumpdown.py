@@ -1,4 +1,4 @@
-"""`pumpsim pumpdown` (spec §8): registered on pumpsim's parser by pumpsim.cli."""
+"""`pumpsim pumpdown CONFIG`: evacuate the booster (pressure, current, energy)."""
 from __future__ import annotations
 
 import json
@@ -7,9 +7,10 @@ import sys
 
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from .common import REPORT_SUFFIXES, add_force, live, load_config, outputs, staged, warn
 
 
-def add_pumpdown_command(sub) -> None:
+def register(sub) -> None:
     pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy")
     pd.add_argument("config")
     pd.add_argument("--until", type=float, help="target booster pressure [Pa] (default booster.target)")
@@ -31,45 +32,26 @@ def add_pumpdown_command(sub) -> None:
     pd.add_argument("--atol", type=float, default=None,
                     help=f"absolute tolerance relative to each state's starting size (default "
                          f"{PUMPDOWN_ATOL:g}; {CONTACT_PUMPDOWN_ATOL:g} with --model contact)")
-    from ..cli import _add_force
-
-    _add_force(pd)
-    pd.set_defaults(func=cmd_pumpdown)
-
-
-def _outputs(a):
-    """Every output path checked before any work starts (writable, not a folder, not the config,
-    no two the same file, the right type), written together at the end (pumpsim.io.Outputs)."""
-    from ..cli import REPORT_SUFFIXES
-    from ..io import Outputs
-
-    outs = Outputs([a.config])
-    for opt, suffixes in (("out", None), ("plot", (".png",)), ("json", None), ("report", REPORT_SUFFIXES)):
-        outs.add(f"--{opt}", getattr(a, opt), suffixes)
-    outs.check()
-    from ..locks import hold_files
-
-    hold_files({f"--{opt}": getattr(a, opt) for opt in ("out", "plot", "json", "report")})
-    return outs
+    add_force(pd)
+    pd.set_defaults(func=run)
 
 
 def _progress(t, pb):
     print(f"\r  t = {t:7.3f} s, booster {pb / 1e3:6.2f} kPa", end="", file=sys.stderr, flush=True)
 
 
-def cmd_pumpdown(a) -> int:
-    from ..cli import _load_config, _staged
+def run(a) -> int:
     from ..io import write_text
-    from . import pumpdown as pdm
+    from ..pneumatics import pumpdown as pdm
 
-    outs = _outputs(a)
+    outs = outputs(a, [a.config], out=None, plot=(".png",), json=None, report=REPORT_SUFFIXES)
     if a.model == "contact" and (a.fast or a.plot or a.report):
         raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
                           "without --model contact")
-    cfg = _load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
+    cfg = load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
     if cfg.pneumatic is None:
-        raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster] (spec §8)")
-    progress = _progress if sys.stderr.isatty() else None
+        raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster]")
+    progress = _progress if live() else None
     res = pdm.pumpdown(cfg, until=a.until, duration=a.duration, rate=a.rate, rtol=a.rtol, atol=a.atol,
                        progress=progress, model=a.model)
     if progress:
@@ -89,9 +71,8 @@ def cmd_pumpdown(a) -> int:
               if t_f is not None else
               f"  fast path: target not reached; booster {fast['final_pressure'] / 1e3:.2f} kPa at "
               f"{fast['time'][-1]:.3f} s, mean current {fast['mean_current']:.2f} A {made}")
-    for w in res.warnings:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
-    with _staged(outs) as tmp:
+    warn(res.warnings)
+    with staged(outs) as tmp:
         if a.out:
             res.to_csv(tmp["--out"])
         if a.json:

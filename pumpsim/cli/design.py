@@ -1,27 +1,12 @@
-"""`pumpsim sweep | sensitivity | optimize STUDY` (spec §9). Registered by pumpsim.cli."""
+"""`pumpsim sweep | sensitivity | optimize STUDY`: the design studies of a study file."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
-import sys
-
-from ..cli import _staged
 from ..errors import ConfigError
-
-
-def _outputs(inputs, **paths):
-    """The output files, checked before any work starts (writable, not a folder, not an input,
-    no two the same) and held against other runs; written together by `_staged`."""
-    from ..io import Outputs
-    from ..locks import hold_files
-
-    outs = Outputs(inputs)
-    for option, path in paths.items():
-        outs.add(f"--{option}", path)
-    outs.check()
-    hold_files({f"--{option}": path for option, path in paths.items()})
-    return outs
+from .common import live, outputs, staged, warn
 
 
 def _idle_text(stats) -> str:
@@ -37,11 +22,10 @@ def _workers(n):
 
 
 def _load(path):
-    from .study import load_study
+    from ..design.study import load_study
 
     study = load_study(path)
-    for w in study.warnings:
-        print(f"pumpsim: warning: {w}", file=sys.stderr)
+    warn(study.warnings)
     return study
 
 
@@ -50,29 +34,30 @@ def _json_safe(obj):
 
 
 def cmd_sweep(a) -> int:
-    from .execute import check_out_dir, read_manifest, run_study
+    from ..design.execute import check_out_dir, read_manifest, run_study
+    from ..design.summary import summary_text
     from ..report.design import sweep_report
-    from .summary import summary_text
 
     study = _load(a.study)
     if a.samples is not None:
         override_samples(study, a.samples)
     if a.summary:
         return _summary(a, study)
-    outs = _outputs([a.study], csv=a.csv, report=a.report)
+    outs = outputs(a, [a.study], csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
-                          batch_size=a.batch_size)
+                          batch_size=a.batch_size, progress=None if live() else False)
     man = read_manifest(a.out) if a.out else None
     print(summary_text(df, study.outputs, study.limits, man))
     size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
     print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
           f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
           f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.csv:
             df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
         if a.report:
+
             sweep_report(df, study, tmp["--report"])
     return 0
 
@@ -80,8 +65,8 @@ def cmd_sweep(a) -> int:
 def _summary(a, study) -> int:
     """--summary: the table so far; exit 1 when a design appears more than once (a mixed folder)."""
     from ..locks import holder_of
-    from .execute import check_out_dir, read_manifest, read_results
-    from .summary import coverage, summary_text
+    from ..design.execute import check_out_dir, read_manifest, read_results
+    from ..design.summary import coverage, summary_text
 
     if not a.out:
         raise ConfigError("--summary reads the results folder given by --out DIR")
@@ -115,25 +100,34 @@ def override_samples(study, n):
 
 
 def cmd_sensitivity(a) -> int:
+    from ..design.indices import sensitivity
     from ..io import write_text
-    from .indices import sensitivity
     from ..report.design import sensitivity_report
-    from .study import load_study
 
     study = _load(a.study)
-    outs = _outputs([a.study], json=a.json, report=a.report)
+    outs = outputs(a, [a.study], json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
-                      workers=_workers(a.workers))
+                      workers=_workers(a.workers), progress=None if live() else False)
     print(sensitivity_text(res))
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.json:
             write_text(tmp["--json"], json.dumps(_json_safe(res), indent=1))
         if a.report:
+
             sensitivity_report(res, study, tmp["--report"])
     return 0
 
 
+def _unit(output: str) -> str:
+    """The unit of an output, also of one named per speed ('ptp_torque@300')."""
+    from ..design.outputs import UNITS
+
+    return UNITS.get(output.split("@")[0], "")
+
+
 def sensitivity_text(res) -> str:
+    from ..presentation import resolved
+
     lines = [f"{res['method']} indices from {res['designs']} designs (seed {res['seed']})"]
     if res["method"] == "sobol":
         lines.append(f"{'output':26s} {'key':28s} {'S1':>8s} {'±95%':>7s} {'ST':>8s} {'±95%':>7s}")
@@ -143,54 +137,62 @@ def sensitivity_text(res) -> str:
     else:
         lines.append(f"{'output':26s} {'key':28s} {'mu*':>11s} {'±95%':>10s} {'sigma':>11s}")
         for o, per in res["indices"].items():
-            for k, r in per.items():
-                lines.append(f"{o:26s} {k:28s} {r['mu_star']:11.4g} {r['mu_star_conf']:10.3g} {r['sigma']:11.4g}")
+            for k, r in per.items():  # Morris effects are in the output's unit: round-off shown as 0
+                mu, conf, sigma = (resolved(r[n], _unit(o)) for n in ("mu_star", "mu_star_conf", "sigma"))
+                lines.append(f"{o:26s} {k:28s} {mu:11.4g} {conf:10.3g} {sigma:11.4g}")
     for s in res["skipped"]:
         lines.append(f"not computed: {s['output']} ({s['reason']})")
     return "\n".join(lines)
 
 
 def cmd_optimize(a) -> int:
+    from ..design.optimiser import optimize
     from ..io import write_text
-    from .optimiser import optimize
     from ..report.design import optimize_report
-    from .study import load_study
 
     study = _load(a.study)
-    outs = _outputs([a.study], json=a.json, report=a.report)
+    outs = outputs(a, [a.study], json=None, report=None)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))
-    with _staged(outs) as tmp:
+    with staged(outs) as tmp:
         if a.json:
             write_text(tmp["--json"], json.dumps(res, indent=1))
         if a.report:
+
             optimize_report(res, study, tmp["--report"])
     return 0 if res["success"] else 1
 
 
 def optimize_text(res) -> str:
+    from ..presentation import fmt_limit, fmt_number, resolved
+
+    def value(x, output):
+        return fmt_number(resolved(x, _unit(output)))
+
     if res["method"] == "nsga2":
         lines = [f"NSGA-II Pareto front of {', '.join(res['objectives'])}: {len(res['front'])} designs, "
                  f"{res['evaluations']} evaluations, {res['seconds']:.1f} s"]
         for f in res["front"]:
             lines.append("  " + ", ".join(f"{k} = {v:.6g}" for k, v in f["design"].items()) + "  ->  "
-                         + ", ".join(f"{k} = {v:.6g}" for k, v in f["objectives"].items()))
+                         + ", ".join(f"{k} = {value(v, k)}" for k, v in f["objectives"].items()))
         return "\n".join(lines)
     o = res["objective"]
     lines = [f"{res['method']}: {res['message']} after {len(res['iterations']) - 1} iterations, "
              f"{res['evaluations']} evaluations, {res['seconds']:.2f} s",
-             f"minimize {o['minimize']}: {o['start']:.6g} (start) -> {o['value']:.6g}"]
+             f"minimize {o['minimize']}: {value(o['start'], o['minimize'])} (start) -> "
+             f"{value(o['value'], o['minimize'])} {_unit(o['minimize'])}".rstrip()]
     for k, v in res["design"].items():
-        lines.append(f"  {k:28s} {res['start'][k]:.6g} -> {v:.6g}   bounds {res['bounds'][k]}")
+        lo, hi = res["bounds"][k]
+        lines.append(f"  {k:28s} {res['start'][k]:.6g} -> {v:.6g}   bounds {fmt_limit(lo)} .. {fmt_limit(hi)}")
     for k, c in res["constraints"].items():
-        lines.append(f"  constraint {k}: {c['value']:.6g} (lower {c['lower']}, upper {c['upper']}) "
-                     f"{'ok' if c['satisfied'] else 'VIOLATED'}")
+        lines.append(f"  constraint {k}: {value(c['value'], k)} (lower {fmt_limit(c['lower'])}, upper "
+                     f"{fmt_limit(c['upper'])}) {'ok' if c['satisfied'] else 'VIOLATED'}")
     if not res["success"]:
         lines.append("the optimiser did not reach a feasible optimum")
     return "\n".join(lines)
 
 
-def add_design_commands(sub) -> None:
+def register(sub) -> None:
     """Register sweep, sensitivity and optimize on the pumpsim sub-command parser."""
     def cluster(p):
         g = p.add_argument_group("execution (dask.distributed)")
@@ -227,5 +229,3 @@ def add_design_commands(sub) -> None:
     op.add_argument("--max-iter", type=int, dest="max_iter")
     op.set_defaults(func=cmd_optimize)
 
-
-__all__ = ["add_design_commands"]

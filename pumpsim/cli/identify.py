@@ -1,0 +1,136 @@
+"""`pumpsim identify CONFIG DATA`: fit parameters to a measured torque, a run-up/coast-down, or a
+bench log (voltage, current, booster pressure)."""
+from __future__ import annotations
+
+import sys
+
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, fit_log, info, live, load_config, outputs, \
+    positive_int, read_data, warn, write_fit_outputs
+
+BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
+
+
+def register(sub):
+    ip = sub.add_parser("identify", help="fit friction (and phase, speed, offsets) to measured torque",
+                        formatter_class=Help,
+                        description="Fit model parameters to a measured drive torque at constant speed.")
+    ip.add_argument("config", help="TOML configuration (SI units)")
+    ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
+    ip.add_argument("--params", default=None,
+                    help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
+                         "numeric config key path (e.g. housing.center.0); default mu,theta0 -- for a "
+                         "bench log (columns time, voltage, current, booster_pressure) "
+                         f"{','.join(BENCH_DEFAULT_PARAMS)}")
+    ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
+                    help="least-squares solver")
+    ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
+    ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
+    ip.add_argument("--max-iter", type=positive_int, default=50, dest="max_iter", help="iteration limit")
+    ip.add_argument("--transient", action="store_true",
+                    help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
+                         "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
+    add_fit_outputs(ip)
+    ip.set_defaults(func=run)
+
+
+def parse_params(text):
+    from ..errors import ConfigError
+
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise ConfigError("--params names no parameter")
+    return names
+
+
+def parse_initial(items):
+    from ..errors import ConfigError
+
+    out = {}
+    for item in items or []:
+        name, sep, val = item.partition("=")
+        name = name.strip()
+        try:
+            value = float(val)
+        except ValueError:
+            raise ConfigError(f"--start takes NAME=VALUE, got '{item}'") from None
+        if not sep or not name:
+            raise ConfigError(f"--start takes NAME=VALUE, got '{item}'")
+        if value != value or abs(value) == float("inf"):
+            raise ConfigError(f"--start {name} must be a finite number, got '{val}'")
+        out[name] = value
+    return out
+
+
+def unusable(problems) -> int:
+    """Exit status of a finished fit: 1 with the problems named when it must not be used as is."""
+    if problems:
+        print("pumpsim: the fit is not a usable estimate: " + "; ".join(problems), file=sys.stderr)
+        return 1
+    return 0
+
+
+def run(a) -> int:
+    from ..benchlog import is_bench_log
+
+    outs = outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
+    cfg = load_config(a)
+    if is_bench_log(a.data, a.time_column, a.speed_column):
+        return run_bench(a, cfg, outs)
+    params = parse_params(a.params or "mu,theta0")
+    initial = parse_initial(a.start)
+    data = read_data(a, a.data, None if ("speed" in params or a.transient) else
+                     (cfg.speed if cfg.mode == "speed" else None))
+    if a.transient:
+        from ..identification import identify_transient
+
+        res = identify_transient(cfg, data, params=params, initial=initial, max_iter=a.max_iter, method=a.method)
+    else:
+        from ..api import identify
+
+        if live():
+            print(f"pumpsim: fitting {', '.join(params)} to {data.n:,} samples of {data.name}", end="",
+                  file=sys.stderr, flush=True)
+        res = identify(cfg, data, params=params, method=a.method, relaxation=a.relaxation,
+                       initial=initial, max_iter=a.max_iter, force=a.force, log=fit_log())
+        if live():
+            print(file=sys.stderr)
+        warn(w for w in res.warnings if w not in cfg.warnings)
+    print(res)
+
+    def report(path):
+        from ..report.identification import identification_report
+
+        identification_report(res, path, title=f"pumpsim identification: {cfg.name}", cfg=cfg, data=data)
+
+    write_fit_outputs(outs, a, res.to_json(), report)
+    return unusable(res.problems())
+
+
+def run_bench(a, cfg, outs) -> int:
+    """identify on a bench log (the command recognised its columns): fitted as logged."""
+    from ..benchlog import read_bench_log
+    from ..errors import ConfigError
+    from ..identification.pumpdown_fit import identify_bench
+
+    params = parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS))
+    initial = parse_initial(a.start)
+    for flag, given in (("--transient", a.transient), ("--steady", a.steady), ("--resample", a.resample)):
+        if given:
+            raise ConfigError(f"{flag} is for torque data; a bench log is fitted as logged: drop {flag}")
+    if a.report:
+        raise ConfigError("--report: the HTML report of a bench-log fit is not available yet; use --json")
+    log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
+    for note in log.notes:
+        info(f"{log.name}: {note}")
+    shown = live()
+    fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
+                         _bench_progress if shown else None)
+    if shown:
+        print(file=sys.stderr)
+    print(fit)
+    write_fit_outputs(outs, a, fit.to_json(), None)
+    return unusable(fit.problems())
+
+
+def _bench_progress(entry):
+    print(f"\r\033[Kpumpsim: residual RMS {entry['rms']:.6g} noise sigmas", end="", file=sys.stderr, flush=True)
