@@ -22,13 +22,14 @@ from pumpsim.config import as_array, load_config  # noqa: E402
 from pumpsim.kernels import load_kernels  # noqa: E402
 
 
-def best_of(fn, repeats=3):
+def best_of(fn, repeats=3, stat=min):
+    """The shortest (or `stat`) of `repeats` timed calls."""
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
-    return min(times)
+    return float(stat(times))
 
 
 def bench_inverse_dynamics(n=100_000):
@@ -312,6 +313,63 @@ def bench_benchlog(duration=5.0, rate=1000.0):
     print(f"  {est} (truth {truth}); wall {wall:.1f} s (target <= 30 s)")
     return {"samples": int(log.n), "seconds": wall, "simulations": fit.result.n_evaluations,
             "estimates": est, "truth": truth, "target_met": wall <= 30.0}
+JACOBIAN_NAMES = ["mu", "mu_slot", "theta0", "speed", "torque_offset"]
+
+
+def median_of(fn, repeats=3):
+    return best_of(fn, repeats, stat=np.median)
+
+
+def bench_jacobian_simd(n=100_000):
+    """The fits' Jacobian (ConstantSpeedProblem.model_and_jacobian: torque and the columns of mu,
+    mu_slot, theta0, speed, torque_offset on n samples, 4 vanes, ellipse) through the SIMD library's
+    Jacobian entries, against the same call on the CasADi map's forward AD (PUMPSIM_FIT_KERNEL=
+    scalar), and the kernels alone: the library's torque and derivatives along the 5 seed columns
+    (+ omega, omegadot) vs its torque entry; median of 3, interleaved, one run."""
+    from pumpsim.data import Dataset
+    from pumpsim.identification import make_problem
+    from pumpsim.identification.sampled import simd_jacobian
+
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    t = np.arange(n) / 20000.0
+    prob = make_problem(cfg, Dataset(t, np.zeros(n)), JACOBIAN_NAMES)
+    fk = simd_jacobian(prob.kern.structure)
+    if fk is None:
+        print("\nno SIMD library with Jacobian entries on this machine")
+        return {"samples": n, "simd": False}
+    theta, z = prob.angle(prob.x0), prob.z(prob.x0)
+    npar = fk.n_params
+    seeds = np.zeros((len(JACOBIAN_NAMES) + 2, 3 + npar))
+    seeds[:len(JACOBIAN_NAMES), 3:] = prob._seeds[:npar].T
+    seeds[-2, 1] = seeds[-1, 2] = 1.0
+    w, wd, p = np.full(n, z[npar + 1]), np.zeros(n), z[:npar]
+    out = fk.jacobian_array(n, seeds.shape[0])
+    for rep in range(2):  # the first round warms both paths (kernels loaded, map compiled)
+        t_simd = median_of(lambda: prob.model_and_jacobian(prob.x0))
+        os.environ["PUMPSIM_FIT_KERNEL"] = "scalar"
+        try:
+            t_map = median_of(lambda: prob.model_and_jacobian(prob.x0))
+            ref = prob.model_and_jacobian(prob.x0)[1]
+        finally:
+            del os.environ["PUMPSIM_FIT_KERNEL"]
+        t_kjac = median_of(lambda: fk.jacobian(theta, w, wd, p, seeds, out=out))
+        t_ktq = median_of(lambda: fk(theta, w, wd, p, outputs="torque"))
+    J = prob.model_and_jacobian(prob.x0)[1]
+    agree = float(np.max(np.abs(J - ref) / np.maximum(np.max(np.abs(ref), axis=0), 1e-300)))
+    rows = {"model_and_jacobian, SIMD Jacobian entries": t_simd, "model_and_jacobian, CasADi map AD (reference)": t_map,
+            f"SIMD kernel: torque + {seeds.shape[0]} directions": t_kjac, "SIMD kernel: torque alone": t_ktq}
+    print(f"\nThe fits' Jacobian, {len(JACOBIAN_NAMES)} columns, 4 vanes, ellipse, {n} samples (median of 3)")
+    print(f"{'path':<48}{'seconds':>10}{'samples/s':>14}")
+    for name, sec in rows.items():
+        print(f"{name:<48}{sec:>10.4f}{n / sec:>14.3g}")
+    print(f"SIMD Jacobian vs CasADi map {t_map / t_simd:.1f}x; the kernel's Jacobian costs {t_kjac / t_ktq:.2f}x its "
+          f"torque; max column difference to the map {agree:.1e} of the column")
+    return {"samples": n, "names": JACOBIAN_NAMES, "rows": {k: {"seconds": v, "samples_per_second": n / v}
+                                                           for k, v in rows.items()},
+            "speedup_vs_map": t_map / t_simd, "kernel_jacobian_over_torque": t_kjac / t_ktq,
+            "max_column_difference": agree}
+
+
 IDENTIFY_ROWS = 1_000_000
 IDENTIFY_TARGET_MIB = 300.0
 # identify in its own process: peak resident memory of the whole process, and the part identify
@@ -440,7 +498,8 @@ def bench_load(rows=LOAD_ROWS):
 
 
 BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile, "contact": bench_contact,
-           "identify": bench_identify, "identify_1e6": bench_identify_large, "diagnose": bench_diagnose,
+           "identify": bench_identify, "identify_1e6": bench_identify_large, "jacobian_simd": bench_jacobian_simd,
+           "diagnose": bench_diagnose,
            "load": bench_load}
 # run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes today
 OPTIONAL = {"benchlog": bench_benchlog}

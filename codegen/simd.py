@@ -31,11 +31,12 @@ output for vanes 0..N-1; `ld` lets callers write a column range of a larger arra
       arguments, `out` (1 + len(subset) N, ld) with the torque and the subset's vane outputs only
       (the vane body restricted to them: the torque alone is 1,124 of the 4-vane ellipse's 1,342
       vane instructions, and stores one row).
+  pumpsim_simd_jac_blocks / _samples: the torque and its derivatives along directions in (theta,
+      omega, omegadot, p): codegen/simd_jacobian.py.
 """
 from __future__ import annotations
 
 import functools
-import math
 import os
 import re
 import string
@@ -51,110 +52,11 @@ from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, SUBSETS, simd_options,
 
 from .builder import Builder
 from .install import CC, install_library
+from .simd_emit import HELPERS, emit_loop
+from .simd_jacobian import jacobian_source
 
 CHUNK = 512  # samples per pass over the vanes: the vanes' torque shares stay in L1/L2 for the sum
 VECTOR_FUNCTIONS = ("sin", "cos", "atan2")  # the model's transcendentals with a libmvec variant
-
-# Selects are written as bit blends (pz_sel), not C conditionals: from `c ? a : b` gcc builds
-# branches, threads jumps through them and then cannot if-convert operations that might trap
-# (-ftrapping-math) -- AVX-512 masks hide that, AVX2 loops stayed scalar. A blend has no branch.
-_SEL = "pz_sel((int64_t)({c}), {a}, {b})"
-_UNARY = {
-    ca.OP_NEG: "(-{0})", ca.OP_SQ: "({0}*{0})", ca.OP_TWICE: "(2.*{0})", ca.OP_INV: "(1./{0})",
-    ca.OP_FABS: "fabs({0})", ca.OP_SQRT: "sqrt({0})", ca.OP_SIN: "sin({0})",
-    ca.OP_COS: "cos({0}+zero)",  # + zero: no sincos fusion (see module docstring)
-    ca.OP_TAN: "tan({0})", ca.OP_EXP: "exp({0})", ca.OP_LOG: "log({0})", ca.OP_ATAN: "atan({0})",
-    ca.OP_ASIN: "asin({0})", ca.OP_ACOS: "acos({0})", ca.OP_TANH: "tanh({0})",
-    ca.OP_SINH: "sinh({0})", ca.OP_COSH: "cosh({0})", ca.OP_FLOOR: "floor({0})",
-    ca.OP_CEIL: "ceil({0})", ca.OP_ERF: "erf({0})",
-    ca.OP_NOT: _SEL.format(c="{0}==0.", a="1.", b="0."),
-    # casadi_sign: -1, 1, or x itself (0, NaN)
-    ca.OP_SIGN: _SEL.format(c="{0}<0.", a="-1.", b=_SEL.format(c="{0}>0.", a="1.", b="{0}")),
-}
-_BINARY = {
-    ca.OP_ADD: "({0}+{1})", ca.OP_SUB: "({0}-{1})", ca.OP_MUL: "({0}*{1})", ca.OP_DIV: "({0}/{1})",
-    ca.OP_LT: _SEL.format(c="{0}<{1}", a="1.", b="0."), ca.OP_LE: _SEL.format(c="{0}<={1}", a="1.", b="0."),
-    ca.OP_EQ: _SEL.format(c="{0}=={1}", a="1.", b="0."), ca.OP_NE: _SEL.format(c="{0}!={1}", a="1.", b="0."),
-    ca.OP_AND: _SEL.format(c="({0}!=0.)&({1}!=0.)", a="1.", b="0."),
-    ca.OP_OR: _SEL.format(c="({0}!=0.)|({1}!=0.)", a="1.", b="0."),
-    ca.OP_IF_ELSE_ZERO: _SEL.format(c="{0}!=0.", a="{1}", b="0."),
-    # C99 fmax/fmin: the non-NaN operand
-    ca.OP_FMAX: _SEL.format(c="({0}!={0})|({0}<{1})", a="{1}", b="{0}"),
-    ca.OP_FMIN: _SEL.format(c="({0}!={0})|({1}<{0})", a="{1}", b="{0}"),
-    ca.OP_POW: "pow({0},{1})", ca.OP_CONSTPOW: "pow({0},{1})", ca.OP_ATAN2: "atan2({0},{1})",
-    ca.OP_COPYSIGN: "copysign({0},{1})", ca.OP_FMOD: "fmod({0},{1})",
-}
-_HELPERS = r"""#include <stdint.h>
-#include <string.h>
-static inline uint64_t pz_bits(double x) { uint64_t u; memcpy(&u, &x, 8); return u; }
-static inline double pz_dbl(uint64_t u) { double x; memcpy(&x, &u, 8); return x; }
-/* c ? a : b as a bit blend (c is 0 or 1) */
-static inline double pz_sel(int64_t c, double a, double b) {
-  uint64_t m = (uint64_t)(-c);
-  return pz_dbl((pz_bits(a) & m) | (pz_bits(b) & ~m));
-}"""
-
-
-def _const(x: float) -> str:
-    if math.isnan(x):
-        return "NAN"
-    if math.isinf(x):
-        return "INFINITY" if x > 0 else "(-INFINITY)"
-    return repr(float(x))
-
-
-def emit_loop(f: ca.Function, name: str, per_sample: set[int]) -> str:
-    """C text of `static void name(long n, const double *const *in, double *const *out)`: f's SX
-    body in one `omp simd` loop over n samples. in[] holds one pointer per input nonzero (inputs in
-    order): for inputs in `per_sample` it points at n values (one per sample), otherwise at one
-    value shared by all samples. out[] holds one pointer per output nonzero, to n values."""
-    if not f.is_a("SXFunction"):
-        raise TypeError(f"{f.name()} is not an SX function")
-    nz_in = [f.nnz_in(i) for i in range(f.n_in())]
-    off_in = [sum(nz_in[:i]) for i in range(len(nz_in))]
-    nz_out = [f.nnz_out(i) for i in range(f.n_out())]
-    off_out = [sum(nz_out[:i]) for i in range(len(nz_out))]
-    head, body = [], []
-    used_in = set()
-    for k in range(f.n_instructions()):
-        op = f.instruction_id(k)
-        if op == ca.OP_INPUT:
-            (i, j), (w,) = f.instruction_input(k), f.instruction_output(k)
-            q = off_in[i] + j
-            used_in.add((q, i in per_sample))
-            body.append(f"w{w} = x{q}[s];" if i in per_sample else f"w{w} = x{q};")
-        elif op == ca.OP_OUTPUT:
-            (w,), (i, j) = f.instruction_input(k), f.instruction_output(k)
-            body.append(f"y{off_out[i] + j}[s] = w{w};")
-        elif op == ca.OP_CONST:
-            body.append(f"w{f.instruction_output(k)[0]} = {_const(f.instruction_constant(k))};")
-        elif op in _UNARY:
-            a = f.instruction_input(k)
-            body.append(f"w{f.instruction_output(k)[0]} = " + _UNARY[op].format(f"w{a[0]}") + ";")
-        elif op in _BINARY:
-            a = f.instruction_input(k)
-            body.append(f"w{f.instruction_output(k)[0]} = "
-                        + _BINARY[op].format(f"w{a[0]}", f"w{a[1]}") + ";")
-        else:
-            raise NotImplementedError(f"{f.name()}: SX operation {op} has no SIMD form")
-    for q, per in sorted(used_in):
-        head.append(f"  const double *restrict x{q} = in[{q}];" if per else f"  const double x{q} = *in[{q}];")
-    head += [f"  double *restrict y{q} = out[{q}];" for q in range(sum(nz_out))]
-    work = ", ".join(f"w{w}" for w in range(f.sz_w()))
-    return "\n".join([
-        f"/* {f.name()}: {f.n_instructions()} SX instructions; per-sample inputs "
-        f"{sorted(f.name_in(i) for i in per_sample)} */",
-        f"static void {name}(long n, const double *const *in, double *const *out) {{",
-        *head,
-        "  const double zero = pumpsim_zero;",
-        "  #pragma omp simd",
-        "  for (long s = 0; s < n; ++s) {",
-        f"    double {work};",
-        *("    " + line for line in body),
-        "  }",
-        "}",
-    ])
-
 
 # -- the model's functions, from the same builder and helpers as the scalar library -----------------
 def simd_functions(structure):
@@ -277,7 +179,7 @@ def generate_source(structure) -> tuple[str, dict]:
                    f"__attribute__((simd(\"notinbranch\")));\n" for fn in VECTOR_FUNCTIONS)
     parts = [
         f"/* pumpsim SIMD inverse dynamics, {structure.variant}; generated by codegen/simd.py */",
-        "#include <math.h>", _HELPERS, decl,
+        "#include <math.h>", HELPERS, decl,
         "static volatile double pumpsim_zero_v = 0.0;",
         "#define pumpsim_zero pumpsim_zero_v",
         f"#define NV {N}\n#define NP {NP}\n#define NO {vane.n_out()}\n#define SHARE {fns['share_index']}"
@@ -296,13 +198,14 @@ def generate_source(structure) -> tuple[str, dict]:
         parts += [emit_loop(sub, f"loop_vane_{name}_shared", {0, 1, 2}),
                   emit_loop(sub, f"loop_vane_{name}_samples", set(range(sub.n_in()))),
                   _driver(f"_{name}", list(stored), sub)]
-    src = "\n".join(parts)
+    jac_src, jac_info = jacobian_source(fns)
+    src = "\n".join(parts + [jac_src])
     lines = src.splitlines()
     starts = {m.group(1): i + 1 for i, ln in enumerate(lines) for m in [re.match(r"static void (loop_\w+)\(", ln)] if m}
     ends = {name: next(i + 1 for i in range(a, len(lines)) if lines[i] == "}") for name, a in starts.items()}
     info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]), "chunk": CHUNK,
             "subsets": {name: list(stored) for name, stored in SUBSETS.items()},
-            "vane_instructions": vane.n_instructions(),
+            "vane_instructions": vane.n_instructions(), "jacobian": jac_info,
             "loop_lines": {name: [starts[name], ends[name]] for name in starts}}
     return src, info
 

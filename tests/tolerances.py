@@ -37,16 +37,24 @@ INTEGRATOR_CROSS_REL = 1e-4
 # 1e-10 relative is the issue's bound. The position residual is rounding noise (~1e-17 m) in both:
 # compared absolutely, in units of the housing size.
 SIMD_REL = 1e-10
-# The SIMD fits' Jacobian columns (differences of SIMD torques, step 1e-6 of each parameter's scale)
-# vs forward AD on the CasADi map: truncation ~1e-12, rounding ~1e-10 of a column's scale (observed
-# <= 1e-9); at the samples a friction reversal or a kink lies within the step of, the one-sided
-# choice differs from AD's branch (observed: one sub-sample point of 12,000 on the speed column,
-# which the lag's filter spreads over 3 of 3001 samples beyond 1e-6): 1e-5 of the column's scale on
-# all but 3e-3 of the samples. Columns the model makes equal: 1e-9 of their norm, 10x inside
-# score_test's rank tolerance (1e-8 of the normalised columns; AD's differ by ~1e-15).
-DIFFERENCE_COLUMN_REL = 1e-5
+# The SIMD library's Jacobian entries vs forward AD on the CasADi map: both exact derivatives of the
+# same SX expressions, summed in another order (reverse sweep and contraction vs forward sweep; FMA
+# contraction, vector libm): observed <= 4e-11 of a column's scale (a column zero in exact
+# arithmetic: of the torque over the input's size), 1e-10 is the bound. Against central differences
+# (step 1e-6 of each input's scale, where the one-sided ones agree): truncation ~1e-12 and rounding
+# ~1e-16 / 1e-6 = 1e-10 of the scale, observed ~1e-8 near kinks just outside the step: 1e-6.
+SIMD_JACOBIAN_REL = 1e-10
+# A derivative zero in exact arithmetic (a concentric housing's centre): the vanes' contributions
+# cancel in another order; observed 5e-10 of the torque over the input's size, bound 1e-9 -- 10x
+# inside identifiability's NO_EFFECT_REL (1e-8), which must still call such a column no effect.
+SIMD_JACOBIAN_ZERO = 1e-9
+SIMD_JACOBIAN_FD_REL = 1e-6
+# The fits' columns on the SIMD library vs on the CasADi map: SIMD_JACOBIAN_REL, except the lag's
+# (both paths: a finite step 1e-6 T of the filter applied to torques equal to ~1e-15, observed 6e-9).
+FIT_LAG_COLUMN_REL = 1e-7
+# Columns the model makes equal (opposite vanes' COF factors on an ellipse): 1e-9 of their norm, 10x
+# inside score_test's rank tolerance (1e-8 of the normalised columns; AD's differ by ~1e-15).
 EQUAL_COLUMNS_REL = 1e-9
-DIFFERENCE_KINK_FRACTION = 3e-3
 # Design optimisation (issue 14): kernel-AD gradients vs central differences of the whole pipeline
 # with a relative step of 1e-6: truncation ~ h^2 f''' ~ 1e-12, rounding ~ eps f / h ~ 1e-10 of the
 # output (observed 2.5e-10 on the ellipse, seven keys); 1e-8 of the gradient's scale fails on any

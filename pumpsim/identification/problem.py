@@ -13,12 +13,13 @@ from ..config import PumpConfig, as_array
 from ..data import Dataset
 from ..diagnostics import noise_sigma
 from ..errors import ConfigError
-from ..kernels import FAST_THREADED, default_threads, fast_kernel, load_kernels, map_samples
+from ..kernels import fast_kernel, load_kernels, map_samples
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
 from .reversals import reversal_keep
+from .sampled import drive_motion, pointwise_columns, sample_blocks, simd_jacobian, simd_torque
 from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
@@ -112,10 +113,9 @@ class Problem:
 
 
 class ConstantSpeedProblem(Problem):
-    """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi: with the SIMD
-    library, differences of its torques along the seed columns (_difference_columns: ~10x cheaper,
-    equal to ~1e-9 of each column) except the geometric defects' pointwise columns; those, and all
-    columns without the SIMD library, exact CasADi forward AD through the compiled kernel.
+    """Model torque tau(t; phi) at constant speed and its Jacobian d tau / d phi: the pointwise
+    columns exact, from the SIMD library's Jacobian entries (sampled.py) where this machine has
+    them, else CasADi forward AD through the compiled kernel on its map.
 
     Every fitted name acts on the model through z = (runtime parameter vector, theta0, speed,
     delay, torque_offset, ripple_cos, ripple_sin), and z is affine in the fitted values: z(x) =
@@ -242,23 +242,8 @@ class ConstantSpeedProblem(Problem):
         # the pointwise columns (those the interval columns replace below are not computed)
         geo = [i for i, n in enumerate(names) if interval_geometric(n)] if self.interval_geometry and T == 0 else []
         pointwise = [i for i in range(len(cols)) if i not in geo]
-        # with the SIMD library: differences of its (model()) torques, except the geometric
-        # defects' pointwise columns -- at a first-order-blind absent value (a concentric rig's
-        # eccentricity or oval) AD's ~0 decides the second-order score, and differences there
-        # see the sharp curvature of the torque at the samples next to a reversal
-        fast = fast_kernel(self.kern.structure) is not None
-        differenced = [i for i in pointwise if not interval_geometric(names[i])] if fast else []
-        exact = [i for i in pointwise if i not in differenced]
         J = np.zeros((theta.size, len(cols)))
-        if exact or not fast:  # forward AD on the CasADi map
-            exact = exact or [0]
-            f = sample_torque(self.kern, len(exact), theta.size)
-            tq, Je = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, [cols[i] for i in exact]])
-            tq = np.asarray(tq).ravel()
-            J[:, exact] = np.asarray(Je).reshape(theta.size, len(exact))
-        if fast:
-            tq = self._torque(theta, z, kin)
-            J[:, differenced] = self._difference_columns(theta, z, kin, tq, [cols[i] for i in differenced])
+        tq, J[:, pointwise] = self._pointwise(theta, z, kin, [cols[i] for i in pointwise])
         slope = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step / m
@@ -280,51 +265,18 @@ class ConstantSpeedProblem(Problem):
             J[:, names.index("lag")] = -self.speed_of(x) * slope
         return tq, J
 
-    def _difference_columns(self, theta, z, kin, tq, which) -> np.ndarray:
-        """The pointwise columns `which` (fit-name indices) at the angles theta from SIMD torques:
-        z moves along each seed column by +-h (z is affine in x, so these are the model at x +- h e_j
-        with theta held, as the exact column is), h = DIFFERENCE_STEP of the parameter's scale.
-        The central difference, except at samples where a friction reversal or a lift-off moves
-        across the sample within +-h: there the two one-sided differences disagree by the step
-        over h, and the smaller one is the derivative of the branch the sample is on (what forward
-        AD gives) -- unless the central one is smaller still (a sharp but smooth extremum: AD's
-        slope there is ~0). ~10x cheaper than AD through the CasADi map; within ~1e-9 of each
-        column's scale elsewhere."""
-        J = np.zeros((theta.size, len(which)))
-        scale = np.max(np.abs(tq)) if tq.size else 0.0
-        floor = DIFFERENCE_FLOOR * scale
-        blocks = sample_blocks(theta.size)  # every step below is per sample: block by block
-        for j, c in enumerate(which):
-            seed = self._seeds[:, c]
-            if not seed.any():  # 'lag' acts after the kernel
-                continue
-            h = DIFFERENCE_STEP * self._difference_scale(self.names[c], z, seed)
-            for sl in blocks:
-                th, kn, t0 = theta[sl], [a[sl] for a in kin], tq[sl]
-                up, down = (self._torque(th, z + sgn * h * seed, kn) for sgn in (1.0, -1.0))
-                fwd, bwd = (up - t0) / h, (t0 - down) / h
-                smooth = np.abs(fwd - bwd) <= DIFFERENCE_AGREE * (np.abs(fwd) + np.abs(bwd)) + floor / h
-                central = 0.5 * (fwd + bwd)
-                least = np.where(np.abs(fwd) < np.abs(bwd), fwd, bwd)
-                col = np.where(smooth | (np.abs(central) <= np.abs(least)), central, least)
-                # a change within rounding is none: 'no effect' (identifiability.py) must see none
-                J[sl, j] = np.where(np.abs(up - down) <= DIFFERENCE_ROUNDING * scale, 0.0, col)
-        return J
-
-    def _difference_scale(self, name, z, seed):
-        """A parameter's natural size: 1 rad for an angle, the housing's size for its geometry (a
-        defect's amplitude or centre may be ~0), the period for the delay, else its value read back
-        from z (its start's, or 1 when both are zero)."""
-        n = base_name(name)
-        if n == "theta0" or n.endswith(".phase") or n == "housing.angle":
-            return 1.0
-        if n.startswith("housing."):
-            v = self.pv.values
-            return max(v["housing.a"], v["housing.b"])
-        if n == "delay":
-            return 1.0 / max(abs(self.speed_of(self.x0)), 1e-9)
-        i = int(np.argmax(np.abs(seed)))
-        return abs(z[i] / seed[i]) or abs(self.x0[self.names.index(name)]) or 1.0
+    def _pointwise(self, theta, z, kin, cols):
+        """The torque at theta and its derivatives along the seed columns `cols` with theta held:
+        exact derivatives of the same model -- the SIMD library's Jacobian entries where this machine
+        has them (sampled.pointwise_columns), else forward AD on the CasADi map (sample_torque)."""
+        fast = simd_jacobian(self.kern.structure)
+        if fast is not None:
+            if not cols:
+                return self._torque(theta, z, kin), np.zeros((theta.size, 0))
+            return pointwise_columns(fast, theta, z, self.ripple_order, kin, self._seeds[:, cols])
+        f = sample_torque(self.kern, max(1, len(cols)), theta.size)
+        tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols or [0]])
+        return np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, -1)[:, :len(cols)]
 
     def _interval_average(self, x):
         """The model torque averaged over each sample interval (INTERVAL_SUBPOINTS points at the
@@ -392,17 +344,6 @@ class ConstantSpeedProblem(Problem):
         return self.z(x)[:self.p0.size]
 
 
-# the SIMD path's pointwise Jacobian columns (ConstantSpeedProblem._difference_columns): the step
-# of the parameter's scale (truncation ~1e-12, rounding ~1e-10 of a column: columns the model makes
-# equal, e.g. opposite vanes' COF factors on an ellipse, stay equal well inside score_test's 1e-8
-# rank tolerance); the relative and absolute (of the torque scale, over h) disagreement of the
-# one-sided differences that marks a sample a reversal or a kink crosses (a Coulomb step over h is
-# >= 1e3 x the column there); a change of the torque below DIFFERENCE_ROUNDING of its scale is none
-# (a column below 1e-8 of the torque per unit parameter scale: no_effect's NO_EFFECT_REL)
-DIFFERENCE_STEP = 1e-6
-DIFFERENCE_AGREE = 0.5
-DIFFERENCE_FLOOR = 1e-9
-DIFFERENCE_ROUNDING = 1e-14
 INTERVAL_SUBPOINTS = 8  # points per sample interval of the interval-average model
 INTERVAL_STEP = 5e-5  # its difference step, of the housing's larger semi-axis (~1 um on a 22 mm housing)
 
@@ -443,48 +384,14 @@ def sample_torque(kern, directions: int, samples: int) -> ca.Function:
     return _SAMPLE_FNS[mkey]
 
 
-SAMPLE_BLOCK = 1 << 16  # samples per block of a SIMD torque evaluation: its temporaries stay ~0.5 MB
-
-
-def sample_blocks(n: int):
-    """Slices of SAMPLE_BLOCK samples (a multiple of the SIMD library's chunk: the same bits as
-    one call over all samples)."""
-    return [slice(lo, min(n, lo + SAMPLE_BLOCK)) for lo in range(0, n, SAMPLE_BLOCK)]
-
-
 def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
     """`sample_torque(kern, 0, n)` evaluated at NumPy theta, tau, g, gd (n samples), z and ripple
-    order k: through the SIMD inverse dynamics (pumpsim.kernels.simd; the same model to ~1e-14 of the
-    torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map.
-    The SIMD path computes the torque alone, block by block into one array: at 10^6 samples its
-    speed and acceleration temporaries are those of a block, not of the record."""
+    order k: through the SIMD inverse dynamics (sampled.simd_torque; the same model to ~1e-14 of the
+    torque scale, ~10-25x the samples per second) where this machine has it, else the CasADi map."""
     fast = fast_kernel(kern.structure)
     if fast is None:
         return np.asarray(sample_torque(kern, 0, theta.size)(theta, tau, z, k, g, gd)).ravel()
-    npar = fast.n_params
-    theta0, w0, delay, offset, rc, rs = z[npar:npar + len(Z_SPECIAL)]
-    n = np.size(theta)
-    tau, g, gd = (np.broadcast_to(np.asarray(a, dtype=float), (n,)) for a in (tau, g, gd))
-    tq = np.empty(n)
-    row = tq.reshape(1, n)
-    for sl in sample_blocks(n):
-        m = sl.stop - sl.start
-        if rc == 0 and rs == 0:  # no ripple: drive_motion's speed and acceleration, bit for bit
-            w, wd = w0 * g[sl], w0 * gd[sl]
-        else:
-            _, w, wd = drive_motion(theta0 + w0 * (tau[sl] - delay), theta0, w0, rc, rs, k, g[sl], gd[sl])
-        fast(theta[sl], np.broadcast_to(w, (m,)), np.broadcast_to(wd, (m,)), z[:npar], out=row[:, sl],
-             threads=default_threads() if m >= FAST_THREADED else 1, outputs="torque")
-    tq += offset
-    return tq
-
-
-def drive_motion(theta_n, theta_start, omega0, rc, rs, k, g, gd, lib=np):
-    """ripple_motion in the drive time tau (theta_n = theta_start + omega0 (tau - delay)), then
-    the speed and acceleration in real time: omega = (dtheta/dtau) g, omegadot = (d2theta/dtau2)
-    g^2 + (dtheta/dtau) gd. g = 1, gd = 0 (a constant speed) leave ripple_motion's values as they are."""
-    theta, w, wd = ripple_motion(theta_n, theta_start, omega0, rc, rs, k, lib)
-    return theta, w * g, wd * g * g + w * gd
+    return simd_torque(fast, theta, z, k, tau, g, gd)
 
 
 def drive_kinematics(data: Dataset, t):

@@ -9,6 +9,9 @@ reuse it: fresh pages cost ~0.2 us per sample). `outputs=` names the outputs wan
 runs the smallest entry point that computes them (model_spec.simd.SUBSETS: the torque alone, one
 row; the simulation's reported columns) and the buffer has only that entry's rows. ctypes
 releases the GIL during the call, so `threads > 1` splits the samples over threads.
+`jacobian(theta, omega, omegadot, p, seeds)` gives the torque and its exact derivatives along
+directions in (theta, omega, omegadot, p) in the same sample-parallel form (`has_jacobian`: the
+library has these entries).
 
 Never stale: the scalar library's contract (pumpsim.model_spec.manifest: key over C source and
 options, library hash, this tree's source fingerprint) plus this CPU's instruction-set flags and C
@@ -65,7 +68,40 @@ class FastInverseDynamics:
                 fn.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _ptr, _c_long]
                 fn.restype = ctypes.c_int
             self._entries[key] = fns
+        self._jac = None
+        if "jacobian" in manifest:  # the torque's derivatives along directions (seeds)
+            self._jac = [getattr(lib, f"pumpsim_simd_jac_{kind}") for kind in ("blocks", "samples")]
+            for fn in self._jac:
+                fn.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _c_long, _ptr, _ptr, _c_long]
+                fn.restype = ctypes.c_int
         self._lib = lib
+
+    @property
+    def has_jacobian(self) -> bool:
+        return self._jac is not None
+
+    def jacobian(self, theta, omega, omegadot, p, seeds, block: int | None = None, out=None,
+                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The torque and its derivatives along directions: seeds (nd, 3 + n_p), each row a direction
+        in (theta, omega, omegadot, p), the same for every sample; p as for a call. Exact (CasADi's
+        reverse-mode gradient of the same expressions, contracted with the seeds in the library).
+        Returns (torque (n,), derivatives (nd, n)), views into `out` (1 + nd, n): see jacobian_array."""
+        if self._jac is None:
+            raise CodegenError(f"the SIMD library of {self.structure.variant} has no Jacobian entries")
+        theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
+        seeds = np.ascontiguousarray(np.atleast_2d(np.asarray(seeds, dtype=float)))
+        if seeds.ndim != 2 or seeds.shape[1] != 3 + self.n_params:
+            raise ConfigError(f"seeds must have 3 + {self.n_params} entries per direction (theta, omega, "
+                              f"omegadot, p), got shape {seeds.shape}")
+        nd = seeds.shape[0]
+        out = self._checked_out(out, 1 + nd, n, "jacobian_array(n, directions)")
+        self._run(self._jac, n, theta, omega, omegadot, p, block, out, threads, (nd, _address(seeds)))
+        return out[0], out[1:]
+
+    @staticmethod
+    def jacobian_array(n: int, directions: int) -> np.ndarray:
+        """An output buffer for `jacobian` (n samples, that many directions), to reuse across calls."""
+        return np.empty((1 + directions, n))
 
     def _set_layouts(self, subsets: dict):
         """The vane outputs of each entry point: None the full one, then the reduced SUBSETS."""
@@ -104,13 +140,16 @@ class FastInverseDynamics:
         return np.empty((self.rows_of(self.entry_for(outputs)), n))
 
     def _out_array(self, out, key, n):
-        rows = self.rows_of(key)
+        return self._checked_out(out, self.rows_of(key), n, "output_array")
+
+    @staticmethod
+    def _checked_out(out, rows, n, maker):
         if out is None:
             return np.empty((rows, n))
         if (out.shape != (rows, n) or out.dtype != np.float64 or out.strides[1] != 8
                 or out.strides[0] < 8 * n or out.strides[0] % 8):
             raise ConfigError(f"out must be a float64 array of shape {(rows, n)} with contiguous "
-                              "rows (see output_array)")
+                              f"rows (see {maker})")
         return out
 
     def _arguments(self, theta, omega, omegadot, p):
@@ -127,6 +166,53 @@ class FastInverseDynamics:
                               f"got shape {p.shape}")
         return theta, omega, omegadot, p, n
 
+    def _layout(self, p, n, block):
+        """(per_sample, shared, p as the library reads it, block, unit): p one vector for all samples
+        (shared), one per block of `block` samples, or one per sample (stored by parameter); `unit`
+        the samples a thread takes whole -- blocks, or chunks of one design: the library restarts its
+        chunks at each block, so any split gives the same bits as one call."""
+        if p.ndim == 2 and block is None:
+            if p.shape[0] != n:
+                raise ConfigError(f"p has {p.shape[0]} rows for {n} samples; give block= for one "
+                                  "row per block of samples")
+            return True, False, np.ascontiguousarray(p.T), None, self.manifest.get("chunk", 512)
+        block = n if p.ndim == 1 else int(block)
+        rows = 1 if p.ndim == 1 else p.shape[0]
+        if block < 1 or rows != max(1, -(-n // block)):
+            raise ConfigError(f"p has {rows} rows; {n} samples in blocks of {block} need "
+                              f"{max(1, -(-n // block))}")
+        shared = p.ndim == 1
+        return False, shared, np.ascontiguousarray(p), block, self.manifest.get("chunk", 512) if shared else block
+
+    def _run(self, fns, n, theta, omega, omegadot, p, block, out, threads, extra=()):
+        """Call the (blocks, samples) entry pair `fns` over n samples, split over `threads`; `extra`
+        are the arguments after p's and before out's."""
+        per_sample, shared, p, block, unit = self._layout(p, n, block)
+        blocks_fn, samples_fn = fns
+        ld = out.strides[0] // 8
+        units = -(-n // unit) if n else 0
+        cuts = [min(n, unit * (units * t // max(1, threads))) for t in range(max(1, threads) + 1)]
+        a_th, a_om, a_od, a_out, a_p = (_address(x) for x in (theta, omega, omegadot, out, p))
+
+        def run(lo, hi):  # byte offsets into the C-contiguous float64 buffers
+            if hi <= lo:
+                return 0
+            args = (hi - lo, a_th + 8 * lo, a_om + 8 * lo, a_od + 8 * lo)
+            if per_sample:
+                return samples_fn(*args, a_p + 8 * lo, n, *extra, a_out + 8 * lo, ld)
+            if shared:
+                return blocks_fn(*args, a_p, hi - lo, *extra, a_out + 8 * lo, ld)
+            return blocks_fn(*args, a_p + 8 * self.n_params * (lo // block), block, *extra, a_out + 8 * lo, ld)
+
+        if threads > 1 and n > 1:
+            with ThreadPoolExecutor(threads) as ex:
+                codes = list(ex.map(run, cuts[:-1], cuts[1:]))
+        else:
+            codes = [run(0, n)]
+        if any(codes):
+            raise CodegenError(f"SIMD inverse dynamics of {self.structure.variant} refused its arguments"
+                               + (" (out of memory)" if 2 in codes else ""))
+
     def __call__(self, theta, omega, omegadot, p, block: int | None = None, out=None,
                  threads: int = 1, outputs=None) -> dict:
         """Evaluate n samples (n = len(theta)). p: (n_p,) for all samples; (n_blocks, n_p) with
@@ -136,48 +222,7 @@ class FastInverseDynamics:
         theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
         key = self.entry_for(outputs)
         out = self._out_array(out, key, n)
-        blocks_fn, samples_fn = self._entries[key]
-        ld = out.strides[0] // 8
-        if p.ndim == 2 and block is None:
-            if p.shape[0] != n:
-                raise ConfigError(f"p has {p.shape[0]} rows for {n} samples; give block= for one "
-                                  "row per block of samples")
-            per_sample, pt = True, np.ascontiguousarray(p.T)
-        else:
-            per_sample = False
-            block = n if p.ndim == 1 else int(block)
-            rows = 1 if p.ndim == 1 else p.shape[0]
-            if block < 1 or rows != max(1, -(-n // block)):
-                raise ConfigError(f"p has {rows} rows; {n} samples in blocks of {block} need "
-                                  f"{max(1, -(-n // block))}")
-            p = np.ascontiguousarray(p)
-        # threads take whole blocks, or whole chunks of one design: the library restarts its
-        # chunks at each block, so any split gives the same bits as one call
-        shared = not per_sample and p.ndim == 1
-        unit = block if not (per_sample or shared) else self.manifest.get("chunk", 512)
-        units = -(-n // unit) if n else 0
-        cuts = [min(n, unit * (units * t // max(1, threads))) for t in range(max(1, threads) + 1)]
-
-        a_th, a_om, a_od, a_out = (_address(x) for x in (theta, omega, omegadot, out))
-        a_p = _address(pt if per_sample else p)
-
-        def run(lo, hi):  # byte offsets into the C-contiguous float64 buffers
-            if hi <= lo:
-                return 0
-            args = (hi - lo, a_th + 8 * lo, a_om + 8 * lo, a_od + 8 * lo)
-            if per_sample:
-                return samples_fn(*args, a_p + 8 * lo, n, a_out + 8 * lo, ld)
-            if shared:
-                return blocks_fn(*args, a_p, hi - lo, a_out + 8 * lo, ld)
-            return blocks_fn(*args, a_p + 8 * self.n_params * (lo // block), block, a_out + 8 * lo, ld)
-
-        if threads > 1 and n > 1:
-            with ThreadPoolExecutor(threads) as ex:
-                codes = list(ex.map(run, cuts[:-1], cuts[1:]))
-        else:
-            codes = [run(0, n)]
-        if any(codes):
-            raise CodegenError(f"SIMD inverse dynamics of {self.structure.variant} refused its arguments")
+        self._run(self._entries[key], n, theta, omega, omegadot, p, block, out, threads)
         return self.split(out, key, outputs)
 
     def split(self, out: np.ndarray, key=None, outputs=None) -> dict:
@@ -203,6 +248,7 @@ class ScalarInverseDynamics(FastInverseDynamics):
         self.vanes, self.n_params = structure.vanes, len(layout(structure))
         self.outputs = ("torque", *VANE_OUTPUTS)
         self._set_layouts(SUBSETS)
+        self._jac = None  # derivatives: the CasADi map's (identification's fallback path)
 
     def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1, outputs=None):
         theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
