@@ -34,7 +34,6 @@ def best_of(fn, repeats=3, stat=min):
 
 def bench_inverse_dynamics(n=100_000):
     """Inverse dynamics at constant speed, 4 vanes, ellipse, n angle samples."""
-    import casadi as ca
 
     from pumpsim.codegen.build import build_model
     from pumpsim.codegen.numpy_model import NumpyConstrainedModel
