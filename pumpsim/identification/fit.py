@@ -72,7 +72,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
 
     start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
     initial_model = prob.model(prob.x0)
-    fit = _fit_identifiable(prob, start, optimiser, reduced)
+    fit = fit_identifiable(prob, start, optimiser, reduced)
     res = _result(prob, fit, multistart, adequacy)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
@@ -111,7 +111,7 @@ class _Fit:
     evaluations: int  # model evaluations of the problems fitted and dropped on the way
 
 
-def _fit_identifiable(prob, start, optimiser, reduced) -> _Fit:
+def fit_identifiable(prob, start, optimiser, reduced) -> _Fit:
     """Identifiability at the start and again at the fit: a parameter without effect, or in a
     near-null direction of J'J (over-parameterised: COF and offset on a concentric rig), gets no
     number; it is fixed and the others are fitted again."""

@@ -414,7 +414,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
     Parameters the log cannot determine (no effect, or a near-null direction of the noise-scaled
     Jacobian) get no number and the note says what experiment would separate them."""
-    from .fit import _fit_identifiable
+    from .fit import fit_identifiable
     from .optimiser import Optimiser
     from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
 
@@ -427,7 +427,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     def reduced(active, fixed, unident):
         return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident})
 
-    fit = _fit_identifiable(prob, prob.x0.copy(), optimiser, reduced)
+    fit = fit_identifiable(prob, prob.x0.copy(), optimiser, reduced)
     x0 = dict(zip(prob.names, prob.x0))
     if fit.outcome is None:
         fitted_prob, x = prob, prob.x0
