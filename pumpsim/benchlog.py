@@ -18,7 +18,7 @@ import numpy as np
 
 from .data import (SPEED_UNITS, TIME_UNITS, match_column, read_csv, read_mat, read_tdms, row_name, time_gaps,
                    time_resolution, unit_key)
-from .diagnostics import noise_sigma
+from .signals import noise_sigma
 from .errors import DataError
 
 CHANNELS = ("voltage", "current", "booster_pressure")  # required besides time

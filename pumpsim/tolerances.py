@@ -48,7 +48,7 @@ CONTACT_PERIODIC_REL = 1e-3
 # ~5e-10 m on s (< 1e-3 of a 1 um penetration); atol relative to each state's nominal size
 # (state_scale: vane positions 1e-3 x vane length).
 CONTACT_GAS_RTOL, CONTACT_GAS_ATOL = 1e-7, 1e-6
-# Solver study (pumpsim.study): a row that names no tolerance runs at the report's Table 13 setting
+# Solver study (pumpsim.solver_study): a row that names no tolerance runs at the report's Table 13 setting
 # (BDF at rtol 1e-6), against a reference at the runtime defaults RTOL/ATOL above.
 SOLVER_STUDY_RTOL, SOLVER_STUDY_ATOL = 1e-6, 1e-10
 # Gas model (pumpsim.pneumatics): the integrator's states are scaled to their starting size (atol is

@@ -17,7 +17,7 @@ def register(sub):
 
 def run(a) -> int:
     from ..errors import ConfigError
-    from ..study import HEADER, solver_study, write_json
+    from ..solver_study import HEADER, solver_study, write_json
 
     outs = outputs(a, [a.config], json=None)
     cfg = load_config(a)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ..diagnostics import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test, order_spectrum,
+from ..signals import (VERDICT_DETECTORS, broadband_sigma, combined_p, detectors, kurtosis_test, order_spectrum,
                            systematic_rms)
 
 from .options import OPTIONS, DiagnosisOptions
@@ -68,7 +68,7 @@ def kurtosis_off_reversals(run, state, current) -> list:
 
 def noise_scatter(run, fit, verdict) -> float:
     """The noise's standard deviation whatever its colour: the residual of `fit` without its narrow
-    spectral lines (diagnostics.broadband_sigma), per measurement, the largest; at least the
+    spectral lines (signals.broadband_sigma), per measurement, the largest; at least the
     detectors' noise sigma (`verdict`'s). Coloured noise keeps its full variance (under AR(1) noise, phi 0.85,
     the high-frequency level is 0.4 x it); the misfit a named effect leaves at a few orders does
     not count as noise (an independent two-effect record: a 2.8 % speed ripple's misfit made the

@@ -12,7 +12,7 @@ import numpy as np
 import scipy.linalg
 from scipy import stats
 
-from ..diagnostics import order_lines
+from ..signals import order_lines
 
 from .effects import EFFECTS, Candidate, Effect, clearance, owner_of
 from .options import OPTIONS, DiagnosisOptions

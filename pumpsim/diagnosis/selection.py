@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from ..diagnostics import speed_column_disagreement
+from ..signals import speed_column_disagreement
 
 from .detectors import Detection, noise_scatter
 from .effects import absent_values
@@ -108,7 +108,7 @@ def _speed_column_disagrees(run, st, res) -> str | None:
     """Why a fit that moves the shaft speed (a speed ripple) cannot be this measurement's, when a
     measured speed column shows a different ripple (None when they agree, or nothing to compare:
     no column, a column the model follows, several measurements). The speed is evidence, not
-    only a mean (diagnostics.speed_column_disagreement)."""
+    only a mean (signals.speed_column_disagreement)."""
     d = run.datasets[0]
     if len(run.datasets) > 1 or d.speed is None or d.speed_trend() is not None or "ripple_cos" not in st.names:
         return None

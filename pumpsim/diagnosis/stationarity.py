@@ -9,7 +9,7 @@ import numpy as np
 from scipy import stats
 
 from ..identification import base_name
-from ..diagnostics import noise_sigma
+from ..signals import noise_sigma
 from ..identification.problem import SPEED_COLUMN_Z
 
 from .log import SpeedRefined

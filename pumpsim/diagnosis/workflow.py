@@ -10,7 +10,7 @@ import numpy as np
 
 from ..config import PumpConfig
 from ..data import Dataset
-from ..diagnostics import synchronous_speed_scan
+from ..signals import synchronous_speed_scan
 from ..errors import ConfigError
 from ..identification import base_name, half_band, speed_band
 

@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy import stats
 
-from ..diagnostics import high_frequency_noise, order_spectrum, synchronous_average
+from ..signals import high_frequency_noise, order_spectrum, synchronous_average
 
 MODEL_ORDER_POWER = 0.99  # the model's own orders: those carrying this share of its shaft-order power
 MAX_ORDER = 64

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..config import PumpConfig
 from ..data import Dataset
-from ..diagnostics import residual_report
+from ..signals import residual_report
 from ..errors import ConfigError
 from .adequacy import VERDICTS, assess
 from .identifiability import to_fix

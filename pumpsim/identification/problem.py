@@ -11,7 +11,7 @@ import numpy as np
 
 from ..config import PumpConfig, as_array
 from ..data import Dataset
-from ..diagnostics import noise_sigma
+from ..signals import noise_sigma
 from ..errors import ConfigError
 from ..kernels import fast_kernel, load_kernels, map_samples
 from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_GRAPH_INPUTS,

@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 
 from ..benchlog import BenchLog, fit_percent
-from ..diagnostics import noise_sigma
+from ..signals import noise_sigma
 from ..errors import ConfigError, SolverError
 from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL

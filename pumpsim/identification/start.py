@@ -10,7 +10,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from ..diagnostics import synchronous_speed_scan
+from ..signals import synchronous_speed_scan
 from ..model_spec.parameters import MEASUREMENT_BY_NAME, registry
 from ..kernels import sampled_inverse_dynamics
 

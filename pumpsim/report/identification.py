@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from ..diagnostics import order_spectrum, synchronous_average
+from ..signals import order_spectrum, synchronous_average
 from ..presentation import (OPTIMISTIC, PLUS_MINUS, describe, display_scale, fmt_estimate, fmt_interval,
                             fmt_number)
 from .html import Cell, figure_html, nb, provenance_html, provenance_line, provenance_of, table, write_page

@@ -10,7 +10,7 @@ import numpy as np
 import pumpsim
 from bench.diagnose_grid import rig
 from pumpsim.data import Dataset
-from pumpsim.diagnostics import kurtosis_test
+from pumpsim.signals import kurtosis_test
 from pumpsim.identification import identify, make_problem
 from tests.tolerances import KURTOSIS_SITUATION_P, PROFILE_SMOOTH_CHI2
 

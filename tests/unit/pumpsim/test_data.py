@@ -196,7 +196,7 @@ def test_mean_speed_of_a_rippled_column_is_the_mean_over_whole_revolutions(k, ph
 def test_third_difference_noise_reads_white_noise_and_not_a_ripple():
     """Third differences: the sigma of white noise within its sampling error, a 2.8 % order-3 ripple of an exact column at 20 kHz as
     (2 pi k w / rate)^3 of its size, far below any logger's noise."""
-    from pumpsim.diagnostics import noise_sigma
+    from pumpsim.signals import noise_sigma
     n, rate = 20000, 20000.0
     t = np.arange(n) / rate
     noise = 1.5 * np.random.default_rng(3).standard_normal(n)

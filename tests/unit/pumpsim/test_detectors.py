@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pumpsim.diagnostics import (broadband_sigma, combined_p, detectors, high_frequency_noise, kurtosis_test,
+from pumpsim.signals import (broadband_sigma, combined_p, detectors, high_frequency_noise, kurtosis_test,
                                  ljung_box, runs_test, synchronous_f_test, synchronous_speed_scan, systematic_rms)
 from tests.tolerances import BROADBAND_SIGMA_REL, HF_SIGMA_REL, NULL_KS_P, SPEED_SCAN_DRIFT_RAD, STRUCTURE_P, SYSTEMATIC_RMS_ABS
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 from scipy import stats
 
-from pumpsim.diagnostics import order_lines
+from pumpsim.signals import order_lines
 from tests.tolerances import NULL_KS_P
 
 DT = 1e-4

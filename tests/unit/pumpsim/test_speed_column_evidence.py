@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from pumpsim.diagnostics import speed_column_disagreement
+from pumpsim.signals import speed_column_disagreement
 
 W, N = 471.0, 2000
 T = np.arange(N) * 1e-4

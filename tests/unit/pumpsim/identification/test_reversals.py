@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pumpsim.diagnostics import ljung_box, runs_test, synchronous_f_test
-from pumpsim.diagnostics import noise_sigma
+from pumpsim.signals import ljung_box, runs_test, synchronous_f_test
+from pumpsim.signals import noise_sigma
 from pumpsim.identification.reversals import STEP_SIGMA, reversal_keep, step_signature
 from tests.tolerances import NULL_KS_P, ROBUST_SIGMA_REL, STEP_SIGNATURE_ABS
 

@@ -1,4 +1,5 @@
-"""Residual diagnostics: runs test, Ljung-Box, order spectrum, angle-domain synchronous average."""
+"""Signal statistics of a residual or a record: runs test, Ljung-Box, order spectrum, angle-domain
+synchronous average, noise levels and the speed evidence in a torque record."""
 from __future__ import annotations
 
 import math
