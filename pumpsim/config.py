@@ -171,7 +171,7 @@ class PumpConfig:
 
     def structure_for(self, model: str = "constrained") -> Structure:
         if model not in MODELS:
-            raise ConfigError(f"--model must be one of {', '.join(MODELS)}, got '{model}'")
+            raise ConfigError(f"model must be one of {', '.join(MODELS)}, got '{model}'")
         slots = max(DEFAULT_HARMONIC_SLOTS, len(self.harmonics))
         if model == "contact":
             return Structure("contact", self.vanes, slots, self.contact_laws["housing"],

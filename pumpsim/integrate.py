@@ -46,7 +46,7 @@ class Integrator:
             if not 0 < val < 1:
                 raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
         if max_step is not None and not max_step > 0:
-            raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
+            raise ConfigError(f"max_step must be > 0, got {max_step:g}")
         self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
         self.names = list(names) if names is not None else [f"x[{i}]" for i in range(nx)]
         self.params = np.asarray(params, dtype=float).ravel()
@@ -74,7 +74,7 @@ class Integrator:
         if self.method == "rk":  # fixed steps: rk_steps per output interval (the option is a total)
             return ca.integrator(name, "rk", dae, 0.0, grid,
                                  {"number_of_finite_elements": self.rk_steps * len(grid)})
-        raise ConfigError(f"--method must be cvodes, idas or rk, got {self.method!r}")
+        raise ConfigError(f"method must be cvodes, idas or rk, got {self.method!r}")
 
     def _call(self, integ, x, extra, intervals=1):
         self.calls += 1
@@ -181,7 +181,7 @@ def _guarded(integ, fn, t_a, t_b, x, done_t, done_x):
         limit = f" (bounds {lo[i]:.4g} .. {hi[i]:.4g})" if lo is not None else ""
         raise SolverError(f"integrator returned {what} between t = {t_a:.9g} s and {t_b:.9g} s: "
                           f"{integ.names[i]} = {rows[k, i]:.6g}{limit}; the state at {t_a:.9g} s was "
-                          f"{np.array2string(x, precision=6, max_line_width=10**6)} -- a smaller --max-step or an implicit "
+                          f"{np.array2string(x, precision=6, max_line_width=10**6)} -- a smaller max_step or an implicit "
                           "method (cvodes) may help", partial=(done_t, done_x))
     return out
 

@@ -13,14 +13,14 @@ from .errors import ConfigError
 def sample_times(duration, rate):
     """The output times [s]: every 1/rate from 0 to duration."""
     if duration is None or not 0 < duration < math.inf:
-        raise ConfigError(f"--duration must be > 0 and finite, got {duration}")
+        raise ConfigError(f"duration must be > 0 and finite, got {duration}")
     if rate is None or not 0 < rate < math.inf:
-        raise ConfigError(f"--rate must be > 0 and finite, got {rate}")
+        raise ConfigError(f"rate must be > 0 and finite, got {rate}")
     n = int(math.floor(duration * rate + 1e-9)) + 1
     if n < 2:
-        raise ConfigError(f"--duration {duration:g} s at --rate {rate:g} Hz gives fewer than 2 samples")
+        raise ConfigError(f"duration {duration:g} s at rate {rate:g} Hz gives fewer than 2 samples")
     if n > 5_000_000:
-        raise ConfigError(f"--duration x --rate gives {n} samples; the limit is 5,000,000")
+        raise ConfigError(f"duration x rate gives {n} samples; the limit is 5,000,000")
     return np.arange(n) / rate
 
 

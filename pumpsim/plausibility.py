@@ -30,22 +30,22 @@ TORQUE_MARGIN = 10.0  # a torque level 10x outside the model's COF range [0, 2] 
 MAX_VESSEL_VOLUME = 1.0  # m^3
 MIN_ATMOSPHERE = 1.0e4  # Pa
 
-TORQUE_FACTORS = {"N*mm (use --torque-unit N*mm or a 'torque [N*mm]' header)": 1e3,
-                  "N*cm (use --torque-unit N*cm)": 1e2,
-                  "N*m, but --torque-unit or the header says N*mm": 1e-3}
-SPEED_FACTORS = {"rpm (use --speed-unit rpm or a 'speed [rpm]' header)": 60 / (2 * math.pi),
-                 "rev/s (use --speed-unit rev/s)": 1 / (2 * math.pi),
+TORQUE_FACTORS = {"N*mm (set the torque unit N*mm, or a 'torque [N*mm]' header)": 1e3,
+                  "N*cm (set the torque unit N*cm)": 1e2,
+                  "N*m, but the torque unit option or the header says N*mm": 1e-3}
+SPEED_FACTORS = {"rpm (set the speed unit rpm, or a 'speed [rpm]' header)": 60 / (2 * math.pi),
+                 "rev/s (set the speed unit rev/s)": 1 / (2 * math.pi),
                  "deg/s (use a 'speed [deg/s]' header)": 180 / math.pi,
-                 "rad/s, but --speed-unit or the header says rpm": 2 * math.pi / 60}
-TIME_FACTORS = {"ms (use --time-unit ms or a 'time [ms]' header)": 1e3,
-                "us (use --time-unit us or a 'time [us]' header)": 1e6}
+                 "rad/s, but the speed unit option or the header says rpm": 2 * math.pi / 60}
+TIME_FACTORS = {"ms (set the time unit ms, or a 'time [ms]' header)": 1e3,
+                "us (set the time unit us, or a 'time [us]' header)": 1e6}
 FACTOR_TOL = 0.15  # relative: a ratio within 15 % of a unit factor is taken as that unit
 
 
 def _refuse(problem, force, error):
     if force:
-        return [f"{problem} (--force: proceeding)"]
-    raise error(f"{problem}; --force proceeds anyway")
+        return [f"{problem} (forced: proceeding)"]
+    raise error(f"{problem}; the force option proceeds anyway")
 
 
 def config_problems(cfg) -> list[str]:
@@ -135,7 +135,7 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
                                     f"the column looks like {unit}", force, DataError)
         if tip > MAX_TIP_SPEED and not warnings:
             warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s gives a vane tip "
-                                f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (use --speed-unit rpm)",
+                                f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (set the speed unit rpm)",
                                 force, DataError)
     w = speed if speed and speed > 0 else (cfg.speed if cfg.speed else None)
     if w and "speed" not in params and ds.n > 1:

@@ -38,7 +38,7 @@ def contact_warnings(out, time, warnings, events=None, lift_off=False) -> None:
             if kind == "lift_off":
                 msg = (f"vane {i} would lift off: housing reaction {out['normal'][i, k]:.4g} N < 0 at "
                        f"t = {time[k]:.6g} s ({int(bad[i].sum())} samples); Model 2 assumes contact, "
-                       "use --model contact")
+                       "use model='contact'")
             else:
                 what = ("no consistent contact-side set" if out["n_consistent"][i, k] < 0.5 else
                         f"{int(out['n_consistent'][i, k])} consistent contact-side sets")

@@ -41,7 +41,7 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
         if not 0 < val < 1:
             raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
     if max_step is not None and not max_step > 0:
-        raise ConfigError(f"--max-step must be > 0, got {max_step:g}")
+        raise ConfigError(f"max_step must be > 0, got {max_step:g}")
     if model == "contact":
         from .contact import simulate_contact
 
@@ -49,9 +49,9 @@ def simulate(cfg: PumpConfig, model: str = "constrained", duration: float | None
                                 atol=atol, max_step=max_step, progress=progress,
                                 max_steps=max_steps, **options)
     if model != "constrained":
-        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+        raise ConfigError(f"model must be 'constrained' or 'contact', got '{model}'")
     if options:
-        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
+        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (model='contact')")
     from .constrained import simulate_constrained
 
     return simulate_constrained(cfg, duration, rate, method, rtol, atol, max_step, progress, max_steps)
@@ -62,16 +62,16 @@ def _simulate_gas(cfg, model, max_step, options, **run):
     (pneumatics.contact) with the gas; `run` holds duration, rate, method, rtol, atol, progress,
     max_steps."""
     if max_step is not None:
-        raise ConfigError(f"--max-step {max_step:g}: the gas model (the config's spec §8 tables) takes "
-                          "CVODES's own steps; tighten --rtol/--atol instead")
+        raise ConfigError(f"max_step {max_step:g}: the gas model (the config's spec §8 tables) takes "
+                          "CVODES's own steps; tighten rtol/atol instead")
     if model == "contact":
         from .pneumatics.contact import simulate as simulate_gas_contact
 
         return simulate_gas_contact(cfg, **run, **options)
     if model != "constrained":
-        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+        raise ConfigError(f"model must be 'constrained' or 'contact', got '{model}'")
     if options:
-        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (--model contact)")
+        raise ConfigError(f"option(s) {', '.join(options)} are for the contact model (model='contact')")
     from .pneumatics.simulate import simulate as simulate_gas
 
     return simulate_gas(cfg, **run)

@@ -57,7 +57,7 @@ class TimeGaps:
         return (f"{row(i + 1)}: a gap of {size:.6g} s in time after {self.time[i]:.10g} s, "
                 f"{size / self.step:.3g} times the sample interval {self.step:.6g} s (about "
                 f"{max(1, round(size / self.step) - 1)} samples missing){more}; cut the record at the gap, or "
-                "pass --resample HZ (or --resample auto) to interpolate onto a uniform grid across it")
+                "set resample to a rate in Hz (or 'auto') to interpolate onto a uniform grid across it")
 
     def bridged(self) -> str:
         if not self.gaps.size:
@@ -89,7 +89,7 @@ def time_gaps(time, resolution: float = 0.0) -> TimeGaps:
 
 def check_rate(rate) -> None:
     if not (isinstance(rate, (int, float)) and rate > 0 and math.isfinite(rate)):
-        raise DataError(f"--resample must be a rate > 0 [Hz] or 'auto', got {rate}")
+        raise DataError(f"resample must be a rate > 0 [Hz] or 'auto', got {rate}")
 
 
 def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
@@ -97,7 +97,7 @@ def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
     says so, and names the gaps bridged (`gaps`: from `time_gaps`)."""
     check_rate(rate)
     if (ds.time[-1] - ds.time[0]) * rate > 5_000_000:
-        raise DataError(f"--resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
+        raise DataError(f"resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
                         "5,000,000 samples")
     t = np.arange(ds.time[0], ds.time[-1] + 0.5 / rate, 1.0 / rate)
     t = t[t <= ds.time[-1] + 1e-6 / rate]  # the last sample also when rounding puts it a hair beyond

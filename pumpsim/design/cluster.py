@@ -27,7 +27,7 @@ def probe_scheduler(address):
     except ValueError:
         host = port = None
     if not host or not port:
-        raise ConfigError(f"--scheduler: '{address}' is not a scheduler address (tcp://HOST:PORT)")
+        raise ConfigError(f"scheduler: '{address}' is not a scheduler address (tcp://HOST:PORT)")
     try:
         socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
     except OSError as e:

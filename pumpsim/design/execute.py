@@ -268,7 +268,7 @@ def _plan(study, X, man, batch_size, client) -> Plan:
     bs = batch_size or study.batch_size
     if man and bs and (man.get("batch_bounds") or int(man.get("batch_size") or 0) != int(bs)):
         raise ConfigError(f"the results folder holds batches laid out as {_layout(man)}, not of {int(bs)} "
-                          "designs; resume it without --batch-size (and study.batch_size), or choose "
+                          "designs; resume it without a batch size (option or study.batch_size), or choose "
                           "another folder")
     if bs:
         return Plan(study, X, int(bs))
@@ -341,7 +341,7 @@ def _check_kernels(study, man, out, scheduler) -> None:
         return
     _build_kernels(study)
     if man and man.get("kernel_keys") != kernel_keys(study):
-        raise ConfigError(f"--out '{out}' was written with other compiled kernels "
+        raise ConfigError(f"results folder '{out}' was written with other compiled kernels "
                           f"({man.get('kernel_keys')}); its parts cannot be mixed with new ones: "
                           "choose another folder or remove it")
 

@@ -74,23 +74,23 @@ def check_out_dir(out, study_hash) -> dict | None:
         return None
     d = Path(out)
     if not d.parent.is_dir():
-        raise ConfigError(f"--out: folder '{d.parent}' does not exist")
+        raise ConfigError(f"results folder '{d}': its parent '{d.parent}' does not exist")
     if d.exists() and not d.is_dir():
-        raise ConfigError(f"--out '{d}' exists and is not a folder")
+        raise ConfigError(f"results folder '{d}' exists and is not a folder")
     probe_folder(d, "--out", create=True)
     if not d.exists():
         return None
     mpath = d / MANIFEST
     if not mpath.exists():
         if any(p.name not in LOCK_FILES for p in d.iterdir()):
-            raise ConfigError(f"--out '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
+            raise ConfigError(f"results folder '{d}' is not empty and holds no {MANIFEST}; choose a new folder")
         return None
     try:
         man = json.loads(mpath.read_text())
     except (OSError, json.JSONDecodeError) as e:
-        raise ConfigError(f"--out '{d}': unreadable {MANIFEST} ({e})") from None
+        raise ConfigError(f"results folder '{d}': unreadable {MANIFEST} ({e})") from None
     if man.get("study_hash") != study_hash:
-        raise ConfigError(f"--out '{d}' holds results of a different study (hash {man.get('study_hash')}, "
+        raise ConfigError(f"results folder '{d}' holds results of a different study (hash {man.get('study_hash')}, "
                           f"this study {study_hash}); choose another folder or remove it")
     return man
 

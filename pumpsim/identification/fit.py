@@ -55,13 +55,13 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
     optimiser = Optimiser(method, relaxation, max_iter, log)
     datasets = data if isinstance(data, (list, tuple)) else [data]
     if method == "ipopt" and len(datasets) > 1:
-        raise ConfigError("--method ipopt fits one measurement; use gauss-newton or levenberg-marquardt")
+        raise ConfigError("method 'ipopt' fits one measurement; use gauss-newton or levenberg-marquardt")
     if method == "ipopt" and transient:  # CVODES adjoints inside IPOPT: minutes, and they fail
-        raise ConfigError("--method ipopt fits constant-speed data; a transient fit uses gauss-newton or "
+        raise ConfigError("method 'ipopt' fits constant-speed data; a transient fit uses gauss-newton or "
                           "levenberg-marquardt")
     if not transient and cfg.mode != "speed" and "speed" not in params and any(d.speed is None for d in datasets):
         raise ConfigError("identification needs a constant speed: operation.speed in the config, a "
-                          "speed column in the data, or 'speed' in --params")
+                          "speed column in the data, or 'speed' in params")
     wall0 = _time.perf_counter()
     prob = make_problem(cfg, data, params, initial, extra, ripple_order, transient, reversals, interval, speed_in_band)
 

@@ -47,9 +47,9 @@ class Optimiser:
 
     def __post_init__(self):
         if self.method not in METHODS:
-            raise ConfigError(f"--method must be one of {', '.join(METHODS)}, got '{self.method}'")
+            raise ConfigError(f"method must be one of {', '.join(METHODS)}, got '{self.method}'")
         if not 0 < self.relaxation <= 1:
-            raise ConfigError(f"--relaxation must be in (0, 1], got {self.relaxation:g}")
+            raise ConfigError(f"relaxation must be in (0, 1], got {self.relaxation:g}")
 
     def fit(self, prob, x0, start=None) -> FitOutcome:
         """Fit prob from x0; `start` = (model, Jacobian) at x0 when the caller has them already."""

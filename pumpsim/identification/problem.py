@@ -63,12 +63,12 @@ class Problem:
         self.p0 = as_array(self.pv)
         self.names = list(names)
         if not self.names:
-            raise ConfigError("--params names no parameter to fit")
+            raise ConfigError("params names no parameter to fit")
         self._index = {n: i for i, n in enumerate(self.pv.names)}
         for n in self.names:
             self._check_name(n)
         if len(set(self.names)) != len(self.names):
-            raise ConfigError(f"--params names a parameter twice: {','.join(self.names)}")
+            raise ConfigError(f"params names a parameter twice: {','.join(self.names)}")
         v = self.pv.values
         # [housing static/dynamic, slot static/dynamic, slot/housing dynamic]: mu scales the
         # configured COFs by one factor (a rig's own [friction.slot] is a measured or chosen value,
@@ -86,7 +86,7 @@ class Problem:
             return
         close = difflib.get_close_matches(n, list(self.SPECIAL) + list(self._index), n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
-        raise ConfigError(f"--params: unknown parameter '{n}'{self.KIND}{hint}")
+        raise ConfigError(f"params: unknown parameter '{n}'{self.KIND}{hint}")
 
     def _parameters(self, val, lib=np):
         """The runtime parameter vector with the fitted values `val` (name -> value) put in."""

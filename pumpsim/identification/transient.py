@@ -35,7 +35,7 @@ class TransientProblem(Problem):
             raise DataError("transient identification needs a measured speed column")
         dt = np.diff(data.time)
         if np.ptp(dt) > 1e-6 * dt.mean():
-            raise DataError("transient identification needs uniformly sampled data (use --resample)")
+            raise DataError("transient identification needs uniformly sampled data (set the resample option)")
         starts = {"speed0": float(data.speed[0]),
                   "theta0": float(data.angle[0]) if data.angle is not None else cfg.angle, **(extra or {})}
         self._setup(cfg, data, names, starts, initial)

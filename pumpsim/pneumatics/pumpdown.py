@@ -83,7 +83,7 @@ def work_split(s) -> list[tuple[str, float]]:
 def _target(cfg, until):
     target = until if until is not None else cfg.pneumatic.booster_target
     if target is not None and not 0 < target < cfg.pneumatic.booster_start:
-        raise ConfigError(f"--until must be in (0, booster.pressure ({cfg.pneumatic.booster_start:g} Pa)), "
+        raise ConfigError(f"until must be in (0, booster.pressure ({cfg.pneumatic.booster_start:g} Pa)), "
                           f"got {target:g}")
     return target
 
@@ -101,7 +101,7 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     `duration` seconds (default 120 s); model "contact": Model 1 (vanes free in their slots,
     lift-off reported) instead of Model 2. rtol/atol: default_tolerances(model) when None."""
     if model not in ("constrained", "contact"):
-        raise ConfigError(f"--model must be 'constrained' or 'contact', got '{model}'")
+        raise ConfigError(f"model must be 'constrained' or 'contact', got '{model}'")
     rtol0, atol0 = default_tolerances(model)
     rtol, atol = (rtol0 if rtol is None else rtol), (atol0 if atol is None else atol)
     if cfg.pneumatic is None:
@@ -112,7 +112,7 @@ def pumpdown(cfg, until=None, duration=None, rate=2000.0, rtol=None, atol=None, 
     check_drive(cfg)
     target = _target(cfg, until)
     if target is None and duration is None:
-        raise ConfigError("give --until PA, --duration T or booster.target in the config")
+        raise ConfigError("give until (a pressure in Pa), duration (s) or booster.target in the config")
     from ..motion import sample_times
 
     sample_times(DEFAULT_DURATION if duration is None else duration, rate)  # finite, > 0, sample limit

@@ -78,7 +78,7 @@ def gas_run_times(cfg, duration, rate, method):
     from ..motion import sample_times
 
     if method != "cvodes":
-        raise ConfigError(f"--method {method}: the gas model integrates with cvodes only")
+        raise ConfigError(f"method {method}: the gas model integrates with cvodes only")
     check_drive(cfg)
     if duration is None:
         duration = 2 * 2 * math.pi / cfg.speed if cfg.mode == "speed" and cfg.speed > 0 else 0.1

@@ -51,16 +51,16 @@ def write_toml(path, d):
 # --- 1. unit mistakes are refused before any work, naming the unit and the fix ------------------
 
 @pytest.mark.parametrize("transform,expect", [
-    (lambda t, tq, w: (t, tq * 1000, w), ["N*mm", "--torque-unit N*mm"]),
-    (lambda t, tq, w: (t, tq, w * 60 / (2 * math.pi)), ["rpm", "--speed-unit rpm"]),
-    (lambda t, tq, w: (t * 1000, tq, w), ["ms", "--time-unit ms"]),
+    (lambda t, tq, w: (t, tq * 1000, w), ["N*mm", "set the torque unit N*mm"]),
+    (lambda t, tq, w: (t, tq, w * 60 / (2 * math.pi)), ["rpm", "set the speed unit rpm"]),
+    (lambda t, tq, w: (t * 1000, tq, w), ["ms", "set the time unit ms"]),
 ])
 def test_unit_mistakes_in_data_are_refused_with_the_fix(tmp_path, capsys, transform, expect):
     t, tq, w = transform(*rig_columns())
     data = write(tmp_path / "d.csv", "time,torque,speed", t, tq, w)
     js = tmp_path / "fit.json"
     code, _, err = run(capsys, "identify", RIG, data, "--params", "mu", "--json", js)
-    assert code == 2 and all(e in err for e in expect) and "--force" in err, err
+    assert code == 2 and all(e in err for e in expect) and "force option" in err, err
     assert not js.exists()
 
 
@@ -109,7 +109,7 @@ def test_config_in_mm_g_or_rpm_is_refused(tmp_path, capsys, changes, key):
     cfg = write_toml(tmp_path / "c.toml", apply_changes(example_dict(), changes))
     out = tmp_path / "o.csv"
     code, _, err = run(capsys, "simulate", cfg, "--out", out)
-    assert code == 2 and key in err and "SI" in err and "--force" in err and not out.exists(), err
+    assert code == 2 and key in err and "SI" in err and "force option" in err and not out.exists(), err
 
 
 # --- 2. a diverging explicit run is a numerical failure, exit 1, nothing written ---------------
@@ -179,7 +179,7 @@ def test_header_only_csv(tmp_path, capsys):
     (["--rtol", "-1"], "--rtol must be in (0, 1)"),
     (["--atol", "0"], "--atol must be in (0, 1)"),
     (["--max-steps", "0"], "--max-steps must be >= 1"),
-    (["--rate", "nan"], "--rate must be > 0"),
+    (["--rate", "nan"], "rate must be > 0"),
 ])
 def test_bad_tolerances_are_refused_before_casadi(capsys, args, message):
     code, _, err = run(capsys, "simulate", ELLIPSE, "--model", "contact", *args)

@@ -43,10 +43,10 @@ def test_identify_rejects_unknown_parameter(tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--relaxation", "1.5"], "--relaxation must be in (0, 1], got 1.5"),
+    (["--relaxation", "1.5"], "relaxation must be in (0, 1], got 1.5"),
     (["--start", "mu0.1"], "--start takes NAME=VALUE, got 'mu0.1'"),
     (["--start", "mu=abc"], "--start takes NAME=VALUE, got 'mu=abc'"),
-    (["--params", ","], "--params names no parameter"),
+    (["--params", ","], "params names no parameter"),
     (["--torque-unit", "kgf"], "torque unit must be one of"),
     (["--method", "newton"], "invalid choice: 'newton'"),
 ])

@@ -74,10 +74,10 @@ def test_pumpdown_command_writes_the_spec_columns_and_json(tmp_path):
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--until", "2e5"], "--until must be in (0, booster.pressure"),
+    (["--until", "2e5"], "until must be in (0, booster.pressure"),
     (["--out", "/nonexistent/x.csv"], "output folder '/nonexistent' does not exist"),
     (["--plot", "x.svg"], "--plot 'x.svg': the file type must be one of .png"),
-    (["--duration", "-1"], "--duration must be > 0"),
+    (["--duration", "-1"], "duration must be > 0"),
 ])
 def test_bad_input_exits_2_and_writes_nothing(tmp_path, capsys, args, message):
     js = tmp_path / "pd.json"
@@ -124,7 +124,7 @@ def test_unit_mistake_is_refused_and_force_proceeds(tmp_path, capsys):
     js = tmp_path / "pd.json"
     assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js)]) == 2
     err = capsys.readouterr().err
-    assert "vane.mass" in err and "--force" in err and not js.exists()
+    assert "vane.mass" in err and "force option" in err and not js.exists()
     assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js), "--force"]) == 0
     assert "warning: vane.mass" in capsys.readouterr().err and js.exists()
 
@@ -143,7 +143,7 @@ def test_gas_unit_mistakes_are_refused(tmp_path, capsys, old, new, key):
     js = tmp_path / "pd.json"
     assert main(["pumpdown", str(cfg), "--duration", "0.002", "--json", str(js)]) == 2
     err = capsys.readouterr().err
-    assert key in err and "SI" in err and "--force" in err and not js.exists(), err
+    assert key in err and "SI" in err and "force option" in err and not js.exists(), err
 
 
 def test_mechanical_config_is_rejected(capsys):

@@ -65,7 +65,7 @@ def test_simulate_cli_gas_model_refuses_max_step(tmp_path):
     """--max-step shapes the mechanical integrators only; on a gas config it was silently ignored."""
     out = tmp_path / "m2.csv"
     r = _cli("simulate", EVP, "--duration", "0.002", "--max-step", "1e-6", "--out", str(out))
-    assert r.returncode == 2 and "--max-step" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and "max_step" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
 
 

@@ -133,8 +133,8 @@ def test_cli_rejects_bad_config_with_status_2_and_writes_nothing(tmp_path, chang
 
 
 @pytest.mark.parametrize("args,message", [
-    (["--duration", "-1"], "--duration must be > 0"),
-    (["--rate", "0"], "--rate must be > 0"),
+    (["--duration", "-1"], "duration must be > 0"),
+    (["--rate", "0"], "rate must be > 0"),
     (["--model", "magic"], "invalid choice: 'magic'"),
     (["--out", "/nonexistent/dir/o.csv"], "output folder '/nonexistent/dir' does not exist"),
 ])

@@ -132,7 +132,7 @@ def test_a_20ms_gap_is_refused_naming_row_time_and_size(tmp_path):
     gap_row = int(np.sum(t < 0.05)) + 2  # header on line 1, rows from line 2
     msg = str(e.value)
     assert f"row {gap_row}: a gap of 0.02005 s in time after 0.04995 s" in msg
-    assert "about 400 samples missing" in msg and "--resample" in msg
+    assert "about 400 samples missing" in msg and "resample" in msg
 
 
 def test_resample_bridges_the_gap_and_says_so(tmp_path, capsys):
