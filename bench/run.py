@@ -449,7 +449,7 @@ def bench_load(rows=LOAD_ROWS):
 BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile, "contact": bench_contact,
            "identify": bench_identify, "identify_1e6": bench_identify_large, "diagnose": bench_diagnose,
            "load": bench_load}
-# run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes today
+# run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes (docs/explanation/bench-log.md)
 OPTIONAL = {"benchlog": bench_benchlog}
 
 
