@@ -20,10 +20,14 @@ floored at CHANNEL_FLOOR of the channel's size, the integrator's accuracy) so th
 cost weighs pressure, current and speed; the residual RMS is then in units of the noise (1: the
 model explains the log to its noise).
 
-Jacobian: central differences of the compiled model, 2 simulations per parameter. The pneumatic
-kernel is compiled without derivatives in its parameters (codegen FORWARD_DERIVATIVES), so CVODES
-forward sensitivities through CasADi are not available without rebuilding every variant; at
-BENCH_FIT_RTOL the differences agree with halved steps to ~1e-3 (tests).
+Jacobian: forward differences of the compiled model, one run per parameter, the runs of one
+Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
+Exact forward sensitivities (the kernel's forward derivative in x and p, CVODES on the system
+augmented with one sensitivity block per parameter, blocks in the error test) were measured on the
+EVP example: at rtol 1e-6 a 0.5 s log took 237,726 steps (a run alone 38,000) and 113 us per step
+(a run alone 21 us), ~33x one run against 3 runs for the differences; the sensitivities' kinks at
+the port edges and orifice branches make CVODES step short. At BENCH_FIT_RTOL the differences
+agree with halved steps to ~1e-3 (tests).
 """
 from __future__ import annotations
 
@@ -31,14 +35,14 @@ import difflib
 import time as _time
 from dataclasses import dataclass, field
 
-import casadi as ca
 import numpy as np
 
 from ..benchlog import BenchLog, fit_percent
 from ..signals import noise_sigma
-from ..errors import ConfigError, SolverError
+from ..errors import ConfigError
 from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
+from .bench_model import BenchModel, block_edges, block_means, block_samples  # noqa: F401 (public here too)
 from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
@@ -85,7 +89,7 @@ def fit_map(cfg):
 
 class BenchLogProblem(Problem):
     """The pump-down model at a bench log's samples (pressure, interval-mean current and speed),
-    each channel divided by its noise sigma; Jacobian by central differences."""
+    each channel divided by its noise sigma; Jacobian by forward differences."""
 
     KIND = " for a bench log"
     METHOD_TAG = "/bench-log"
@@ -126,6 +130,7 @@ class BenchLogProblem(Problem):
         self.y = self._stack(self.measured)
         self.n_eval = 0
         self.last = None  # the channels of the last simulation (unscaled)
+        self._at = None  # (x, model) of the last simulation: a Jacobian at an accepted trial point reuses it
 
     def _check_name(self, n):
         if n in NOT_FITTED:
@@ -145,35 +150,51 @@ class BenchLogProblem(Problem):
 
     def simulate(self, x) -> dict:
         """{channel: model samples} (unscaled) at the log's samples with the fitted values x."""
-        out = self.bench.channels(self.parameter_vector(x))
-        self.last = {c: out[c] for c in self.channel_names}
-        return self.last
+        x = np.asarray(x, dtype=float)
+        if self._at is not None and np.array_equal(self._at[0], x):
+            self.last = self._at[2]
+            return self.last
+        return self._simulated([x])[0]
+
+    def _simulated(self, xs) -> list:
+        outs = self.bench.channels_many([self.parameter_vector(x) for x in xs])
+        self.last = {c: outs[0][c] for c in self.channel_names}
+        return [{c: o[c] for c in self.channel_names} for o in outs]
 
     def _stack(self, ch: dict):
         return np.concatenate([ch[c] / self.sigma[c] for c in self.channel_names])
 
     def model(self, x):
+        x = np.asarray(x, dtype=float)
+        if self._at is not None and np.array_equal(self._at[0], x):
+            return self._at[1]
         self.n_eval += 1
-        return self._stack(self.simulate(x))
+        ch = self.simulate(x)
+        m = self._stack(ch)
+        self._at = (x.copy(), m, ch)
+        return m
 
     def _scale(self, j, x):
         return max(abs(x[j]), TYPICAL.get(self.names[j], 0.0)) or 1.0
 
     def model_and_jacobian(self, x, cols=None):
-        """The model and its central-difference Jacobian (one-sided at a bound)."""
+        """The model and its forward-difference Jacobian (the step away from a bound), the
+        perturbed runs integrated at once."""
         x = np.asarray(x, dtype=float)
         m = self.model(x)
         last = self.last
-        cols = range(len(self.names)) if cols is None else cols
-        J = np.zeros((m.size, len(list(cols))))
-        for k, j in enumerate(cols):
+        cols = list(range(len(self.names)) if cols is None else cols)
+        xs, hs = [], []
+        for j in cols:
             h = DIFFERENCE_STEP * self._scale(j, x)
-            lo, hi = max(x[j] - h, self.lower[j]), min(x[j] + h, self.upper[j])
-            xs = [x.copy(), x.copy()]
-            xs[0][j], xs[1][j] = hi, lo
-            up = self.model(xs[0]) if hi > x[j] else m
-            down = self.model(xs[1]) if lo < x[j] else m
-            J[:, k] = (up - down) / (hi - lo)
+            h = h if x[j] + h <= self.upper[j] else -h
+            xj = x.copy()
+            xj[j] += h
+            xs.append(xj)
+            hs.append(xj[j] - x[j])
+        self.n_eval += len(xs)
+        ms = [self._stack(ch) for ch in self._simulated(xs)] if xs else []
+        J = np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if xs else np.zeros((m.size, 0))
         self.last = last
         return m, J
 
@@ -191,114 +212,18 @@ class BenchLogProblem(Problem):
         return None
 
 
-BLOCK_REVOLUTIONS = 1.0  # current and speed are compared as means over blocks this many revolutions long
-
-
-def block_samples(cfg, step) -> int:
-    """Samples per block: BLOCK_REVOLUTIONS at the motor's no-load speed V/k (the fastest the pump
-    turns, so a block holds at least N vane passings there and more below it), at least 1."""
-    v = cfg.pneumatic.values
-    omega = v["motor.voltage"] / v["motor.constant"]
-    return max(1, int(round(BLOCK_REVOLUTIONS * 2 * np.pi / omega / step)))
-
-
-def block_edges(n, m) -> np.ndarray:
-    """Sample indices bounding consecutive blocks of m intervals (the tail shorter than m dropped)."""
-    return np.arange(0, n, m) if n > m else np.array([0, n - 1])
-
-
-def block_means(y, edges) -> np.ndarray:
-    """Means of a logged channel's samples over each block (both edges at half weight: the
-    trapezoidal mean, as the model's is the mean over the interval)."""
-    c = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]))])
-    return np.diff(c[edges]) / np.diff(edges)
-
-
-class BenchModel:
-    """The pump-down model driven by a logged voltage, sampled as a bench log is (module doc):
-    `channels(p)` -> {booster_pressure, current, speed} at the log's times for the runtime
-    parameter vector p."""
-
-    def __init__(self, cfg, time, voltage, start_pressure, omega0=0.0, rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL,
-                 kern=None):
-        from ..kernels.pneumatic import kernels, structure_of
-
-        self.cfg, self.rtol, self.atol = cfg, rtol, atol
-        self.kern = kernels(cfg) if kern is None else kern
-        self.names = [q.name for q in pneumatic_layout(structure_of(cfg))]
-        self.t0 = float(time[0])
-        self.t = np.asarray(time, float) - self.t0
-        self.n = self.t.size
-        self.start_pressure, self.omega0 = float(start_pressure), float(omega0)
-        self.step = float(self.t[-1] / max(self.n - 1, 1))
-        self.grid = self.step * np.arange(self.n)  # the model's uniform grid, the log's times without jitter
-        volt = np.interp(self.grid, self.t, voltage)
-        # the drive: the logged voltage, linear between samples
-        self.drive = ca.interpolant("bench_voltage", "linear", [self.grid.tolist()], volt.tolist())
-        # integral of the voltage from the start to each sample
-        self.volt_integral = np.concatenate([[0.0], np.cumsum(0.5 * (volt[1:] + volt[:-1]) * self.step)])
-        self.jittered = bool(np.ptp(np.diff(self.t)) > 0)
-        N = cfg.vanes
-        self.i_in, self.i_b = 3 + 2 * N, 3 + 2 * N + 2  # inlet manifold and booster masses (run.state_names)
-        self.edges = block_edges(self.n, block_samples(cfg, self.step))
-        self.block_time = 0.5 * (self.t[self.edges[1:]] + self.t[self.edges[:-1]]) + time[0]
-
-    def compared(self, logged: dict) -> dict:
-        """A log's channels as the model gives them: pressure per sample, current and speed as
-        block means."""
-        return {c: y if c == "booster_pressure" else block_means(y, self.edges) for c, y in logged.items()}
-
-    def times(self, channel) -> np.ndarray:
-        return self.t + self.t0 if channel == "booster_pressure" else self.block_time
-        self.mean_speed = 0.0
-
-    def _states(self, p):
-        """(states at the log's times, parameter values by name)."""
-        from ..pneumatics import run
-
-        pv = dict(zip(self.names, p))
-        x0 = run.initial_state(self.cfg, self.kern, p, omega0=self.omega0)
-        RT = pv["gas.gas_constant"] * pv["gas.temperature"]
-        x0[self.i_in] = self.start_pressure * pv["ports.inlet_volume"] / RT
-        x0[self.i_b] = self.start_pressure * pv["booster.volume"] / RT
-        r = run.integrate(self.cfg, self.step * (self.n - 1) * (1 + 1e-12), 1.0 / self.step, p=p, x0=x0,
-                          rtol=self.rtol, atol=self.atol, kern=self.kern, drive=self.drive)
-        X = r.states[:self.n]
-        if X.shape[0] < self.n:
-            raise SolverError(f"the pump-down model stopped at sample {X.shape[0]} of {self.n}")
-        if self.jittered:  # the model onto the log's own times
-            X = np.column_stack([np.interp(self.t, self.grid, c) for c in X.T])
-        self.mean_speed = float((X[-1, 0] - X[0, 0]) / max(self.t[-1], 1e-300))
-        return X, pv
-
-    def _pressure(self, X, pv):
-        return X[:, self.i_b] * pv["gas.gas_constant"] * pv["gas.temperature"] / pv["booster.volume"]
-
-    def samples(self, p) -> dict:
-        """What a bench would log, sample by sample: booster pressure, current, speed."""
-        X, pv = self._states(p)
-        return {"booster_pressure": self._pressure(X, pv), "current": X[:, 2], "speed": X[:, 1]}
-
-    def channels(self, p) -> dict:
-        """What is compared (module doc): pressure per sample, current and speed as block means."""
-        X, pv = self._states(p)
-        theta, cur = X[self.edges, 0], X[self.edges, 2]
-        dth, dcur, span = np.diff(theta), np.diff(cur), np.diff(self.t[self.edges])
-        mean_i = (np.diff(self.volt_integral[self.edges]) - pv["motor.constant"] * dth
-                  - pv["motor.inductance"] * dcur) / (pv["motor.resistance"] * span)
-        return {"booster_pressure": self._pressure(X, pv), "current": mean_i, "speed": dth / span}
-
-
-def twin_log(cfg, duration, rate, values=None, noise=0.005, seed=0, voltage=None, speed=False) -> BenchLog:
+def twin_log(cfg, duration, rate, values=None, noise=0.005, seed=0, voltage=None, speed=False,
+             rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL) -> BenchLog:
     """A bench log generated by the model with known parameter values (name -> value; mu and
     config key paths), for twin experiments: the config's motor.voltage (or `voltage(t)`, an array
     function of time) drives it, and each channel gets white Gaussian noise of `noise` times its
-    range (the voltage of its mean)."""
+    range (the voltage of its mean). rtol, atol: the integrator's (tighter than the fit's: a twin
+    that does not share the fit's integration error)."""
     t = np.arange(int(round(duration * rate)) + 1) / rate
     volt = np.full_like(t, cfg.pneumatic.values["motor.voltage"]) if voltage is None else np.asarray(voltage(t), float)
     index, p0, ratios, mu_slot, follow = fit_map(cfg)
     p = np.asarray(parameter_map(index, p0, dict(values or {}), mu_slot, ratios, follow), float).ravel()
-    ch = BenchModel(cfg, t, volt, cfg.pneumatic.booster_start).samples(p)
+    ch = BenchModel(cfg, t, volt, cfg.pneumatic.booster_start, rtol=rtol, atol=atol).samples(p)
     rng = np.random.default_rng(seed)
     noisy = {k: a + noise * np.ptp(a) * rng.standard_normal(a.size) for k, a in ch.items()}
     v_noisy = volt + noise * np.mean(volt) * rng.standard_normal(volt.size)
@@ -363,7 +288,7 @@ class BenchFit:
     fitted: dict
     time: dict  # channel -> the times of its compared values
     notes: list = field(default_factory=list)
-    jacobian: str = "central differences of the compiled model"
+    jacobian: str = "forward differences of the compiled model (one run per parameter, in threads)"
     start: str = "the config's values"
 
     def problems(self) -> list[str]:
