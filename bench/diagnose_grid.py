@@ -36,13 +36,13 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import pumpsim  # noqa: E402
+from pumpsim.bundled import example_table, with_changes  # noqa: E402
 from pumpsim.config import config_from_dict  # noqa: E402
 from pumpsim.data import Dataset  # noqa: E402
 from pumpsim.diagnosis import diagnose  # noqa: E402
 from pumpsim.geometry import check_geometry  # noqa: E402
 from pumpsim.identification import identify  # noqa: E402
 from pumpsim.sensor import measured_torque  # noqa: E402
-from tests.conftest import apply_changes, example_dict  # noqa: E402
 
 RIGS = {  # family -> (example, dotted-key changes)
     "concentric4": ("test_rig", {}),
@@ -68,7 +68,7 @@ CONFOUNDABLE = ("torque_offset", "viscous_tip_friction")
 
 def rig(family):
     base, changes = RIGS[family]
-    cfg = config_from_dict(apply_changes(example_dict(base), changes))
+    cfg = config_from_dict(with_changes(example_table(base), changes))
     check_geometry(cfg)
     return cfg
 

@@ -5,11 +5,13 @@ so the documentation's paths `examples/...` work after `pumpsim example NAME exa
 """
 from __future__ import annotations
 
+import copy
 import filecmp
 import itertools
 import shutil
-import tomllib
 from pathlib import Path
+
+import tomllib
 
 from .errors import ConfigError
 
@@ -69,4 +71,25 @@ def copy_example(name: str, dest) -> list[Path]:
         except OSError as e:
             raise ConfigError(f"cannot write {target} ({e.strerror or e}); choose a writable folder") from None
         out.append(target)
+    return out
+
+
+def example_table(name: str) -> dict:
+    """The bundled configuration `name` as its TOML table (to edit before config_from_dict)."""
+    return tomllib.loads((examples_dir() / f"{name}.toml").read_text(encoding="utf-8"))
+
+
+def with_changes(table: dict, changes: dict) -> dict:
+    """A copy of a config table with dotted-key changes applied ({"rotor.vanes": 5}; None removes
+    the key): the rigs of the benchmarks and tests, each a bundled example with a few keys changed."""
+    out = copy.deepcopy(table)
+    for key, val in changes.items():
+        *parents, leaf = key.split(".")
+        node = out
+        for p in parents:
+            node = node.setdefault(p, {})
+        if val is None:
+            node.pop(leaf, None)
+        else:
+            node[leaf] = val
     return out

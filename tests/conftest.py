@@ -1,15 +1,14 @@
-import copy
 import math
 import os
 import shutil
 import tempfile
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import pumpsim
+from pumpsim.bundled import example_table, with_changes
 from pumpsim.config import as_array, config_from_dict
 from pumpsim.geometry import check_geometry
 from pumpsim.kernels import load_kernels
@@ -62,22 +61,12 @@ def kernel_cache():
 
 
 def example_dict(name="test_rig"):
-    return tomllib.loads((EXAMPLES / f"{name}.toml").read_text())
+    return example_table(name)
 
 
 def apply_changes(d, changes):
     """A copy of the config dict d with dotted-key changes applied (None removes the key)."""
-    d = copy.deepcopy(d)
-    for key, val in changes.items():
-        parts = key.split(".")
-        node = d
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        if val is None:
-            node.pop(parts[-1], None)
-        else:
-            node[parts[-1]] = val
-    return d
+    return with_changes(d, changes)
 
 
 def toml_value(v):

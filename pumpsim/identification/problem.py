@@ -292,7 +292,7 @@ class ConstantSpeedProblem(Problem):
         of the sample-interval average. A geometric defect moves the Coulomb friction reversals:
         at a sample the point model then jumps by a whole step when a reversal crosses the sample
         and is flat in between, so its exact derivative (which sees only the smooth part) leaves a
-        Gauss-Newton fit on a staircase whose valleys are ~1 um wide (F13/F14); the average's
+        Gauss-Newton fit on a staircase whose valleys are ~1 um wide; the average's
         derivative carries the reversals' motion at the sampling scale, as the interval slope
         does for the angle-acting parameters. The step: INTERVAL_STEP of the housing's size."""
         if not which:

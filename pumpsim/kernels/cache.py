@@ -14,6 +14,7 @@ building them ahead of use: `pumpsim.variants`).
 """
 from __future__ import annotations
 
+import logging
 import os
 import shutil
 import sys
@@ -33,9 +34,17 @@ def memo_key(structure: Structure) -> tuple:
     return (structure, mf.source_fingerprint(), str(mf.generated_dir()))
 
 
+BUILD_LOG = logging.getLogger("pumpsim")
+
+
 def log_build(msg):
-    """Build messages go to stderr, on a terminal or not: a build takes seconds to a minute."""
-    print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+    """Build messages go to stderr, on a terminal or not: a build takes seconds to a minute. Under
+    the command line (which sets up the `pumpsim` logger) they are its info messages, so -q hides
+    them; a Python caller without logging set up still sees why a call takes a minute."""
+    if BUILD_LOG.handlers:
+        BUILD_LOG.info(msg)
+    else:
+        print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
 
 
 def writable_dir() -> Path:

@@ -92,3 +92,17 @@ def test_optimize_text_has_no_python_reprs(lower, upper):
     assert ("lower none" in text) == (lower is None) and ("upper none" in text) == (upper is None)
     assert "bounds 0.019 .. 0.021" in text
     assert "minimize ptp_torque: 0 (start) -> 0 N·m" in text
+
+
+@pytest.mark.parametrize("quiet,shown", [(0, True), (1, False)])
+def test_kernel_build_messages_follow_the_commands_verbosity(capsys, quiet, shown):
+    """A kernel build is announced at the command line's info level (-q hides it), and to a Python
+    caller that set no logging up, always."""
+    from pumpsim.cli.common import messages
+    from pumpsim.kernels.cache import log_build
+
+    with messages(0, quiet):
+        log_build("building the kernel x (test)")
+    assert ("building the kernel x (test)" in capsys.readouterr().err) == shown
+    log_build("building the kernel y (test)")
+    assert "pumpsim: building the kernel y (test)" in capsys.readouterr().err
