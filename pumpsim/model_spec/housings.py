@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-import numpy as np
 
 PREFIX = "housing."
 COMPILED = ("housing.a", "housing.b")  # the base curve's parameters a shape sets
@@ -74,14 +73,22 @@ def _or(items) -> str:
 
 
 def _ellipse(a, b, beta):
+    import numpy as np  # here, not at import: the contract loads with the command line's start
+
     return a * b / np.sqrt((b * np.cos(beta)) ** 2 + (a * np.sin(beta)) ** 2)
+
+
+def _circle(r, beta):
+    import numpy as np
+
+    return r + 0.0 * np.asarray(beta)
 
 
 CIRCLE = HousingShape(
     "circle", "a circle",
     (ShapeKey("radius", (("housing.a", 1.0), ("housing.b", 1.0)),
               "Radius of a circular housing (sets both semi-axes)"),),
-    radius=lambda v, beta: v["radius"] + 0.0 * np.asarray(beta),
+    radius=lambda v, beta: _circle(v["radius"], beta),
     description="a cylindrical bore", example={"radius": 0.0225})
 ELLIPSE = HousingShape(
     "ellipse", "an ellipse",
