@@ -57,7 +57,7 @@ docs: codegen $(DOCS_STAMP)
 	$(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
 
 test: codegen
-	$(BIN)/python -m pytest -q --durations=12
+	$(BIN)/python -m pytest -q --durations=25
 
 test-all: codegen
 	$(BIN)/python -m pytest -q -m 'slow or not slow'

@@ -29,6 +29,7 @@ def test_no_effect_names_nothing():
     assert out["effects"] == [] and not out["unexplained"] and out["final"]["residual_white"]
 
 
+@pytest.mark.slow  # ~40-55 s: make test-all
 def test_disturbance_outside_the_library_is_unexplained_and_located():
     cfg, ds, _ = _nominal_signal(4, lambda t, s: 5 * s * np.sqrt(2) * np.sin(2 * np.pi * 333.3 * t))
     out = diagnose(cfg, ds)

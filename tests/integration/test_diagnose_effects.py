@@ -52,6 +52,7 @@ def nominal():
     return make_config("ellipse_4vanes")
 
 
+@pytest.mark.slow  # ~40-55 s: make test-all
 def test_out_of_round_order_4(nominal):
     truth = _harmonic(dataclasses.replace(nominal, angle=0.4), 4, 2e-5, 0.3)
     ds, sigma = measurement(nominal, truth)
@@ -107,6 +108,7 @@ def test_sensor_lag_beyond_the_delay_it_looks_like(nominal):
     assert abs(_value(out, "theta0") - 0.4) < 0.01
 
 
+@pytest.mark.slow  # ~40-55 s: make test-all
 def test_vane_friction_spread_three_vanes():
     """Three vanes on an ellipse: every vane's COF factor is identifiable (with four, vanes i and
     i + 2 see the same housing and only their sums are)."""

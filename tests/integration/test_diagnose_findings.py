@@ -207,6 +207,7 @@ def test_no_heavy_tail_note_on_gaussian_noise():
     assert not [n for n in out["notes"] if "heavy-tailed" in n], out["notes"]
 
 
+@pytest.mark.slow  # ~40-55 s: make test-all
 def test_eccentricity_on_a_one_vane_ellipse_off_its_axes_is_named_alone():
     """Independent finding F3: a 95 um eccentricity at 298 deg on the 1-vane ellipse. At zero
     eccentricity the first-order sensitivity to the y shift vanishes (the centred ellipse is
@@ -260,7 +261,7 @@ def test_an_effect_a_later_one_supersedes_is_dropped(monkeypatch):
     assert len(out["steps"]) == 1
 
 
-@pytest.mark.parametrize("snr", [5.0, 10.0])
+@pytest.mark.parametrize("snr", [pytest.param(5.0, marks=pytest.mark.slow), 10.0])  # SNR 5: ~70 s
 def test_pulse_train_at_a_non_shaft_frequency_names_no_pump_effect(snr):
     """F16: a 3-sample pulse every 1/1.37 revolution over 10 revolutions has a non-zero
     shaft-synchronous average, which a rotor eccentricity lowers the RSS by (LR passes); its

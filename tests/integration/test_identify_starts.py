@@ -97,6 +97,7 @@ def test_cli_identify_fits_the_speed_from_a_wrong_configured_speed(tmp_path):
     assert fit["params"]["mu"]["value"] == pytest.approx(0.17, rel=NOISE_FREE_MU_REL)
 
 
+@pytest.mark.slow  # ~40-55 s: make test-all
 def test_a_harmonic_phase_fitted_from_anywhere_in_its_period_reaches_an_exact_fit():
     """An out-of-round's phase is an angle (its cost is periodic, not convex): from starts spread
     over the period, the start scan and the local fit reach the truth or one of its exact
