@@ -87,6 +87,9 @@ MU_DEFINITION = ("mu: the mean over the vanes of each vane's dynamic COF (vane-h
                  "unless mu_slot is fitted); vane_mu: each vane's COF = mu_vane0 x its factor")
 
 
+WHITE_ALPHA = 0.05  # the runs and Ljung-Box tests' level behind "white"
+
+
 @dataclass(frozen=True)
 class ModelFit:
     """One model of the diagnosis's history (the baseline, then after each named effect) and its fit."""
@@ -188,6 +191,14 @@ class DiagnosisResult:
     def notes(self) -> list[str]:
         return [n.text() for n in self.log]
 
+    white_alpha = WHITE_ALPHA
+
+    @property
+    def residual_tests_white(self) -> bool:
+        """The final residual passes the runs and Ljung-Box tests at WHITE_ALPHA. The verdict may
+        still call a non-white remainder below the relevance bar consistent (final.residual_white)."""
+        return min(self.final["runs_p_value"], self.final["ljung_box_p_value"]) >= WHITE_ALPHA
+
     @property
     def rejected(self) -> list[dict]:
         return [n.to_json() for n in self.log if isinstance(n, Rejected)]
@@ -229,11 +240,11 @@ class DiagnosisResult:
             lines.append("vane COFs: " + ", ".join(f"{i}: {v['value']:.4g}" for i, v in enumerate(f["vane_mu"])))
         where = ", ".join((f"order {w['order']}" if "order" in w else f"{w['angle_deg']} deg")
                           for w in self.unexplained_where) or "broadband"
-        lines.append(f"verdict: {self.verdict.upper()}" + (f" (at {where})" if self.unexplained else ""))
+        lines.append(f"verdict: {self.verdict}" + (f" (at {where})" if self.unexplained else ""))
         lines += [f"confounded: {a} ~ {b}" for a, b in self.confounded]
         lines += [f"note: {n}" for n in self.notes]
         lines.append(PLUS_MINUS)
-        if not f["residual_white"]:
+        if not self.residual_tests_white:
             lines.append(OPTIMISTIC)
         return "\n".join(lines)
 

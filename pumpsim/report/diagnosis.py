@@ -14,7 +14,6 @@ from .html import Cell, figure_html, nb, provenance_html, provenance_line, table
 from .identification import interval_warning, param_row, residual_figures, torque_overlay
 from .simulation import tidy_axis
 
-WHITE_ALPHA = 0.05  # the level the banner's "white" refers to (runs and Ljung-Box tests)
 RANKING_SHOWN = 8  # candidates shown per screen; the full ranking is one click away
 
 _NUMBER_WITH_ERROR = re.compile(r"[-+]?[0-9][0-9.]*(?:e[-+]?[0-9]+)? ± [0-9.]+(?:e[-+]?[0-9]+)?"
@@ -44,12 +43,10 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
     verdict = (f"Effects named: <b>{html.escape(', '.join(named))}</b>." if named else
                "No effect of the library is named.")
     runs_p, lb_p = final["runs_p_value"], final["ljung_box_p_value"]
-    # the tests' own answer; the verdict may still call a non-white remainder below the relevance
-    # bar consistent (final.residual_white), and the page says both
-    white = runs_p >= WHITE_ALPHA and lb_p >= WHITE_ALPHA
+    white = out.residual_tests_white  # the page says this and, where they differ, the verdict's view
     rms_final, rms_base = f"{final['rms']:.4g} N·m", f"{out.baseline['rms']:.4g} N·m"
     verdict += (f" Final residual RMS {nb(rms_final)} (baseline {nb(rms_base)}), "
-                f"{'white' if white else '<b>not white</b>'} at {100 * WHITE_ALPHA:g} % "
+                f"{'white' if white else '<b>not white</b>'} at {100 * out.white_alpha:g} % "
                 f"(runs p = {runs_p:.3g}, Ljung–Box p = {lb_p:.3g})"
                 + ("; what remains is below the relevance bar (see the verdict)."
                    if not white and final["residual_white"] else "."))

@@ -201,8 +201,11 @@ def test_diagnosis_banner_says_what_the_whiteness_tests_say(tmp_path, out_of_rou
                                                             consistent, says):
     cfg, ds, out = out_of_round_diagnosis
     final = {**out.final, "runs_p_value": runs_p, "ljung_box_p_value": lb_p, "residual_white": consistent}
+    changed = dataclasses.replace(out, final=final)
+    # the terminal summary flags the intervals on the same test result as the page
+    assert (OPTIMISTIC in changed.summary()) == (min(runs_p, lb_p) < 0.05)
     rep = tmp_path / "d.html"
-    diagnosis_report(dataclasses.replace(out, final=final), rep, cfg=cfg, data=ds)
+    diagnosis_report(changed, rep, cfg=cfg, data=ds)
     banner = re.sub(r"\s+", " ", _text(html.unescape(rep.read_text()).split("<h2>")[0]))
     assert f"{says} (runs p = {runs_p:.3g}, Ljung–Box p = {lb_p:.3g})" in banner
     assert ("below the relevance bar" in banner) == (consistent and min(runs_p, lb_p) < 0.05)
