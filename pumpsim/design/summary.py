@@ -15,8 +15,9 @@ import math
 
 import numpy as np
 
+from ..presentation import resolution as unit_resolution
 from ..presentation import resolved
-from ..tolerances import DESIGN_CONSTANT_ABS, DESIGN_CONSTANT_REL
+from ..tolerances import DESIGN_CONSTANT_REL
 from .outputs import BOOL_OUTPUTS, UNITS
 
 EVALUATED = ("ok", "lift_off", "paradox")  # status kinds that carry output values
@@ -32,13 +33,16 @@ def evaluated(df) -> np.ndarray:
     return status_kind(df).isin(EVALUATED).to_numpy()
 
 
+def _size(values) -> float:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return float(np.abs(v).max()) if v.size else 0.0
+
+
 def resolution(values, output) -> float:
     """The smallest difference the solver resolves in these values of an output: relative to
     their size plus an absolute floor per unit (a torque of 1e-13 N·m is rounding, not ripple)."""
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    size = float(np.abs(v).max()) if v.size else 0.0
-    return DESIGN_CONSTANT_REL * size + DESIGN_CONSTANT_ABS.get(UNITS.get(output), 0.0)
+    return DESIGN_CONSTANT_REL * _size(values) + unit_resolution(UNITS.get(output, ""))
 
 
 def is_constant(values, output) -> bool:
@@ -50,7 +54,7 @@ def is_constant(values, output) -> bool:
 
 def resolved_among(x, values, output):
     """x, or 0.0 where it is below the resolution of the output's values (rounding noise)."""
-    return 0.0 if x is not None and math.isfinite(x) and abs(x) <= resolution(values, output) else x
+    return resolved(x, UNITS.get(output, ""), _size(values))
 
 
 def within(values, lim) -> np.ndarray:
