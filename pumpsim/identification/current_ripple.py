@@ -279,12 +279,18 @@ def scaled_fit(log, motor, sl, theta, orders, mu_a, a, d, scales) -> tuple:
         est = fit_phase_and_mu(tau, cov, orders, mu_a, a, d)
         if best is None or est["chi2"] < best[3]["chi2"]:
             best = (s, tau, cov, est)
+    if len(scales) > 1:  # the scale's own uncertainty in mu's interval: its column in the Jacobian
+        s, tau, cov, _ = best
+        h = scales[1] - scales[0]
+        up, down = (torque_harmonics(log, motor, sl, theta * (s + e), orders)[0] for e in (h, -h))
+        best = (s, tau, cov, fit_phase_and_mu(tau, cov, orders, mu_a, a, d, (up - down) / (2 * h)))
     return best
 
 
-def fit_phase_and_mu(tau, cov, orders, mu_a, a, d) -> dict:
+def fit_phase_and_mu(tau, cov, orders, mu_a, a, d, nuisance=None) -> dict:
     """mu and phase phi of tau_h = exp(j h phi) (a_h + (mu - mu_a) d_h), weighted by the inverse of
-    the harmonics' covariance: phi on a grid (mu in closed form), then Gauss-Newton in both."""
+    the harmonics' covariance: phi on a grid (mu in closed form), then Gauss-Newton in both.
+    nuisance: d tau / d(a parameter fitted elsewhere), a column of the Jacobian for the interval."""
     h = np.asarray(orders, float)
     W = np.linalg.pinv(cov)
 
@@ -313,7 +319,10 @@ def fit_phase_and_mu(tau, cov, orders, mu_a, a, d) -> dict:
             break
     e = np.exp(1j * h * phi)
     r = as_real(tau - e * (a + delta * d))
-    chi2, dof = float(r @ W @ r), 2 * len(orders) - 2
+    if nuisance is not None:
+        J = np.column_stack([J, as_real(nuisance)])
+        A = J.T @ W @ J
+    chi2, dof = float(r @ W @ r), 2 * len(orders) - J.shape[1]
     inflate = max(1.0, chi2 / dof) if dof > 0 else 1.0  # a model misfit widens the interval
     se = float(np.sqrt(np.linalg.inv(A)[0, 0] * inflate))
     return {"mu": mu_a + delta, "stderr": se, "phase": float(np.mod(phi, 2 * np.pi / orders[0])),
@@ -379,6 +388,11 @@ def ripple_mu(cfg, log, vector, values, mu_stderr=None, kern=None) -> RippleFit:
         far = max(pair, key=lambda m: abs(m - est["mu"]))
         pair = [est["mu"], pair[1 - pair.index(far)]]
     out.scale = float(s0 * scale)
+    if est["mu"] - Z95 * est["stderr"] <= 0:
+        out.reason = (f"the ripple over {window[0]:.3g}-{window[1]:.3g} s does not determine mu: its 95 % interval "
+                      f"reaches 0 (± {Z95 * est['stderr']:.2g}; the channels' noise against a ripple of "
+                      f"{np.abs(tau[0]):.2g} N m at order {orders[0]}: a longer or quieter log)")
+        return out
     out.resolved = True
     out.mu, out.stderr, out.phase, out.chi2, out.dof = (est[k] for k in ("mu", "stderr", "phase", "chi2", "dof"))
     out.measured, out.model = as_real(tau).tolist(), as_real(a + (out.mu - pair[0]) * (b - a) / (pair[1] - pair[0])).tolist()
