@@ -43,7 +43,8 @@ def case(cfg, rate, noise, seed) -> dict:
     row = {"rate": rate, "noise": noise, "seed": seed, "resolved": r.resolved, "orders": r.orders,
            "threshold": r.threshold, "seconds": time.perf_counter() - t0}
     if r.resolved:
-        row.update(mu=r.mu, stderr=r.stderr, error=r.mu / TRUTH["mu"] - 1, inside=bool(abs(r.mu - TRUTH["mu"]) <= Z95 * r.stderr),
+        row.update(mu=r.mu, stderr=r.stderr, error=r.mu / TRUTH["mu"] - 1,
+                   inside=bool(abs(r.mu - TRUTH["mu"]) <= Z95 * r.stderr),
                    friction=r.friction, friction_stderr=r.friction_stderr,
                    separated=bool(Z95 * r.friction_stderr < SEPARATED_SHARE * TRUTH["motor.friction"]))
     else:
@@ -53,7 +54,8 @@ def case(cfg, rate, noise, seed) -> dict:
 
 
 def table(rows) -> str:
-    out = ["| rate | noise | orders | mu error (per seed) | stderr | truth in 95 % | motor.friction [mN m] | separated |",
+    out = ["| rate | noise | orders | mu error (per seed) | stderr | truth in 95 % | motor.friction [mN m] "
+           "| separated |",
            "|---|---|---|---|---|---|---|---|"]
     for rate in sorted({r["rate"] for r in rows}):
         for noise in sorted({r["noise"] for r in rows}):

@@ -192,7 +192,7 @@ class RippleFit:
     scale: float = 1.0  # the back-EMF angle's refinement
     chi2: float | None = None  # weighted residual sum of squares, with `dof`
     dof: int = 0
-    mu_mean: float | None = None  # the mean-current fit's mu, when it fitted mu
+    mu_mean: float | None = None  # the mu the bench fit explained the mean current with (fitted or held)
     friction: float | None = None  # motor.friction the two mus imply, N m
     friction_stderr: float | None = None
     measured: list = field(default_factory=list)  # torque harmonics, (Re, Im) N m per order
@@ -210,9 +210,9 @@ class RippleFit:
                f"{self.window[1]:.3g} s at {self.speed:.4g} rad/s): mu {self.mu:.4g} ± {self.stderr:.2g} "
                f"(95%: {lo:.4g} .. {hi:.4g})"]
         if self.mu_mean is not None and self.friction is not None:
-            out.append(f"the mean current gives mu {self.mu_mean:.4g}; vane friction from the ripple leaves "
-                       f"motor.friction {self.friction:.3g} ± {self.friction_stderr:.2g} N m (the mean current's "
-                       "torque not explained by the vanes)")
+            out.append(f"the mean current was explained with mu {self.mu_mean:.4g}; vane friction from the ripple "
+                       f"leaves motor.friction {self.friction:.3g} ± {self.friction_stderr:.2g} N m (the mean "
+                       "current's torque not explained by the vanes)")
         return out
 
     def to_json(self) -> dict:
@@ -341,6 +341,37 @@ def unresolved_reason(log, vanes, speed, rate, orders, threshold) -> str:
     return ""
 
 
+def measured_angle(log, motor, sl, vanes) -> tuple:
+    """The log's shaft angle over the window, its refined scale and the scales the fit searches
+    (the back-EMF angle's scale is a nuisance of the fit, near the sharpest line)."""
+    theta = shaft_angle(log, motor, sl)
+    if log.speed is not None:
+        return theta, 1.0, [1.0]
+    theta, s0 = refine_angle(theta, log.current[sl], vanes)
+    step = SCALE_PHASE / (vanes * float(theta[-1] - theta[0]))
+    return theta, s0, 1.0 + np.arange(-SCALE_LOCAL, SCALE_LOCAL + step / 2, step)
+
+
+def linearised_fit(reference, mu0, fit) -> tuple:
+    """The model's ripple linear in mu between two runs (reference(mu) -> (harmonics, mean
+    torque)), re-linearised when fit(mu_a, a, d) -> (scale, tau, cov, est) leaves the bracket.
+    Returns (the pair of mus, their references, (scale, tau, est))."""
+    ref = {}
+    pair = [mu0, mu0 * (1 + MU_BRACKET)]
+    for attempt in range(RELINEARISE + 1):
+        for m in pair:
+            if m not in ref:
+                ref[m] = reference(m)
+        (a, _), (b, _) = ref[pair[0]], ref[pair[1]]
+        scale, tau, _, est = fit(pair[0], a, (b - a) / (pair[1] - pair[0]))
+        lo, hi = min(pair), max(pair)
+        if lo - MU_BRACKET * lo <= est["mu"] <= hi + MU_BRACKET * hi or est["mu"] <= 0 or attempt == RELINEARISE:
+            break
+        far = max(pair, key=lambda m: abs(m - est["mu"]))
+        pair = [est["mu"], pair[1 - pair.index(far)]]
+    return pair, ref[pair[0]], ref[pair[1]], (scale, tau, est)
+
+
 def ripple_mu(cfg, log, vector, values, mu_stderr=None, kern=None) -> RippleFit:
     """mu from a bench log's vane-passing ripple (module doc). vector(values) -> the runtime
     parameter vector; values: the bench fit's values by name, 'mu' among them (the mu the mean
@@ -360,33 +391,17 @@ def ripple_mu(cfg, log, vector, values, mu_stderr=None, kern=None) -> RippleFit:
     out.reason = unresolved_reason(log, vanes, speed, rate, orders, out.threshold)
     if out.reason:
         return out
-    theta = shaft_angle(log, motor, sl)
-    scales, s0 = [1.0], 1.0
-    if log.speed is None:  # the back-EMF angle's scale: a nuisance of the fit, near the sharpest line
-        theta, s0 = refine_angle(theta, log.current[sl], vanes)
-        step = SCALE_PHASE / (vanes * float(theta[-1] - theta[0]))
-        scales = 1.0 + np.arange(-SCALE_LOCAL, SCALE_LOCAL + step / 2, step)
+    theta, s0, scales = measured_angle(log, motor, sl, vanes)
     mu_used = float(values["mu"])
     model_rate = max(MODEL_SAMPLES_PER_REVOLUTION * speed / (2 * np.pi), rate)
-    ref = {}  # mu -> (model harmonics, model mean torque)
 
-    def reference(mus):
-        new = [m for m in mus if m not in ref]
-        runs = model_runs(cfg, log, [vector({**values, "mu": m}) for m in new], window[1], model_rate, kern) if new else []
-        for m, (grid, X) in zip(new, runs):
-            ref[m] = model_harmonics(kern, vector({**values, "mu": m}), grid, X, window, orders)
+    def reference(m):
+        p = vector({**values, "mu": m})
+        (grid, X), = model_runs(cfg, log, [p], window[1], model_rate, kern)
+        return model_harmonics(kern, p, grid, X, window, orders)
 
-    pair = [mu_used, mu_used * (1 + MU_BRACKET)]
-    for attempt in range(RELINEARISE + 1):
-        reference(pair)
-        (a, mean_a), (b, mean_b) = ref[pair[0]], ref[pair[1]]
-        scale, tau, cov, est = scaled_fit(log, motor, sl, theta, orders, pair[0], a, (b - a) / (pair[1] - pair[0]),
-                                          scales)
-        lo, hi = min(pair), max(pair)
-        if lo - MU_BRACKET * lo <= est["mu"] <= hi + MU_BRACKET * hi or est["mu"] <= 0 or attempt == RELINEARISE:
-            break
-        far = max(pair, key=lambda m: abs(m - est["mu"]))
-        pair = [est["mu"], pair[1 - pair.index(far)]]
+    pair, (a, mean_a), (b, mean_b), (scale, tau, est) = linearised_fit(
+        reference, mu_used, lambda mu_a, a, d: scaled_fit(log, motor, sl, theta, orders, mu_a, a, d, scales))
     out.scale = float(s0 * scale)
     if est["mu"] - Z95 * est["stderr"] <= 0:
         out.reason = (f"the ripple over {window[0]:.3g}-{window[1]:.3g} s does not determine mu: its 95 % interval "
@@ -395,8 +410,9 @@ def ripple_mu(cfg, log, vector, values, mu_stderr=None, kern=None) -> RippleFit:
         return out
     out.resolved = True
     out.mu, out.stderr, out.phase, out.chi2, out.dof = (est[k] for k in ("mu", "stderr", "phase", "chi2", "dof"))
-    out.measured, out.model = as_real(tau).tolist(), as_real(a + (out.mu - pair[0]) * (b - a) / (pair[1] - pair[0])).tolist()
     slope = (mean_b - mean_a) / (pair[1] - pair[0])  # the pump's mean torque per unit mu
+    out.measured, out.model = as_real(tau).tolist(), as_real(a + (out.mu - pair[0]) * (b - a) / (pair[1] - pair[0]))
+    out.model = out.model.tolist()
     out.mu_mean = mu_used
     out.friction = motor["friction"] + slope * (mu_used - out.mu)
     out.friction_stderr = abs(slope) * float(np.hypot(out.stderr, mu_stderr or 0.0))

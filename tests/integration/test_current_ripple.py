@@ -110,8 +110,8 @@ def test_ripple_mu_on_a_2khz_twin():
     of the truth plus the 0.5 % the ripple's mu is off on a noise-free 20 kHz twin (the reference
     model's own integration error and the harmonic form's constant-speed derivative), the standard
     error below 5 % of mu (measured 3.1 %: two orders leave one degree of freedom after mu, phase
-    and the angle's scale, and the model's misfit, not this noise, sets the interval); the mean-current mu held at the config's 0.15 leaves motor.friction at
-    what the truth's mu needs."""
+    and the angle's scale, and the model's misfit, not this noise, sets the interval); the
+    mean-current mu held at the config's 0.15 leaves motor.friction at what the truth's mu needs."""
     cfg = small_booster()
     log = twin_log(cfg, 1.0, 2000, values=TRUTH, noise=0.0001, seed=4, rtol=1e-7, atol=1e-9)
     r = cr.ripple_mu(cfg, log, lambda v: values_vector(cfg, v), {"mu": 0.15})
