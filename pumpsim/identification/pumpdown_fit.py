@@ -344,8 +344,9 @@ class BenchFit:
 
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
-                   initial=None, max_iter=30, relaxation=1.0, progress=None) -> BenchFit:
-    """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
+                   initial=None, max_iter=30, relaxation=1.0, progress=None, ripple=True) -> BenchFit:
+    """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log; `ripple`:
+    then mu from the current's vane-passing ripple where the log resolves it (current_ripple).
     Parameters the log cannot determine (no effect, or a near-null direction of the noise-scaled
     Jacobian) get no number and the note says what experiment would separate them."""
     from .fit import fit_identifiable
@@ -385,12 +386,12 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     notes = separation_notes(prob.names, fit.unident, corr, list(fitted_prob.names) if fit.outcome else [])
     if fit.unident:
         res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(fit.unident)}"
-    ripple = bench_ripple(cfg, log, lambda v: values_vector(cfg, v),
-                          {"mu": prob.fixed["mu"], **fitted_prob.hold, **dict(zip(fitted_prob.names, x))},
-                          est.get("mu"), prob.kern)
+    rip = bench_ripple(cfg, log, lambda v: values_vector(cfg, v),
+                       {"mu": prob.fixed["mu"], **fitted_prob.hold, **dict(zip(fitted_prob.names, x))},
+                       est.get("mu"), prob.kern) if ripple else None
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
                     fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted},
-                    notes=notes + ripple.notes(), ripple=ripple)
+                    notes=notes + (rip.notes() if rip else []), ripple=rip)
 
 
 class _AsData:
