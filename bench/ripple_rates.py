@@ -63,14 +63,18 @@ def table(rows) -> str:
             if not rs:
                 continue
             head = f"| {rate / 1000:g} kHz | {100 * noise:g} % | {', '.join(map(str, rs[0]['orders'])) or '-'} |"
-            if not rs[0]["resolved"]:
+            if not any(r["resolved"] for r in rs):
                 out.append(head + " not resolved (no number) | | | | |")
                 continue
-            err = ", ".join(f"{100 * r['error']:+.1f} %" for r in rs)
-            se = ", ".join(f"{100 * r['stderr'] / TRUTH['mu']:.1f} %" for r in rs)
-            fr = ", ".join(f"{1e3 * r['friction']:.1f} ± {1e3 * r['friction_stderr']:.1f}" for r in rs)
-            out.append(f"{head} {err} | {se} | {sum(r['inside'] for r in rs)}/{len(rs)} | {fr} | "
-                       f"{sum(r['separated'] for r in rs)}/{len(rs)} |")
+
+            def each(fmt, r):
+                return fmt(r) if r["resolved"] else "no number"
+            err = ", ".join(each(lambda r: f"{100 * r['error']:+.1f} %", r) for r in rs)
+            se = ", ".join(each(lambda r: f"{100 * r['stderr'] / TRUTH['mu']:.1f} %", r) for r in rs)
+            fr = ", ".join(each(lambda r: f"{1e3 * r['friction']:.1f} ± {1e3 * r['friction_stderr']:.1f}", r) for r in rs)
+            ok = [r for r in rs if r["resolved"]]
+            out.append(f"{head} {err} | {se} | {sum(r['inside'] for r in ok)}/{len(ok)} | {fr} | "
+                       f"{sum(r['separated'] for r in ok)}/{len(ok)} |")
     return "\n".join(out)
 
 
