@@ -1,5 +1,5 @@
-"""From what sample rate the current's vane-passing ripple tells vane friction (issue 29 item 4;
-docs/explanation/bench-log.md, "The current's vane-passing ripple"): twin logs of the EVP example
+"""From what sample rate the current's vane-passing ripple tells vane friction
+(docs/explanation/bench-log.md, "The current's vane-passing ripple"): twin logs of the EVP example
 with a 0.4 L booster (1 s, a third of its pump-down), the truth mu 0.165 and motor.friction
 0.015 N m (config 0.15 and 0.01), white noise of `noise` x each channel's range (the voltage:
 of its mean), over sample rates x noise x seeds. For each: the ripple's mu, its standard error,

@@ -14,8 +14,9 @@ inertia are undone without numerical differentiation:
     omega_h = (V_h - (R + j Omega_h L) i_h) / k   (or the speed column's harmonic),
     tau_h   = k i_h - (I_rotor + I_motor) j Omega_h omega_h.
 The shaft angle theta comes from the speed column, else the back-EMF integrated (the L di/dt term
-integrates to L (i - i0): no derivative either); its scale is then refined so that the current's
-order-N line is sharpest (a 0.3 % error in R would turn the order-N phase by radians over a window).
+integrates to L (i - i0): no derivative either); its scale is first refined so that the current's
+order-N line is sharpest (a 0.3 % error in R would turn the order-N phase by radians over a window),
+then fitted as a nuisance near it, its uncertainty in mu's interval.
 
 Assumption on the gas: the window is the log's end (late in the pump-down, the booster pressure
 varying least), and the gas torque is NOT assumed away: the reference ripple is the pump-down
@@ -23,12 +24,15 @@ model's own load torque (gas, vane friction and inertia) over the same window, a
 values. So mu is fitted in the harmonic domain, tau_h(measured) = exp(j h phi) tau_h(model; mu),
 with the phase phi free (a bench log has no angle reference). The model's harmonics are linear in
 mu to well below the estimates' errors over the bracket used (re-linearised when the estimate
-leaves it).
+leaves it); the interval is inflated by the misfit (chi2 / dof) when that exceeds the noise.
+What the ripple says of motor.friction: the mean current needs tau_pump(mu) + friction, so with
+the ripple's mu the friction is the bench fit's plus the model's mean torque per unit mu times
+(the fit's mu - the ripple's).
 
 Resolution: an order is usable below NYQUIST_SHARE of the Nyquist frequency, and the ripple is
 resolved when at least MIN_ORDERS vane-passing orders are (the threshold rate of `threshold_rate`;
-docs/explanation/bench-log.md has the twin experiments that set it). Below it there is no number,
-and the note says why.
+docs/explanation/bench-log.md has the twin experiments over sample rates). Below it, and when the
+95 % interval reaches mu = 0, there is no number, and the note says why.
 """
 from __future__ import annotations
 
@@ -43,6 +47,7 @@ MIN_ORDERS = 2  # vane-passing orders a ripple estimate needs (one complex harmo
 MAX_ORDERS = 4  # vane-passing orders used at most (the higher ones are small against the noise)
 WINDOW_REVOLUTIONS = 100  # the window: the log's last this many revolutions ...
 WINDOW_SHARE = 0.5  # ... at most this share of the log (the start is the run-up)
+MIN_REVOLUTIONS = 10  # a window shorter than this does not separate the orders from the trend
 MODEL_SAMPLES_PER_REVOLUTION = 128  # the model's reference ripple is sampled this finely
 MOTOR_FRICTION_SPEED = 0.5  # rad/s, the compiled model's tanh of the motor friction (spec §8)
 SCALE_SPAN = 0.03  # the back-EMF angle's scale is searched within +-3 % ...
@@ -329,8 +334,8 @@ def fit_phase_and_mu(tau, cov, orders, mu_a, a, d, nuisance=None) -> dict:
             "chi2": chi2, "dof": dof}
 
 
-def unresolved_reason(log, vanes, speed, rate, orders, threshold) -> str:
-    """Why this log's ripple gives no estimate, or "" when it does."""
+def unresolved_reason(vanes, speed, rate, orders, threshold, span) -> str:
+    """Why this log's ripple gives no estimate, or "" when it does (span: the window, s)."""
     f_pass = vanes * speed / (2 * np.pi)
     if not np.isfinite(speed) or speed <= 0:
         return "the pump does not turn at the log's end (back-EMF or speed column)"
@@ -338,6 +343,9 @@ def unresolved_reason(log, vanes, speed, rate, orders, threshold) -> str:
         return (f"the log's {rate:.4g} Hz resolves {len(orders)} vane-passing order(s) at its final speed "
                 f"{speed:.4g} rad/s (vanes pass at {f_pass:.4g} Hz); a ripple estimate needs {MIN_ORDERS} orders "
                 f"below {NYQUIST_SHARE:g} of the Nyquist frequency, a log of at least {threshold:.4g} Hz")
+    if speed * span < MIN_REVOLUTIONS * 2 * np.pi:
+        return (f"the log's second half holds {speed * span / (2 * np.pi):.3g} revolutions; the ripple needs "
+                f"{MIN_REVOLUTIONS} (a longer log)")
     return ""
 
 
@@ -388,7 +396,7 @@ def ripple_mu(cfg, log, vector, values, mu_stderr=None, kern=None) -> RippleFit:
     out = RippleFit(resolved=False, reason="", sample_rate=rate, threshold=threshold_rate(vanes, max(speed, 0.0)),
                     orders=orders, window=window, speed=speed,
                     pressure=(float(log.booster_pressure[sl.start]), float(log.booster_pressure[-1])))
-    out.reason = unresolved_reason(log, vanes, speed, rate, orders, out.threshold)
+    out.reason = unresolved_reason(vanes, speed, rate, orders, out.threshold, window[1] - window[0])
     if out.reason:
         return out
     theta, s0, scales = measured_angle(log, motor, sl, vanes)

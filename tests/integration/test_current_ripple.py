@@ -1,4 +1,4 @@
-"""Vane friction from the current's vane-passing ripple (issue 29 item 4): the load torque rebuilt
+"""Vane friction from the current's vane-passing ripple: the load torque rebuilt
 from a log against the model's own, the ripple's mu on a fast twin log, and no number below the
 sample rate that resolves the ripple."""
 import json
@@ -73,6 +73,14 @@ def test_below_the_threshold_a_note_and_no_number():
     assert note and "1 vane-passing order(s)" in note[0] and f"{r.threshold:.4g} Hz" in note[0], fit.notes
     js = json.loads(json.dumps(fit.to_json()))["ripple"]
     assert js["resolved"] is False and js["mu"] is None and js["lower95"] is None and "Nyquist" in js["reason"]
+
+
+def test_too_short_a_log_has_no_number(clean_twin):
+    """0.05 s of a 20 kHz log: the window's 1.7 revolutions cannot part the orders from the trend."""
+    cfg, log, _, _ = clean_twin
+    short = BenchLog(log.time[:1001], log.voltage[:1001], log.current[:1001], log.booster_pressure[:1001], None)
+    r = cr.ripple_mu(cfg, short, lambda v: values_vector(cfg, v), TRUTH)
+    assert not r.resolved and r.mu is None and "revolutions" in r.reason and "a longer log" in r.reason
 
 
 def test_threshold_rule():
