@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent clean
+.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-ripple clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml setup.py
@@ -78,6 +78,11 @@ bench-design: codegen
 bench-diagnose: codegen
 	mkdir -p out
 	$(BIN)/python bench/diagnose_grid.py --grid $(or $(GRID),reduced) --json out/bench_diagnose.json
+
+# mu from the current's vane-passing ripple over sample rates x noise x seeds (QUICK=1: 0.5 and 2 kHz, one seed)
+bench-ripple: codegen
+	mkdir -p out
+	$(BIN)/python bench/ripple_rates.py $(if $(QUICK),--quick) --json out/bench_ripple.json
 
 # diagnose on records from an independent implementation of the spec (bench/independent; QUICK=1: ~20 cases)
 bench-diagnose-independent: codegen
