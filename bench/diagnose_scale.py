@@ -1,15 +1,19 @@
-"""Diagnose wall time against the record length (issue 11 item 7: 40,000 samples in <= 30 s, cost no
-worse than linear): a no-effect record and a k = 4 out-of-round record (the `make bench` diagnose
-case) on the 4-vane ellipse at 20 kHz, 5 % noise, each at several lengths, in one process.
+"""Diagnose cost against the record length, stated as fixed + per-sample terms: a no-effect record
+and a k = 4 out-of-round record (the `make bench` diagnose case) on the 4-vane ellipse at 20 kHz,
+5 % noise, each at several lengths, in one process, kernels built and loaded before any clock.
 
-    .venv/bin/python bench/diagnose_scale.py [--samples 10000 20000 40000] [--case none oval4]
+    .venv/bin/python bench/diagnose_scale.py [--samples 1000 5000 20000 80000] [--case none oval4]
         [--kernel simd scalar] [--profile out/diagnose.prof] [--json out/bench_diagnose_scale.json]
 
 Prints, per case, length and kernel: wall time, the process's CPU time (all threads; on a shared
-machine the less load-dependent number), the effects named and the verdict. `--kernel scalar`
-sets PUMPSIM_FIT_KERNEL=scalar (model torques on the CasADi map, as before the SIMD path); with
-both kernels each record runs back to back under the same load. Not a test: the machine is
-shared; compare within one run and quote the load with the numbers."""
+machine the less load-dependent number), the effects named and the verdict; then per case and
+kernel the least-squares terms CPU = fixed + per window sample x min(samples, window) + per sample
+x samples (`scaling_terms`): the search runs on a screening window (the first
+DiagnosisOptions.screen_samples = 5,000 samples), the whole-record refits, detectors and tests on
+every sample. `--kernel scalar` sets PUMPSIM_FIT_KERNEL=scalar
+(model torques on the CasADi map, as before the SIMD path); with both kernels each record runs back
+to back under the same load. Not a test: the machine is shared; compare within one run and quote
+the load with the numbers."""
 from __future__ import annotations
 
 import argparse
@@ -29,10 +33,27 @@ sys.path.insert(0, str(ROOT))
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.data import Dataset  # noqa: E402
 from pumpsim.diagnosis import diagnose  # noqa: E402
+from pumpsim.diagnosis.effects import with_harmonic_pair  # noqa: E402
+from pumpsim.diagnosis.options import OPTIONS  # noqa: E402
+from pumpsim.kernels import fast_kernel, load_kernels  # noqa: E402
 from pumpsim.simulate import simulate  # noqa: E402
 
 RATE = 20000.0
 CASES = {"none": [], "oval4": [[4, 2e-5, 0.3]]}
+
+
+def warm_kernels(base) -> tuple[list, float, bool]:
+    """Build or load the kernels a diagnosis of `base` uses -- its variant and the one with a
+    harmonic pair (the out-of-round candidates, and the model that names one) -- before any clock:
+    (their structures, the seconds it took, whether the SIMD library has Jacobian entries)."""
+    t0 = time.perf_counter()
+    variants = [cfg.parameters("constrained").structure for cfg in (base, with_harmonic_pair(base, 4))]
+    jac = True
+    for structure in variants:
+        load_kernels(structure)
+        simd = fast_kernel(structure)
+        jac = jac and simd is not None and simd.has_jacobian
+    return variants, time.perf_counter() - t0, jac
 
 
 def record(case: str, samples: int, seed: int = 0):
@@ -63,31 +84,76 @@ def run_one(case: str, samples: int, kernel: str = "simd", profile=None) -> dict
             "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"]}
 
 
+def scaling_terms(rows, window: int = OPTIONS.screen_samples) -> list[dict]:
+    """Per (case, kernel): CPU seconds = fixed + per_window_sample x min(samples, window) +
+    per_sample x samples by least squares (the search runs on the first `window` samples, the
+    whole-record refits and tests on all); with fewer than three lengths or none beyond the
+    window, a line (per_window_sample 0). The fixed term's share at each length."""
+    out = []
+    for key in sorted({(r["case"], r["kernel"]) for r in rows}):
+        rs = [r for r in rows if (r["case"], r["kernel"]) == key]
+        n = np.array([r["samples"] for r in rs], dtype=float)
+        if np.unique(n).size < 2:
+            continue
+        cpu = np.array([r["cpu_seconds"] for r in rs])
+        A = np.column_stack([np.ones_like(n), np.minimum(n, window), n])
+        if np.linalg.matrix_rank(A) < 3:
+            A = A[:, [0, 2]]
+        coef = np.linalg.lstsq(A, cpu, rcond=None)[0]
+        fixed, per = coef[0], coef[-1]
+        per_window = coef[1] if coef.size == 3 else 0.0
+        fit = A @ coef
+        out.append({"case": key[0], "kernel": key[1], "window": window, "fixed_cpu_seconds": float(fixed),
+                    "per_window_sample_cpu_us": float(per_window * 1e6), "per_sample_cpu_us": float(per * 1e6),
+                    "worst_residual_cpu_seconds": float(np.max(np.abs(cpu - fit))),
+                    "fixed_share": {int(k): float(fixed / f) for k, f in zip(n, fit)}})
+    return out
+
+
+def print_terms(terms):
+    for t in terms:
+        shares = ", ".join(f"{k}: {v:.0%}" for k, v in t["fixed_share"].items())
+        print(f"{t['case']:6s} {t['kernel']:6s} CPU = {t['fixed_cpu_seconds']:.1f} s + "
+              f"{t['per_window_sample_cpu_us']:.0f} us x min(samples, {t['window']}) + "
+              f"{t['per_sample_cpu_us']:.0f} us x samples (worst residual {t['worst_residual_cpu_seconds']:.1f} s; "
+              f"fixed share by length {shares})")
+
+
+def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print) -> dict:
+    """The rows and the fitted terms (see the module docstring), warmed up first."""
+    load = os.getloadavg()
+    log(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+    _, seconds, _ = warm_kernels(load_config(ROOT / "examples" / "ellipse_4vanes.toml"))
+    log(f"kernels built or loaded before the clock: {seconds:.1f} s")
+    diagnose(*record("none", 2000))  # one-time costs of a first diagnosis outside the timings
+    rows = []
+    for case in cases:
+        for n in samples:
+            for kernel in kernels:
+                r = run_one(case, n, kernel, profile)
+                rows.append(r)
+                log(f"{case:6s} {r['samples']:6d} samples  {kernel:6s} {r['seconds']:6.1f} s wall  "
+                    f"{r['cpu_seconds']:6.1f} s CPU  load {r['load']:.1f}  effects {r['effects']}  "
+                    f"verdict {r['verdict']}")
+    os.environ.pop("PUMPSIM_FIT_KERNEL", None)
+    end = os.getloadavg()
+    log(f"load average at end: {' '.join(f'{v:.2f}' for v in end)}")
+    return {"load_start": load, "load_end": end, "rows": rows, "terms": scaling_terms(rows)}
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--samples", type=int, nargs="*", default=[10000, 20000, 40000])
-    ap.add_argument("--case", nargs="*", choices=list(CASES), default=list(CASES))
+    ap.add_argument("--samples", type=int, nargs="*", default=[1000, 5000, 20000, 80000])
+    ap.add_argument("--case", nargs="*", choices=list(CASES), default=["oval4"])
     ap.add_argument("--kernel", nargs="*", choices=["simd", "scalar"], default=["simd"])
     ap.add_argument("--profile", help="cProfile output (one case and length only)")
     ap.add_argument("--json")
     a = ap.parse_args()
-    load = os.getloadavg()
-    print(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    diagnose(*record("none", 2000))  # kernels loaded and maps built outside the timings
-    rows = []
-    for case in a.case:
-        for n in a.samples:
-            for kernel in a.kernel:
-                r = run_one(case, n, kernel, a.profile)
-                rows.append(r)
-                print(f"{case:6s} {r['samples']:6d} samples  {kernel:6s} {r['seconds']:6.1f} s wall  "
-                      f"{r['cpu_seconds']:6.1f} s CPU  load {r['load']:.1f}  effects {r['effects']}  "
-                      f"verdict {r['verdict']}", flush=True)
-    print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    res = scale(a.samples, a.case, a.kernel, a.profile, log=lambda m: print(m, flush=True))
+    print_terms(res["terms"])
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.json).write_text(json.dumps({"load_start": load, "load_end": os.getloadavg(), "rows": rows},
-                                           indent=1))
+        Path(a.json).write_text(json.dumps(res, indent=1))
 
 
 if __name__ == "__main__":

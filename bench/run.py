@@ -272,27 +272,55 @@ def bench_identify(duration=0.5, rate=10000.0):
             "ratio": t_fd / t_gn}
 
 
+DIAGNOSE_CPU_TARGET_S = 3.0  # one effect, 5,000 samples (and <= 20 s for the worst case of bench/diagnose_grid.py)
+
+
 def bench_diagnose(duration=0.5, rate=10000.0):
     """The whole discrepancy workflow (full library) on 0.5 s of 10 kHz data with one hidden effect
-    (housing out-of-round, order 4) and 5 % noise; target <= 30 s wall."""
+    (housing out-of-round, order 4) and 5 % noise. The kernels of the variants it uses
+    (diagnose_scale.warm_kernels) are built or loaded before the clock and that time is printed on its own line; the
+    clock then covers the first diagnosis in the process (its one-time costs included). Wall and
+    CPU time (all threads); the CPU time is held against DIAGNOSE_CPU_TARGET_S."""
     import dataclasses
 
     from pumpsim.data import Dataset
     from pumpsim.diagnosis import diagnose
     from pumpsim.simulate import simulate
 
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+
     base = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    variants, t_kernels, jac = diagnose_scale.warm_kernels(base)
     truth = dataclasses.replace(base, angle=0.4).with_harmonics([[4, 2e-5, 0.3]])
     sim = simulate(truth, duration=duration, rate=rate)
     y = sim.torque + np.random.default_rng(0).normal(0, 0.05 * np.std(sim.torque), sim.time.size)
     data = Dataset(sim.time, y)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = diagnose(base, data)
-    wall = time.perf_counter() - t0
-    print(f"\nDiscrepancy workflow, full library, {sim.time.size} samples (first fit in the process)")
-    print(f"  effects named: {out['effects']}; wall {wall:.1f} s (target <= 30 s)")
-    return {"samples": int(sim.time.size), "seconds": wall, "effects": out["effects"],
-            "final_rms": out["final"]["rms"]}
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    print(f"\nDiscrepancy workflow, full library, {sim.time.size} samples (first diagnosis in the process)")
+    print(f"  kernels ({', '.join(v.variant for v in variants)}, SIMD {'with' if jac else 'WITHOUT'} "
+          f"Jacobian entries) ready before the clock: {t_kernels:.1f} s (a build, if any, is in that figure)")
+    print(f"  effects named: {out['effects']}; wall {wall:.1f} s, CPU {cpu:.1f} s (target <= "
+          f"{DIAGNOSE_CPU_TARGET_S:g} s CPU: {'met' if cpu <= DIAGNOSE_CPU_TARGET_S else 'MISSED'}); "
+          f"load {os.getloadavg()[0]:.1f}")
+    return {"samples": int(sim.time.size), "seconds": wall, "cpu_seconds": cpu, "kernels_seconds": t_kernels,
+            "simd_jacobian": jac, "effects": out["effects"],
+            "final_rms": out["final"]["rms"], "target_cpu_seconds": DIAGNOSE_CPU_TARGET_S,
+            "target_met": cpu <= DIAGNOSE_CPU_TARGET_S, "load": os.getloadavg()[0]}
+
+
+def bench_diagnose_scale(samples=(1000, 5000, 20000, 80000)):
+    """Diagnosis cost = fixed + per sample (bench/diagnose_scale.py: the out-of-round record at
+    several lengths in one process, CPU seconds, least-squares line)."""
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+
+    print("\nDiagnosis cost against the record length (CPU seconds, all threads)")
+    res = diagnose_scale.scale(list(samples))
+    diagnose_scale.print_terms(res["terms"])
+    return res
 
 
 def bench_benchlog(duration=5.0, rate=1000.0):
@@ -507,8 +535,9 @@ BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile,
            "identify": bench_identify, "identify_1e6": bench_identify_large, "jacobian_simd": bench_jacobian_simd,
            "diagnose": bench_diagnose,
            "load": bench_load}
-# run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes (docs/explanation/bench-log.md)
-OPTIONAL = {"benchlog": bench_benchlog}
+# run only when named (--only benchlog): the bench-log fit of a 5 s log takes minutes (docs/explanation/bench-log.md);
+# the diagnosis scaling runs four diagnoses up to 80,000 samples (minutes)
+OPTIONAL = {"benchlog": bench_benchlog, "diagnose_scale": bench_diagnose_scale}
 
 
 def main():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 
 import casadi as ca
 import numpy as np
@@ -19,7 +20,7 @@ from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
 from .reversals import reversal_keep
-from .sampled import drive_motion, pointwise_columns, sample_blocks, simd_jacobian, simd_torque
+from .sampled import drive_motion, pointwise_columns, sample_blocks, simd_torque, simd_torque_designs
 from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
@@ -206,15 +207,50 @@ class ConstantSpeedProblem(Problem):
     def _lag(self, x):
         return self._values(x)["lag"]
 
+    @property
+    def _simd(self):
+        """The SIMD library or None (PUMPSIM_FIT_KERNEL=scalar: the CasADi map), looked up once per
+        problem (the lookup checks the sources)."""
+        if os.environ.get("PUMPSIM_FIT_KERNEL", "") == "scalar":
+            return None
+        if "_simd_lib" not in self.__dict__:
+            self._simd_lib = fast_kernel(self.kern.structure)
+        return self._simd_lib
+
     def _torque(self, theta, z, kin):
-        return torque_at(self.kern, theta, z, self.ripple_order, *kin)
+        """torque_at, the last few short runs remembered: a fit asks for the same model again (a
+        step's trial point, then its Jacobian; the mask and the model at one x)."""
+        memo = self.__dict__.setdefault("_torque_memo", [])
+        fast = self._simd
+        key = (fast is None, np.asarray(z, dtype=float).tobytes())
+        for k, th, kn, val in memo:
+            if k == key and all(a is b for a, b in zip(kn, kin)) and np.array_equal(th, theta):
+                return val.copy()
+        if fast is None:
+            tq = torque_at(self.kern, theta, z, self.ripple_order, *kin)
+        else:
+            tq = simd_torque(fast, theta, z, self.ripple_order, *kin)
+        if np.size(theta) <= TORQUE_MEMO_SAMPLES:
+            memo.insert(0, (key, np.array(theta), tuple(kin), tq.copy()))
+            del memo[TORQUE_MEMO:]
+        return tq
 
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
         LAG_SUBSTEPS points per sample interval (angles, times and their derivatives interpolated
         linearly: smooth on that scale) and `_sensed` filters there and keeps the samples."""
         m = LAG_SUBSTEPS if T > 0 and self.t.size > 1 else 1
-        return m, [a if m == 1 else refine(a, m) for a in per_sample]
+        return m, [a if m == 1 else self._refined(a, m) for a in per_sample]
+
+    def _refined(self, a, m):
+        """refine(a, m), kept for the drive's own per-sample arrays (the same at every x)."""
+        if not any(a is b for b in (self.tau, *self._rates)):
+            return refine(a, m)
+        memo = self.__dict__.setdefault("_refine_memo", {})
+        key = (id(a), m)
+        if key not in memo:
+            memo[key] = refine(a, m)
+        return memo[key]
 
     def _sensed(self, y, T, m):
         return y if T <= 0 else first_order_lag(y, self.dt / m, T)[::m]
@@ -248,8 +284,9 @@ class ConstantSpeedProblem(Problem):
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
             h = abs(self.speed_of(x)) * self._half_step / m
             slope = np.empty(theta.size)
-            for sl in sample_blocks(theta.size):  # per sample: block by block (memory)
-                th, kn = theta[sl], [a[sl] for a in kin]
+            blocks = sample_blocks(theta.size)
+            for sl in blocks:  # per sample: block by block (memory); one block: the arrays themselves
+                th, kn = (theta, kin) if len(blocks) == 1 else (theta[sl], [a[sl] for a in kin])
                 slope[sl] = (self._torque(th + h, z, kn) - self._torque(th - h, z, kn)) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
@@ -269,7 +306,7 @@ class ConstantSpeedProblem(Problem):
         """The torque at theta and its derivatives along the seed columns `cols` with theta held:
         exact derivatives of the same model -- the SIMD library's Jacobian entries where this machine
         has them (sampled.pointwise_columns), else forward AD on the CasADi map (sample_torque)."""
-        fast = simd_jacobian(self.kern.structure)
+        fast = self._simd if self._simd is not None and self._simd.has_jacobian else None
         if fast is not None:
             if not cols:
                 return self._torque(theta, z, kin), np.zeros((theta.size, 0))
@@ -278,14 +315,23 @@ class ConstantSpeedProblem(Problem):
         tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols or [0]])
         return np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, -1)[:, :len(cols)]
 
-    def _interval_average(self, x):
-        """The model torque averaged over each sample interval (INTERVAL_SUBPOINTS points at the
-        interval's sub-sample angles, centred on the sample): a friction reversal inside the
-        interval contributes its step times the fraction of the interval it covers."""
-        theta, z, kin = self.angle(x), self.z(x), (self.tau, *self._rates)
-        h = abs(self.speed_of(x)) * self.dt
+    def _interval_averages(self, xs):
+        """The model torque at each of the points xs averaged over each sample interval
+        (INTERVAL_SUBPOINTS points at the interval's sub-sample angles, centred on the sample): a
+        friction reversal inside the interval contributes its step times the fraction of the
+        interval it covers. On the SIMD library all points' sub-sample runs go in one call."""
         offsets = (np.arange(INTERVAL_SUBPOINTS) + 0.5) / INTERVAL_SUBPOINTS - 0.5
-        return np.mean([self._torque(theta + o * h, z, kin) for o in offsets], axis=0)
+        kin = (self.tau, *self._rates)
+        thetas, zs = [], []
+        for x in xs:
+            theta, z, h = self.angle(x), self.z(x), abs(self.speed_of(x)) * self.dt
+            thetas += [theta + o * h for o in offsets]
+            zs += [z] * offsets.size
+        if self._simd is None:
+            runs = [self._torque(th, z, kin) for th, z in zip(thetas, zs)]
+        else:
+            runs = simd_torque_designs(self._simd, np.array(thetas), np.array(zs), self.ripple_order, *kin)
+        return [np.mean(runs[i:i + offsets.size], axis=0) for i in range(0, len(runs), offsets.size)]
 
     def _interval_columns(self, x, J, which, cols):
         """Replace the columns `which` of J (by the fit names of `cols`) with central differences
@@ -300,10 +346,14 @@ class ConstantSpeedProblem(Problem):
         v = self.pv.values
         step = INTERVAL_STEP * max(v["housing.a"], v["housing.b"])
         x = np.asarray(x, dtype=float)
+        points = []
         for i in which:
             e = np.zeros_like(x)
             e[cols[i]] = step
-            J[:, i] = (self._interval_average(x + e) - self._interval_average(x - e)) / (2 * step)
+            points += [x + e, x - e]
+        avg = self._interval_averages(points)
+        for j, i in enumerate(which):
+            J[:, i] = (avg[2 * j] - avg[2 * j + 1]) / (2 * step)
 
     def symbolic_model(self, phi):
         """The (unfiltered) model torque as a CasADi expression of symbolic fitted values phi."""
@@ -344,6 +394,7 @@ class ConstantSpeedProblem(Problem):
         return self.z(x)[:self.p0.size]
 
 
+TORQUE_MEMO, TORQUE_MEMO_SAMPLES = 4, 1 << 16  # model runs a problem remembers, up to this length
 INTERVAL_SUBPOINTS = 8  # points per sample interval of the interval-average model
 INTERVAL_STEP = 5e-5  # its difference step, of the housing's larger semi-axis (~1 um on a 22 mm housing)
 
@@ -501,4 +552,6 @@ def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
     for q in follow:
         if any(n in val for n in q.inputs):
             setp(q.name, derive(q.derived, {n: p[index[n]] for n in q.inputs}))
+    if all(isinstance(e, (float, int, np.floating, np.integer)) for e in p):
+        return np.array(p, dtype=float).reshape(-1, 1)  # numbers: CasADi's vertcat costs ~0.5 ms a call
     return ca.vertcat(*p)

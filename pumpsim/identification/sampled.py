@@ -36,6 +36,40 @@ def simd_torque(fast, theta, z, k, tau, g, gd) -> np.ndarray:
     return tq
 
 
+DESIGN_SAMPLES = 1 << 19  # samples per SIMD call of simd_torque_designs (~4 MB per input array)
+
+
+def simd_torque_designs(fast, thetas, zs, k, tau, g, gd) -> np.ndarray:
+    """simd_torque for D designs on one drive: angles thetas (D, n) and kernel-graph inputs zs
+    (D, len z) -> torques (D, n), bit for bit D calls of simd_torque: each design is one block of
+    the library's blocks entry, evaluated from its own start as a call over its n samples is. Many
+    short evaluations (the sub-sample points of an interval average) then cost one Python call per
+    DESIGN_SAMPLES samples, not one per design, and reach the threaded size."""
+    thetas, zs = np.ascontiguousarray(np.atleast_2d(thetas), dtype=float), np.atleast_2d(zs)
+    D, n = thetas.shape
+    npar = fast.n_params
+    out = np.empty((D, n))
+    if n > SAMPLE_BLOCK or D == 1:
+        for d in range(D):
+            out[d] = simd_torque(fast, thetas[d], zs[d], k, tau, g, gd)
+        return out
+    tau, g, gd = (np.broadcast_to(np.asarray(a, dtype=float), (n,)) for a in (tau, g, gd))
+    drive = zs[:, npar:npar + len(KERNEL_GRAPH_INPUTS)]
+    same = bool(np.all(drive == drive[0]))
+    motion = [_drive(drive[0], k, tau, g, gd)] if same else [_drive(zd, k, tau, g, gd) for zd in drive]
+    motion = [tuple(np.broadcast_to(a, (n,)) for a in m) for m in motion]
+    group = max(1, DESIGN_SAMPLES // n)
+    for lo in range(0, D, group):
+        hi = min(D, lo + group)
+        m = (hi - lo) * n
+        w, wd = (np.concatenate([motion[0 if same else d][i] for d in range(lo, hi)]) for i in (0, 1))
+        row = out[lo:hi].reshape(1, m)
+        fast(thetas[lo:hi].reshape(m), w, wd, np.ascontiguousarray(zs[lo:hi, :npar]), block=n, out=row,
+             threads=default_threads() if m >= FAST_THREADED else 1, outputs="torque")
+    out += drive[:, 3:4]
+    return out
+
+
 def _drive(zs, k, tau, g, gd):
     """Speed and acceleration of the drive at drive times tau (zs: z's drive entries)."""
     theta0, w0, delay, _, rc, rs = zs

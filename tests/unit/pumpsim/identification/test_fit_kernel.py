@@ -81,3 +81,60 @@ def test_simd_columns_keep_what_the_diagnosis_decides_on(monkeypatch):
     _assert_columns_agree(fast[1], ref[1], names, prob, ref[0])
     f1, f3 = (fast[1][:, names.index(n)] for n in names[-2:])
     assert np.linalg.norm(f1 / np.linalg.norm(f1) - f3 / np.linalg.norm(f3)) < EQUAL_COLUMNS_REL
+
+
+def test_many_designs_in_one_call_are_the_per_design_runs_bit_for_bit(monkeypatch):
+    """sampled.simd_torque_designs (the interval averages' sub-sample runs in one call) against one
+    simd_torque call per design: designs that differ in parameters, angle and drive entries (torque
+    offset, phase, ripple), a length that is no multiple of the library's chunk, and groups that
+    split the designs over several calls."""
+    from pumpsim.identification import sampled
+
+    prob = _problem()
+    fast = fast_kernel(prob.kern.structure)
+    if fast is None:
+        pytest.skip("no SIMD library on this machine")
+    npar, n = fast.n_params, prob.t.size
+    rng = np.random.default_rng(1)
+    zs = np.tile(prob.z(prob.x0), (5, 1))
+    zs[:, :npar] *= 1 + 1e-3 * rng.standard_normal((5, npar))
+    zs[3:, npar:] += [0.1, 0.0, 0.0, 0.02, 0.01, -0.005]  # two designs with their own drive
+    thetas = prob.angle(prob.x0)[None, :] + 1e-4 * np.arange(5)[:, None]
+    kin = (prob.tau, *prob._rates)
+    each = np.array([sampled.simd_torque(fast, th, z, 2, *kin) for th, z in zip(thetas, zs)])
+    monkeypatch.setattr(sampled, "DESIGN_SAMPLES", 2 * n)  # groups of two designs
+    assert np.array_equal(sampled.simd_torque_designs(fast, thetas, zs, 2, *kin), each)
+    same = np.tile(zs[0], (5, 1))  # one drive for all: computed once
+    each = np.array([sampled.simd_torque(fast, th, same[0], 2, *kin) for th in thetas])
+    assert np.array_equal(sampled.simd_torque_designs(fast, thetas, same, 2, *kin), each)
+
+
+def test_a_problem_remembers_its_last_model_runs_and_honours_the_kernel_switch(monkeypatch):
+    """The same model asked for again is not run again, comes back as a copy (the caller may write
+    into it), and PUMPSIM_FIT_KERNEL=scalar set on a live problem sends it to the CasADi map."""
+    from pumpsim.identification import problem as problem_module
+
+    prob = _problem()
+    if fast_kernel(prob.kern.structure) is None:
+        pytest.skip("no SIMD library on this machine")
+    calls = []
+    run = problem_module.simd_torque
+    monkeypatch.setattr(problem_module, "simd_torque", lambda *a: calls.append(1) or run(*a))
+    x = prob.x0.copy()
+    x[NAMES.index("lag")] = 0.0
+    first = prob.model(x)
+    first[:] = 0.0
+    again = prob.model(x)
+    assert len(calls) == 1 and np.any(again != 0.0)
+    x[0] *= 1.01
+    prob.model(x)
+    assert len(calls) == 2
+    mapped = []
+    scalar = problem_module.torque_at
+    monkeypatch.setattr(problem_module, "torque_at", lambda *a: mapped.append(1) or scalar(*a))
+    monkeypatch.setenv("PUMPSIM_FIT_KERNEL", "scalar")
+    ref = prob.model(x)
+    assert len(mapped) == 1 and len(calls) == 2
+    monkeypatch.delenv("PUMPSIM_FIT_KERNEL")
+    simd = prob.model(x)  # the SIMD run remembered: the map's run did not replace it
+    assert len(calls) == 2 and np.max(np.abs(simd - ref)) < SIMD_REL * np.max(np.abs(ref))
