@@ -8,7 +8,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import lfilter, lfilter_zi
 
 
 def first_order_lag(y, dt, T):
@@ -27,6 +26,8 @@ def first_order_lag(y, dt, T):
     y = np.asarray(y, dtype=float)
     if y.ndim > 1:
         return np.column_stack([first_order_lag(col, dt, T) for col in y.T])
+    from scipy.signal import lfilter, lfilter_zi  # here: scipy.signal imports scipy.stats (~0.5 s)
+
     b = [1 - c, c - a]
     return lfilter(b, [1, -a], y, zi=lfilter_zi(b, [1, -a]) * y[0])[0]
 

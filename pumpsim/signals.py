@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
+
+from .distributions import chi2_sf, f_sf, norm_sf
 
 
 def runs_test(x) -> dict:
@@ -22,7 +23,7 @@ def runs_test(x) -> dict:
     mu = 2.0 * n1 * n2 / n + 1
     var = 2.0 * n1 * n2 * (2.0 * n1 * n2 - n) / (n * n * (n - 1))
     z = (runs - mu) / math.sqrt(var)
-    return {"runs": runs, "expected": mu, "z": z, "p_value": float(2 * stats.norm.sf(abs(z)))}
+    return {"runs": runs, "expected": mu, "z": z, "p_value": float(2 * norm_sf(abs(z)))}
 
 
 def ljung_box(x, lags: int | None = None, fitted: int = 0) -> dict:
@@ -35,7 +36,7 @@ def ljung_box(x, lags: int | None = None, fitted: int = 0) -> dict:
     rho = np.array([np.dot(x[:-k], x[k:]) / denom for k in range(1, m + 1)])
     q = n * (n + 2) * np.sum(rho**2 / (n - np.arange(1, m + 1)))
     dof = max(1, m - fitted)
-    return {"q": float(q), "lags": m, "p_value": float(stats.chi2.sf(q, dof))}
+    return {"q": float(q), "lags": m, "p_value": float(chi2_sf(q, dof))}
 
 
 def order_spectrum(x, dt: float, speed: float, peaks: int = 6) -> dict:
@@ -113,7 +114,7 @@ def synchronous_f_test(x, angle, bins: int | None = None) -> dict:
     within = float(np.sum((x - mean_b[idx]) ** 2))
     between = float(np.sum(c[used] * (mean_b[used] - x.mean()) ** 2))
     F = (between / (k - 1)) / max(within / (n - k), 1e-300)
-    return {"statistic": float(F), "p_value": float(stats.f.sf(F, k - 1, n - k)), "bins": k,
+    return {"statistic": float(F), "p_value": float(f_sf(F, k - 1, n - k)), "bins": k,
             "within_var": within / (n - k), "applicable": True,
             "average": np.where(used, mean_b, np.nan), "counts": c}
 
@@ -140,7 +141,7 @@ def high_frequency_noise(x, band=(0.2, 0.4)) -> dict:
     kurt = float(np.mean(x**4) / var**2)
     sd = math.sqrt(max(kurt - 1, 0.5) / n + 1.0 / (m * math.log(2) ** 2))
     z = math.log(var / max(s2, 1e-300)) / sd
-    return {"statistic": z, "p_value": float(stats.norm.sf(z)), "sigma": math.sqrt(s2),
+    return {"statistic": z, "p_value": float(norm_sf(z)), "sigma": math.sqrt(s2),
             "ratio": var / max(s2, 1e-300)}
 
 
@@ -189,6 +190,8 @@ def kurtosis_test(x) -> dict:
     x = np.asarray(x, dtype=float)
     if x.size < 20 or np.var(x) == 0:
         return {"statistic": 0.0, "p_value": 1.0, "excess": 0.0, "excess_rms": 0.0, "mad_sigma": float(np.std(x))}
+    from scipy import stats  # here: scipy.stats takes ~0.5 s to import, and only this test needs it
+
     z, p = stats.kurtosistest(x, alternative="greater")
     mad = 1.4826 * float(np.median(np.abs(x - np.median(x))))
     return {"statistic": float(z), "p_value": float(p), "excess": float(stats.kurtosis(x)),
@@ -280,7 +283,7 @@ def synchronous_speed_scan(t, y, lower, upper, nominal, alpha=1e-3, order=1) -> 
     total = float(y @ y)
     k = bins - 1
     F = (power.max() / k) / max((total - power.max()) / max(n - bins, 1), 1e-300)
-    p = float(stats.f.sf(F, k, max(n - bins, 1)))
+    p = float(f_sf(F, k, max(n - bins, 1)))
     if not np.isfinite(p) or p * grid.size >= alpha or spr < 8:
         return {"speed": float(nominal), "p_value": p, "grid": int(grid.size), "refined": False}
     top = min(int(spr), 720)
@@ -374,7 +377,7 @@ def order_lines(x, angle, orders, alpha) -> dict:
     for k in examined:
         nb = P[k * R + off]
         rho = P[k * R] / max(float(nb.mean()), 1e-300)
-        p = float(stats.f.sf(rho, 2, 2 * off.size))
+        p = float(f_sf(rho, 2, 2 * off.size))
         out["p_values"][k] = p
         if p >= alpha / len(examined) or P[k * R] < nb.max() or share < SYNCHRONOUS_SHARE:
             continue
@@ -417,5 +420,5 @@ def speed_column_disagreement(column, time, theta, speed, order, ripple, ripple_
     cov = sigma**2 * np.linalg.pinv(X.T @ X) + np.asarray(ripple_cov, dtype=float)
     delta = np.asarray(ripple, dtype=float) - beta
     chi2 = float(delta @ np.linalg.pinv(cov) @ delta) if np.any(cov) else (math.inf if np.any(delta) else 0.0)
-    return {"statistic": chi2, "p_value": float(stats.chi2.sf(chi2, 2)), "column": beta.tolist(),
+    return {"statistic": chi2, "p_value": float(chi2_sf(chi2, 2)), "column": beta.tolist(),
             "column_sigma": float(sigma), "hypothesis": list(map(float, ripple))}

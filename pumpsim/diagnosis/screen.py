@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ..signals import order_lines
 
 from .effects import EFFECTS, Candidate, Effect, clearance, owner_of
@@ -261,7 +261,7 @@ def score_test(state: State, cand: Candidate, start=True, opts: DiagnosisOptions
     coef, _, rank, _ = np.linalg.lstsq(Me / scale, Mr, rcond=1e-10)
     lm = float((Mr @ (Me / scale)) @ coef) / max(sigma2, 1e-300)
     q = max(int(rank), 1)
-    score = Score(lm, q, float(stats.chi2.sf(lm, q)), params, quad, partner)
+    score = Score(lm, q, float(chi2_sf(lm, q)), params, quad, partner)
     if start is False:
         return score
     return _with_one_step(state, cand, lin, score, coef / scale, Je_w, opts)
@@ -382,7 +382,7 @@ def rank_candidates(state, scored, tests=None, opts: DiagnosisOptions = OPTIONS)
         n, rss0 = s.n, s.base_rss
         rss1 = min(s.one_step_rss, rss0)
         lr = n * math.log(max(rss0, 1e-300) / max(rss1, 1e-300))
-        lr_p = float(stats.chi2.sf(lr, max(q, 1)))
+        lr_p = float(chi2_sf(lr, max(q, 1)))
         sig = s.p_value < alpha or ((s.second_order or s.searched) and lr_p < alpha / opts.searched)
         rss_b, n_b = s.base
         out.append(Ranked(c, s, bic(rss_b, n_b, k0) - lr + q * math.log(n), bool(sig)))

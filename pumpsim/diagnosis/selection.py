@@ -8,8 +8,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ..signals import speed_column_disagreement
 
 from .detectors import Detection, noise_scatter
@@ -59,7 +59,7 @@ def _judge(run, f: Contender, state, current, rho) -> Judged | Rejected:
     # frequencies, where moved friction reversals can buy a spurious whitened gain
     lr, lr_plain, bic0, bic1 = lr_bic(current, len(state.names), res, len(st.names), rho, common_keep(current, res))
     return Judged(f, st, res, bic0, bic1,
-                  max(float(stats.chi2.sf(lr, max(q, 1))), float(stats.chi2.sf(lr_plain, max(q, 1)))))
+                  max(float(chi2_sf(lr, max(q, 1))), float(chi2_sf(lr_plain, max(q, 1)))))
 
 
 def _size(current, res) -> float:
@@ -146,7 +146,7 @@ def find_rival(run, fits, acceptance: Acceptance, state, current, rho):
     k0 = len(state.names)
     lr, _, bic0, bic_r = lr_bic(current, k0, res, len(st.names), rho, keep)
     bic_a = lr_bic(current, k0, accepted.res, len(accepted.state.names), rho, keep).bic1
-    lr_p = float(stats.chi2.sf(lr, max(len(st.names) - k0, 1)))
+    lr_p = float(chi2_sf(lr, max(len(st.names) - k0, 1)))
     if lr_p < opts.lr_alpha and bic_r < bic0 and bic_r - bic_a < opts.bic_decisive:
         pair = [mine.cand.effect, rival.cand.effect]
         if pair not in run.confounded:
@@ -200,7 +200,7 @@ def _superseded(run, state, current, names, sigma, rho):
         return (2.0, f"its part of the torque is {size:.3g} N m RMS, below {run.opts.named_size:g} x the noise sigma",
                 st, res)
     lr, _, bic0, bic1 = lr_bic(res, len(st.names), current, len(state.names), rho, common_keep(current, res))
-    p = float(stats.chi2.sf(lr, len(names)))
+    p = float(chi2_sf(lr, len(names)))
     if p >= run.opts.lr_alpha or bic0 <= bic1:
         return p, f"without it the likelihood ratio p is {p:.2g} (or BIC no higher)", st, res
     return None

@@ -6,8 +6,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ..identification import base_name
 from ..signals import noise_sigma
 from ..identification.problem import SPEED_COLUMN_Z
@@ -53,7 +53,7 @@ def homogeneity(J, r, segments, sigma, nuisance=None) -> Homogeneity:
     pooled = np.linalg.solve(W, sum(I @ b for I, b in zip(info, est)))
     stat = float(sum((b - pooled) @ I @ (b - pooled) for I, b in zip(info, est)))
     dof = (len(est) - 1) * q
-    return Homogeneity(stat, dof, float(stats.chi2.sf(stat, dof)), [(b / scale[:q]).tolist() for b in est])
+    return Homogeneity(stat, dof, float(chi2_sf(stat, dof)), [(b / scale[:q]).tolist() for b in est])
 
 
 def revolution_segments(angle, rows, opts: DiagnosisOptions = OPTIONS):

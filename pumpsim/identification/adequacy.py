@@ -21,8 +21,8 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ..signals import high_frequency_noise, order_spectrum, synchronous_average
 
 MODEL_ORDER_POWER = 0.99  # the model's own orders: those carrying this share of its shaft-order power
@@ -164,7 +164,7 @@ def assess(measured, fitted, angle, dt, speed, fitted_parameters: int = 0) -> Ad
             dof = G.shape[0]
             F = (pr / dof) / max(sigma**2, 1e-300)
             out.model_orders, out.order_misfit = list(ks), math.sqrt(pr / pm) if pm > 0 else None
-            out.order_misfit_p = float(stats.chi2.sf(F * dof, dof))
+            out.order_misfit_p = float(chi2_sf(F * dof, dof))
         sa = synchronous_average(r - r.mean(), angle, bins=72)
         avg = sa["average"]
         if np.any(np.isfinite(avg)):

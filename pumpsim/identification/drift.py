@@ -15,7 +15,8 @@ import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
+
+from ..distributions import t_sf
 
 DRIFT_SEGMENTS = 8
 DRIFT_MIN_REVS = 3
@@ -60,7 +61,7 @@ def trend(times, values) -> tuple:
     if var_b <= 0:
         return float(coef[1]), (0.0 if coef[1] != 0 else 1.0), float(coef[0])
     tstat = float(coef[1]) / math.sqrt(var_b)
-    return float(coef[1]), float(2 * stats.t.sf(abs(tstat), dof)), float(coef[0])
+    return float(coef[1]), float(2 * t_sf(abs(tstat), dof)), float(coef[0])
 
 
 def parameter_drift(fit, data, name: str, values: dict, speed: float) -> Drift | None:

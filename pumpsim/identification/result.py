@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import t_ppf
 from ..presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe, samples_sha256, sha256
 from .adequacy import Adequacy
 from .optimiser import scaled_svd
@@ -172,7 +172,7 @@ def fit_estimates(names, x, initial, r, J):
     se = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):  # a noise-free fit has se = 0
         corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(k))
-    tq = stats.t.ppf(0.975, max(n - k, 1))
+    tq = t_ppf(0.975, max(n - k, 1))
     est = {nm: Estimate(nm, float(x[i]), float(se[i]), float(x[i] - tq * se[i]), float(x[i] + tq * se[i]),
                         float(initial[i])) for i, nm in enumerate(names)}
     return est, corr

@@ -8,8 +8,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import f_sf
 from ..signals import synchronous_speed_scan
 from ..model_spec.parameters import MEASUREMENT_BY_NAME, registry
 from ..kernels import sampled_inverse_dynamics
@@ -120,7 +120,7 @@ def model_order_scan(t, y, one_rev, lower, upper):
     total = float(y[:m] @ y[:m])
     dof = 2 * orders.size
     F = (explained / dof) / max((total - explained) / max(m - dof - 1, 1), 1e-300)
-    if not stats.f.sf(F, dof, max(m - dof - 1, 1)) * grid.size < SCAN_ALPHA:
+    if not f_sf(F, dof, max(m - dof - 1, 1)) * grid.size < SCAN_ALPHA:
         return None
     while m < n:
         m, step = min(n, 4 * m), step / 4
