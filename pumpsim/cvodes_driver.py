@@ -33,6 +33,7 @@ SOURCE = r"""
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <math.h>
 #include <cvodes/cvodes.h>
 #include <nvector/nvector_serial.h>
 #include <sunmatrix/sunmatrix_dense.h>
@@ -44,7 +45,27 @@ typedef struct {
   SUNContext ctx; void *cv; N_Vector y, atol; SUNMatrix A; SUNLinearSolver LS; int n;
   call_t rhs, jac; int nout; const ci *off; ci jnnz; const ci *jpos; const double *jbuf;
   long nrhs, njac, base[5]; char msg[512];
+  /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
+     goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
+  call_t g; int gn1, gns, gnslot; const ci *gslot, *goff, *gidx; double *gbuf, gtouch;
 } drv_t;
+
+static int groot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
+  drv_t *d = (drv_t *)u; double *Y = N_VGetArrayPointer(y);
+  for (int i = 0; i < d->gnslot; i++) d->g.arg[d->gslot[i]] = Y + d->goff[i];
+  if (d->gn1 && d->g.f(d->g.arg, d->g.res, d->g.iw, d->g.w, 0)) return 1;
+  for (int i = 0; i < d->gn1; i++) g[i] = d->gbuf[i];
+  for (int j = 0; j < d->gns; j++) g[d->gn1 + j] = Y[d->gidx[j]];
+  for (int i = 0; i < d->gn1 + d->gns; i++) if (fabs(g[i]) < d->gtouch) g[i] = 0.0;
+  return 0;
+}
+
+int drv_roots(drv_t *d, fn_t f, const double **arg, double **res, ci *iw, double *w, int nslot,
+              const ci *slot, const ci *off, int n1, double *buf, int ns, const ci *idx, double touch) {
+  d->g = (call_t){f, arg, res, iw, w, 0}; d->gnslot = nslot; d->gslot = slot; d->goff = off;
+  d->gn1 = n1; d->gbuf = buf; d->gns = ns; d->gidx = idx; d->gtouch = touch;
+  return CVodeRootInit(d->cv, n1 + ns, groot);
+}
 
 static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
   drv_t *d = (drv_t *)u; double *D = N_VGetArrayPointer(yd);
@@ -113,10 +134,12 @@ static void stats_of(drv_t *d, long *st) {
   for (int i = 1; i < 5; i++) st[i + 2] = d->base[i] + c[i];
 }
 
+/* Y at tout[0..m); on a root (flag CV_ROOT_RETURN) it stops there: *done full rows, the root's
+   time and state in *troot and yroot, which functions in found */
 int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
-            long *st) {
+            long *st, int *done, double *troot, double *yroot, int *found) {
   int flag = 0; sunrealtype tr;
-  d->msg[0] = 0;
+  d->msg[0] = 0; *done = 0;
   if (!resume) {
     long c[5]; counters(d, c);
     for (int i = 0; i < 5; i++) d->base[i] += c[i];
@@ -125,7 +148,11 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
   }
   for (int k = 0; k < m && flag >= 0; k++) {
     flag = CVode(d->cv, tout[k], d->y, &tr, CV_NORMAL);
-    if (flag >= 0) memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double));
+    if (flag == CV_ROOT_RETURN) {
+      *troot = tr; memcpy(yroot, N_VGetArrayPointer(d->y), d->n * sizeof(double));
+      CVodeGetRootInfo(d->cv, found); break;
+    }
+    if (flag >= 0) { memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double)); *done = k + 1; }
     else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
   }
   stats_of(d, st);
@@ -176,7 +203,9 @@ def _build() -> ctypes.CDLL:
     dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
                             ctypes.c_longlong, p, p]
-    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p]
+    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p]
+    dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
+                              ctypes.c_double]
     dll.drv_message.restype = ctypes.c_char_p
     dll.drv_message.argtypes = [p]
     dll.drv_free.argtypes = [p]
@@ -289,21 +318,47 @@ class Driver:
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
         self.last = None  # (t, y) where the solver memory stands
+        self.n_roots, self.root = 0, None
+
+    def set_roots(self, call, slots, offsets, output, n_out, state_idx, touch):
+        """Switching functions located by CVODES: the kernel call's output `output` (its first
+        n_out values; the state's pieces y[offsets[i]:] at its input slots[i]), then the states
+        y[state_idx]; a value below `touch` in size counts as zero."""
+        self._g = (call, np.asarray(slots, dtype=np.int64), np.asarray(offsets, dtype=np.int64),
+                   np.zeros(max(n_out, 1)), np.asarray(state_idx, dtype=np.int64))
+        call.res[:] = 0
+        call.res[output] = _ptr(self._g[3])
+        self.n_roots = n_out + len(state_idx)
+        self._found = np.zeros(self.n_roots, dtype=np.int32)
+        if self.lib.drv_roots(self.handle, call.address(), _ptr(call.arg), _ptr(call.res), _ptr(call.iw),
+                              _ptr(call.w), len(slots), _ptr(self._g[1]), _ptr(self._g[2]), n_out, _ptr(self._g[3]),
+                              len(state_idx), _ptr(self._g[4]), float(touch)):
+            raise OSError("CVODES could not set up its root finding")
 
     def run(self, t0, y0, touts):
         """y at each of touts (increasing, > t0) from y0 at t0 -> (m, n). The solver carries on
-        without a restart when (t0, y0) is where the last call ended."""
+        without a restart when (t0, y0) is where the last call ended. With switching functions
+        it stops at the first root: fewer rows, and self.root = (time, state, indices)."""
         touts = np.ascontiguousarray(touts, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
         resume = self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
         Y = np.empty((touts.size, self.n))
+        done, t_root, y_root = ctypes.c_int(), ctypes.c_double(), np.empty(self.n)
+        found = self._found if self.n_roots else np.zeros(1, dtype=np.int32)
         flag = self.lib.drv_run(self.handle, float(t0), _ptr(y0), int(resume), touts.size, _ptr(touts), _ptr(Y),
-                                _ptr(self.stats_now))
+                                _ptr(self.stats_now), ctypes.byref(done), ctypes.byref(t_root), _ptr(y_root),
+                                _ptr(found))
         if flag < 0:
             self.last = None
             msg = self.lib.drv_message(self.handle).decode(errors="replace")
             raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
-        self.last = (float(touts[-1]), Y[-1].copy())
+        Y = Y[:done.value]
+        self.root = None
+        if flag == 2:  # CV_ROOT_RETURN
+            self.root = (t_root.value, y_root, np.nonzero(found)[0])
+            self.last = (t_root.value, y_root.copy())
+        else:
+            self.last = (float(touts[-1]), Y[-1].copy())
         return Y
 
     @property

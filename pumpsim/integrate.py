@@ -115,6 +115,18 @@ class Integrator:
         self.stats.update(d.stats)
         return X
 
+    def run_from(self, t0, x, touts):
+        """The direct driver from x at t0 (no restart if that is where its last call ended) to
+        touts; with its switching functions it stops at a root (self.direct.root)."""
+        self.calls += 1
+        try:
+            with interrupt.deferred():
+                X = self.direct.run(t0, np.asarray(x, dtype=float), touts)
+        except SolverError as e:
+            raise RuntimeError(str(e)) from None
+        self.stats.update(self.direct.stats)
+        return X
+
     def step(self, x, duration):
         if self.direct is not None:
             self.direct.last = None  # a step is a fresh start (event location re-integrates)
@@ -137,8 +149,11 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
 
     Returns (states (n_times, nx), events [(time, switch index)], stats). A failure raises
     SolverError naming the time and state, an interruption Interrupted, either with (times,
-    states) computed so far attached."""
+    states) computed so far attached. Where the integrator's direct driver has the switching
+    functions itself, CVODES locates them (_located_by_cvodes) and switch_fn is not used."""
     times = np.asarray(times, dtype=float)
+    if integ.direct is not None and integ.direct.n_roots:
+        return _located_by_cvodes(integ, x0, times, on_chunk, progress)
     n = times.size
     xs = np.empty((n, len(x0)))
     xs[0] = x = np.asarray(x0, dtype=float)
@@ -185,6 +200,46 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
     stats["driver"] = integ.driver
     stats["events"] = len(events)
     stats["wall_time"] = _time.perf_counter() - wall0
+    return xs, events, stats
+
+
+def _located_by_cvodes(integ, x0, times, on_chunk, progress):
+    """integrate_segmented with CVODES' own root finding on its interpolant: output chunks carry
+    on without a restart, a switch stops the chunk at its root, and the solver restarts there."""
+    n, d = times.size, integ.direct
+    xs = np.empty((n, len(x0)))
+    xs[0] = x = np.asarray(x0, dtype=float)
+    events, t, k = [], times[0], 0
+    d.last = None
+    wall0 = _time.perf_counter()
+    try:
+        while k < n - 1:
+            touts = times[k + 1:k + 1 + min(CHUNK, n - 1 - k)]
+            if touts[0] - t <= 1e-12 * max(1.0, abs(t)):  # a root on an output time: that row is x
+                xs[k + 1], k, t = x, k + 1, touts[0]
+                continue
+            steps_before = integ.stats["nsteps"]
+            X = _guarded(integ, lambda: integ.run_from(t, x, touts), t, touts[-1], x, times[:k + 1], xs[:k + 1])
+            xs[k + 1:k + 1 + len(X)] = X
+            k += len(X)
+            if d.root is None:
+                t, x = times[k], X[-1]
+            else:  # restart at the root (d.last None): the right-hand side changes there
+                t, x, found = d.root
+                _guarded(integ, lambda: x, t, t, x, times[:k + 1], xs[:k + 1])
+                events.extend((t, int(i)) for i in found)
+                d.last = None
+            if on_chunk and len(X):
+                on_chunk(times[k], len(X), integ.stats["nsteps"] - steps_before)
+            interrupt.progress(f"at simulated t = {times[k]:.6g} s of {times[-1]:.6g} s")
+            if progress:
+                progress(times[k])
+    except interrupt.Interrupted as e:
+        if e.partial is None:
+            e.partial = (times[:k + 1], xs[:k + 1])
+        raise
+    stats = dict(integ.stats, integrator_calls=integ.calls, driver=integ.driver, events=len(events),
+                 wall_time=_time.perf_counter() - wall0)
     return xs, events, stats
 
 
