@@ -142,7 +142,8 @@ def scipy_span(cfg, span, repeats=3):
         return {"steps": None, "rhs": int(sol.nfev), "jac": int(sol.njev), **error(pb(sol.y[:nx].T), sol.y[nx, -1])}
 
     rows = {"compiled CVODES, direct driver": compiled, "compiled CVODES, CasADi plugin": plugin,
-            "compiled CVODES, direct, tol / 10": lambda: compiled(PUMPDOWN_RTOL / 10, PUMPDOWN_ATOL / 10)}
+            "compiled CVODES, direct, tol / 10": lambda: compiled(PUMPDOWN_RTOL / 10, PUMPDOWN_ATOL / 10),
+            "compiled CVODES, direct, tol / 100": lambda: compiled(PUMPDOWN_RTOL / 100, PUMPDOWN_ATOL / 100)}
     rows.update({f"SciPy {m} (compiled rhs+Jac)": (lambda m=m: scipy(m)) for m in METHODS})
     res = interleaved(rows, repeats)
     best = print_table(f"  pump-down, first {span:g} s, rtol {PUMPDOWN_RTOL:g}, atol {PUMPDOWN_ATOL:g}; median of "
