@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import logging
 import os
 import subprocess
 from pathlib import Path
@@ -187,16 +188,20 @@ def _build() -> ctypes.CDLL:
     lib = folder / "pumpsim_cvodes.so"
     if not lib.exists():
         folder.mkdir(parents=True, exist_ok=True)
-        src = folder / "pumpsim_cvodes.c"
+        src = folder / f"pumpsim_cvodes.{os.getpid()}.c"  # per process: builds may run side by side
         src.write_text(SOURCE)
         tmp = folder / f".{os.getpid()}.so"
         cc = os.environ.get("CC", "cc")
-        out = subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp), *LIBS],
-                             capture_output=True, text=True)
+        try:
+            out = subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp), *LIBS],
+                                 capture_output=True, text=True)
+        finally:
+            src.unlink()
         if out.returncode:
             raise OSError(f"{cc} could not build the CVODES driver (SUNDIALS headers or libraries missing?): "
                           + (out.stderr.strip().splitlines() or ["no message"])[-1])
         os.replace(tmp, lib)
+        logging.getLogger("pumpsim").debug("built the direct CVODES driver in %s", folder)  # ~1 s: no notice
     dll = ctypes.CDLL(str(lib))
     p = ctypes.c_void_p
     dll.drv_new.restype = p
@@ -222,6 +227,7 @@ def library():
             _LIB["lib"], _LIB["why"] = _build(), ""
         except (OSError, subprocess.SubprocessError) as e:
             _LIB["lib"], _LIB["why"] = None, str(e)
+            logging.getLogger("pumpsim").debug("CVODES through CasADi's plugin: %s", e)
     return _LIB["lib"]
 
 
