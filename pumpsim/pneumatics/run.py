@@ -30,11 +30,13 @@ EVENT_TIME_TOL = 1e-10  # s
 CHUNK = 50  # output intervals per integrator call
 MAX_ORDER = 3  # BDF order cap (see PumpIntegrator)
 # Steps between Jacobian updates of the direct driver (CVODES' default 51): the gas dynamics change
-# within a vane passage, and a Jacobian 51 steps old costs Newton failures. Measured on the EVP
-# pump-down against an rtol = atol = 1e-7 run (time to target 5.1879 s): 51 steps: 5.1949 s,
-# 14.9k Newton failures; 10 steps: 5.1915 s (CasADi's plugin, a Jacobian per set-up: 5.1911 s),
-# 13.3k failures, 14 % less CPU.
-JAC_EVERY = 10
+# within a vane passage, and an old Jacobian costs Newton failures and steps. Measured on the EVP
+# pump-down (rtol = atol = 1e-7 reference: time to target 5.1879 s): every 51 steps 153,758 steps,
+# 276,401 rhs, 14,361 Jacobians, 5.1949 s; every 10: 149,975 / 263,548 / 17,595, 5.1915 s; every
+# 4: 143,675 / 246,708 / 25,226, 5.1915 s; every 2: 141,843 / 239,653 / 31,487, 5.1909 s
+# (CasADi's plugin, a Jacobian per set-up: 144,913 / 244,119 / 43,431, 5.1911 s). A Jacobian costs
+# about 1.6 right-hand sides.
+JAC_EVERY = 4
 OUTPUT_BLOCK = 4096  # rows per pump_outputs map call (evaluate_outputs)
 STAT_KEYS = {"nsteps": "nsteps", "nfevals": "nfevals", "njevals": "n_call_jacF",
              "nlinsetups": "nlinsetups", "netfails": "netfails", "nniters": "nniters",
