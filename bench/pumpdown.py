@@ -4,7 +4,11 @@ Jacobian) and by the fast path (cycle-averaged maps); wall times against simulat
 ratio, step counts and solver statistics, and where the full path's wall time goes: compiled
 right-hand side and Jacobian evaluations (calls x the cost of one call, timed on the run's own
 states), the rest of CVODES (linear algebra, step control), and Python around the integrator.
-Targets (issue 15): full path <= real time, fast path <= 1 s."""
+The full model also through CasADi's CVODES plugin (the fallback where the direct driver cannot be
+built), and over the first `--span` seconds against SciPy LSODA, BDF and Radau on the same
+compiled right-hand side and Jacobian, interleaved, median of 3, each with its error against an
+rtol 1e-8 run (bench/scipy_compare.py). Targets (issue 28): full path <= 0.3 x real time and
+>= 1.5x faster than SciPy's best; fast path <= 1 s."""
 from __future__ import annotations
 
 import argparse
@@ -21,12 +25,15 @@ from pumpsim.config import load_config  # noqa: E402
 from pumpsim.pneumatics import pumpdown as pdm  # noqa: E402
 from pumpsim.cli.pumpdown import map_pressures  # noqa: E402
 from pumpsim.kernels.pneumatic import kernels  # noqa: E402
+from pumpsim.pneumatics import run  # noqa: E402
+from scipy_compare import casadi_plugin  # noqa: E402
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
     ap.add_argument("--config", default=str(ROOT / "examples" / "evp_booster.toml"))
+    ap.add_argument("--span", type=float, default=0.5, help="simulated seconds of the SciPy comparison")
     a = ap.parse_args()
     cfg = load_config(a.config)
     kernels(cfg)  # build outside the timing
@@ -39,10 +46,18 @@ def main():
     revs = (full.columns["angle"][-1] - full.columns["angle"][0]) / (2 * 3.141592653589793)
     sim = s["duration"]
     print(f"  full model : {sim:.3f} s simulated ({revs:.0f} revolutions) in {wall_full:.2f} s wall "
-          f"= {wall_full / sim:.2f} x real time (target <= 1); {st['nsteps']} steps "
+          f"= {wall_full / sim:.2f} x real time (target <= 0.3); {st['nsteps']} steps "
           f"({st['nsteps'] / revs:.0f}/rev, {wall_full / st['nsteps'] * 1e6:.1f} us/step), "
           f"{st['nfevals']} rhs, {st['njevals']} Jacobians, {st['netfails']} error-test and "
           f"{st['nncfails']} Newton failures; rtol {st['rtol']:g}, atol {st['atol']:g}")
+    with casadi_plugin():
+        t0 = time.perf_counter()
+        plug = pdm.pumpdown(cfg)
+        wall_plug = time.perf_counter() - t0
+    sp = plug.summary["solver"]
+    print(f"  full model through CasADi's CVODES plugin: {wall_plug:.2f} s wall ({wall_full / wall_plug:.2f} of it "
+          f"with the direct driver); {sp['nsteps']} steps, {sp['njevals']} Jacobians, {sp['netfails']} error-test "
+          f"and {sp['nncfails']} Newton failures; time to target {plug.summary['time_to_target']:.4f} s")
     split = wall_split(cfg, full, st, wall_full)
     print(f"  where the wall goes: rhs {split['rhs_call_us']:.1f} us x {st['nfevals']} = "
           f"{split['rhs_s']:.2f} s, Jacobian {split['jac_call_us']:.1f} us x {st['njevals']} = "
@@ -70,7 +85,9 @@ def main():
            "maps_wall_s": wall_maps, "map_steps": maps.steps, "ratio_full_fast": wall_full / wall_fast,
            "time_to_target": {"full": s["time_to_target"], "fast": fast["time_to_target"]},
            "mean_current": {"full": s["mean_current"], "fast": fast["mean_current"]},
-           "peak_current": s["peak_current"], "energy": {"full": s["energy"], "fast": fast["energy"]}}
+           "peak_current": s["peak_current"], "energy": {"full": s["energy"], "fast": fast["energy"]},
+           "driver": st.get("driver"), "casadi_plugin_wall_s": wall_plug, "casadi_plugin_solver": sp,
+           "scipy_span": scipy_span(cfg, a.span)}
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}
@@ -79,6 +96,60 @@ def main():
     tmp.write_text(json.dumps(data, indent=1, default=float))
     os.replace(tmp, path)
     print(f"wrote {path} (pumpdown)")
+
+
+def scipy_span(cfg, span, repeats=3):
+    """The first `span` s of the pump-down: the runtime's CVODES (direct driver, CasADi plugin) and
+    SciPy's stiff methods on the same compiled rhs and Jacobian, interleaved, median of `repeats`;
+    errors of the booster pressure (largest over the grid) and the electrical energy (at the end)
+    against an rtol 1e-8 run."""
+    import numpy as np
+
+    from scipy_compare import (METHODS, casadi_plugin, compiled_ode, interleaved, print_table, report_ratio,
+                                scipy_run)
+    from pumpsim.kernels.pneumatic import parameter_vector
+    from pumpsim.tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
+
+    kern, p, rate = kernels(cfg), parameter_vector(cfg), 2000.0
+    x0 = run.initial_state(cfg, kern, p)
+    nx, nq = x0.size, kern["pump_rhs"].size1_out(1)
+    pb = run.booster_pressure(kern.structure, p)
+    ref = run.integrate(cfg, span, rate, rtol=1e-8, atol=1e-9)
+    t, P_ref, E_ref = ref.time, pb(ref.states), ref.quad[-1, 0]
+
+    def error(P, E):
+        e_p, e_e = np.max(np.abs(P - P_ref)) / P_ref[0], abs(E - E_ref) / abs(E_ref)
+        return {"error_pressure_rel": float(e_p), "error_energy_rel": float(e_e),
+                "error_text": f"booster pressure {e_p:.1e}, energy {e_e:.1e} (relative)"}
+
+    def compiled(rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL):
+        r = run.integrate(cfg, span, rate, rtol=rtol, atol=atol)
+        st = r.stats
+        return {"steps": st["nsteps"], "rhs": st["nfevals"], "jac": st["njevals"], **error(pb(r.states), r.quad[-1, 0])}
+
+    def plugin():
+        with casadi_plugin():
+            return compiled()
+
+    rhs, jac = compiled_ode(kern, "pump_rhs", [x0, p], [0, nx])
+    y0 = np.concatenate([x0, np.zeros(nq)])
+    atol = PUMPDOWN_ATOL * np.concatenate([run.state_scale(x0, p, kern.structure), np.ones(nq)])
+
+    def scipy(method):
+        sol = scipy_run(rhs, jac, y0, t[-1], t, method, PUMPDOWN_RTOL, atol)
+        if not sol.success:
+            return {"steps": None, "rhs": int(sol.nfev), "jac": int(sol.njev), "error_text": sol.message}
+        return {"steps": None, "rhs": int(sol.nfev), "jac": int(sol.njev), **error(pb(sol.y[:nx].T), sol.y[nx, -1])}
+
+    rows = {"compiled CVODES, direct driver": compiled, "compiled CVODES, CasADi plugin": plugin,
+            "compiled CVODES, direct, tol / 10": lambda: compiled(PUMPDOWN_RTOL / 10, PUMPDOWN_ATOL / 10),
+            "compiled CVODES, direct, tol / 100": lambda: compiled(PUMPDOWN_RTOL / 100, PUMPDOWN_ATOL / 100)}
+    rows.update({f"SciPy {m} (compiled rhs+Jac)": (lambda m=m: scipy(m)) for m in METHODS})
+    res = interleaved(rows, repeats)
+    best = print_table(f"  pump-down, first {span:g} s, rtol {PUMPDOWN_RTOL:g}, atol {PUMPDOWN_ATOL:g}; median of "
+                       f"{repeats}, interleaved", res)
+    return {"span": span, "rows": res, "best_scipy": best,
+            **report_ratio(res, best, ("error_pressure_rel", "error_energy_rel"), indent="  ")}
 
 
 def wall_split(cfg, full, st, wall):

@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import math
 import time as _time
+from pathlib import Path
 from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
-from . import interrupt
+from . import cvodes_driver, interrupt
 from .config import PumpConfig, as_array
 from .errors import ConfigError, SolverError
 from .integrate import Integrator, integrate_segmented
@@ -51,6 +52,30 @@ def ode_with_jacobian(kern, name, p) -> ca.Function:
                       ["jac_xdot_x", "jac_xdot_drive"])
     return ca.Function("xdot", [x, d], [f(x, d, P)], ["x", "drive"], ["xdot"],
                        {"custom_jacobian": jac, "jac_penalty": 0})
+
+
+def direct_driver(kern, name, dyn, drive, p):
+    """A builder of the direct CVODES driver over the compiled ODE `name`(x, drive, p) and its
+    Jacobian `name`_jac (for Integrator's `direct`), with the contact-state switches (report
+    Table 1: each vane's housing penetration from `dyn`, then its slot position s_i) located by
+    CVODES."""
+
+    def build(rtol, atol, max_steps, max_step):
+        so = next(Path(kern.folder).glob("*.so"))
+        x, d, pv = np.zeros(kern[name].size1_in(0)), np.array([drive], float), np.asarray(p, float).copy()
+        rhs = cvodes_driver.KernelCall(so, name, [x, d, pv], 0)
+        jac = cvodes_driver.KernelCall(so, name + "_jac", [x, d, pv], 0)
+        blocks = [(kern[name + "_jac"].sparsity_out(0), 0), None]  # d xdot / dx; not d / d drive
+        drv = cvodes_driver.Driver(x.size, rhs, [0], jac, blocks, rtol, atol, max_steps=max_steps,
+                                   max_step=max_step)
+        N = (x.size - 2) // 2
+        # dyn(theta, omega, drive, s, sdot, p): the state's pieces at slots 0, 1, 3, 4
+        g = cvodes_driver.KernelCall(so, dyn, [x[:1], x[1:2], d, x[2:2 + N], x[2 + N:], pv], 0)
+        drv.set_roots(g, [0, 1, 3, 4], [0, 1, 2, 2 + N], kern[dyn].name_out().index("penetration"), N,
+                      list(range(2, 2 + N)), TOUCHING)
+        return drv
+
+    return build
 
 
 def state_scale(cfg) -> np.ndarray:
@@ -118,7 +143,8 @@ def simulate_contact(cfg: PumpConfig, duration=None, rate=10000.0, method="cvode
     bounds, state_names = state_bounds(cfg)
     integ = Integrator(lambda x, pp: xdot(x, pp[0]), 2 + 2 * cfg.vanes, [drive], dt, method=method,
                        rtol=rtol, atol=atol, max_step=max_step, rk_steps=rk_steps,
-                       max_steps=max_steps, scale=state_scale(cfg), bounds=bounds, names=state_names)
+                       max_steps=max_steps, scale=state_scale(cfg), bounds=bounds, names=state_names,
+                       direct=direct_driver(kern, ode, dyn, drive, p))
     run = _integrate(integ, kern, dyn, drive, p, x0, t, cfg.vanes, progress)
     run.stats["method"] = method
     res = _result(cfg, kern, dyn, drive, p, pv.values, run)

@@ -22,7 +22,7 @@ import time as _time
 import casadi as ca
 import numpy as np
 
-from . import interrupt
+from . import cvodes_driver, interrupt
 from .errors import ConfigError, SolverError
 from .tolerances import ATOL, RTOL
 
@@ -36,12 +36,16 @@ class Integrator:
     """x(t0 + k dt), k = 1..m, in one call (`chunk`), and x(t0 + d) for any d (`step`)."""
 
     def __init__(self, rhs, nx: int, params, dt: float, method="cvodes", rtol=RTOL, atol=ATOL,
-                 max_step=None, rk_steps=10, max_steps=500000, scale=None, bounds=None, names=None):
+                 max_step=None, rk_steps=10, max_steps=500000, scale=None, bounds=None, names=None,
+                 direct=None):
         """scale: a nominal size per state; the integrator works on x / scale, so the absolute
         tolerance of state i is atol * scale[i] (the relative one is unchanged).
         bounds: (lower, upper) per state, the physically possible range; a state outside it (or
         not finite) is a numerical failure, for every method (an explicit RK4 that diverges gives
-        finite nonsense long before it overflows). names: the states' names for the message."""
+        finite nonsense long before it overflows). names: the states' names for the message.
+        direct: for method cvodes, a function (rtol, per-state atol, max_steps, max_step) ->
+        cvodes_driver.Driver over the same right-hand side's compiled kernel, or None; used where
+        the driver is available (chunks then carry on without a restart)."""
         for name, val in (("rtol", rtol), ("atol", atol)):
             if not 0 < val < 1:
                 raise ConfigError(f"--{name} must be in (0, 1), got {val:g}")
@@ -63,6 +67,10 @@ class Integrator:
         self._chunks = {}
         # any duration: normalised time [0, 1], the duration as the last parameter
         self._step = self._make("step", pp[-1] * self._rhs, [1.0], normalised=True)
+        self.direct = None
+        if direct is not None and method == "cvodes" and cvodes_driver.available()[0]:
+            self.direct = direct(rtol, atol * self.scale, self.max_steps, max_step)
+        self.driver = "cvodes (direct)" if self.direct else method + (" (casadi)" if method != "rk" else "")
 
     def _make(self, name, ode, grid, normalised=False):
         dae = {"x": self._x, "p": self._pp, "ode": ode}
@@ -91,10 +99,43 @@ class Integrator:
                     self.stats[k] += int(v)
         return np.asarray(res["xf"]) * self.scale[:, None]
 
+    def _call_direct(self, x, touts):
+        """The direct driver on its own clock: from where its last call ended if x is the state
+        it ended in (no restart), else restarted from x at 0."""
+        self.calls += 1
+        d = self.direct
+        last = d.last
+        x = np.asarray(x, dtype=float)
+        t0 = last[0] if last is not None and np.array_equal(last[1], x) else 0.0
+        try:
+            with interrupt.deferred():
+                X = d.run(t0, x, t0 + touts)
+        except SolverError as e:
+            raise RuntimeError(str(e)) from None
+        self.stats.update(d.stats)
+        return X
+
+    def run_from(self, t0, x, touts):
+        """The direct driver from x at t0 (no restart if that is where its last call ended) to
+        touts; with its switching functions it stops at a root (self.direct.root)."""
+        self.calls += 1
+        try:
+            with interrupt.deferred():
+                X = self.direct.run(t0, np.asarray(x, dtype=float), touts)
+        except SolverError as e:
+            raise RuntimeError(str(e)) from None
+        self.stats.update(self.direct.stats)
+        return X
+
     def step(self, x, duration):
+        if self.direct is not None:
+            self.direct.last = None  # a step is a fresh start (event location re-integrates)
+            return self._call_direct(x, np.array([duration]))[0] if duration > 0 else np.asarray(x, float)
         return self._call(self._step, x, duration).ravel()
 
     def chunk(self, x, m):
+        if self.direct is not None:
+            return self._call_direct(x, self.dt * np.arange(1, m + 1))
         if m not in self._chunks:
             grid = list(self.dt * np.arange(1, m + 1))
             self._chunks[m] = self._make(f"chunk{m}", self._rhs, grid)
@@ -108,8 +149,11 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
 
     Returns (states (n_times, nx), events [(time, switch index)], stats). A failure raises
     SolverError naming the time and state, an interruption Interrupted, either with (times,
-    states) computed so far attached."""
+    states) computed so far attached. Where the integrator's direct driver has the switching
+    functions itself, CVODES locates them (_located_by_cvodes) and switch_fn is not used."""
     times = np.asarray(times, dtype=float)
+    if integ.direct is not None and integ.direct.n_roots:
+        return _located_by_cvodes(integ, x0, times, on_chunk, progress)
     n = times.size
     xs = np.empty((n, len(x0)))
     xs[0] = x = np.asarray(x0, dtype=float)
@@ -153,8 +197,49 @@ def integrate_segmented(integ: Integrator, x0, times, switch_fn=None, on_chunk=N
         raise
     stats = dict(integ.stats)
     stats["integrator_calls"] = integ.calls
+    stats["driver"] = integ.driver
     stats["events"] = len(events)
     stats["wall_time"] = _time.perf_counter() - wall0
+    return xs, events, stats
+
+
+def _located_by_cvodes(integ, x0, times, on_chunk, progress):
+    """integrate_segmented with CVODES' own root finding on its interpolant: output chunks carry
+    on without a restart, a switch stops the chunk at its root, and the solver restarts there."""
+    n, d = times.size, integ.direct
+    xs = np.empty((n, len(x0)))
+    xs[0] = x = np.asarray(x0, dtype=float)
+    events, t, k = [], times[0], 0
+    d.last = None
+    wall0 = _time.perf_counter()
+    try:
+        while k < n - 1:
+            touts = times[k + 1:k + 1 + min(CHUNK, n - 1 - k)]
+            if touts[0] - t <= 1e-12 * max(1.0, abs(t)):  # a root on an output time: that row is x
+                xs[k + 1], k, t = x, k + 1, touts[0]
+                continue
+            steps_before = integ.stats["nsteps"]
+            X = _guarded(integ, lambda: integ.run_from(t, x, touts), t, touts[-1], x, times[:k + 1], xs[:k + 1])
+            xs[k + 1:k + 1 + len(X)] = X
+            k += len(X)
+            if d.root is None:
+                t, x = times[k], X[-1]
+            else:  # restart at the root (d.last None): the right-hand side changes there
+                t, x, found = d.root
+                _guarded(integ, lambda: x, t, t, x, times[:k + 1], xs[:k + 1])
+                events.extend((t, int(i)) for i in found)
+                d.last = None
+            if on_chunk and len(X):
+                on_chunk(times[k], len(X), integ.stats["nsteps"] - steps_before)
+            interrupt.progress(f"at simulated t = {times[k]:.6g} s of {times[-1]:.6g} s")
+            if progress:
+                progress(times[k])
+    except interrupt.Interrupted as e:
+        if e.partial is None:
+            e.partial = (times[:k + 1], xs[:k + 1])
+        raise
+    stats = dict(integ.stats, integrator_calls=integ.calls, driver=integ.driver, events=len(events),
+                 wall_time=_time.perf_counter() - wall0)
     return xs, events, stats
 
 

@@ -14,11 +14,12 @@ from __future__ import annotations
 import math
 import time as _time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from .. import interrupt
+from .. import cvodes_driver, interrupt
 from ..errors import SolverError
 from ..integrate import illinois
 from ..tolerances import GAS_ATOL, GAS_RTOL
@@ -28,6 +29,14 @@ from ..model_spec.parameters import REED_MODES
 EVENT_TIME_TOL = 1e-10  # s
 CHUNK = 50  # output intervals per integrator call
 MAX_ORDER = 3  # BDF order cap (see PumpIntegrator)
+# Steps between Jacobian updates of the direct driver (CVODES' default 51): the gas dynamics change
+# within a vane passage, and an old Jacobian costs Newton failures and steps. Measured on the EVP
+# pump-down (rtol = atol = 1e-7 reference: time to target 5.1879 s): every 51 steps 153,758 steps,
+# 276,401 rhs, 14,361 Jacobians, 5.1949 s; every 10: 149,975 / 263,548 / 17,595, 5.1915 s; every
+# 4: 143,675 / 246,708 / 25,226, 5.1915 s; every 2: 141,843 / 239,653 / 31,487, 5.1909 s
+# (CasADi's plugin, a Jacobian per set-up: 144,913 / 244,119 / 43,431, 5.1911 s). A Jacobian costs
+# about 1.6 right-hand sides.
+JAC_EVERY = 4
 OUTPUT_BLOCK = 4096  # rows per pump_outputs map call (evaluate_outputs)
 STAT_KEYS = {"nsteps": "nsteps", "nfevals": "nfevals", "njevals": "n_call_jacF",
              "nlinsetups": "nlinsetups", "netfails": "netfails", "nniters": "nniters",
@@ -111,6 +120,39 @@ class PumpIntegrator:
         self.stats = {k: 0 for k in STAT_KEYS}
         self.calls = 0
         self.integrator_wall = 0.0  # s inside CVODES calls (the rest of a run's wall is Python)
+        self.direct = None if drive is not None else self._direct(rtol, atol, max_steps)
+        self.driver = "cvodes (direct)" if self.direct else "cvodes (casadi)"
+
+    def _direct(self, rtol, atol, max_steps):
+        """The direct CVODES driver over pump_rhs / pump_rhs_jac (cvodes_driver), the same states
+        (quadratures riding along) and per-component tolerances; None where it is not available."""
+        if not cvodes_driver.available()[0]:
+            return None
+        so = next(Path(self.kern.folder).glob("*.so"))
+        self._pbuf = self.p.copy()
+        x = np.zeros(self.nx)
+        rhs = cvodes_driver.KernelCall(so, "pump_rhs", [x, self._pbuf], 0)
+        jac = cvodes_driver.KernelCall(so, "pump_rhs_jac", [x, self._pbuf], 0)
+        fj = self.kern["pump_rhs_jac"]
+        blocks = [(fj.sparsity_out(0), 0), (fj.sparsity_out(1), self.nx)]
+        return cvodes_driver.Driver(self.nx + self.nq, rhs, [0, self.nx], jac, blocks, rtol, atol * self.S,
+                                    max_order=MAX_ORDER, max_steps=max_steps, jac_every=JAC_EVERY)
+
+    def _run_direct(self, touts, x, mode, start):
+        """(states, quadratures since `start`) at touts by the direct driver, carrying on without
+        a restart when (start, x, mode) is where its last call ended."""
+        d = self.direct
+        if self._pbuf[self.mode_index] != mode:
+            self._pbuf[self.mode_index] = mode
+            d.last = None
+        last = d.last
+        if last is not None and last[0] == start and np.array_equal(last[1][:self.nx], x):
+            y0 = last[1]
+        else:
+            y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)])
+        Y = d.run(start, y0, touts)
+        self.stats.update(d.stats)
+        return Y[:, :self.nx].T, (Y[:, self.nx:] - y0[self.nx:]).T
 
     def p_at(self, t):
         """The kernel's parameter vector at time t (the drive's voltage put in)."""
@@ -120,8 +162,15 @@ class PumpIntegrator:
         p[parameter_index(self.kern.structure, "motor.voltage")] = float(self.drive(t))
         return p
 
-    def _run(self, integ, x, mode, T=0.0, start=0.0):
+    def _run(self, integ, x, mode, T=0.0, start=0.0, touts=None):
         self.calls += 1
+        if self.direct is not None:
+            t0 = _time.perf_counter()
+            try:
+                with interrupt.deferred():
+                    return self._run_direct(touts, x, mode, start)
+            finally:
+                self.integrator_wall += _time.perf_counter() - t0
         y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)]) / self.S
         t0 = _time.perf_counter()
         try:
@@ -143,14 +192,18 @@ class PumpIntegrator:
     def grid(self, x, mode, dt, m, start=0.0):
         """States and quadratures at start + dt, ..., start + m dt from x at `start`."""
         key = (dt, m)
-        if key not in self._grids:
+        if self.direct is None and key not in self._grids:
             self._grids[key] = ca.integrator(f"g{m}", "cvodes", self._dae, 0.0,
                                              list(dt * np.arange(1, m + 1)), self.opts)
-        X, Q = self._run(self._grids[key], x, mode, start=start)
+        X, Q = self._run(self._grids.get(key), x, mode, start=start, touts=start + dt * np.arange(1, m + 1))
         return X.T, Q.T
 
     def step(self, x, mode, d, start=0.0):
-        X, Q = self._run(self._step, x, mode, d, start)
+        """State and quadratures at start + d (the direct driver integrates on a local clock
+        from 0: no time-dependent drive, and a d of 1e-12 s is not 'too close' to a start at 5 s)."""
+        if d <= 0:
+            return np.asarray(x, float).copy(), np.zeros(self.nq)
+        X, Q = self._run(self._step, x, mode, d, start if self.direct is None else 0.0, touts=np.array([d]))
         return X[:, 0], Q[:, 0]
 
 
@@ -323,7 +376,7 @@ def _grid(integ, x, mode, dt, m, t, p_booster):
 def _finished(integ, kern, p, trace, events, t_target, wall0) -> PumpdownRun:
     X = np.array(trace.xs)
     stats = dict(integ.stats)
-    stats.update(integrator_calls=integ.calls, events=len(events),
+    stats.update(integrator_calls=integ.calls, events=len(events), driver=integ.driver,
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall)
     outs = evaluate_outputs(kern, X, p)
     peak = peak_current(integ, np.array(trace.times), X, trace.modes)

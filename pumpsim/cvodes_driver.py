@@ -1,0 +1,377 @@
+"""CVODES driven directly over the compiled kernels, without CasADi's integrator layer.
+
+CasADi's CVODES plugin re-initialises the solver on every call (each output chunk starts again at
+order 1 with a tiny step), evaluates the Jacobian at nearly every linear-solver set-up and adds its
+own per-step work. This driver is a small C library over the system's SUNDIALS: CVODES' own dense
+linear solver (so the Jacobian is reused as CVODES decides), a vector absolute tolerance, and one
+solver memory that carries on from one output chunk to the next when the caller continues from
+where the last call ended (`resume`). The right-hand side and its Jacobian are the kernels' own
+compiled functions, called through their C entry points.
+
+A fresh machine needs a C compiler (as for the kernels) and the SUNDIALS 6 or 7 headers and
+libraries (Debian/Ubuntu 24.04: `apt-get install libsundials-dev`; conda: `sundials`; Homebrew:
+`sundials`). The library is built once into the kernel folder; where it cannot be built or
+loaded, `available()` says why and the callers use CasADi's CVODES plugin instead (same
+equations, same tolerances). PUMPSIM_CVODES=casadi forces that path.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import logging
+import os
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SolverError
+
+ENV = "PUMPSIM_CVODES"
+LIBS = ["-lsundials_cvodes", "-lsundials_nvecserial", "-lsundials_sunmatrixdense",
+        "-lsundials_sunlinsoldense", "-lm"]
+SOURCE = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <math.h>
+#include <cvodes/cvodes.h>
+#include <nvector/nvector_serial.h>
+#include <sunmatrix/sunmatrix_dense.h>
+#include <sunlinsol/sunlinsol_dense.h>
+typedef long long ci;
+typedef int (*fn_t)(const double **, double **, ci *, double *, int);
+typedef struct { fn_t f; const double **arg; double **res; ci *iw; double *w; int slot; } call_t;
+typedef struct {
+  SUNContext ctx; void *cv; N_Vector y, atol; SUNMatrix A; SUNLinearSolver LS; int n;
+  call_t rhs, jac; int nout; const ci *off; ci jnnz; const ci *jpos; const double *jbuf;
+  long nrhs, njac, base[5]; char msg[512];
+  /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
+     goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
+  call_t g; int gn1, gns, gnslot; const ci *gslot, *goff, *gidx; double *gbuf, gtouch;
+} drv_t;
+
+static int groot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
+  drv_t *d = (drv_t *)u; double *Y = N_VGetArrayPointer(y);
+  for (int i = 0; i < d->gnslot; i++) d->g.arg[d->gslot[i]] = Y + d->goff[i];
+  if (d->gn1 && d->g.f(d->g.arg, d->g.res, d->g.iw, d->g.w, 0)) return 1;
+  for (int i = 0; i < d->gn1; i++) g[i] = d->gbuf[i];
+  for (int j = 0; j < d->gns; j++) g[d->gn1 + j] = Y[d->gidx[j]];
+  for (int i = 0; i < d->gn1 + d->gns; i++) if (fabs(g[i]) < d->gtouch) g[i] = 0.0;
+  return 0;
+}
+
+int drv_roots(drv_t *d, fn_t f, const double **arg, double **res, ci *iw, double *w, int nslot,
+              const ci *slot, const ci *off, int n1, double *buf, int ns, const ci *idx, double touch) {
+  d->g = (call_t){f, arg, res, iw, w, 0}; d->gnslot = nslot; d->gslot = slot; d->goff = off;
+  d->gn1 = n1; d->gbuf = buf; d->gns = ns; d->gidx = idx; d->gtouch = touch;
+  return CVodeRootInit(d->cv, n1 + ns, groot);
+}
+
+static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
+  drv_t *d = (drv_t *)u; double *D = N_VGetArrayPointer(yd);
+  d->rhs.arg[d->rhs.slot] = N_VGetArrayPointer(y);
+  for (int k = 0; k < d->nout; k++) d->rhs.res[k] = d->off[k] < 0 ? NULL : D + d->off[k];
+  d->nrhs++;
+  return d->rhs.f(d->rhs.arg, d->rhs.res, d->rhs.iw, d->rhs.w, 0) ? 1 : 0;
+}
+
+static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *u, N_Vector t1,
+               N_Vector t2, N_Vector t3) {
+  drv_t *d = (drv_t *)u;
+  d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
+  d->njac++;
+  if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
+  SUNMatZero(J);
+  double *A = SM_DATA_D(J);  /* column-major, leading dimension n; jpos = col * n + row */
+  for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = d->jbuf[k];
+  return 0;
+}
+
+#if SUNDIALS_VERSION_MAJOR < 7
+static void quiet(int code, const char *mod, const char *fn, char *msg, void *u) {
+  drv_t *d = (drv_t *)u; snprintf(d->msg, sizeof d->msg, "%s: %s", fn, msg);
+}
+#endif
+
+const char *drv_message(drv_t *d) { return d->msg; }
+
+drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_steps, double max_step,
+               fn_t f, const double **farg, double **fres, ci *fiw, double *fw, int fslot, int nout,
+               const ci *off, fn_t j, const double **jarg, double **jres, ci *jiw, double *jw, int jslot,
+               ci jnnz, const ci *jpos, const double *jbuf) {
+  drv_t *d = calloc(1, sizeof(drv_t));
+#if SUNDIALS_VERSION_MAJOR >= 7
+  if (SUNContext_Create(SUN_COMM_NULL, &d->ctx)) return NULL;
+#else
+  if (SUNContext_Create(NULL, &d->ctx)) return NULL;
+#endif
+  d->n = n; d->nout = nout; d->off = off; d->jnnz = jnnz; d->jpos = jpos; d->jbuf = jbuf;
+  d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
+  d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
+  for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
+  d->cv = CVodeCreate(CV_BDF, d->ctx);
+  if (!d->cv || CVodeInit(d->cv, rhs, 0.0, d->y) || CVodeSVtolerances(d->cv, rtol, d->atol)) return NULL;
+  CVodeSetUserData(d->cv, d);
+#if SUNDIALS_VERSION_MAJOR < 7
+  CVodeSetErrHandlerFn(d->cv, quiet, d);
+#endif
+  d->A = SUNDenseMatrix(n, n, d->ctx); d->LS = SUNLinSol_Dense(d->y, d->A, d->ctx);
+  if (CVodeSetLinearSolver(d->cv, d->LS, d->A) || CVodeSetJacFn(d->cv, jac)) return NULL;
+  CVodeSetMaxOrd(d->cv, max_order); CVodeSetMaxNumSteps(d->cv, max_steps);
+  if (max_step > 0) CVodeSetMaxStep(d->cv, max_step);
+  return d;
+}
+
+static void counters(drv_t *d, long *c) {
+  CVodeGetNumSteps(d->cv, c); CVodeGetNumLinSolvSetups(d->cv, c + 1); CVodeGetNumErrTestFails(d->cv, c + 2);
+  CVodeGetNumNonlinSolvIters(d->cv, c + 3); CVodeGetNumNonlinSolvConvFails(d->cv, c + 4);
+}
+
+/* stats: steps, rhs, Jacobians, set-ups, error-test failures, Newton iterations, Newton failures */
+static void stats_of(drv_t *d, long *st) {
+  long c[5]; counters(d, c);
+  st[0] = d->base[0] + c[0]; st[1] = d->nrhs; st[2] = d->njac;
+  for (int i = 1; i < 5; i++) st[i + 2] = d->base[i] + c[i];
+}
+
+/* Y at tout[0..m); on a root (flag CV_ROOT_RETURN) it stops there: *done full rows, the root's
+   time and state in *troot and yroot, which functions in found */
+int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
+            long *st, int *done, double *troot, double *yroot, int *found) {
+  int flag = 0; sunrealtype tr;
+  d->msg[0] = 0; *done = 0;
+  if (!resume) {
+    long c[5]; counters(d, c);
+    for (int i = 0; i < 5; i++) d->base[i] += c[i];
+    memcpy(N_VGetArrayPointer(d->y), y0, d->n * sizeof(double));
+    flag = CVodeReInit(d->cv, t0, d->y);
+  }
+  for (int k = 0; k < m && flag >= 0; k++) {
+    flag = CVode(d->cv, tout[k], d->y, &tr, CV_NORMAL);
+    if (flag == CV_ROOT_RETURN) {
+      *troot = tr; memcpy(yroot, N_VGetArrayPointer(d->y), d->n * sizeof(double));
+      CVodeGetRootInfo(d->cv, found); break;
+    }
+    if (flag >= 0) { memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double)); *done = k + 1; }
+    else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
+  }
+  stats_of(d, st);
+  return flag;
+}
+
+/* Newton iterations per step, steps between Jacobian updates, Newton convergence coefficient
+   (0: CVODES' default) */
+int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
+  int f = 0;
+  if (maxcor > 0) f |= CVodeSetMaxNonlinIters(d->cv, maxcor);
+  if (msbj > 0) f |= CVodeSetJacEvalFrequency(d->cv, msbj);
+  if (nlscoef > 0) f |= CVodeSetNonlinConvCoef(d->cv, nlscoef);
+  return f;
+}
+
+void drv_free(drv_t *d) {
+  if (!d) return;
+  CVodeFree(&d->cv); SUNLinSolFree(d->LS); SUNMatDestroy(d->A); N_VDestroy(d->y); N_VDestroy(d->atol);
+  SUNContext_Free(&d->ctx); free(d);
+}
+"""
+STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails")
+_LIB: dict = {}
+
+
+def _build() -> ctypes.CDLL:
+    from .model_spec import manifest as mf
+
+    tag = hashlib.sha1((SOURCE + " ".join(LIBS)).encode()).hexdigest()[:16]
+    folder = mf.generated_dir() / f"cvodes-driver-{tag}"
+    lib = folder / "pumpsim_cvodes.so"
+    if not lib.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        src = folder / f"pumpsim_cvodes.{os.getpid()}.c"  # per process: builds may run side by side
+        src.write_text(SOURCE)
+        tmp = folder / f".{os.getpid()}.so"
+        cc = os.environ.get("CC", "cc")
+        try:
+            out = subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp), *LIBS],
+                                 capture_output=True, text=True)
+        finally:
+            src.unlink()
+        if out.returncode:
+            raise OSError(f"{cc} could not build the CVODES driver (SUNDIALS headers or libraries missing?): "
+                          + (out.stderr.strip().splitlines() or ["no message"])[-1])
+        os.replace(tmp, lib)
+        logging.getLogger("pumpsim").debug("built the direct CVODES driver in %s", folder)  # ~1 s: no notice
+    dll = ctypes.CDLL(str(lib))
+    p = ctypes.c_void_p
+    dll.drv_new.restype = p
+    dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
+                            p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
+                            ctypes.c_longlong, p, p]
+    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p]
+    dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
+                              ctypes.c_double]
+    dll.drv_message.restype = ctypes.c_char_p
+    dll.drv_message.argtypes = [p]
+    dll.drv_free.argtypes = [p]
+    dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
+    return dll
+
+
+def library():
+    """The driver library, or None (available() says why)."""
+    if os.environ.get(ENV, "").lower() == "casadi":
+        return None
+    if "lib" not in _LIB:
+        try:
+            _LIB["lib"], _LIB["why"] = _build(), ""
+        except (OSError, subprocess.SubprocessError) as e:
+            _LIB["lib"], _LIB["why"] = None, str(e)
+            logging.getLogger("pumpsim").debug("CVODES through CasADi's plugin: %s", e)
+    return _LIB["lib"]
+
+
+def available() -> tuple[bool, str]:
+    """(usable, why not); checked at every solver set-up, so PUMPSIM_CVODES=casadi applies to
+    the next run."""
+    if library() is None:
+        return False, _LIB.get("why") or f"{ENV}=casadi"
+    return True, ""
+
+
+def _ptr(a) -> int:
+    return a.ctypes.data
+
+
+class KernelCall:
+    """One compiled kernel function `name` of the library at `so`: its work buffers, its inputs
+    (fixed arrays, the state's slot filled per call) and outputs."""
+
+    def __init__(self, so, name, inputs, state_slot):
+        self.dll = ctypes.CDLL(str(so))
+        self.fn = getattr(self.dll, name)
+        sz = [ctypes.c_longlong() for _ in range(4)]
+        getattr(self.dll, name + "_work")(*[ctypes.byref(s) for s in sz])
+        n_arg, n_res, n_iw, n_w = (max(int(s.value), 1) for s in sz)
+        self.keep = [np.ascontiguousarray(v, dtype=float) for v in inputs]
+        self.arg = np.zeros(n_arg, dtype=np.uintp)
+        for i, v in enumerate(self.keep):
+            if i != state_slot:
+                self.arg[i] = _ptr(v)
+        self.res = np.zeros(n_res, dtype=np.uintp)
+        self.iw = np.zeros(n_iw, dtype=np.int64)
+        self.w = np.zeros(n_w)
+        self.slot = state_slot
+
+    def __call__(self, x, outs):
+        """Evaluate at state x into the arrays outs (None: output not wanted); returns outs."""
+        x = np.ascontiguousarray(x, dtype=float)
+        self.arg[self.slot] = _ptr(x)
+        for k, o in enumerate(outs):
+            self.res[k] = 0 if o is None else _ptr(o)
+        if self.fn(ctypes.c_void_p(_ptr(self.arg)), ctypes.c_void_p(_ptr(self.res)),
+                   ctypes.c_void_p(_ptr(self.iw)), ctypes.c_void_p(_ptr(self.w)), 0):
+            raise SolverError("a compiled kernel failed to evaluate")
+        return outs
+
+    def address(self) -> int:
+        return ctypes.cast(self.fn, ctypes.c_void_p).value
+
+
+class Driver:
+    """CVODES (BDF, dense direct solver, CVODES' Jacobian reuse) on y' = f(y) of a kernel.
+
+    rhs, jac: KernelCall of the right-hand side and its Jacobian; out_offsets: where each rhs
+    output starts in y' (-1: not wanted); jac_blocks: per Jacobian output, (sparsity, row offset)
+    or None (not wanted); atol: per component; jac_every: steps between Jacobian updates at
+    most (CVODES' default 51)."""
+
+    def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
+                 max_step=None, jac_every=None):
+        self.lib = library()
+        if self.lib is None:
+            raise OSError(available()[1])
+        self.n = n
+        self.rhs, self.jac = rhs, jac
+        self.off = np.asarray(out_offsets, dtype=np.int64)
+        bufs, pos = [], []
+        for k, block in enumerate(jac_blocks):
+            if block is None:
+                continue
+            sp, r0 = block
+            rows, cols = sp.get_triplet()
+            buf = np.zeros(len(rows))
+            jac.res[k] = _ptr(buf)
+            bufs.append(buf)
+            pos.append(np.asarray(cols, dtype=np.int64) * n + np.asarray(rows, dtype=np.int64) + r0)
+        self.jbuf = np.concatenate(bufs) if len(bufs) > 1 else bufs[0]
+        if len(bufs) > 1:  # one buffer: the outputs write into consecutive parts of it
+            start = 0
+            for k, block in enumerate(jac_blocks):
+                if block is not None:
+                    jac.res[k] = _ptr(self.jbuf) + 8 * start
+                    start += block[0].nnz()
+        self.jpos = np.concatenate(pos)
+        self.atol = np.ascontiguousarray(atol, dtype=float)
+        self.stats_now = np.zeros(len(STAT_NAMES), dtype=np.int64)
+        self.handle = self.lib.drv_new(
+            n, float(rtol), _ptr(self.atol), int(max_order), int(max_steps), float(max_step or 0.0),
+            rhs.address(), _ptr(rhs.arg), _ptr(rhs.res), _ptr(rhs.iw), _ptr(rhs.w), rhs.slot, self.off.size,
+            _ptr(self.off), jac.address(), _ptr(jac.arg), _ptr(jac.res), _ptr(jac.iw), _ptr(jac.w), jac.slot,
+            self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
+        if not self.handle:
+            raise OSError("SUNDIALS could not set up CVODES")
+        if jac_every:
+            self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
+        self.last = None  # (t, y) where the solver memory stands
+        self.n_roots, self.root = 0, None
+
+    def set_roots(self, call, slots, offsets, output, n_out, state_idx, touch):
+        """Switching functions located by CVODES: the kernel call's output `output` (its first
+        n_out values; the state's pieces y[offsets[i]:] at its input slots[i]), then the states
+        y[state_idx]; a value below `touch` in size counts as zero."""
+        self._g = (call, np.asarray(slots, dtype=np.int64), np.asarray(offsets, dtype=np.int64),
+                   np.zeros(max(n_out, 1)), np.asarray(state_idx, dtype=np.int64))
+        call.res[:] = 0
+        call.res[output] = _ptr(self._g[3])
+        self.n_roots = n_out + len(state_idx)
+        self._found = np.zeros(self.n_roots, dtype=np.int32)
+        if self.lib.drv_roots(self.handle, call.address(), _ptr(call.arg), _ptr(call.res), _ptr(call.iw),
+                              _ptr(call.w), len(slots), _ptr(self._g[1]), _ptr(self._g[2]), n_out, _ptr(self._g[3]),
+                              len(state_idx), _ptr(self._g[4]), float(touch)):
+            raise OSError("CVODES could not set up its root finding")
+
+    def run(self, t0, y0, touts):
+        """y at each of touts (increasing, > t0) from y0 at t0 -> (m, n). The solver carries on
+        without a restart when (t0, y0) is where the last call ended. With switching functions
+        it stops at the first root: fewer rows, and self.root = (time, state, indices)."""
+        touts = np.ascontiguousarray(touts, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        resume = self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
+        Y = np.empty((touts.size, self.n))
+        done, t_root, y_root = ctypes.c_int(), ctypes.c_double(), np.empty(self.n)
+        found = self._found if self.n_roots else np.zeros(1, dtype=np.int32)
+        flag = self.lib.drv_run(self.handle, float(t0), _ptr(y0), int(resume), touts.size, _ptr(touts), _ptr(Y),
+                                _ptr(self.stats_now), ctypes.byref(done), ctypes.byref(t_root), _ptr(y_root),
+                                _ptr(found))
+        if flag < 0:
+            self.last = None
+            msg = self.lib.drv_message(self.handle).decode(errors="replace")
+            raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
+        Y = Y[:done.value]
+        self.root = None
+        if flag == 2:  # CV_ROOT_RETURN
+            self.root = (t_root.value, y_root, np.nonzero(found)[0])
+            self.last = (t_root.value, y_root.copy())
+        else:
+            self.last = (float(touts[-1]), Y[-1].copy())
+        return Y
+
+    @property
+    def stats(self) -> dict:
+        return dict(zip(STAT_NAMES, (int(v) for v in self.stats_now)))
+
+    def __del__(self):
+        if getattr(self, "handle", None) and self.lib is not None:
+            self.lib.drv_free(self.handle)
+            self.handle = None

@@ -1,0 +1,118 @@
+"""The direct CVODES driver on a compiled oscillator with a known answer: accuracy, carrying on
+across calls without a restart, root finding, and the clean fall-back to CasADi's plugin."""
+import math
+import subprocess
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import pumpsim
+from pumpsim import cvodes_driver
+from tests.conftest import make_config
+from tests.tolerances import CROSSING_REL, OSCILLATOR_REL, OSCILLATOR_RTOL
+
+W = 30.0
+
+
+@pytest.fixture(scope="module")
+def oscillator(tmp_path_factory):
+    """x'' = -W^2 x as a compiled kernel `f`(x, p) and its Jacobian `f_jac`, as the codegen
+    writes them (CasADi's C calling convention)."""
+    if not cvodes_driver.available()[0]:
+        pytest.skip(f"direct CVODES driver not available: {cvodes_driver.available()[1]}")
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p")
+    xdot = ca.vertcat(x[1], -p**2 * x[0])
+    f = ca.Function("f", [x, p], [xdot])
+    fj = ca.Function("f_jac", [x, p], [ca.jacobian(xdot, x)])
+    folder = tmp_path_factory.mktemp("osc")
+    gen = ca.CodeGenerator("osc.c")
+    gen.add(f)
+    gen.add(fj)
+    gen.generate(str(folder) + "/")
+    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / "osc.c"), "-o", str(folder / "osc.so")],
+                   check=True)
+    return folder / "osc.so", fj.sparsity_out(0)
+
+
+def _driver(oscillator, atol=1e-12):
+    so, sp = oscillator
+    x, p = np.zeros(2), np.array([W])
+    rhs = cvodes_driver.KernelCall(so, "f", [x, p], 0)
+    jac = cvodes_driver.KernelCall(so, "f_jac", [x, p], 0)
+    return cvodes_driver.Driver(2, rhs, [0], jac, [(sp, 0)], OSCILLATOR_RTOL, np.full(2, atol)), rhs
+
+
+def test_direct_driver_solves_the_oscillator(oscillator):
+    d, _ = _driver(oscillator)
+    t = np.linspace(0.0, 0.5, 51)
+    X = d.run(0.0, np.array([0.0, 1.0]), t[1:])
+    exact = np.sin(W * t[1:]) / W
+    assert np.max(np.abs(X[:, 0] - exact)) <= OSCILLATOR_REL * np.max(np.abs(exact))
+    assert d.stats["njevals"] < d.stats["nlinsetups"]  # CVODES reuses its Jacobian
+
+
+def test_a_call_from_where_the_last_ended_carries_on_without_a_restart(oscillator):
+    """Two calls, the second from the first's end, are the one call: the same steps and states
+    to the last bit (a restart would begin again at order 1 with a new first step)."""
+    t = np.linspace(0.0, 0.5, 51)
+    x0 = np.array([0.0, 1.0])
+    one, _ = _driver(oscillator)
+    X1 = one.run(0.0, x0, t[1:])
+    two, _ = _driver(oscillator)
+    A = two.run(0.0, x0, t[1:21])
+    B = two.run(t[20], A[-1], t[21:])
+    assert np.array_equal(np.vstack([A, B]), X1)
+    assert two.stats["nsteps"] == one.stats["nsteps"]
+    three, _ = _driver(oscillator)  # from another state: restarted, and more steps
+    A = three.run(0.0, x0, t[1:21])
+    three.run(t[20], A[-1] * (1 + 1e-9), t[21:])
+    assert three.stats["nsteps"] > one.stats["nsteps"]
+
+
+def test_roots_are_located_on_the_interpolant(oscillator):
+    """x = A sin(W (t - t0)) changes sign at t0 + k pi / W: the run stops at the first one, with
+    the rows before it."""
+    d, rhs = _driver(oscillator)
+    d.set_roots(rhs, [], [], 0, 0, [0], 0.0)
+    t = np.linspace(0.0, 0.2, 21)
+    x0 = np.array([1e-3, 1.0])  # off zero: the start is not a root
+    X = d.run(0.0, x0, t[1:])
+    t_root, x_root, found = d.root
+    t_exact = math.pi / W - math.atan2(1e-3 * W, 1.0) / W  # x = A sin(W (t - t_0)), phase from x0
+    assert list(found) == [0]
+    # the root is the integrated solution's: its error (OSCILLATOR_REL of the amplitude 1 / W)
+    # over the slope |x'| = 1 there
+    assert abs(t_root - t_exact) <= OSCILLATOR_REL / W
+    assert len(X) == np.searchsorted(t[1:], t_root)
+    assert abs(x_root[0]) <= OSCILLATOR_REL / W
+
+
+def test_without_the_driver_the_casadi_plugin_gives_the_same_crossing(monkeypatch):
+    """PUMPSIM_CVODES=casadi (or a machine without SUNDIALS) integrates through CasADi's plugin:
+    the contact model's free-flight crossing at the same time as the direct driver's."""
+    cfg = make_config("test_rig", **{f"friction.housing.{k}": 0.0 for k in ("static", "dynamic")})
+    monkeypatch.setenv(cvodes_driver.ENV, "")
+    direct = cvodes_driver.available()[0]
+    runs = {}
+    for mode in ("", "casadi"):
+        monkeypatch.setenv(cvodes_driver.ENV, mode)
+        res = pumpsim.simulate(cfg, model="contact", duration=0.004, rate=2000, initial="bottom")
+        runs[mode] = res
+    hit = {m: [e["time"] for e in r.events if e["kind"] == "housing_contact" and e["vane"] == 0][0]
+           for m, r in runs.items()}
+    assert runs["casadi"].stats["driver"] == "cvodes (casadi)"
+    assert runs[""].stats["driver"] == ("cvodes (direct)" if direct else "cvodes (casadi)")
+    assert abs(hit[""] - hit["casadi"]) <= CROSSING_REL * hit["casadi"]
+
+
+def test_a_driver_that_cannot_be_built_falls_back(monkeypatch, tmp_path):
+    """A missing SUNDIALS (here: a library that does not exist) leaves available() False with the
+    compiler's reason, and the runtime on CasADi's plugin."""
+    monkeypatch.setattr(cvodes_driver, "_LIB", {})
+    monkeypatch.setattr(cvodes_driver, "LIBS", cvodes_driver.LIBS + ["-lsundials_no_such_library"])
+    monkeypatch.setenv("PUMPSIM_GENERATED", str(tmp_path))
+    ok, why = cvodes_driver.available()
+    assert not ok and "CVODES driver" in why
+    res = pumpsim.simulate(make_config("test_rig"), model="contact", duration=0.002, rate=2000)
+    assert res.stats["driver"] == "cvodes (casadi)" and res.termination == "completed"
