@@ -21,7 +21,6 @@ import hashlib
 import logging
 import os
 import subprocess
-from pathlib import Path
 
 import numpy as np
 
