@@ -132,7 +132,7 @@ class BenchModel:
         self.start_pressure, self.omega0 = float(start_pressure), float(omega0)
         self.step = float(self.t[-1] / max(self.n - 1, 1))
         self.grid = self.step * np.arange(self.n)  # the model's uniform grid, the log's times without jitter
-        volt = np.interp(self.grid, self.t, voltage)
+        self.volt = volt = np.interp(self.grid, self.t, voltage)
         # the drive: the logged voltage, linear between samples
         self.drive = ca.interpolant("bench_voltage", "linear", [self.grid.tolist()], volt.tolist())
         # integral of the voltage from the start to each sample

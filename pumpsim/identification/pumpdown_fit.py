@@ -46,7 +46,7 @@ from .bench_model import BenchModel, block_edges, block_means, block_samples  # 
 from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
-DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see _scale)
+DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see scale_of)
 # a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
 TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
            "motor.friction": 1e-3, "mu": 0.01, "mu_slot": 0.01}
@@ -127,7 +127,7 @@ class BenchLogProblem(Problem):
         self.measured = self.bench.compared(log.channels())
         # robust sigma of first differences of what is compared (block means: their own), floored
         self.sigma = {c: max(noise_sigma(y), CHANNEL_FLOOR * float(np.max(np.abs(y)))) for c, y in self.measured.items()}
-        self.y = self._stack(self.measured)
+        self.y = self.scaled(self.measured)
         self.n_eval = 0
         self.last = None  # the channels of the last simulation (unscaled)
         self._at = None  # (x, model) of the last simulation: a Jacobian at an accepted trial point reuses it
@@ -161,7 +161,7 @@ class BenchLogProblem(Problem):
         self.last = {c: outs[0][c] for c in self.channel_names}
         return [{c: o[c] for c in self.channel_names} for o in outs]
 
-    def _stack(self, ch: dict):
+    def scaled(self, ch: dict):
         return np.concatenate([ch[c] / self.sigma[c] for c in self.channel_names])
 
     def model(self, x):
@@ -170,12 +170,17 @@ class BenchLogProblem(Problem):
             return self._at[1]
         self.n_eval += 1
         ch = self.simulate(x)
-        m = self._stack(ch)
+        m = self.scaled(ch)
         self._at = (x.copy(), m, ch)
         return m
 
-    def _scale(self, j, x):
+    def scale_of(self, j, x):
         return max(abs(x[j]), TYPICAL.get(self.names[j], 0.0)) or 1.0
+
+    def difference_step(self, j, x) -> float:
+        """Parameter j's forward-difference step at x, away from its upper bound."""
+        h = DIFFERENCE_STEP * self.scale_of(j, x)
+        return h if x[j] + h <= self.upper[j] else -h
 
     def model_and_jacobian(self, x, cols=None):
         """The model and its forward-difference Jacobian (the step away from a bound), the
@@ -186,14 +191,12 @@ class BenchLogProblem(Problem):
         cols = list(range(len(self.names)) if cols is None else cols)
         xs, hs = [], []
         for j in cols:
-            h = DIFFERENCE_STEP * self._scale(j, x)
-            h = h if x[j] + h <= self.upper[j] else -h
             xj = x.copy()
-            xj[j] += h
+            xj[j] += self.difference_step(j, x)
             xs.append(xj)
             hs.append(xj[j] - x[j])
         self.n_eval += len(xs)
-        ms = [self._stack(ch) for ch in self._simulated(xs)] if xs else []
+        ms = [self.scaled(ch) for ch in self._simulated(xs)] if xs else []
         J = np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if xs else np.zeros((m.size, 0))
         self.last = last
         return m, J
@@ -335,49 +338,80 @@ class BenchFit:
 
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
-                   initial=None, max_iter=30, relaxation=1.0, progress=None) -> BenchFit:
+                   initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps") -> BenchFit:
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
-    Parameters the log cannot determine (no effect, or a near-null direction of the noise-scaled
-    Jacobian) get no number and the note says what experiment would separate them."""
+    start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
+    steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
+    values (also where the maps' start leaves a parameter the log cannot determine). Parameters the
+    log cannot determine (no effect, or a near-null direction of the noise-scaled Jacobian) get no
+    number and the note says what experiment would separate them."""
     from .fit import fit_identifiable
+    from .identifiability import to_fix
     from .optimiser import Optimiser
-    from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
 
     if method == "ipopt":
         raise ConfigError("--method ipopt fits torque data; a bench log uses gauss-newton or levenberg-marquardt")
+    if start not in ("maps", "config"):
+        raise ConfigError(f"start must be 'maps' or 'config', got '{start}'")
     optimiser = Optimiser(method, relaxation, max_iter, progress)
     wall0 = _time.perf_counter()
     prob = BenchLogProblem(cfg, log, params, initial)
+    x_start, how = prob.x0.copy(), "the config's values"
+    if start == "maps":
+        from .bench_fast import FastBenchModel, fast_then_full
+
+        fast = FastBenchModel(cfg, prob.bench, log.booster_pressure, prob.names, prob.parameter_vector, prob.x0,
+                              prob.scale_of, prob.rtol, prob.atol)
+        out, x_start = fast_then_full(prob, fast, prob.x0, max_iter, progress)
+        how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
+               f"{len(out.history) - 1} full-model steps")
+        if not any(to_fix(prob.names, out.jacobian, out.x, prob.y - out.residual)):
+            res = _result(prob, prob, out, [], [], 0, log, cfg, wall0, method)
+            return _bench_fit(prob, res, out.x, how)
 
     def reduced(active, fixed, unident):
         return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident})
 
-    fit = fit_identifiable(prob, prob.x0.copy(), optimiser, reduced)
+    fit = fit_identifiable(prob, x_start, optimiser, reduced)
+    fitted_prob = prob if fit.outcome is None else fit.prob
+    res = _result(prob, fitted_prob, fit.outcome, fit.unident, fit.no_effect, fit.evaluations, log, cfg, wall0, method)
+    x = prob.x0 if fit.outcome is None else fit.outcome.x
+    return _bench_fit(fitted_prob, res, x, how, prob.names, fit.unident)
+
+
+def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, wall0, method):
+    """The IdentificationResult of a bench-log fit (out: the optimiser's outcome, None: nothing
+    identifiable)."""
+    from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
+
     x0 = dict(zip(prob.names, prob.x0))
-    if fit.outcome is None:
-        fitted_prob, x = prob, prob.x0
-        r = prob.y - prob.model(x)
+    if out is None:
+        r = prob.y - prob.model(prob.x0)
         est, corr, history, converged, message, on_bound = {}, None, [], False, "nothing identifiable", []
     else:
-        out, fitted_prob = fit.outcome, fit.prob
         x, r, history = np.asarray(out.x, float), out.residual, out.history
         est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
         converged, message, on_bound = out.converged, out.message, bounds_reached(fitted_prob, x)
-    for n in fit.unident:
+    for n in unident:
         est[n] = Estimate(n, None, None, None, None, x0[n], identifiable=False)
-    fitted = fitted_prob.simulate(x)
     res = IdentificationResult(
         estimates={n: est[n] for n in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r ** 2))),
         converged=converged, message=message, correlation=corr, diagnostics={}, method=method + prob.METHOD_TAG,
-        wall_time=0.0, unidentifiable=fit.unident, time=log.time, on_bound=on_bound, no_effect=fit.no_effect,
-        n_evaluations=prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
+        wall_time=0.0, unidentifiable=unident, time=log.time, on_bound=on_bound, no_effect=no_effect,
+        n_evaluations=prob.n_eval + evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
     res.provenance = provenance(cfg, _AsData(log), prob.kern)
     res.wall_time = _time.perf_counter() - wall0
-    notes = separation_notes(prob.names, fit.unident, corr, list(fitted_prob.names) if fit.outcome else [])
-    if fit.unident:
-        res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(fit.unident)}"
+    if unident:
+        res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(unident)}"
+    return res
+
+
+def _bench_fit(fitted_prob, res, x, how, names=None, unident=()) -> BenchFit:
+    fitted = fitted_prob.simulate(x)
+    identified = list(fitted_prob.names) if res.correlation is not None else []
+    notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified)
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
-                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes)
+                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how)
 
 
 class _AsData:

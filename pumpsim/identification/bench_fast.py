@@ -1,0 +1,243 @@
+"""A fast model of a bench log from the pump's cycle-averaged maps (pneumatics.pumpdown.pump_maps),
+and the start it gives the full fit.
+
+The fast model: the booster pressure p_b and the shaft speed omega, driven by the logged voltage V,
+  I domega/dt = k i - friction tanh(omega / MOTOR_FRICTION_SPEED) - T(p_b)
+  V_b / (R T) dp_b/dt = leak(p_b) - m_rev(p_b) omega / (2 pi)
+with the current quasi-static, i = (V - k omega) / R (L / R is a fraction of a sample interval),
+T the pump's mean load torque (gas and vane friction) and m_rev the mass it draws per revolution,
+both from the maps, interpolated in log p_b. The motor and the booster are in the equations, not in
+the maps: motor.* and booster.* change no map. The others (mu, the clearances, the valve) do: the maps
+are made at the start values and at one step in each of them, and taken as linear in them.
+
+Classical RK4 on the log's grid (substeps where the motor's mechanical time constant asks), the runs
+of a Jacobian as one vectorised integration: ~0.1 s for a 5 s log at 1 kHz against ~3-8 s for one
+run of the full model. It is not the full model (it ignores how the maps move with speed, the check
+valve, the run-up's inductance and the ripple): its estimates are a start and its Jacobian a guide;
+the full model decides the estimates and gives the covariance (pumpdown_fit.identify_bench).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+MAP_POINTS = 8  # booster pressures mapped, geometric between the log's extremes
+MAP_STEP = 0.1  # a map parameter's step for the maps' sensitivity, of its scale
+STAGE_LIMIT = 0.25  # an RK4 step at most this share of the motor's mechanical time constant
+MOTOR_FRICTION_SPEED = 0.5  # rad/s, as the kernel's (codegen.pneumatic_model)
+
+
+def maps_change(name) -> bool:
+    """Whether a fitted parameter changes the pump's maps (the motor and booster ones do not)."""
+    return not name.startswith(("motor.", "booster."))
+
+
+def map_pressures(log_pressure, start) -> np.ndarray:
+    hi = 1.02 * max(float(start), float(np.max(log_pressure)))
+    lo = 0.85 * max(float(np.min(log_pressure)), 1.0)
+    return np.geomspace(lo, hi, MAP_POINTS)
+
+
+def leak_flows(v, p_b):
+    """The booster leak's mass flow [kg/s] per kg/s of booster.leak at the booster pressures p_b
+    (an array): the kernel's orifice law from the atmosphere, 1 at full vacuum."""
+    g, R, T, pa = v["gas.gamma"], v["gas.gas_constant"], v["gas.temperature"], v["gas.atmosphere"]
+    choked = math.sqrt(g) * (2 / (g + 1)) ** ((g + 1) / (2 * (g - 1)))
+    r_crit = (2 / (g + 1)) ** (g / (g - 1))
+    lin = 0.995
+
+    def psi(r):
+        r = np.maximum(r, r_crit)
+        return np.sqrt(np.maximum(2 * g / (g - 1) * (r ** (2 / g) - r ** ((g + 1) / g)), 0.0))
+
+    r = np.minimum(np.asarray(p_b, float) / pa, 1.0)
+    f = np.where(r > lin, psi(lin) * (1 - r) / (1 - lin), psi(r))
+    return f / choked
+
+
+class FastBenchModel:
+    """The fast model at a BenchModel's grid for the fitted names of a problem (parameter_vector:
+    fitted values -> runtime vector); `channels_many(xs)` as BenchModel's, from the maps."""
+
+    def __init__(self, cfg, bench, log_pressure, names, parameter_vector, x0, scale, rtol, atol):
+        from ..pneumatics.pumpdown import pump_maps
+
+        self.bench, self.names, self.pv = bench, list(names), parameter_vector
+        self.x_map = np.asarray(x0, float).copy()
+        self.map_cols = [j for j, n in enumerate(self.names) if maps_change(n)]
+        pressures = map_pressures(log_pressure, bench.start_pressure)
+        base = pump_maps(cfg, pressures, rtol, atol, p=parameter_vector(self.x_map))
+        self.log_p = np.log(base.pressure)
+        self.base = self._tables(base)
+        self.slopes, self.map_seconds = [], base.wall_time
+        for j in self.map_cols:
+            h = MAP_STEP * scale(j, self.x_map)
+            xj = self.x_map.copy()
+            xj[j] += h
+            m = pump_maps(cfg, pressures, rtol, atol, p=parameter_vector(xj))
+            self.map_seconds += m.wall_time
+            self.slopes.append((self._tables(m) - self.base) / h)
+
+    @staticmethod
+    def _tables(m) -> np.ndarray:
+        """[mass per revolution, load torque] at the mapped pressures."""
+        return np.vstack([m.mass_flow * 2 * math.pi / m.speed, m.gas_torque + m.friction_torque])
+
+    def _run_values(self, x):
+        x = np.asarray(x, float)
+        tab = self.base.copy()
+        for j, s in zip(self.map_cols, self.slopes):
+            tab = tab + s * (x[j] - self.x_map[j])
+        v = dict(zip(self.bench.names, self.pv(x)))
+        return tab, v
+
+    def channels_many(self, xs) -> list:
+        runs = [self._run_values(x) for x in xs]
+        P, W, I = self._integrate(runs)
+        b = self.bench
+        out = []
+        from .bench_model import block_means
+
+        for k in range(len(runs)):
+            out.append({"booster_pressure": P[:, k], "current": block_means(I[:, k], b.edges),
+                        "speed": block_means(W[:, k], b.edges)})
+        return out
+
+    def _integrate(self, runs):
+        b = self.bench
+        vs = [v for _, v in runs]
+        col = lambda key: np.array([v[key] for v in vs])  # noqa: E731
+        R, k, fr = col("motor.resistance"), col("motor.constant"), col("motor.friction")
+        inertia = col("rotor.inertia") + col("motor.inertia")
+        c_p = col("gas.gas_constant") * col("gas.temperature") / col("booster.volume")
+        leak = col("booster.leak")
+        tabs = np.stack([t for t, _ in runs])  # (runs, 2, points)
+        lp_tab, last, rows = self.log_p, self.log_p.size - 2, np.arange(len(runs))
+
+        def rates(p, w, volt):  # linear in log p_b between the mapped points, held beyond them
+            lp = np.clip(np.log(np.maximum(p, 1.0)), lp_tab[0], lp_tab[-1])
+            j = np.minimum(np.searchsorted(lp_tab, lp, side="right") - 1, last)
+            f = (lp - lp_tab[j]) / (lp_tab[j + 1] - lp_tab[j])
+            mrev, load = tabs[rows, :, j].T * (1 - f) + tabs[rows, :, j + 1].T * f
+            i = (volt - k * w) / R
+            torque = k * i - (fr + load) * np.tanh(w / MOTOR_FRICTION_SPEED)
+            return c_p * (leak * leak_flows(vs[0], p) - mrev * w / (2 * math.pi)), torque / inertia
+
+        tau = float(np.min(inertia * R / np.maximum(k, 1e-12) ** 2))
+        n_sub = max(1, int(math.ceil(b.step / (STAGE_LIMIT * tau))))
+        h = b.step / n_sub
+        volt = b.volt
+        n = volt.size
+        P, W = np.empty((n, len(runs))), np.empty((n, len(runs)))
+        p, w = np.full(len(runs), b.start_pressure), np.full(len(runs), b.omega0)
+        P[0], W[0] = p, w
+        for s in range(n - 1):
+            for q in range(n_sub):
+                a, c = q / n_sub, (q + 0.5) / n_sub
+                v0 = volt[s] + a * (volt[s + 1] - volt[s])
+                vm = volt[s] + c * (volt[s + 1] - volt[s])
+                v1 = volt[s] + (q + 1) / n_sub * (volt[s + 1] - volt[s])
+                k1 = rates(p, w, v0)
+                k2 = rates(p + 0.5 * h * k1[0], w + 0.5 * h * k1[1], vm)
+                k3 = rates(p + 0.5 * h * k2[0], w + 0.5 * h * k2[1], vm)
+                k4 = rates(p + h * k3[0], w + h * k3[1], v1)
+                p = p + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+                w = w + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+            P[s + 1], W[s + 1] = p, w
+        I = (volt[:, None] - k[None, :] * W) / R[None, :]
+        return P, W, I
+
+
+class FastProblem:
+    """A bench-log problem's fit with the fast model in place of the full one (optimiser.gauss_newton
+    takes it): the same names, bounds, measured values and noise scaling."""
+
+    def __init__(self, prob, fast):
+        self.prob, self.fast = prob, fast
+        self.names, self.lower, self.upper, self.y = prob.names, prob.lower, prob.upper, prob.y
+
+    def keep_at(self, x):
+        return None
+
+    def model(self, x):
+        return self.prob.scaled(self.fast.channels_many([x])[0])
+
+    def model_and_jacobian(self, x, cols=None):
+        x = np.asarray(x, float)
+        xs, hs = [x], []
+        for j in range(len(self.names)):
+            h = self.prob.difference_step(j, x)
+            xj = x.copy()
+            xj[j] += h
+            xs.append(xj)
+            hs.append(h)
+        ms = [self.prob.scaled(c) for c in self.fast.channels_many(xs)]
+        return ms[0], np.column_stack([(mj - ms[0]) / h for mj, h in zip(ms[1:], hs)])
+
+
+FULL_STEPS = 4  # full-model steps after the fast fit, at most
+STEP_SE = 0.2  # converged: every parameter's step below this many of its standard errors
+
+
+def _step(J, r):
+    """Gauss-Newton step (column-scaled least squares) and the standard errors from J."""
+    scale = np.linalg.norm(J, axis=0)
+    scale[scale == 0] = 1.0
+    Js = J / scale
+    d, *_ = np.linalg.lstsq(Js, r, rcond=None)
+    cov = np.linalg.pinv(Js.T @ Js) * max(float(np.mean(r ** 2)), 1.0)
+    return d / scale, np.sqrt(np.abs(np.diag(cov))) / scale
+
+
+def fast_then_full(prob, fast, x0, max_iter=30, log=None):
+    """The fit from the maps' start: Gauss-Newton on the fast model from x0, then full-model steps
+    with the fast model's Jacobian corrected by Broyden's rank-one updates from the full model's
+    own changes (one full run a step) until a step is below STEP_SE standard errors, and last the
+    full model's forward-difference Jacobian, for one more step if it asks for one and for the
+    covariance. Returns (FitOutcome, x of the fast fit)."""
+    from .optimiser import FitOutcome, gauss_newton
+
+    fp = FastProblem(prob, fast)
+    x_fast = np.asarray(gauss_newton(fp, np.asarray(x0, float), max_iter=max_iter, lm=True).x, float)
+    x = x_fast.copy()
+    m, J = prob.model(x), fp.model_and_jacobian(x)[1]
+    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m), "stage": "fast model"}]
+    final, at_minimum = False, False
+    for _ in range(FULL_STEPS + 1):
+        r = prob.y - m
+        dx, se = _step(J, r)
+        if np.all(np.abs(dx) <= STEP_SE * se):
+            if final:
+                break
+            m, J = prob.model_and_jacobian(x)  # the full model's (its run at x is cached)
+            final = True
+            continue
+        xn = np.clip(x + dx, prob.lower, prob.upper)
+        mn = prob.model(xn)
+        if _rms(prob.y - mn) > history[-1]["rms"] and final:
+            at_minimum = True  # the full Jacobian's step does not lower the cost
+            break
+        d = xn - x
+        if not final:  # Broyden's update in scaled parameters
+            s = np.linalg.norm(J, axis=0)
+            s[s == 0] = 1.0
+            ds = d * s
+            J = J + np.outer((mn - m) - J @ d, ds / (ds @ ds)) * s
+        x, m = xn, mn
+        history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m),
+                        "stage": "full model" + (", its Jacobian" if final else ", Broyden")})
+        if log:
+            log(history[-1])
+    if not final:
+        m, J = prob.model_and_jacobian(x)
+    dx, se = _step(J, prob.y - m)
+    converged = at_minimum or bool(np.all(np.abs(dx) <= STEP_SE * se))
+    message = ("no further decrease of the residual" if at_minimum else
+               f"full-model step below {STEP_SE:g} standard errors" if converged else
+               f"full-model steps did not settle within {FULL_STEPS}")
+    return FitOutcome(x, prob.y - m, J, history, converged, message), x_fast
+
+
+def _rms(r) -> float:
+    return float(np.sqrt(np.mean(r ** 2)))
