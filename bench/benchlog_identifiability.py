@@ -82,7 +82,8 @@ def analyse(kind, seed, tmp):
                    "partner": names[b] if b != a else None}
     for n in unident:
         rows[n] = {"identifiable": False, "no_effect": n in dead}
-    notes = separation_notes(prob.names, unident, corr, names)
+    notes = separation_notes(prob.names, unident, corr, names, {n: r["relative_se"] for n, r in rows.items()
+                                                                if "relative_se" in r})
     return {"kind": kind, "seed": seed, "rows": rows, "unidentifiable": unident, "notes": notes,
             "samples": int(log.n)}
 

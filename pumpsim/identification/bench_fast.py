@@ -24,7 +24,7 @@ import numpy as np
 
 MAP_POINTS = 8  # booster pressures mapped, geometric between the log's extremes
 MAP_STEP = 0.1  # a map parameter's step for the maps' sensitivity, of its scale
-STAGE_LIMIT = 0.25  # an RK4 step at most this share of the motor's mechanical time constant
+STAGE_LIMIT = 0.25  # an RK4 step at most this share of the fastest time constant (motor, booster)
 MOTOR_FRICTION_SPEED = 0.5  # rad/s, as the kernel's (codegen.pneumatic_model)
 
 
@@ -69,6 +69,7 @@ class FastBenchModel:
         pressures = map_pressures(log_pressure, bench.start_pressure)
         base = pump_maps(cfg, pressures, rtol, atol, p=parameter_vector(self.x_map))
         self.log_p = np.log(base.pressure)
+        self.pumping_speed = float(np.max(base.pumping_speed))  # m^3/s: the booster's fastest time constant
         self.base = self._tables(base)
         self.slopes, self.map_seconds = [], base.wall_time
         for j in self.map_cols:
@@ -124,7 +125,9 @@ class FastBenchModel:
             torque = k * i - (fr + load) * np.tanh(w / MOTOR_FRICTION_SPEED)
             return c_p * (leak * leak_flows(vs[0], p) - mrev * w / (2 * math.pi)), torque / inertia
 
-        tau = float(np.min(inertia * R / np.maximum(k, 1e-12) ** 2))
+        # the motor's mechanical time constant and the booster's V_b / pumping speed
+        tau = min(float(np.min(inertia * R / np.maximum(k, 1e-12) ** 2)),
+                  float(np.min(col("booster.volume"))) / max(self.pumping_speed, 1e-300))
         n_sub = max(1, int(math.ceil(b.step / (STAGE_LIMIT * tau))))
         h = b.step / n_sub
         volt = b.volt

@@ -52,26 +52,29 @@ TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "va
            "motor.friction": 1e-3, "mu": 0.01, "mu_slot": 0.01}
 NOT_FITTED = GAS_ENCODED + ("motor.voltage",)  # structure, or the log's own input
 _GAS = {q.name: q for q in GAS_PARAMETERS}
-# what separates parameters a log cannot tell apart: (the names, the experiment)
+# what separates parameters a log cannot tell apart: (the names, the experiment). The figures are
+# relative standard errors of all eight fitted at once from 0.5 s twin logs (docs/explanation/bench-log.md,
+# bench/benchlog_identifiability.py)
 SEPARATING = (
-    (("leak.tip_gap", "leak.end_gap"),
-     "a run with the inlet closed (booster port blanked): the pressure the pump holds and its current "
-     "there depend on the internal clearances alone; tip and end clearances differ in how they scale "
-     "with speed, so two supply voltages separate them"),
+    (("booster.leak", "leak.tip_gap", "leak.end_gap"),
+     "a run with the inlet closed (booster port blanked): the pressure the pump holds there is set by "
+     "the clearances and the leaks alone (booster.leak 25 -> 6 %, tip gap 13 -> 8 %, end gap 30 -> 18 %); "
+     "a hold test (the pump stopped at a low booster pressure, the check valve closed) gives the booster "
+     "leak alone"),
     (("motor.constant", "motor.resistance"),
-     "runs at two supply voltages (or a stalled-rotor current at a low voltage, which gives "
-     "motor.resistance alone)"),
+     "a log that starts with the pump at rest (the inrush gives the resistance, the running current the "
+     "constant: both to < 0.5 %), or runs at two supply voltages, or a stalled-rotor current at a low voltage "
+     "(motor.resistance alone)"),
     (("mu", "mu_slot", "motor.friction"),
-     "a free-running current with the pump's inlet open to the atmosphere at two voltages: vane "
-     "friction follows the gas load and the speed, the motor's friction torque does not"),
-    (("booster.leak",),
-     "a hold test: the pump stopped at a low booster pressure with the check valve closed; the "
-     "pressure rise is the booster leak alone"),
+     "a run with the inlet closed, where the vane friction follows the pressures the pump holds and the "
+     "motor's friction torque does not (motor.friction 27 -> 9 %, its correlation with mu 0.89 -> 0.65); "
+     "a speed column helps a little (27 -> 19 %)"),
     (("valve.cracking",),
-     "a pump-down to a lower booster pressure: the exhaust valve's cracking shapes the compression "
-     "work at low inlet pressure"),
+     "a pump-down to a lower booster pressure, or a run with the inlet closed (24 -> 17 %): the exhaust "
+     "valve's cracking shapes the compression work at low inlet pressure"),
 )
 CORRELATED = 0.95  # |correlation| above which two estimates are named as hard to separate
+WEAK = 0.1  # relative standard error above which an estimate is named as weakly determined
 
 
 def fit_map(cfg):
@@ -258,10 +261,12 @@ def channel_fits(prob: BenchLogProblem, fitted: dict) -> dict:
     return out
 
 
-def separation_notes(names, unident, correlation, identified) -> list[str]:
-    """What would separate the parameters this log cannot tell apart: the unidentifiable ones and
-    the identified pairs correlated beyond CORRELATED."""
+def separation_notes(names, unident, correlation, identified, relative_se=None) -> list[str]:
+    """What would separate the parameters this log cannot tell apart: the unidentifiable ones, the
+    identified pairs correlated beyond CORRELATED and (relative_se: name -> relative standard
+    error) the estimates weaker than WEAK."""
     hard = set(unident)
+    weak = [n for n in identified if (relative_se or {}).get(n, 0.0) > WEAK]
     pairs = []
     if correlation is not None:
         for a in range(len(identified)):
@@ -274,6 +279,10 @@ def separation_notes(names, unident, correlation, identified) -> list[str]:
         notes.append(f"this log cannot separate {', '.join(unident)}")
     for a, b, c in pairs:
         notes.append(f"{a} and {b} are correlated {c:+.3f}: the log tells their combination better than either")
+    if weak:
+        notes.append("this log determines " + ", ".join(f"{n} to {100 * relative_se[n]:.2g} %" for n in weak)
+                     + " only (a standard error above " + f"{100 * WEAK:.0f} % of the value)")
+        hard.update(weak)
     for group, experiment in SEPARATING:
         if hard & set(group):
             notes.append(f"to separate {', '.join(n for n in group if n in hard or n in names)}: {experiment}")
@@ -338,13 +347,15 @@ class BenchFit:
 
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
-                   initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps") -> BenchFit:
+                   initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps", rtol=BENCH_FIT_RTOL,
+                   atol=BENCH_FIT_ATOL) -> BenchFit:
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
     start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
     steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
     values (also where the maps' start leaves a parameter the log cannot determine). Parameters the
     log cannot determine (no effect, or a near-null direction of the noise-scaled Jacobian) get no
-    number and the note says what experiment would separate them."""
+    number and the note says what experiment would separate them. rtol, atol: the full model's
+    integration."""
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
@@ -355,7 +366,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         raise ConfigError(f"start must be 'maps' or 'config', got '{start}'")
     optimiser = Optimiser(method, relaxation, max_iter, progress)
     wall0 = _time.perf_counter()
-    prob = BenchLogProblem(cfg, log, params, initial)
+    prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol)
     x_start, how = prob.x0.copy(), "the config's values"
     if start == "maps":
         from .bench_fast import FastBenchModel, fast_then_full
@@ -370,7 +381,8 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
             return _bench_fit(prob, res, out.x, how)
 
     def reduced(active, fixed, unident):
-        return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident})
+        return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident},
+                               rtol, atol)
 
     fit = fit_identifiable(prob, x_start, optimiser, reduced)
     fitted_prob = prob if fit.outcome is None else fit.prob
@@ -409,7 +421,8 @@ def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, w
 def _bench_fit(fitted_prob, res, x, how, names=None, unident=()) -> BenchFit:
     fitted = fitted_prob.simulate(x)
     identified = list(fitted_prob.names) if res.correlation is not None else []
-    notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified)
+    rel = {n: e.stderr / abs(e.value) for n, e in res.estimates.items() if e.identifiable and e.value}
+    notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified, rel)
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
                     fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how)
 
