@@ -20,8 +20,10 @@ floored at CHANNEL_FLOOR of the channel's size, the integrator's accuracy) so th
 cost weighs pressure, current and speed; the residual RMS is then in units of the noise (1: the
 model explains the log to its noise).
 
-Jacobian: forward differences of the compiled model, one run per parameter, the runs of one
-Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
+The fit starts from a fast model on the pump's cycle-averaged maps (bench_fast: its fit, then
+full-model steps with its Jacobian corrected by Broyden updates); the full model's Jacobian, last,
+gives the covariance: forward differences of the compiled model, one run per parameter, the runs
+of one Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
 Exact forward sensitivities (the kernel's forward derivative in x and p, CVODES on the system
 augmented with one sensitivity block per parameter, blocks in the error test) were measured on the
 EVP example: at rtol 1e-6 a 0.5 s log took 237,726 steps (a run alone 38,000) and 113 us per step
@@ -372,7 +374,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         from .bench_fast import FastBenchModel, fast_then_full
 
         fast = FastBenchModel(cfg, prob.bench, log.booster_pressure, prob.names, prob.parameter_vector, prob.x0,
-                              prob.scale_of, prob.rtol, prob.atol)
+                              prob.scale_of)
         out, x_start = fast_then_full(prob, fast, prob.x0, max_iter, progress)
         how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
                f"{len(out.history) - 1} full-model steps")
