@@ -59,6 +59,12 @@ def leak_flows(v, p_b):
     return f / choked
 
 
+def _nodes(n, m) -> np.ndarray:
+    """Every m-th of n sample indices, the last one included."""
+    idx = np.arange(0, n, m)
+    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
+
+
 class FastBenchModel:
     """The fast model at a BenchModel's grid for the fitted names of a problem (parameter_vector:
     fitted values -> runtime vector); `channels_many(xs)` as BenchModel's, from the maps."""
@@ -131,27 +137,30 @@ class FastBenchModel:
         # the motor's mechanical time constant and the booster's V_b / pumping speed
         tau = min(float(np.min(inertia * R / np.maximum(k, 1e-12) ** 2)),
                   float(np.min(col("booster.volume"))) / max(self.pumping_speed, 1e-300))
-        n_sub = max(1, int(math.ceil(b.step / (STAGE_LIMIT * tau))))
-        h = b.step / n_sub
-        volt = b.volt
-        n = volt.size
-        P, W = np.empty((n, len(runs))), np.empty((n, len(runs)))
+        # RK4 steps of whole sample intervals, each at most STAGE_LIMIT tau (substeps where one
+        # interval is longer), the voltage its mean over the step; the states interpolated back
+        nodes = _nodes(b.n, max(1, int(STAGE_LIMIT * tau / b.step)))
         p, w = np.full(len(runs), b.start_pressure), np.full(len(runs), b.omega0)
-        P[0], W[0] = p, w
-        for s in range(n - 1):
-            for q in range(n_sub):
-                a, c = q / n_sub, (q + 0.5) / n_sub
-                v0 = volt[s] + a * (volt[s + 1] - volt[s])
-                vm = volt[s] + c * (volt[s + 1] - volt[s])
-                v1 = volt[s] + (q + 1) / n_sub * (volt[s + 1] - volt[s])
-                k1 = rates(p, w, v0)
-                k2 = rates(p + 0.5 * h * k1[0], w + 0.5 * h * k1[1], vm)
-                k3 = rates(p + 0.5 * h * k2[0], w + 0.5 * h * k2[1], vm)
-                k4 = rates(p + h * k3[0], w + h * k3[1], v1)
+        Pn, Wn = [p], [w]
+        for i0, i1 in zip(nodes[:-1], nodes[1:]):
+            span = b.grid[i1] - b.grid[i0]
+            volt = (b.volt_integral[i1] - b.volt_integral[i0]) / span
+            n_sub = max(1, int(math.ceil(span / (STAGE_LIMIT * tau))))
+            h = span / n_sub
+            for _ in range(n_sub):
+                k1 = rates(p, w, volt)
+                k2 = rates(p + 0.5 * h * k1[0], w + 0.5 * h * k1[1], volt)
+                k3 = rates(p + 0.5 * h * k2[0], w + 0.5 * h * k2[1], volt)
+                k4 = rates(p + h * k3[0], w + h * k3[1], volt)
                 p = p + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
                 w = w + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-            P[s + 1], W[s + 1] = p, w
-        I = (volt[:, None] - k[None, :] * W) / R[None, :]
+            Pn.append(p)
+            Wn.append(w)
+        tn = b.grid[nodes]
+        Pn, Wn = np.array(Pn), np.array(Wn)
+        P = np.column_stack([np.interp(b.grid, tn, Pn[:, j]) for j in range(len(runs))])
+        W = np.column_stack([np.interp(b.grid, tn, Wn[:, j]) for j in range(len(runs))])
+        I = (b.volt[:, None] - k[None, :] * W) / R[None, :]
         return P, W, I
 
 
@@ -182,6 +191,7 @@ class FastProblem:
         return ms[0], np.column_stack([(mj - ms[0]) / h for mj, h in zip(ms[1:], hs)])
 
 
+FAST_ITERATIONS, FAST_TOL = 10, 1e-4  # the fast fit is a start: a few standard errors off is fine
 BROYDEN_STEPS = 2  # full-model steps with the fast model's Jacobian (Broyden-corrected), at most
 BROYDEN_GAIN = 0.01  # ... while each lowers the residual RMS by more than this share
 FULL_STEPS = 3  # full-model steps with its own forward-difference Jacobian, at most
@@ -217,7 +227,8 @@ def fast_then_full(prob, fast, x0, max_iter=30, log=None):
     from .optimiser import FitOutcome, gauss_newton
 
     fp = FastProblem(prob, fast)
-    x_fast = np.asarray(gauss_newton(fp, np.asarray(x0, float), max_iter=max_iter, lm=True).x, float)
+    x_fast = np.asarray(gauss_newton(fp, np.asarray(x0, float), max_iter=min(max_iter, FAST_ITERATIONS),
+                                     tol=FAST_TOL).x, float)
     x = x_fast.copy()
     m, J = prob.model(x), fp.model_and_jacobian(x)[1]
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m), "stage": "fast model"}]

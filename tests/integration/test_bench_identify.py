@@ -52,6 +52,7 @@ def test_cli_fits_a_bench_log_and_refuses_gauge(tmp_path):
     assert "Traceback" not in r.stderr
 
 
+@pytest.mark.slow
 def test_twin_experiment_recovers_friction_leak_and_resistance(tmp_path):
     """0.5 s log, 0.5 % noise on every channel (voltage included), the fit from the maps' start:
     mu within 2 %, motor.resistance within 3 %, booster.leak within 10 % (measured: mu 0.6 %,
