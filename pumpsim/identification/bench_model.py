@@ -18,6 +18,7 @@ from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 
 BLOCK_REVOLUTIONS = 1.0  # current and speed are compared as means over blocks this many revolutions long
 MAX_ORDER = 3  # BDF order cap, as the runtime's (pneumatics.run.PumpIntegrator says why)
+RUNUP_TIME_CONSTANTS = 3.0  # the run-up: this many mechanical time constants (runup_blocks)
 MAX_STEPS = 20_000_000  # a whole log in one call: ~80,000 steps per simulated second at rtol 1e-6
 
 
@@ -39,6 +40,18 @@ def block_means(y, edges) -> np.ndarray:
     trapezoidal mean, as the model's is the mean over the interval)."""
     c = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]))])
     return np.diff(c[edges]) / np.diff(edges)
+
+
+def runup_blocks(v, edge_times) -> int:
+    """Blocks that start within RUNUP_TIME_CONSTANTS mechanical time constants (J R / k^2, the
+    config's values) of the log's start. There the current changes within a sample interval (the
+    inrush: V/R within L/R, then its decay as the motor speeds up), and the log's trapezoidal
+    block mean is not the interval's mean: the model's is taken the same way from its own samples
+    there. It is fixed per log, so the cost stays smooth in the parameters; the ripple's phase,
+    which the exact mean avoids, has not drifted within it."""
+    k = v["motor.constant"]
+    tau = (v["motor.inertia"] + v["rotor.inertia"]) * v["motor.resistance"] / k ** 2 if k > 0 else 0.0
+    return int(np.searchsorted(edge_times[:-1], RUNUP_TIME_CONSTANTS * tau, side="left"))
 
 
 class GridRuns:
@@ -119,7 +132,7 @@ class BenchModel:
         self.start_pressure, self.omega0 = float(start_pressure), float(omega0)
         self.step = float(self.t[-1] / max(self.n - 1, 1))
         self.grid = self.step * np.arange(self.n)  # the model's uniform grid, the log's times without jitter
-        volt = np.interp(self.grid, self.t, voltage)
+        self.volt = volt = np.interp(self.grid, self.t, voltage)
         # the drive: the logged voltage, linear between samples
         self.drive = ca.interpolant("bench_voltage", "linear", [self.grid.tolist()], volt.tolist())
         # integral of the voltage from the start to each sample
@@ -128,6 +141,9 @@ class BenchModel:
         N = cfg.vanes
         self.i_in, self.i_b = 3 + 2 * N, 3 + 2 * N + 2  # inlet manifold and booster masses (run.state_names)
         self.edges = block_edges(self.n, block_samples(cfg, self.step))
+        from ..kernels.pneumatic import parameter_vector
+
+        self.runup = runup_blocks(dict(zip(self.names, parameter_vector(cfg))), self.t[self.edges])
         self.block_time = 0.5 * (self.t[self.edges[1:]] + self.t[self.edges[:-1]]) + time[0]
         self.mean_speed = 0.0
         self._grid_runs = None  # GridRuns, made at the first run (its state scale from that run's start)
@@ -212,6 +228,9 @@ class BenchModel:
         dth, dcur, span = np.diff(theta), np.diff(cur), np.diff(self.t[self.edges])
         mean_i = (np.diff(self.volt_integral[self.edges]) - pv["motor.constant"] * dth
                   - pv["motor.inductance"] * dcur) / (pv["motor.resistance"] * span)
+        k = self.runup
+        if k:  # sampled as the log is (runup_blocks)
+            mean_i[:k] = block_means(X[:, 2], self.edges[:k + 1])
         return {"booster_pressure": self._pressure(X, pv), "current": mean_i, "speed": dth / span}
 
 

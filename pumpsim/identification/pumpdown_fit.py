@@ -20,8 +20,10 @@ floored at CHANNEL_FLOOR of the channel's size, the integrator's accuracy) so th
 cost weighs pressure, current and speed; the residual RMS is then in units of the noise (1: the
 model explains the log to its noise).
 
-Jacobian: forward differences of the compiled model, one run per parameter, the runs of one
-Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
+The fit starts from a fast model on the pump's cycle-averaged maps (bench_fast: its fit, then
+full-model steps with its Jacobian corrected by Broyden updates); the full model's Jacobian, last,
+gives the covariance: forward differences of the compiled model, one run per parameter, the runs
+of one Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
 Exact forward sensitivities (the kernel's forward derivative in x and p, CVODES on the system
 augmented with one sensitivity block per parameter, blocks in the error test) were measured on the
 EVP example: at rtol 1e-6 a 0.5 s log took 237,726 steps (a run alone 38,000) and 113 us per step
@@ -47,32 +49,35 @@ from .bench_model import BenchModel, block_edges, block_means, block_samples  # 
 from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
-DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see _scale)
+DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see scale_of)
 # a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
 TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
            "motor.friction": 1e-3, "mu": 0.01, "mu_slot": 0.01}
 NOT_FITTED = GAS_ENCODED + ("motor.voltage",)  # structure, or the log's own input
 _GAS = {q.name: q for q in GAS_PARAMETERS}
-# what separates parameters a log cannot tell apart: (the names, the experiment)
+# what separates parameters a log cannot tell apart: (the names, the experiment). The figures are
+# relative standard errors of all eight fitted at once from 0.5 s twin logs (docs/explanation/bench-log.md,
+# bench/benchlog_identifiability.py)
 SEPARATING = (
-    (("leak.tip_gap", "leak.end_gap"),
-     "a run with the inlet closed (booster port blanked): the pressure the pump holds and its current "
-     "there depend on the internal clearances alone; tip and end clearances differ in how they scale "
-     "with speed, so two supply voltages separate them"),
+    (("booster.leak", "leak.tip_gap", "leak.end_gap"),
+     "a run with the inlet closed (booster port blanked): the pressure the pump holds there is set by "
+     "the clearances and the leaks alone (booster.leak 25 -> 6 %, tip gap 13 -> 8 %, end gap 30 -> 18 %); "
+     "a hold test (the pump stopped at a low booster pressure, the check valve closed) gives the booster "
+     "leak alone"),
     (("motor.constant", "motor.resistance"),
-     "runs at two supply voltages (or a stalled-rotor current at a low voltage, which gives "
-     "motor.resistance alone)"),
+     "a log that starts with the pump at rest (the inrush gives the resistance, the running current the "
+     "constant: both to < 0.5 %), or runs at two supply voltages, or a stalled-rotor current at a low voltage "
+     "(motor.resistance alone)"),
     (("mu", "mu_slot", "motor.friction"),
-     "a free-running current with the pump's inlet open to the atmosphere at two voltages: vane "
-     "friction follows the gas load and the speed, the motor's friction torque does not"),
-    (("booster.leak",),
-     "a hold test: the pump stopped at a low booster pressure with the check valve closed; the "
-     "pressure rise is the booster leak alone"),
+     "a run with the inlet closed, where the vane friction follows the pressures the pump holds and the "
+     "motor's friction torque does not (motor.friction 27 -> 9 %, its correlation with mu 0.89 -> 0.65); "
+     "a speed column helps a little (27 -> 19 %)"),
     (("valve.cracking",),
-     "a pump-down to a lower booster pressure: the exhaust valve's cracking shapes the compression "
-     "work at low inlet pressure"),
+     "a pump-down to a lower booster pressure, or a run with the inlet closed (24 -> 17 %): the exhaust "
+     "valve's cracking shapes the compression work at low inlet pressure"),
 )
 CORRELATED = 0.95  # |correlation| above which two estimates are named as hard to separate
+WEAK = 0.1  # relative standard error above which an estimate is named as weakly determined
 
 
 def fit_map(cfg):
@@ -128,7 +133,7 @@ class BenchLogProblem(Problem):
         self.measured = self.bench.compared(log.channels())
         # robust sigma of first differences of what is compared (block means: their own), floored
         self.sigma = {c: max(noise_sigma(y), CHANNEL_FLOOR * float(np.max(np.abs(y)))) for c, y in self.measured.items()}
-        self.y = self._stack(self.measured)
+        self.y = self.scaled(self.measured)
         self.n_eval = 0
         self.last = None  # the channels of the last simulation (unscaled)
         self._at = None  # (x, model) of the last simulation: a Jacobian at an accepted trial point reuses it
@@ -162,7 +167,7 @@ class BenchLogProblem(Problem):
         self.last = {c: outs[0][c] for c in self.channel_names}
         return [{c: o[c] for c in self.channel_names} for o in outs]
 
-    def _stack(self, ch: dict):
+    def scaled(self, ch: dict):
         return np.concatenate([ch[c] / self.sigma[c] for c in self.channel_names])
 
     def model(self, x):
@@ -171,12 +176,17 @@ class BenchLogProblem(Problem):
             return self._at[1]
         self.n_eval += 1
         ch = self.simulate(x)
-        m = self._stack(ch)
+        m = self.scaled(ch)
         self._at = (x.copy(), m, ch)
         return m
 
-    def _scale(self, j, x):
+    def scale_of(self, j, x):
         return max(abs(x[j]), TYPICAL.get(self.names[j], 0.0)) or 1.0
+
+    def difference_step(self, j, x) -> float:
+        """Parameter j's forward-difference step at x, away from its upper bound."""
+        h = DIFFERENCE_STEP * self.scale_of(j, x)
+        return h if x[j] + h <= self.upper[j] else -h
 
     def model_and_jacobian(self, x, cols=None):
         """The model and its forward-difference Jacobian (the step away from a bound), the
@@ -187,14 +197,12 @@ class BenchLogProblem(Problem):
         cols = list(range(len(self.names)) if cols is None else cols)
         xs, hs = [], []
         for j in cols:
-            h = DIFFERENCE_STEP * self._scale(j, x)
-            h = h if x[j] + h <= self.upper[j] else -h
             xj = x.copy()
-            xj[j] += h
+            xj[j] += self.difference_step(j, x)
             xs.append(xj)
             hs.append(xj[j] - x[j])
         self.n_eval += len(xs)
-        ms = [self._stack(ch) for ch in self._simulated(xs)] if xs else []
+        ms = [self.scaled(ch) for ch in self._simulated(xs)] if xs else []
         J = np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if xs else np.zeros((m.size, 0))
         self.last = last
         return m, J
@@ -261,10 +269,12 @@ def channel_fits(prob: BenchLogProblem, fitted: dict) -> dict:
     return out
 
 
-def separation_notes(names, unident, correlation, identified) -> list[str]:
-    """What would separate the parameters this log cannot tell apart: the unidentifiable ones and
-    the identified pairs correlated beyond CORRELATED."""
+def separation_notes(names, unident, correlation, identified, relative_se=None) -> list[str]:
+    """What would separate the parameters this log cannot tell apart: the unidentifiable ones, the
+    identified pairs correlated beyond CORRELATED and (relative_se: name -> relative standard
+    error) the estimates weaker than WEAK."""
     hard = set(unident)
+    weak = [n for n in identified if (relative_se or {}).get(n, 0.0) > WEAK]
     pairs = []
     if correlation is not None:
         for a in range(len(identified)):
@@ -277,6 +287,10 @@ def separation_notes(names, unident, correlation, identified) -> list[str]:
         notes.append(f"this log cannot separate {', '.join(unident)}")
     for a, b, c in pairs:
         notes.append(f"{a} and {b} are correlated {c:+.3f}: the log tells their combination better than either")
+    if weak:
+        notes.append("this log determines " + ", ".join(f"{n} to {100 * relative_se[n]:.2g} %" for n in weak)
+                     + " only (a standard error above " + f"{100 * WEAK:.0f} % of the value)")
+        hard.update(weak)
     for group, experiment in SEPARATING:
         if hard & set(group):
             notes.append(f"to separate {', '.join(n for n in group if n in hard or n in names)}: {experiment}")
@@ -344,54 +358,96 @@ class BenchFit:
 
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
-                   initial=None, max_iter=30, relaxation=1.0, progress=None, ripple=True) -> BenchFit:
-    """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log; `ripple`:
-    then mu from the current's vane-passing ripple where the log resolves it (current_ripple).
-    Parameters the log cannot determine (no effect, or a near-null direction of the noise-scaled
-    Jacobian) get no number and the note says what experiment would separate them."""
+                   initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps", rtol=BENCH_FIT_RTOL,
+                   atol=BENCH_FIT_ATOL, ripple=True) -> BenchFit:
+    """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
+    start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
+    steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
+    values (also where the maps' start leaves a parameter the log cannot determine). Parameters the
+    log cannot determine (no effect, or a near-null direction of the noise-scaled Jacobian) get no
+    number and the note says what experiment would separate them. rtol, atol: the full model's
+    integration. ripple: then mu from the current's vane-passing ripple where the log resolves it
+    (current_ripple)."""
     from .fit import fit_identifiable
+    from .identifiability import to_fix
     from .optimiser import Optimiser
-    from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
 
     if method == "ipopt":
         raise ConfigError("--method ipopt fits torque data; a bench log uses gauss-newton or levenberg-marquardt")
+    if start not in ("maps", "config"):
+        raise ConfigError(f"start must be 'maps' or 'config', got '{start}'")
     optimiser = Optimiser(method, relaxation, max_iter, progress)
     wall0 = _time.perf_counter()
-    prob = BenchLogProblem(cfg, log, params, initial)
+    prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol)
+    x_start, how = prob.x0.copy(), "the config's values"
+    if start == "maps":
+        from .bench_fast import FastBenchModel, fast_then_full
+
+        fast = FastBenchModel(cfg, prob.bench, log.booster_pressure, prob.names, prob.parameter_vector, prob.x0,
+                              prob.scale_of)
+        out, x_start = fast_then_full(prob, fast, prob.x0, max_iter, progress)
+        how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
+               f"{len(out.history) - 1} full-model steps")
+        if not any(to_fix(prob.names, out.jacobian, out.x, prob.y - out.residual)):
+            res = _result(prob, prob, out, [], [], 0, log, cfg, wall0, method)
+            fit = _bench_fit(prob, res, out.x, how)
+            return _with_ripple(fit, cfg, log, prob, prob, out.x) if ripple else fit
 
     def reduced(active, fixed, unident):
-        return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident})
+        return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident},
+                               rtol, atol)
 
-    fit = fit_identifiable(prob, prob.x0.copy(), optimiser, reduced)
+    fit = fit_identifiable(prob, x_start, optimiser, reduced)
+    fitted_prob = prob if fit.outcome is None else fit.prob
+    res = _result(prob, fitted_prob, fit.outcome, fit.unident, fit.no_effect, fit.evaluations, log, cfg, wall0, method)
+    x = prob.x0 if fit.outcome is None else fit.outcome.x
+    bench = _bench_fit(fitted_prob, res, x, how, prob.names, fit.unident)
+    return _with_ripple(bench, cfg, log, prob, fitted_prob, x) if ripple else bench
+
+
+def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, wall0, method):
+    """The IdentificationResult of a bench-log fit (out: the optimiser's outcome, None: nothing
+    identifiable)."""
+    from .result import Estimate, IdentificationResult, fit_estimates, provenance, bounds_reached
+
     x0 = dict(zip(prob.names, prob.x0))
-    if fit.outcome is None:
-        fitted_prob, x = prob, prob.x0
-        r = prob.y - prob.model(x)
+    if out is None:
+        r = prob.y - prob.model(prob.x0)
         est, corr, history, converged, message, on_bound = {}, None, [], False, "nothing identifiable", []
     else:
-        out, fitted_prob = fit.outcome, fit.prob
         x, r, history = np.asarray(out.x, float), out.residual, out.history
         est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
         converged, message, on_bound = out.converged, out.message, bounds_reached(fitted_prob, x)
-    for n in fit.unident:
+    for n in unident:
         est[n] = Estimate(n, None, None, None, None, x0[n], identifiable=False)
-    fitted = fitted_prob.simulate(x)
     res = IdentificationResult(
         estimates={n: est[n] for n in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r ** 2))),
         converged=converged, message=message, correlation=corr, diagnostics={}, method=method + prob.METHOD_TAG,
-        wall_time=0.0, unidentifiable=fit.unident, time=log.time, on_bound=on_bound, no_effect=fit.no_effect,
-        n_evaluations=prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
+        wall_time=0.0, unidentifiable=unident, time=log.time, on_bound=on_bound, no_effect=no_effect,
+        n_evaluations=prob.n_eval + evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
     res.provenance = provenance(cfg, _AsData(log), prob.kern)
     res.wall_time = _time.perf_counter() - wall0
-    notes = separation_notes(prob.names, fit.unident, corr, list(fitted_prob.names) if fit.outcome else [])
-    if fit.unident:
-        res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(fit.unident)}"
-    rip = bench_ripple(cfg, log, lambda v: values_vector(cfg, v),
-                       {"mu": prob.fixed["mu"], **fitted_prob.hold, **dict(zip(fitted_prob.names, x))},
-                       est.get("mu"), prob.kern) if ripple else None
+    if unident:
+        res.message += ("; " if res.message else "") + f"not identifiable from this log: {', '.join(unident)}"
+    return res
+
+
+def _bench_fit(fitted_prob, res, x, how, names=None, unident=()) -> BenchFit:
+    fitted = fitted_prob.simulate(x)
+    identified = list(fitted_prob.names) if res.correlation is not None else []
+    rel = {n: e.stderr / abs(e.value) for n, e in res.estimates.items() if e.identifiable and e.value}
+    notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified, rel)
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
-                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted},
-                    notes=notes + (rip.notes() if rip else []), ripple=rip)
+                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how)
+
+
+def _with_ripple(bench: BenchFit, cfg, log, prob, fitted_prob, x) -> BenchFit:
+    """bench with mu from the current's vane-passing ripple at the fitted values (or why not)."""
+    values = {"mu": prob.fixed["mu"], **fitted_prob.hold, **dict(zip(fitted_prob.names, x))}
+    bench.ripple = bench_ripple(cfg, log, lambda v: values_vector(cfg, v), values,
+                                bench.result.estimates.get("mu"), prob.kern)
+    bench.notes += bench.ripple.notes()
+    return bench
 
 
 class _AsData:

@@ -220,11 +220,16 @@ def _at(arr, s):
     return arr[j] * (1 - f) + arr[min(j + 1, len(arr) - 1)] * f
 
 
-def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL) -> PumpMaps:
-    """Cycle-averaged maps at the booster pressures given (any order)."""
+def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL, p=None) -> PumpMaps:
+    """Cycle-averaged maps at the booster pressures given (any order); p: a runtime parameter
+    vector to map instead of the config's (its booster volume and leak are replaced)."""
     k = kernels(cfg)
     st = structure_of(cfg)
-    p = parameter_vector(cfg, booster__volume=MAP_BOOSTER_VOLUME, booster__leak=0.0)
+    if p is None:
+        p = parameter_vector(cfg, booster__volume=MAP_BOOSTER_VOLUME, booster__leak=0.0)
+    else:
+        p = np.array(p, dtype=float)
+        p[parameter_index(st, "booster.volume")], p[parameter_index(st, "booster.leak")] = MAP_BOOSTER_VOLUME, 0.0
     v = cfg.pneumatic.values
     RT = v["gas.gas_constant"] * v["gas.temperature"]
     i_bm, i_in = 3 + 2 * st.vanes + 2, 3 + 2 * st.vanes
