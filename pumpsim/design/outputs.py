@@ -71,41 +71,60 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
 
 
 def _values(a: dict, k: dict) -> tuple[dict, dict]:
-    """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse)."""
+    """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse): one
+    design as a batch of one (the same arithmetic, hence the same bits, as in a batch)."""
+    many, at = reduce_batch({nm: x[None] for nm, x in a.items()},
+                            {nm: np.asarray([x], dtype=float) for nm, x in k.items()})
+    out = {nm: (bool(x[0]) if nm in BOOL_OUTPUTS else x[0]) for nm, x in many.items()}
+    return out, {nm: (x[0] if isinstance(x, np.ndarray) else x) for nm, x in at.items()}
+
+
+def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
+    """The outputs of B designs at once: a holds the kernel outputs with a leading design axis
+    (torque (B, n), per vane (B, N, n)), k the constants as (B,) arrays (design_constants).
+    Returns (output -> (B,) array, where each extreme sits)."""
     out = {}
-    c_visc, L, lm, area = k["c_visc"], k["L"], k["lm"], k["tip_area"]
+    c_visc, L, lm, area = (np.asarray(k[nm], dtype=float)[:, None, None] for nm in ("c_visc", "L", "lm", "tip_area"))
     t = a["torque"]
-    out["mean_torque"] = t.mean()
-    out["rms_torque"] = np.sqrt(np.mean(t * t))
-    hi, lo = int(np.argmax(t)), int(np.argmin(t))
-    out["ptp_torque"] = t[hi] - t[lo]
+    B = t.shape[0]
+    rows = np.arange(B)
+
+    def extreme(x, pick):
+        """(value, flat index within the design) of x's max or min per design."""
+        flat = x.reshape(B, -1)
+        i = pick(flat, axis=1)
+        return flat[rows, i], i
+
+    out["mean_torque"] = t.mean(axis=-1)
+    out["rms_torque"] = np.sqrt(np.mean(t * t, axis=-1))
+    hi, lo = np.argmax(t, axis=-1), np.argmin(t, axis=-1)
+    out["ptp_torque"] = t[rows, hi] - t[rows, lo]
     N, v, mh = a["normal"], a["tip_slip"], a["mu_housing"]
     sd, F1, F2, mr = a["sdot"], a["slot1"], a["slot2"], a["mu_slot"]
     tip = mh * N * v + c_visc * v * v
     slot = mr * sd * (np.abs(F1) + np.abs(F2))
-    tip_v, slot_v = tip.mean(axis=1), slot.mean(axis=1)
-    out["tip_friction_power"] = tip_v.sum()
-    out["slot_friction_power"] = slot_v.sum()
+    tip_v, slot_v = tip.mean(axis=-1), slot.mean(axis=-1)
+    out["tip_friction_power"] = tip_v.sum(axis=-1)
+    out["slot_friction_power"] = slot_v.sum(axis=-1)
     out["friction_power"] = out["tip_friction_power"] + out["slot_friction_power"]
-    for i, x in enumerate(tip_v + slot_v):
-        out[per_vane_name(i)] = x
-    iN_hi, iN_lo = int(np.argmax(N)), int(np.argmin(N))
-    out["max_normal_force"] = N.ravel()[iN_hi]
-    out["min_normal_force"] = N.ravel()[iN_lo]
+    per_vane = tip_v + slot_v
+    for i in range(per_vane.shape[1]):
+        out[per_vane_name(i)] = per_vane[:, i]
+    out["max_normal_force"], iN_hi = extreme(N, np.argmax)
+    out["min_normal_force"], iN_lo = extreme(N, np.argmin)
     F = np.maximum(np.abs(F1), np.abs(F2))
-    iF = int(np.argmax(F))
-    out["max_slot_force"] = F.ravel()[iF]
+    out["max_slot_force"], iF = extreme(F, np.argmax)
     pv = N * np.abs(v) / area
-    ipv = int(np.argmax(N * np.abs(v)))
-    out["max_tip_pv"] = pv.ravel()[ipv]
+    ipv = np.argmax((N * np.abs(v)).reshape(B, -1), axis=1)
+    out["max_tip_pv"] = pv.reshape(B, -1)[rows, ipv]
     ext = a["s"] + L - lm
-    ie_lo, ie_hi = int(np.argmin(ext)), int(np.argmax(ext))
-    out["min_extension"] = ext.ravel()[ie_lo]
-    out["max_extension"] = ext.ravel()[ie_hi]
-    out["lift_off"] = bool(out["min_normal_force"] < 0)
-    out["paradox"] = bool(np.any(a["n_consistent"] < 0.5) or np.any(a["ambiguity"] > PARADOX_TOL))
+    out["min_extension"], ie_lo = extreme(ext, np.argmin)
+    out["max_extension"], ie_hi = extreme(ext, np.argmax)
+    out["lift_off"] = out["min_normal_force"] < 0
+    out["paradox"] = (np.any((a["n_consistent"] < 0.5).reshape(B, -1), axis=1)
+                      | np.any((a["ambiguity"] > PARADOX_TOL).reshape(B, -1), axis=1))
     at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, pv=pv, ipv=ipv, ext=ext,
-              ie_lo=ie_lo, ie_hi=ie_hi, vanes=tip_v.size)
+              ie_lo=ie_lo, ie_hi=ie_hi, vanes=per_vane.shape[1])
     return out, at
 
 
