@@ -164,13 +164,15 @@ def housing_check_samples(kern, p, n):
 def housing_batch(kern, P, n):
     """housing_check_samples of B designs in one call: (alpha (n,), points (B, 2, n), curvature
     (B, n)); the same per-sample function, hence the same numbers, as one design at a time."""
-    B = len(P)
-    args, res, run = _MAPS.buffered(kern, "housing_curve", n * B, (), ("point", "curvature"))
+    B, size = len(P), max(len(P), BATCH_DESIGNS)  # one map size: a CasADi map takes ~0.1 s to make
+    args, res, run = _MAPS.buffered(kern, "housing_curve", n * size, (), ("point", "curvature"))
     alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
-    args[0][:] = np.tile(alpha, B)
-    args[1][:] = np.repeat(P, n, axis=0).ravel()
+    args[0][:] = np.tile(alpha, size)
+    args[1].reshape(size, n, -1)[:B] = P[:, None, :]
+    args[1].reshape(size, n, -1)[B:] = P[-1]
     run()
-    return alpha, res["point"].reshape(B, n, 2).transpose(0, 2, 1).copy(), res["curvature"].reshape(B, n).copy()
+    pts = res["point"].reshape(size, n, 2)[:B].transpose(0, 2, 1).copy()
+    return alpha, pts, res["curvature"].reshape(size, n)[:B].copy()
 
 
 def _geometry_ok(rr, L, lm, pts, curv, s, res) -> np.ndarray:

@@ -76,7 +76,9 @@ def _values(a: dict, k: dict) -> tuple[dict, dict]:
     many, at = reduce_batch({nm: x[None] for nm, x in a.items()},
                             {nm: np.asarray([x], dtype=float) for nm, x in k.items()})
     out = {nm: (bool(x[0]) if nm in BOOL_OUTPUTS else x[0]) for nm, x in many.items()}
-    return out, {nm: (x[0] if isinstance(x, np.ndarray) else x) for nm, x in at.items()}
+    at = {nm: (x[0] if isinstance(x, np.ndarray) else x) for nm, x in at.items()}
+    at["pv"] = a["normal"] * np.abs(a["tip_slip"]) / k["tip_area"]
+    return out, at
 
 
 def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
@@ -114,16 +116,16 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
     out["min_normal_force"], iN_lo = extreme(N, np.argmin)
     F = np.maximum(np.abs(F1), np.abs(F2))
     out["max_slot_force"], iF = extreme(F, np.argmax)
-    pv = N * np.abs(v) / area
-    ipv = np.argmax((N * np.abs(v)).reshape(B, -1), axis=1)
-    out["max_tip_pv"] = pv.reshape(B, -1)[rows, ipv]
+    Nv = (N * np.abs(v)).reshape(B, -1)
+    ipv = np.argmax(Nv, axis=1)
+    out["max_tip_pv"] = Nv[rows, ipv] / area[:, 0, 0]  # the pressure times slip speed where the product peaks
     ext = a["s"] + L - lm
     out["min_extension"], ie_lo = extreme(ext, np.argmin)
     out["max_extension"], ie_hi = extreme(ext, np.argmax)
     out["lift_off"] = out["min_normal_force"] < 0
     out["paradox"] = (np.any((a["n_consistent"] < 0.5).reshape(B, -1), axis=1)
                       | np.any((a["ambiguity"] > PARADOX_TOL).reshape(B, -1), axis=1))
-    at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, pv=pv, ipv=ipv, ext=ext,
+    at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, ipv=ipv, ext=ext,
               ie_lo=ie_lo, ie_hi=ie_hi, vanes=per_vane.shape[1])
     return out, at
 

@@ -154,6 +154,23 @@ def _within(q, vals, name, factor) -> np.ndarray:
     return np.asarray(ok, dtype=bool)
 
 
+_CACHE: dict = {}  # (study hash, structural values) -> DesignMap or its ConfigError: a study's tasks share it
+
+
+def design_map(study, fixed: dict) -> DesignMap:
+    key = (study.study_hash(), tuple(sorted(fixed.items())))
+    if key not in _CACHE:
+        if len(_CACHE) > 64:
+            _CACHE.clear()
+        try:
+            _CACHE[key] = DesignMap(study, fixed)
+        except ConfigError as e:
+            _CACHE[key] = e
+    if isinstance(_CACHE[key], ConfigError):
+        raise _CACHE[key]
+    return _CACHE[key]
+
+
 def design_maps(study, X) -> tuple[list, np.ndarray]:
     """([(DesignMap, rows of X)] per structural value set, rows left to the per-design path)."""
     if not covered(study) or not len(X):
@@ -171,7 +188,7 @@ def design_maps(study, X) -> tuple[list, np.ndarray]:
     maps, rest = [], []
     for row, members in groups.items():
         try:
-            maps.append((DesignMap(study, {k: int(round(x)) for k, x in zip(skeys, row)}), np.array(members)))
+            maps.append((design_map(study, {k: int(round(x)) for k, x in zip(skeys, row)}), np.array(members)))
         except ConfigError:
             rest += members
     return maps, np.array(sorted(rest), dtype=int)
