@@ -161,18 +161,24 @@ def housing_check_samples(kern, p, n):
     return alpha, res["point"].reshape(n, 2).T.copy(), res["curvature"].copy()
 
 
+HOUSING_CHUNK = 8  # designs per housing-curve call (a last short chunk wastes at most 7)
+
+
 def housing_batch(kern, P, n):
     """housing_check_samples of B designs in one call: (alpha (n,), points (B, 2, n), curvature
     (B, n)); the same per-sample function, hence the same numbers, as one design at a time."""
-    B, size = len(P), max(len(P), BATCH_DESIGNS)  # one map size: a CasADi map takes ~0.1 s to make
+    B, size = len(P), HOUSING_CHUNK  # one map size: a CasADi map takes ~0.1 s to make
     args, res, run = _MAPS.buffered(kern, "housing_curve", n * size, (), ("point", "curvature"))
     alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
     args[0][:] = np.tile(alpha, size)
-    args[1].reshape(size, n, -1)[:B] = P[:, None, :]
-    args[1].reshape(size, n, -1)[B:] = P[-1]
-    run()
-    pts = res["point"].reshape(size, n, 2)[:B].transpose(0, 2, 1).copy()
-    return alpha, pts, res["curvature"].reshape(size, n)[:B].copy()
+    pts, curv = np.empty((B, 2, n)), np.empty((B, n))
+    for lo in range(0, B, size):
+        k = min(size, B - lo)
+        args[1].reshape(size, n, -1)[:k] = P[lo:lo + k, None, :]
+        run()
+        pts[lo:lo + k] = res["point"].reshape(size, n, 2)[:k].transpose(0, 2, 1)
+        curv[lo:lo + k] = res["curvature"].reshape(size, n)[:k]
+    return alpha, pts, curv
 
 
 def _geometry_ok(rr, L, lm, pts, curv, s, res) -> np.ndarray:
