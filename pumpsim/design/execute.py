@@ -223,20 +223,56 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     with study_folder(out) if out is not None else contextlib.nullcontext():
         man = check_out_dir(out, study.study_hash())
         t0 = time.perf_counter()
-        own = None
-        if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
-            client, own = connect(scheduler, workers, processes)
+        starting = _Cluster(scheduler, workers, processes, client)
         try:
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
-                        client, t0)
+                        starting, t0)
         except BaseException:
             quiet_dask()
             raise
         finally:
-            if own is not None:
-                client.close()
-                if own is not client:
-                    own.close()
+            starting.close()
+
+
+class _Cluster:
+    """The run's Dask client: given, or connected now (a scheduler address: fails fast on a bad
+    one, before any work or output), or a LocalCluster started in a thread while this process
+    builds or loads the kernels and times the pilot (its worker processes import the runtime as
+    they start: worker_setup). `get()` waits for it; `close()` closes what the run started."""
+
+    def __init__(self, scheduler, workers, processes, client):
+        self.client, self.own, self.thread, self.error = client, None, None, None
+        if workers == 0 or client is not None:
+            return
+        if scheduler:
+            self.client, self.own = connect(scheduler, workers, processes)
+            return
+        import threading
+
+        def start():
+            try:
+                self.client, self.own = connect(None, workers, processes)
+            except BaseException as e:  # noqa: BLE001 - raised again by get() in the run's thread
+                self.error = e
+
+        self.thread = threading.Thread(target=start, name="pumpsim-cluster-start", daemon=True)
+        self.thread.start()
+
+    def get(self):
+        if self.thread is not None:
+            self.thread.join()
+            self.thread = None
+        if self.error is not None:
+            raise self.error
+        return self.client
+
+    def close(self):
+        if self.thread is not None:  # the run failed while the cluster started: wait, then close it
+            self.thread.join()
+        if self.own is not None:
+            self.client.close()
+            if self.own is not self.client:
+                self.own.close()
 
 
 def _warm_workers(study, X, workers, client) -> list:
@@ -261,7 +297,7 @@ def _build_kernels(study) -> None:
             fast_kernel(st)
 
 
-def _plan(study, X, man, batch_size, client) -> Plan:
+def _plan(study, X, man, batch_size, get_client) -> Plan:
     """The batches: of the size asked (option, then study key), of a resumed run's manifest, or
     from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
     guided_bounds on several."""
@@ -277,6 +313,7 @@ def _plan(study, X, man, batch_size, client) -> Plan:
     if man and man.get("batch_size"):
         return Plan(study, X, int(man["batch_size"]))
     per = pilot_time_per_design(study, X) if len(X) > 1 else TASK_SECONDS
+    client = get_client()  # (a LocalCluster started meanwhile)
     n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
     if n_workers > 1:
         bounds = guided_bounds(len(X), per, n_workers)
@@ -351,12 +388,17 @@ def _manifest(folder, study, plan, status, stats=None) -> None:
     write_manifest(folder, study, plan, status, keys, stats)
 
 
-def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
+def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, starting, t0):
     stats = RunStats(designs=len(X))
     interrupt.progress(_how_far(0, len(X), out))
-    _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
+    # a running cluster's workers warm up during the pilot; a LocalCluster starting in a thread
+    # gets its warm-up tasks once it is up (its workers imported the runtime as they started)
+    warm = _warm_workers(study, X, workers, starting.client) if starting.thread is None else []
     _check_kernels(study, man, out, scheduler)
-    plan = _plan(study, X, man, batch_size, client)
+    plan = _plan(study, X, man, batch_size, starting.get)
+    client = starting.get()
+    if not warm:  # (held: the warm-up tasks are not released before they ran)
+        warm = _warm_workers(study, X, workers, client)
     stats.batch_size, stats.batches = min(plan.batch_size, max(1, len(X))), plan.n_batches
     stats.guided = plan.bounds is not None
     folder = Path(out) if out else None
