@@ -191,11 +191,11 @@ def _geometry_ok(rr, L, lm, pts, curv, s, res) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = (qx - x) * (0.0 - y) / (qy - y) + x
     inside = np.count_nonzero(((y > 0.0) != (qy > 0.0)) & (0.0 < xc), axis=1) % 2 == 1
-    s, res = s.reshape(B, -1), res.reshape(B, -1)
     with np.errstate(invalid="ignore"):
-        res_ok = np.all(np.isfinite(res), axis=1) & ~np.any(res > POSITION_TOL, axis=1)
+        res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
+    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
     return (~np.any(curv <= 0, axis=1) & inside & (np.hypot(x, y).min(axis=1) > rr) & res_ok
-            & (s.min(axis=1) >= -POSITION_TOL) & (s.max(axis=1) < lm) & ((s + L[:, None]).min(axis=1) > lm))
+            & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm))
 
 
 class Prepared:
@@ -384,9 +384,9 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta) -> list | None:
              "tip_area": width * col("vane.thickness") if width else np.full(B, math.nan)}
     good = _geometry_ok(col("rotor.radius"), col("vane.length"), lm, pts, curv, ev["s"][::S],
                         ev["position_residual"][::S])
-    res = ev["position_residual"].reshape(B, -1)
+    res = ev["position_residual"]
     with np.errstate(invalid="ignore"):
-        converged = np.all(np.isfinite(res), axis=1) & ~np.any(res > POSITION_TOL, axis=1)
+        converged = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
     out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()})
     asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
     fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)

@@ -92,10 +92,13 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
     rows = np.arange(B)
 
     def extreme(x, pick):
-        """(value, flat index within the design) of x's max or min per design."""
-        flat = x.reshape(B, -1)
-        i = pick(flat, axis=1)
-        return flat[rows, i], i
+        """(value, flat index within the design's (N, n)) of x's max or min per design: the
+        vane holding it, then the sample -- the first occurrence in flat order, as an arg-max of
+        the flattened array gives it (NaN included), without copying a strided x to flatten it."""
+        vane = pick((np.max if pick is np.argmax else np.min)(x, axis=2), axis=1)
+        within = x[rows, vane]
+        k = pick(within, axis=1)
+        return within[rows, k], vane * x.shape[2] + k
 
     out["mean_torque"] = t.mean(axis=-1)
     out["rms_torque"] = np.sqrt(np.mean(t * t, axis=-1))
@@ -103,8 +106,9 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
     out["ptp_torque"] = t[rows, hi] - t[rows, lo]
     N, v, mh = a["normal"], a["tip_slip"], a["mu_housing"]
     sd, F1, F2, mr = a["sdot"], a["slot1"], a["slot2"], a["mu_slot"]
+    aF1, aF2, av = np.abs(F1), np.abs(F2), np.abs(v)
     tip = mh * N * v + c_visc * v * v
-    slot = mr * sd * (np.abs(F1) + np.abs(F2))
+    slot = mr * sd * (aF1 + aF2)
     tip_v, slot_v = tip.mean(axis=-1), slot.mean(axis=-1)
     out["tip_friction_power"] = tip_v.sum(axis=-1)
     out["slot_friction_power"] = slot_v.sum(axis=-1)
@@ -114,17 +118,15 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
         out[per_vane_name(i)] = per_vane[:, i]
     out["max_normal_force"], iN_hi = extreme(N, np.argmax)
     out["min_normal_force"], iN_lo = extreme(N, np.argmin)
-    F = np.maximum(np.abs(F1), np.abs(F2))
+    F = np.maximum(aF1, aF2)
     out["max_slot_force"], iF = extreme(F, np.argmax)
-    Nv = (N * np.abs(v)).reshape(B, -1)
-    ipv = np.argmax(Nv, axis=1)
-    out["max_tip_pv"] = Nv[rows, ipv] / area[:, 0, 0]  # the pressure times slip speed where the product peaks
+    Nv, ipv = extreme(N * av, np.argmax)
+    out["max_tip_pv"] = Nv / area[:, 0, 0]  # the pressure times slip speed where the product peaks
     ext = a["s"] + L - lm
     out["min_extension"], ie_lo = extreme(ext, np.argmin)
     out["max_extension"], ie_hi = extreme(ext, np.argmax)
     out["lift_off"] = out["min_normal_force"] < 0
-    out["paradox"] = (np.any((a["n_consistent"] < 0.5).reshape(B, -1), axis=1)
-                      | np.any((a["ambiguity"] > PARADOX_TOL).reshape(B, -1), axis=1))
+    out["paradox"] = np.any(a["n_consistent"] < 0.5, axis=(1, 2)) | np.any(a["ambiguity"] > PARADOX_TOL, axis=(1, 2))
     at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, ipv=ipv, ext=ext,
               ie_lo=ie_lo, ie_hi=ie_hi, vanes=per_vane.shape[1])
     return out, at
