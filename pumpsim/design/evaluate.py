@@ -430,7 +430,11 @@ def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:
         theta = revolution(dm.cfg.angle, nrev)
         for lo in range(0, len(adm), BATCH_DESIGNS):
             idx = adm[lo:lo + BATCH_DESIGNS]
-            got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta)
+            try:
+                got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta)
+            except Exception:  # noqa: BLE001 - then each design runs alone and reports its own failure
+                interrupt.check()
+                got = None
             if got is None:
                 rest += members[idx].tolist()
                 continue

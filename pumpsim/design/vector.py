@@ -50,9 +50,16 @@ class DesignMap:
         self.p0 = as_array(self.cfg.parameters("constrained"))
         self.keys = [k for k in study.keys if k not in STRUCTURE_KEYS]
         self.sets = {k: self._targets(k) for k in self.keys if k not in SPEED_KEYS}
-        moved = {t for ts in self.sets.values() for t, _ in ts}
-        self.derived = [q for q in DERIVED if q.name not in self.cfg.given and set(q.inputs) & moved]
-        self.moved = moved | {q.name for q in self.derived}
+        self.moved = {t for ts in self.sets.values() for t, _ in ts}
+        self.derived = []
+        for q in DERIVED:  # in fill_derived's order: a default may follow another
+            if q.name not in self.cfg.given and set(q.inputs) & self.moved:
+                self.derived.append(q)
+                self.moved.add(q.name)
+        shape = housings.SHAPES[self.cfg.shape]
+        self.shape_keys = [k for k in shape.keys if k.path in self.keys]
+        if self.shape_keys and self.cfg.harmonics:
+            raise ConfigError("housing harmonics with a varied housing size: per design")
         self.checks = self._checks()
 
     def _targets(self, key) -> list:
@@ -119,16 +126,13 @@ class DesignMap:
         return P, speed, ok
 
     def _shape_ok(self, col, D) -> np.ndarray:
-        """The housing shape's own check and the harmonics' amplitude limit where they can move."""
+        """The housing shape's own check (a varied size: per design; a few Python operations)."""
         shape = housings.SHAPES[self.cfg.shape]
         ok = np.ones(D, bool)
-        given = {k.name: get_value(self.table, k.path) for k in shape.keys}
-        varied = [k for k in shape.keys if k.path in col]
-        if varied and shape.check is not None:
+        if self.shape_keys and shape.check is not None:
+            given = {k.name: get_value(self.table, k.path) for k in shape.keys}
             for d in range(D):
-                ok[d] = not shape.check({**given, **{k.name: float(col[k.path][d]) for k in varied}})
-        if varied and self.cfg.harmonics:
-            raise ConfigError("housing harmonics with a varied housing size: per design")
+                ok[d] = not shape.check({**given, **{k.name: float(col[k.path][d]) for k in self.shape_keys}})
         return ok
 
     def agrees(self, P_row, speed, values: dict) -> bool:
