@@ -19,14 +19,10 @@ def _study(config, vary, **st):
 
 def _rows(study, X, mapped):
     """evaluate_pump_rows with the DesignMap path, or with every design through its own config."""
-    if not mapped:
-        saved = vector.design_maps
-        evaluate.design_maps = lambda s, X: ([], np.arange(len(X)))
-        try:
-            return evaluate.evaluate_pump_rows(study, X, np.arange(len(X)), 4)
-        finally:
-            evaluate.design_maps = saved
-    return evaluate.evaluate_pump_rows(study, X, np.arange(len(X)), 4)
+    with pytest.MonkeyPatch.context() as mp:
+        if not mapped:
+            mp.setattr(evaluate, "design_maps", lambda s, X: ([], np.arange(len(X))))
+        return evaluate.evaluate_pump_rows(study, X, np.arange(len(X)), 4)
 
 
 def _same(a, b):
