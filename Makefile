@@ -56,11 +56,14 @@ demo-design: codegen
 docs: codegen $(DOCS_STAMP)
 	$(BIN)/sphinx-build -W --keep-going -q -b html docs docs/_build/html
 
+# on every core (pytest-xdist; a module's tests stay on one worker, so its shared fixtures run once)
+XDIST := -n auto --dist loadscope
+
 test: codegen
-	$(BIN)/python -m pytest -q --durations=25
+	$(BIN)/python -m pytest -q $(XDIST) --durations=25
 
 test-all: codegen
-	$(BIN)/python -m pytest -q -m 'slow or not slow'
+	$(BIN)/python -m pytest -q $(XDIST) -m 'slow or not slow'
 
 bench: codegen
 	mkdir -p out

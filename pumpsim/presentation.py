@@ -39,15 +39,24 @@ _CONFIG_DOC = {
     "housing.angle": "housing angle ψ",
     "effects.viscous_tip_friction": "viscous tip friction (force per slip speed)",
     "operation.bearing_torque": "bearing torque",
+    "leak.tip_gap": "vane-tip clearance (leak gap)",
+    "leak.end_gap": "end-face clearance (leak gap)",
+    "motor.resistance": "motor winding resistance",
+    "valve.cracking": "exhaust valve cracking pressure difference",
+    "booster.leak": "booster leak (mass flow at full atmospheric difference)",
+    "motor.constant": "motor torque and back-EMF constant k",
+    "motor.friction": "motor friction torque",
 }
-UNIT_TEXT = {"-": "–", "N m": "N·m", "kg m^2": "kg·m²", "N s/m": "N·s/m", "rad": "rad", "m": "m"}
+UNIT_TEXT = {"-": "–", "N m": "N·m", "kg m^2": "kg·m²", "N s/m": "N·s/m", "rad": "rad", "m": "m", "ohm": "Ω",
+             "N m/A": "N·m/A"}
 
 
 def _registry_entry(name: str):
-    from .model_spec.parameters import Structure, layout
+    from .model_spec.parameters import GAS_PARAMETERS, Structure, layout
 
     generic = re.sub(r"^(housing\.harmonics|effects\.vane_friction_factor)\.\d+", r"\1.0", name)
-    return {p.name: p for p in layout(Structure(model="contact", vanes=1, harmonics=1))}.get(generic)
+    found = {p.name: p for p in layout(Structure(model="contact", vanes=1, harmonics=1))}.get(generic)
+    return found or {q.name: q for q in GAS_PARAMETERS}.get(name)
 
 
 def _registry_unit(name: str) -> str | None:
@@ -102,6 +111,8 @@ _ENGINEERING = {
     "Pa·m/s": [(1e6, 1e-6, "MPa·m/s"), (1e3, 1e-3, "kPa·m/s"), (0.0, 1.0, "Pa·m/s")],
     "W": [(1e3, 1e-3, "kW"), (1.0, 1.0, "W"), (0.0, 1e3, "mW")],
     "N·m": [(0.1, 1.0, "N·m"), (0.0, 1e3, "mN·m")],
+    "N·m/A": [(0.1, 1.0, "N·m/A"), (0.0, 1e3, "mN·m/A")],
+    "kg/s": [(1e-3, 1e3, "g/s"), (0.0, 1e6, "mg/s")],
     "m³/s": [(0.0, 6e4, "L/min")],
     "m^3": [(1e-3, 1e3, "L"), (0.0, 1e6, "cm³")],
 }

@@ -16,6 +16,7 @@ from tests.tolerances import TRUTH_ATOL, TRUTH_RTOL
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
+_SESSION_CACHE = "PUMPSIM_TEST_SESSION_CACHE"  # the kernel cache the controller made, for its workers
 
 
 def pytest_configure(config):
@@ -25,20 +26,26 @@ def pytest_configure(config):
     earlier test sessions built (kept in pytest's cache folder, .pytest_cache, between sessions)."""
     from pumpsim.model_spec import manifest as mf
 
+    if os.environ.get("PYTEST_XDIST_WORKER") and os.environ.get(_SESSION_CACHE):
+        # a worker of `pytest -n`: the controller's cache (builds are installed atomically, so
+        # two workers building one variant is harmless); the controller keeps it and cleans up
+        os.environ["PUMPSIM_GENERATED"] = os.environ[_SESSION_CACHE]
+        return
     cache = Path(tempfile.mkdtemp(prefix="pumpsim-generated-"))
-    kept = config.cache.mkdir("pumpsim-generated") if config.cache else None
+    kept = config.cache.mkdir("pumpsim-generated") if getattr(config, "cache", None) else None
     for origin in (ROOT / "generated", kept):
         for folder in (origin.glob("*-*") if origin else ()):
             if folder.is_dir() and mf.read_manifest(folder) is not None and not (cache / folder.name).exists():
                 shutil.copytree(folder, cache / folder.name)
     config._pumpsim_cache = (cache, kept, os.environ.get("PUMPSIM_GENERATED"))
-    os.environ["PUMPSIM_GENERATED"] = str(cache)
+    os.environ["PUMPSIM_GENERATED"] = os.environ[_SESSION_CACHE] = str(cache)
 
 
 def pytest_unconfigure(config):
     cache, kept, before = getattr(config, "_pumpsim_cache", (None, None, None))
     if cache is None:
         return
+    os.environ.pop(_SESSION_CACHE, None)
     if before is None:
         os.environ.pop("PUMPSIM_GENERATED", None)
     else:

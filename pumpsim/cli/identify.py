@@ -29,6 +29,10 @@ def register(sub):
     ip.add_argument("--transient", action="store_true",
                     help="the data is a run-up/coast-down: apply the measured torque, fit the measured "
                          "speed (parameters mu, mu_slot, speed0, theta0 or config paths)")
+    ip.add_argument("--limits", metavar="FILE.toml",
+                    help="bench log: specification limits of the fitted parameters, [limits.NAME] tables with "
+                         "lower and/or upper in SI (e.g. [limits.\"booster.leak\"] upper = 5e-5); each "
+                         "estimate is reported in or out of specification")
     add_fit_outputs(ip)
     ip.set_defaults(func=run)
 
@@ -72,10 +76,14 @@ def unusable(problems) -> int:
 def run(a) -> int:
     from ..benchlog import is_bench_log
 
-    outs = outputs(a, [a.config, a.data], json=None, report=REPORT_SUFFIXES)
+    outs = outputs(a, [a.config, a.data] + ([a.limits] if a.limits else []), json=None, report=REPORT_SUFFIXES)
     cfg = load_config(a)
     if is_bench_log(a.data, a.time_column, a.speed_column):
         return run_bench(a, cfg, outs)
+    if a.limits:
+        from ..errors import ConfigError
+
+        raise ConfigError("--limits checks the figures identified from a bench log; drop --limits for torque data")
     params = parse_params(a.params or "mu,theta0")
     initial = parse_initial(a.start)
     data = read_data(a, a.data, None if ("speed" in params or a.transient) else
@@ -111,14 +119,14 @@ def run_bench(a, cfg, outs) -> int:
     from ..benchlog import read_bench_log
     from ..errors import ConfigError
     from ..identification.pumpdown_fit import identify_bench
+    from ..limits import read_limits
 
     params = parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS))
     initial = parse_initial(a.start)
     for flag, given in (("--transient", a.transient), ("--steady", a.steady), ("--resample", a.resample)):
         if given:
             raise ConfigError(f"{flag} is for torque data; a bench log is fitted as logged: drop {flag}")
-    if a.report:
-        raise ConfigError("--report: the HTML report of a bench-log fit is not available yet; use --json")
+    limits = read_limits(a.limits, params) if a.limits else {}
     log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
     for note in log.notes:
         info(f"{log.name}: {note}")
@@ -128,8 +136,29 @@ def run_bench(a, cfg, outs) -> int:
     if shown:
         print(file=sys.stderr)
     print(fit)
-    write_fit_outputs(outs, a, fit.to_json(), None)
+    write_bench_outputs(a, outs, cfg, log, fit, limits)
     return unusable(fit.problems())
+
+
+def write_bench_outputs(a, outs, cfg, log, fit, limits) -> None:
+    """The figures against the limits on the terminal and in the JSON; --json and --report."""
+    from ..limits import statuses, to_json as limits_json
+
+    document = fit.to_json()
+    if limits:
+        states = statuses(fit.result.estimates, limits, usable=not fit.problems())
+        print("  specification: " + "; ".join(f"{n} {s}" for n, s in states.items()))
+        document["limits"] = limits_json(limits, states)
+
+    def report(path):
+        from ..presentation import provenance
+        from ..report.benchlog import bench_log_report
+
+        rows = provenance(cfg, log, kernel_key=fit.result.provenance.get("kernel_key"),
+                          files=[("limits file", a.limits)] if a.limits else ())
+        bench_log_report(fit, path, cfg=cfg, log=log, limits=limits, provenance_rows=rows)
+
+    write_fit_outputs(outs, a, document, report)
 
 
 def _bench_progress(entry):

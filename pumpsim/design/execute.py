@@ -372,16 +372,17 @@ class _Collector:
     def __call__(self, b, table, seconds, span):
         self.stats.compute += seconds
         self.spans.append(span)
-        if self.folder is not None:
-            import pyarrow.parquet as pq
+        with interrupt.deferred():  # a part on disk is a part counted: a signal waits for both
+            if self.folder is not None:
+                import pyarrow.parquet as pq
 
-            with guard("writing the results part", self.folder / PART.format(b), "--out"):
-                with atomic_path(self.folder / PART.format(b)) as tmp:
-                    pq.write_table(table, tmp)
-        self.tables[b] = table
-        self.written += 1
-        self.done_designs += len(table.column("design").unique()) if len(table) else 0
-        interrupt.progress(_how_far(self.done_designs, self.n_designs, self.folder))
+                with guard("writing the results part", self.folder / PART.format(b), "--out"):
+                    with atomic_path(self.folder / PART.format(b)) as tmp:
+                        pq.write_table(table, tmp)
+            self.tables[b] = table
+            self.written += 1
+            self.done_designs += len(table.column("design").unique()) if len(table) else 0
+            interrupt.progress(_how_far(self.done_designs, self.n_designs, self.folder))
         if self.bar is not None:
             self.bar.update(1)
         if self.on_batch is not None:

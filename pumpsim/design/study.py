@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..config import config_from_dict, schema
 from ..errors import ConfigError
+from ..limits import limits_table
 from ..model_spec.housings import COMPILED, config_key
 from .outputs import BOOL_OUTPUTS, OUTPUTS
 from .pneumatic import GAS_OUTPUTS, check_gas_outputs
@@ -220,28 +221,6 @@ def plausibility_warnings(base: dict, var) -> list[str]:
     return out
 
 
-def _limits_table(raw, where) -> dict:
-    out = {}
-    if not isinstance(raw, dict):
-        raise ConfigError(f"[{where}] must be a table of OUTPUT = {{lower, upper}}")
-    for name, lim in raw.items():
-        if not isinstance(lim, dict):
-            raise ConfigError(f"{where}.{name} must be a table with lower and/or upper")
-        bad = set(lim) - {"lower", "upper"}
-        if bad:
-            raise ConfigError(f"unknown key '{where}.{name}.{sorted(bad)[0]}' (lower, upper)")
-        lo, hi = lim.get("lower"), lim.get("upper")
-        for k, v in (("lower", lo), ("upper", hi)):
-            if v is not None and not (_num(v) and math.isfinite(v)):
-                raise ConfigError(f"{where}.{name}.{k} must be a finite number, got {v!r}")
-        if lo is None and hi is None:
-            raise ConfigError(f"{where}.{name} needs lower and/or upper")
-        if lo is not None and hi is not None and not lo < hi:
-            raise ConfigError(f"{where}.{name}.lower ({lo:g}) must be < upper ({hi:g})")
-        out[name] = (None if lo is None else float(lo), None if hi is None else float(hi))
-    return out
-
-
 def _read_toml(path, what) -> dict:
     try:
         return tomllib.loads(Path(path).read_text())
@@ -298,10 +277,10 @@ def _outputs_and_limits(raw, st, names, base, base_cfg) -> tuple:
     for o in outputs:
         if o not in names:
             raise ConfigError(f"study.outputs: unknown output {o!r} (one of {', '.join(names)})")
-    limits = _limits_table(raw.get("limits", {}), "limits")
+    limits = limits_table(raw.get("limits", {}), "limits")
     for o in limits:
         _check_numeric_output(o, f"limits.{o}", names)
-    constraints = _limits_table(raw.get("constraints", {}), "constraints")
+    constraints = limits_table(raw.get("constraints", {}), "constraints")
     for o in constraints:
         _check_numeric_output(o, f"constraints.{o}", names)
     return list(outputs), limits, constraints, _parse_objective(raw.get("objective", {}), names)

@@ -24,7 +24,7 @@ CSS = ("body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1150px;margin:1.
        "img{max-width:100%}.warn{color:#8a3b00;background:#fff4e5;border-left:4px solid #e08a00;"
        "padding:.4em .8em}.ok{background:#eef7ee;border-left:4px solid #3a3;padding:.4em .8em}"
        "table.prov td{font-size:.85em;font-family:monospace}.note{font-size:.88em;color:#555}"
-       "tr.chosen td{background:#eef7ee;font-weight:bold}")
+       "tr.chosen td{background:#eef7ee;font-weight:bold}tr.out td{background:#fdecea}ul.warn{margin-top:0;padding:.3em .8em .3em 2.2em}")
 
 
 def figure_html(fig) -> str:
