@@ -22,7 +22,10 @@ from ..kernels import load_kernels
 from ..model_spec import outputs as kernel_outputs
 from ..tolerances import CONTACT_PERIODIC_REL
 from .pneumatic import gas_outputs, motor_driven
-from .outputs import KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_revolution
+from .outputs import (BOOL_OUTPUTS, KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_batch,
+                      reduce_revolution)
+from .study import SPEED_KEY, get_value
+from .vector import design_maps, mouth_depths
 
 
 def _per_sample(name: str) -> bool:
@@ -158,6 +161,43 @@ def housing_check_samples(kern, p, n):
     return alpha, res["point"].reshape(n, 2).T.copy(), res["curvature"].copy()
 
 
+HOUSING_CHUNK = 8  # designs per housing-curve call (a last short chunk wastes at most 7)
+
+
+def housing_batch(kern, P, n):
+    """housing_check_samples of B designs in one call: (alpha (n,), points (B, 2, n), curvature
+    (B, n)); the same per-sample function, hence the same numbers, as one design at a time."""
+    B, size = len(P), HOUSING_CHUNK  # one map size: a CasADi map takes ~0.1 s to make
+    args, res, run = _MAPS.buffered(kern, "housing_curve", n * size, (), ("point", "curvature"))
+    alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    args[0][:] = np.tile(alpha, size)
+    pts, curv = np.empty((B, 2, n)), np.empty((B, n))
+    for lo in range(0, B, size):
+        k = min(size, B - lo)
+        args[1].reshape(size, n, -1)[:k] = P[lo:lo + k, None, :]
+        run()
+        pts[lo:lo + k] = res["point"].reshape(size, n, 2)[:k].transpose(0, 2, 1)
+        curv[lo:lo + k] = res["curvature"].reshape(size, n)[:k]
+    return alpha, pts, curv
+
+
+def _geometry_ok(rr, L, lm, pts, curv, s, res) -> np.ndarray:
+    """geometry.geometry_verdict is None, over B designs (rotor radius rr, vane length L, mouth
+    depth lm (B,); pts (B, 2, n), curv (B, n), s and res (B, N, n)): each of its tests as one
+    array comparison. A design this rejects gets its reason from geometry_verdict itself."""
+    B = len(rr)
+    x, y = pts[:, 0], pts[:, 1]
+    qx, qy = np.roll(x, 1, axis=1), np.roll(y, 1, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = (qx - x) * (0.0 - y) / (qy - y) + x
+    inside = np.count_nonzero(((y > 0.0) != (qy > 0.0)) & (0.0 < xc), axis=1) % 2 == 1
+    with np.errstate(invalid="ignore"):
+        res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
+    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
+    return (~np.any(curv <= 0, axis=1) & inside & (np.hypot(x, y).min(axis=1) > rr) & res_ok
+            & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm))
+
+
 class Prepared:
     """One design: its validated config and parameter vector, or why it has none."""
 
@@ -172,8 +212,6 @@ class Prepared:
 
 
 def prepare(study, values: dict) -> Prepared:
-    from .study import get_value
-
     try:
         table = study.design_dict(values)
         cfg = config_from_dict(table)
@@ -260,7 +298,7 @@ def _evaluate_one(study, kern, pr, nrev, ev=None):
 BATCH_DESIGNS = 64  # designs per kernel call: ~13 MB of outputs at 360 samples, 4 vanes
 
 
-def pre_evaluated(study, kern, prepared, members, nrev) -> dict:
+def pre_evaluated(study, kern, prepared: dict, members, nrev) -> dict:
     """{design index: kernel outputs at its design_speeds} for the designs `members` of one
     variant, BATCH_DESIGNS per kernel call (a batch that fails is left out: its designs then run
     alone and each reports its own failure)."""
@@ -327,17 +365,97 @@ def _evaluate_contact(study, pr, nrev):
     return "ok", per_speed
 
 
-def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict]:
-    """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys)."""
-    keys = study.keys
+def _mapped_batch(study, dm, kern, P, speed, nrev, theta) -> list | None:
+    """(status, [(speed, outputs or None)] or None) of B admitted designs of one variant
+    (DesignMap rows P, speeds): one kernel call, one housing call, the geometry and the
+    reductions as array operations. None when the kernel fails (then each design runs alone)."""
+    W = list(study.speeds) if study.speeds else None
+    S, B = (len(W) if W else 1), len(P)
+    omega = np.tile(np.asarray(W, dtype=float), B) if W else speed
+    try:
+        ev = evaluate_designs(kern, np.repeat(P, S, axis=0), theta, omega)
+        alpha, pts, curv = housing_batch(kern, P, nrev)
+    except PumpsimError:
+        return None
+    col = lambda k: P[:, dm.index[k]]  # noqa: E731
+    lm = np.asarray(mouth_depths(dm.index, P))
+    width = get_value(dm.table, "rotor.width")
+    const = {"c_visc": col("effects.viscous_tip_friction"), "L": col("vane.length"), "lm": lm,
+             "tip_area": width * col("vane.thickness") if width else np.full(B, math.nan)}
+    good = _geometry_ok(col("rotor.radius"), col("vane.length"), lm, pts, curv, ev["s"][::S],
+                        ev["position_residual"][::S])
+    res = ev["position_residual"]
+    with np.errstate(invalid="ignore"):
+        converged = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
+    out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()})
+    asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
+    fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)
+    rows = [dict(zip(out, vals)) for vals in zip(*(out[o].tolist() for o in out))]
+    found = []
+    for d in range(B):
+        if not good[d]:
+            values = dict(zip(dm.names, P[d].tolist()))
+            verdict = geometry_verdict(values, alpha, pts[d], curv[d], theta, ev["s"][d * S], ev["position_residual"][d * S])
+            if verdict:
+                found.append((f"geometry: {verdict}", None))
+                continue
+        if not converged[d * S:(d + 1) * S].all():
+            found.append(("numerical: position problem did not converge", None))
+            continue
+        ws = W or [float(speed[d])]
+        found.append(("ok", [(w, rows[d * S + k] if fin[d * S + k] else None) for k, w in enumerate(ws)]))
+    return found
+
+
+def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:
+    """Results of the designs DesignMap covers, into `results` (design row -> (status,
+    per_speed)) and `speeds_of`; returns the rows left to the per-design path."""
     nrev = study.revolution_samples
-    prepared = [prepare(study, dict(zip(keys, x))) for x in X]
-    rows = []
+    maps, rest = design_maps(study, X)
+    rest = list(rest)
+    for dm, members in maps:
+        P, speed, ok = dm.vectors(X[members])
+        adm = np.flatnonzero(ok)
+        rest += members[~ok].tolist()
+        if not len(adm):
+            continue
+        j0 = members[adm[0]]
+        try:
+            kern = load_kernels(dm.structure)
+        except PumpsimError:
+            kern = None
+        if kern is None or not dm.agrees(P[adm[0]], speed[adm[0]], dict(zip(study.keys, X[j0].tolist()))):
+            rest += members[adm].tolist()
+            continue
+        theta = revolution(dm.cfg.angle, nrev)
+        for lo in range(0, len(adm), BATCH_DESIGNS):
+            idx = adm[lo:lo + BATCH_DESIGNS]
+            try:
+                got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta)
+            except Exception:  # noqa: BLE001 - then each design runs alone and reports its own failure
+                interrupt.check()
+                got = None
+            if got is None:
+                rest += members[idx].tolist()
+                continue
+            for i, r in zip(idx, got):
+                results[members[i]] = r
+                speeds_of[members[i]] = list(study.speeds) if study.speeds else [float(speed[i])]
+    return sorted(rest)
+
+
+def _per_design_results(study, X, todo, results: dict, speeds_of: dict) -> None:
+    """Results of the designs `todo` (rows of X), each from its own validated config."""
+    keys, nrev = study.keys, study.revolution_samples
+    prepared = {j: prepare(study, dict(zip(keys, X[j]))) for j in todo}
     groups: dict = {}
-    for j, pr in enumerate(prepared):
+    for j, pr in prepared.items():
         if pr.status == "ok":
             groups.setdefault(pr.cfg.structure_for("constrained"), []).append(j)
-    results: dict = {}
+            speeds_of[j] = design_speeds(study, pr.cfg)
+        else:
+            speeds_of[j] = study.speeds or [dict(zip(keys, X[j])).get(SPEED_KEY, study.base_speed)]
+            results[j] = (pr.status, None)
     for structure, members in groups.items():
         try:
             kern = load_kernels(structure)
@@ -355,14 +473,22 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict
             except Exception as e:  # noqa: BLE001 - one design's failure never stops the study
                 interrupt.check()  # unless the failure was a signal's doing
                 results[j] = (f"error: {type(e).__name__}: {e}", None)
-    for j, pr in enumerate(prepared):
+
+
+def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict]:
+    """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys):
+    the designs DesignMap covers as parameter vectors, the others each from its own config."""
+    keys = study.keys
+    results, speeds_of = {}, {}
+    todo = _mapped_results(study, X, results, speeds_of)
+    _per_design_results(study, X, todo, results, speeds_of)
+    rows = []
+    for j in range(len(X)):
         base = {"design": int(ids[j])}
         keyvals = {k: float(x) for k, x in zip(keys, X[j])}
-        status, per_speed = results.get(j, (pr.status, None))
+        status, per_speed = results[j]
         if per_speed is None:
-            speeds = design_speeds(study, pr.cfg) if pr.cfg is not None else (study.speeds or [
-                keyvals.get("operation.speed", study.base_speed)])
-            for w in speeds:
+            for w in speeds_of[j]:
                 rows.append({**base, "speed": float(w), **keyvals, "status": status})
             continue
         for w, out in per_speed:

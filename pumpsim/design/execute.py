@@ -42,6 +42,7 @@ TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the worke
 # 15 % idle at the end on the shared machine); 4 keeps the first to an eighth.
 GUIDED_SHARE = 4
 PILOT_DESIGNS = 6
+PILOT_BATCH = 64  # designs timed when PILOT_DESIGNS take little (evaluate.BATCH_DESIGNS per kernel call)
 
 
 def structures(study) -> list:
@@ -159,16 +160,26 @@ def pilot_time_per_design(study, X) -> float:
     machine may be shared and a disturbed timing only ever reads long."""
     from .evaluate import evaluate_rows
 
-    n = min(len(X), PILOT_DESIGNS)
     evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
+    n = min(len(X), PILOT_DESIGNS)
+    best = _best_time(study, X[:n])
+    if best < 0.05 * TASK_SECONDS and len(X) > n:  # fast designs: a call's own cost would weigh on
+        n = min(len(X), PILOT_BATCH)  # a few; time a kernel batch's worth instead
+        best = _best_time(study, X[:n])
+    return max(best / n, 1e-6)
+
+
+def _best_time(study, X) -> float:
+    from .evaluate import evaluate_rows
+
     best = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        evaluate_rows(study, X[:n], np.arange(n), max_vanes(study))
+        evaluate_rows(study, X, np.arange(len(X)), max_vanes(study))
         best = min(best, time.perf_counter() - t0)
         if best > 2 * TASK_SECONDS:  # slow designs: one timing says enough
             break
-    return max(best / n, 1e-6)
+    return best
 
 
 
@@ -223,20 +234,62 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     with study_folder(out) if out is not None else contextlib.nullcontext():
         man = check_out_dir(out, study.study_hash())
         t0 = time.perf_counter()
-        own = None
-        if workers != 0 and client is None:  # fail fast on a bad address, before any work or output
-            client, own = connect(scheduler, workers, processes)
+        starting = _Cluster(scheduler, workers, processes, client,
+                            lambda c: _warm_workers(study, X, workers, c))
         try:
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
-                        client, t0)
+                        starting, t0)
         except BaseException:
             quiet_dask()
             raise
         finally:
-            if own is not None:
-                client.close()
-                if own is not client:
-                    own.close()
+            starting.close()
+
+
+class _Cluster:
+    """The run's Dask client: given, or connected now (a scheduler address: fails fast on a bad
+    one, before any work or output), or a LocalCluster started in a thread while this process
+    builds or loads the kernels and times the pilot (its worker processes import the runtime as
+    they start: worker_setup). warm(client): the warm-up tasks, submitted as soon as there is a
+    client (held here: they are not released before they ran). `get()` waits for the client;
+    `close()` closes what the run started."""
+
+    def __init__(self, scheduler, workers, processes, client, warm):
+        self.client, self.own, self.thread, self.error, self.warm = client, None, None, None, []
+        if workers == 0:
+            return
+        if client is not None or scheduler:
+            if client is None:
+                self.client, self.own = connect(scheduler, workers, processes)
+            self.warm = warm(self.client)
+            return
+        import threading
+
+        def start():
+            try:
+                self.client, self.own = connect(None, workers, processes)
+                self.warm = warm(self.client)
+            except BaseException as e:  # noqa: BLE001 - raised again by get() in the run's thread
+                self.error = e
+
+        self.thread = threading.Thread(target=start, name="pumpsim-cluster-start", daemon=True)
+        self.thread.start()
+
+    def get(self):
+        if self.thread is not None:
+            self.thread.join()
+            self.thread = None
+        if self.error is not None:
+            raise self.error
+        return self.client
+
+    def close(self):
+        if self.thread is not None:  # the run failed while the cluster started: wait, then close it
+            self.thread.join()
+        if self.own is not None:
+            self.client.close()
+            if self.own is not self.client:
+                self.own.close()
 
 
 def _warm_workers(study, X, workers, client) -> list:
@@ -261,7 +314,7 @@ def _build_kernels(study) -> None:
             fast_kernel(st)
 
 
-def _plan(study, X, man, batch_size, client) -> Plan:
+def _plan(study, X, man, batch_size, get_client) -> Plan:
     """The batches: of the size asked (option, then study key), of a resumed run's manifest, or
     from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
     guided_bounds on several."""
@@ -277,6 +330,7 @@ def _plan(study, X, man, batch_size, client) -> Plan:
     if man and man.get("batch_size"):
         return Plan(study, X, int(man["batch_size"]))
     per = pilot_time_per_design(study, X) if len(X) > 1 else TASK_SECONDS
+    client = get_client()  # (a LocalCluster started meanwhile)
     n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
     if n_workers > 1:
         bounds = guided_bounds(len(X), per, n_workers)
@@ -352,12 +406,12 @@ def _manifest(folder, study, plan, status, stats=None) -> None:
     write_manifest(folder, study, plan, status, keys, stats)
 
 
-def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, client, t0):
+def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch, starting, t0):
     stats = RunStats(designs=len(X))
     interrupt.progress(_how_far(0, len(X), out))
-    _warm = _warm_workers(study, X, workers, client)  # held so the warm-up tasks are not released
-    _check_kernels(study, man, out, scheduler)
-    plan = _plan(study, X, man, batch_size, client)
+    _check_kernels(study, man, out, scheduler)  # (the workers warm up meanwhile: _Cluster)
+    plan = _plan(study, X, man, batch_size, starting.get)
+    client = starting.get()
     stats.batch_size, stats.batches = min(plan.batch_size, max(1, len(X))), plan.n_batches
     stats.guided = plan.bounds is not None
     folder = Path(out) if out else None

@@ -71,41 +71,64 @@ def reduce_revolution(a: dict, k: dict, da: dict | None = None,
 
 
 def _values(a: dict, k: dict) -> tuple[dict, dict]:
-    """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse)."""
+    """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse): one
+    design as a batch of one (the same arithmetic, hence the same bits, as in a batch)."""
+    many, at = reduce_batch({nm: x[None] for nm, x in a.items()},
+                            {nm: np.asarray([x], dtype=float) for nm, x in k.items()})
+    out = {nm: (bool(x[0]) if nm in BOOL_OUTPUTS else x[0]) for nm, x in many.items()}
+    at = {nm: (x[0] if isinstance(x, np.ndarray) else x) for nm, x in at.items()}
+    at["pv"] = a["normal"] * np.abs(a["tip_slip"]) / k["tip_area"]
+    return out, at
+
+
+def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
+    """The outputs of B designs at once: a holds the kernel outputs with a leading design axis
+    (torque (B, n), per vane (B, N, n)), k the constants as (B,) arrays (design_constants).
+    Returns (output -> (B,) array, where each extreme sits)."""
     out = {}
-    c_visc, L, lm, area = k["c_visc"], k["L"], k["lm"], k["tip_area"]
+    c_visc, L, lm, area = (np.asarray(k[nm], dtype=float)[:, None, None] for nm in ("c_visc", "L", "lm", "tip_area"))
     t = a["torque"]
-    out["mean_torque"] = t.mean()
-    out["rms_torque"] = np.sqrt(np.mean(t * t))
-    hi, lo = int(np.argmax(t)), int(np.argmin(t))
-    out["ptp_torque"] = t[hi] - t[lo]
+    B = t.shape[0]
+    rows = np.arange(B)
+
+    def extreme(x, pick):
+        """(value, flat index within the design's (N, n)) of x's max or min per design: the
+        vane holding it, then the sample -- the first occurrence in flat order, as an arg-max of
+        the flattened array gives it (NaN included), without copying a strided x to flatten it."""
+        vane = pick((np.max if pick is np.argmax else np.min)(x, axis=2), axis=1)
+        within = x[rows, vane]
+        k = pick(within, axis=1)
+        return within[rows, k], vane * x.shape[2] + k
+
+    out["mean_torque"] = t.mean(axis=-1)
+    out["rms_torque"] = np.sqrt(np.mean(t * t, axis=-1))
+    hi, lo = np.argmax(t, axis=-1), np.argmin(t, axis=-1)
+    out["ptp_torque"] = t[rows, hi] - t[rows, lo]
     N, v, mh = a["normal"], a["tip_slip"], a["mu_housing"]
     sd, F1, F2, mr = a["sdot"], a["slot1"], a["slot2"], a["mu_slot"]
+    aF1, aF2, av = np.abs(F1), np.abs(F2), np.abs(v)
     tip = mh * N * v + c_visc * v * v
-    slot = mr * sd * (np.abs(F1) + np.abs(F2))
-    tip_v, slot_v = tip.mean(axis=1), slot.mean(axis=1)
-    out["tip_friction_power"] = tip_v.sum()
-    out["slot_friction_power"] = slot_v.sum()
+    slot = mr * sd * (aF1 + aF2)
+    tip_v, slot_v = tip.mean(axis=-1), slot.mean(axis=-1)
+    out["tip_friction_power"] = tip_v.sum(axis=-1)
+    out["slot_friction_power"] = slot_v.sum(axis=-1)
     out["friction_power"] = out["tip_friction_power"] + out["slot_friction_power"]
-    for i, x in enumerate(tip_v + slot_v):
-        out[per_vane_name(i)] = x
-    iN_hi, iN_lo = int(np.argmax(N)), int(np.argmin(N))
-    out["max_normal_force"] = N.ravel()[iN_hi]
-    out["min_normal_force"] = N.ravel()[iN_lo]
-    F = np.maximum(np.abs(F1), np.abs(F2))
-    iF = int(np.argmax(F))
-    out["max_slot_force"] = F.ravel()[iF]
-    pv = N * np.abs(v) / area
-    ipv = int(np.argmax(N * np.abs(v)))
-    out["max_tip_pv"] = pv.ravel()[ipv]
+    per_vane = tip_v + slot_v
+    for i in range(per_vane.shape[1]):
+        out[per_vane_name(i)] = per_vane[:, i]
+    out["max_normal_force"], iN_hi = extreme(N, np.argmax)
+    out["min_normal_force"], iN_lo = extreme(N, np.argmin)
+    F = np.maximum(aF1, aF2)
+    out["max_slot_force"], iF = extreme(F, np.argmax)
+    Nv, ipv = extreme(N * av, np.argmax)
+    out["max_tip_pv"] = Nv / area[:, 0, 0]  # the pressure times slip speed where the product peaks
     ext = a["s"] + L - lm
-    ie_lo, ie_hi = int(np.argmin(ext)), int(np.argmax(ext))
-    out["min_extension"] = ext.ravel()[ie_lo]
-    out["max_extension"] = ext.ravel()[ie_hi]
-    out["lift_off"] = bool(out["min_normal_force"] < 0)
-    out["paradox"] = bool(np.any(a["n_consistent"] < 0.5) or np.any(a["ambiguity"] > PARADOX_TOL))
-    at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, pv=pv, ipv=ipv, ext=ext,
-              ie_lo=ie_lo, ie_hi=ie_hi, vanes=tip_v.size)
+    out["min_extension"], ie_lo = extreme(ext, np.argmin)
+    out["max_extension"], ie_hi = extreme(ext, np.argmax)
+    out["lift_off"] = out["min_normal_force"] < 0
+    out["paradox"] = np.any(a["n_consistent"] < 0.5, axis=(1, 2)) | np.any(a["ambiguity"] > PARADOX_TOL, axis=(1, 2))
+    at = dict(hi=hi, lo=lo, iN_hi=iN_hi, iN_lo=iN_lo, F=F, iF=iF, ipv=ipv, ext=ext,
+              ie_lo=ie_lo, ie_hi=ie_hi, vanes=per_vane.shape[1])
     return out, at
 
 

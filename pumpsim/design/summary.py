@@ -25,7 +25,9 @@ EVALUATED = ("ok", "lift_off", "paradox")  # status kinds that carry output valu
 
 def status_kind(df):
     """The status's kind per row: the text before the first colon ('ok', 'geometry', ...)."""
-    return df["status"].astype(str).str.split(":").str[0]
+    status = df["status"].astype(str)
+    kinds = {t: t.split(":")[0] for t in status.unique()}  # few distinct texts among many rows
+    return status.map(kinds)
 
 
 def evaluated(df) -> np.ndarray:
