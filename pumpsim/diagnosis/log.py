@@ -81,10 +81,12 @@ class TooSmall(Note):
     size: float
     factor: float
     scatter: float
+    unit: str = "N m"
+    quantity: str = "the torque"
 
     def text(self) -> str:
-        return (f"{self.label} not named: it changes (explains) the torque by {self.size:.3g} N m RMS, below "
-                f"{self.factor:g} x the noise's scatter {self.scatter:.3g} N m")
+        return (f"{self.label} not named: it changes (explains) {self.quantity} by {self.size:.3g} {self.unit} RMS, "
+                f"below {self.factor:g} x the noise's scatter {self.scatter:.3g} {self.unit}")
 
 
 @dataclass(frozen=True)
@@ -127,20 +129,22 @@ class SmallRemainder(Note):
     systematic: float
     relevant: float
     sigma: float
+    unit: str = "N m"
 
     def text(self) -> str:
-        return (f"a systematic residual of {self.systematic:.3g} N m remains, below {self.relevant:g} x the noise "
-                f"sigma ({self.sigma:.3g} N m): not claimed as a discrepancy")
+        return (f"a systematic residual of {self.systematic:.3g} {self.unit} remains, below {self.relevant:g} x the "
+                f"noise sigma ({self.sigma:.3g} {self.unit}): not claimed as a discrepancy")
 
 
 @dataclass(frozen=True)
 class HeavyTails(Note):
     excess_rms: float
     sigma: float
+    unit: str = "N m"
 
     def text(self) -> str:
-        return (f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add {self.excess_rms:.3g} N m "
-                f"RMS above the noise sigma {self.sigma:.3g} N m")
+        return (f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add {self.excess_rms:.3g} "
+                f"{self.unit} RMS above the noise sigma {self.sigma:.3g} {self.unit}")
 
 
 @dataclass(frozen=True)
