@@ -24,6 +24,7 @@ import numpy as np
 
 from ..benchlog import BenchLog
 from ..identification.pumpdown_fit import BenchLogProblem
+from ..signals import noise_sigma
 
 SUPPLY = "supply.resistance"  # ohm in series before the motor terminals
 RISE = "motor.resistance_rise"  # ohm the winding resistance rises over the log
@@ -100,6 +101,19 @@ class Drives:
         self.values = {n: float(values[n]) for n in self.names}
         self._by_rise = {}
         self._retired = 0  # runs of the problems no longer kept
+        # per compared value, the residual's own noise level in units of its channel's sigma (1: the
+        # log's channel noise; set_weights): the model's block-mean current carries the logged
+        # voltage's noise too (its integral drives it), which the current's own sigma does not count
+        self.weight = None
+
+    def set_weights(self, residual):
+        """Each channel's weight: the robust white-noise level of `residual` (a fit's, in channel
+        sigmas) on that channel's values: every channel's residual noise then has unit variance."""
+        base = self.get(0.0)
+        sizes = [base.measured[c].size for c in base.channel_names]
+        parts = np.split(np.asarray(residual, float) * (1.0 if self.weight is None else self.weight),
+                         np.cumsum(sizes)[:-1])
+        self.weight = np.concatenate([np.full(r.size, max(noise_sigma(r), 1e-12)) for r in parts])
 
     @property
     def runs(self) -> int:
@@ -126,7 +140,8 @@ class EffectProblem:
         self.names = list(names)
         self.values = dict(values)  # every value the model holds; fitted names start here
         base = drives.get(self.values.get(RISE, 0.0))
-        self.y, self.sigma, self.channel_names = base.y, base.sigma, base.channel_names
+        self.w = 1.0 if drives.weight is None else drives.weight
+        self.y, self.sigma, self.channel_names = base.y / self.w, base.sigma, base.channel_names
         bounds = [PSEUDO_BOUNDS[n] if n in PSEUDO else (base.lower[base.names.index(n)], base.upper[base.names.index(n)])
                   for n in self.names]
         self.lower, self.upper = (np.array(b, float) for b in zip(*bounds))
@@ -143,7 +158,7 @@ class EffectProblem:
     def model(self, x):
         self.n_eval += 1
         inner, xi = self._point(x)
-        return inner.model(xi)
+        return inner.model(xi) / self.w
 
     def channels(self, x) -> dict:
         """{channel: model values (unscaled)} at x, as compared."""

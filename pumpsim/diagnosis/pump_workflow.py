@@ -23,7 +23,7 @@ from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import BudgetReached, Note, Rivals, TooSmall
+from .log import BudgetReached, Note, TooSmall
 from .options import OPTIONS, DiagnosisOptions
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library
 from .pump_result import (
@@ -40,6 +40,7 @@ BASELINE = ("mu",)  # fitted in every model: the vane COF is what a bench log is
 CONTENDERS = 2  # refitted per step (a refit is ~10 runs of the log; the score ranks well)
 FIT_ITERATIONS = 8
 STOP_RSS = 0.1  # a fit stops when a step gains less (noise sigmas squared): no likelihood ratio moves
+SAME_MODEL = 1 - 1e-6  # |cos| of two candidates' columns above which they are one model (identical runs)
 DETECTORS = ("runs_test", "ljung_box", "noise_level")
 WHERE_WINDOWS = 25  # the unexplained residual's moving mean spans 1/25 of a channel
 WHERE_Z = 4.0  # a window mean this many standard errors from 0 is systematic
@@ -66,9 +67,12 @@ class Confounded(Note):
     first: str
     second: str
     how: str
+    decisive: float | None = None  # None: the same model on this log; else no BIC lead this large
 
     def text(self) -> str:
-        return f"{self.first} and {self.second} act identically on this log: neither is named; to separate them: {self.how}"
+        why = ("act identically on this log" if self.decisive is None else
+               f"explain this log equally well (within {self.decisive:g} BIC)")
+        return f"{self.first} and {self.second} {why}: neither is named; to separate them: {self.how}"
 
 
 @dataclass
@@ -106,8 +110,10 @@ class BenchDetection:
         self.p = {d: min(1.0, len(self.per) * min(m[d]["p_value"] for m in self.per.values())) for d in DETECTORS}
         self.p["family"] = min(1.0, k * min(m[d]["p_value"] for m in self.per.values() for d in DETECTORS))
         self.channel_p = {c: min(1.0, k * min(m[d]["p_value"] for d in DETECTORS)) for c, m in self.per.items()}
-        self.sigma = max(m["noise_level"]["sigma"] for m in self.per.values())
-        self.systematic = max(math.sqrt(max(float(np.var(r)) - self.per[c]["noise_level"]["sigma"] ** 2, 0.0))
+        # in noise sigmas (each channel is scaled by its own): the systematic part of each channel
+        # over that channel's high-frequency noise level, the largest
+        self.sigma = 1.0
+        self.systematic = max(math.sqrt(max(float(np.var(r)) / self.per[c]["noise_level"]["sigma"] ** 2 - 1.0, 0.0))
                               for c, r in self.pieces.items())
 
     def searching(self) -> bool:
@@ -173,7 +179,7 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
     run = Run(Drives(cfg, log, values, rtol, atol), options, progress or (lambda msg: None), None if budget is None else wall0 + budget,
               budget={"seconds": budget, "bound": False, "cut": []})
     run.say("fitting the baseline")
-    base = _fit(run, list(BASELINE), values, None)
+    base = _weighted(run, _fit(run, list(BASELINE), values, None))
     current, steps, history, ranking = base, [], [_model_fit("baseline", base)], []
     detection = _detect(current, options)
     limit = options.max_effects if max_effects is None else max_effects
@@ -225,6 +231,15 @@ def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
     return x, r, J, False
 
 
+def _weighted(run, fit: Fit) -> Fit:
+    """The baseline fit with each channel weighted by its residual's own noise level
+    (Drives.set_weights): its residual and Jacobian rescaled, no run."""
+    run.drives.set_weights(fit.residual)
+    prob = EffectProblem(run.drives, fit.names, fit.values)
+    w = prob.w / fit.prob.w
+    return Fit(fit.names, fit.values, fit.residual / w, fit.jacobian / w[:, None], fit.converged, prob)
+
+
 def _detect(fit: Fit, opts) -> BenchDetection:
     p = fit.prob
     return BenchDetection(fit.residual, [p.drives.get(0.0).measured[c].size for c in p.channel_names],
@@ -261,9 +276,10 @@ def _screen(run, current: Fit, effects) -> list:
     return sorted(out, key=lambda s: -s.score)
 
 
-def _groups(significant: list, collinear: float) -> list:
-    """The significant candidates in groups whose projected directions are collinear (the log
-    cannot tell them apart), in rank order."""
+def _groups(significant: list, collinear: float = SAME_MODEL) -> list:
+    """The significant candidates in groups whose projected directions coincide (the same model on
+    this log: a series resistance and the winding's), in rank order. Merely near-collinear ones
+    stay apart: their nonlinear refits may still tell them apart (the rival rule decides)."""
     groups = []
     for s in significant:
         for g in groups:
@@ -287,8 +303,9 @@ def _search_step(run, current: Fit, screened: list, detection):
         if s.inside > opts.collinear:
             run.log.append(Absorbed(s.effect.name, ", ".join(current.names), s.inside))
     significant = [s for s in screened if s.p_value < level and s.inside <= opts.collinear]
+    groups = sorted(_groups(significant), key=lambda g: _one_step_rss(run, current, g[0]))
     judged = []
-    for g in _groups(significant, opts.collinear)[:CONTENDERS]:
+    for g in groups[:CONTENDERS]:
         if run.out_of_time(f"the refit of {g[0].effect.name}"):
             break
         run.say(f"refitting {g[0].effect.name}")
@@ -305,10 +322,20 @@ def _search_step(run, current: Fit, screened: list, detection):
             if pair not in run.confounded:
                 run.confounded.append(pair)
                 how = "; or ".join(e.separate for e in (first, other) if e.separate) or "a second experiment"
-                run.log.append(Confounded(*pair, how) if rival is None or other is not rival["group"][0].effect
-                               else Rivals(*pair, opts.bic_decisive))
+                same = rival is None or other is not rival["group"][0].effect
+                run.log.append(Confounded(*pair, how, None if same else opts.bic_decisive))
         return None
     return _step(best, current), best["fit"]
+
+
+def _one_step_rss(run, current: Fit, s: Screened) -> float:
+    """The residual sum of squares of the model at the candidate's one-step values (one run): a
+    look past the linearisation that ranks the contenders (the score test alone ranks a nonlinear
+    effect's linear shadow)."""
+    names = current.names + [s.effect.param]
+    prob = EffectProblem(run.drives, names, {**current.values, **s.one_step})
+    r = prob.y - prob.model(prob.x0)
+    return float(r @ r)
 
 
 def _judge(run, current: Fit, group: list, detection) -> dict:
@@ -359,6 +386,8 @@ def where_unexplained(fit: Fit, detection: BenchDetection, opts: DiagnosisOption
     inner = fit.prob.drives.get(0.0)
     tp, pb = inner.bench.times("booster_pressure"), inner.measured["booster_pressure"]
     out = []
+    w = np.broadcast_to(fit.prob.w, fit.residual.shape)
+    weights = dict(zip(detection.pieces, np.split(w, np.cumsum([r.size for r in detection.pieces.values()])[:-1])))
     for c, r in detection.pieces.items():
         if detection.channel_p[c] >= opts.unexplained_alpha or r.size < 2 * WHERE_WINDOWS:
             continue
@@ -371,7 +400,8 @@ def where_unexplained(fit: Fit, detection: BenchDetection, opts: DiagnosisOption
         for a, b in spans:
             p = np.interp(t[a:b], tp, pb)
             out.append({"channel": c, "time": [float(t[a]), float(t[b - 1])], "pressure": [float(p.min()), float(p.max())],
-                        "mean_residual": float(np.mean(r[a:b]) * inner.sigma[c]), "unit": UNITS[c]})
+                        "mean_residual": float(np.mean(r[a:b] * weights[c][a:b]) * inner.sigma[c]),
+                        "unit": UNITS[c]})
     return out
 
 
