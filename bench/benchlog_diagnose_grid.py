@@ -31,7 +31,7 @@ from pumpsim.config import config_from_dict  # noqa: E402
 from pumpsim.diagnosis.pump_twins import twin_with_fault  # noqa: E402
 from pumpsim.diagnosis.pump_workflow import diagnose_bench  # noqa: E402
 
-FAULTS = {"booster_leak": 2e-5, "tip_clearance": 8e-6, "valve_late": 4000.0, "motor_friction": 0.02,
+FAULTS = {"booster_leak": 4e-5, "tip_clearance": 8e-6, "valve_late": 10000.0, "motor_friction": 0.05,
           "supply_resistance": 0.08, "winding_heating": 0.15, "winding_resistance": 0.08}
 OUTSIDE = {"booster_volume": 1.3, "pressure_offset": 1500.0}
 NOISE = (0.005, 0.01)
@@ -96,6 +96,7 @@ def main(argv=None):
     ap.add_argument("--rate", type=float, default=500.0)
     ap.add_argument("--only", help="comma-separated faults (and 'clean', or outside faults)")
     ap.add_argument("--seeds", type=int, default=len(SEEDS), help="the first N seeds")
+    ap.add_argument("--noise", help=f"comma-separated noise levels (default {','.join(map(str, NOISE))})")
     a = ap.parse_args(argv)
     cfg = small_booster()
     only = set(a.only.split(",")) if a.only else None
@@ -104,7 +105,7 @@ def main(argv=None):
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     for fault, size in plan:
-        for noise in NOISE:
+        for noise in [float(x) for x in a.noise.split(",")] if a.noise else NOISE:
             for seed in SEEDS[:a.seeds]:
                 c = case(cfg, None if fault == "clean" else fault, size, noise, seed, a.duration, a.rate,
                          resistance_known=False)

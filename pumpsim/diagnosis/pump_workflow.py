@@ -215,7 +215,7 @@ def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
         scale, U, s, Vt = scaled_svd(J)
         keep = s > s[0] * 1e-10
         step = (Vt[keep].T @ ((U[:, keep].T @ r) / s[keep])) / scale
-        for _ in range(halvings):
+        for k in range(halvings):
             xn = np.clip(x + step, prob.lower, prob.upper)
             rn = prob.y - prob.model(xn)
             if rn @ rn < r @ r:
@@ -223,7 +223,8 @@ def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
             step = 0.5 * step
         else:
             return x, r, J, True
-        small = r @ r - rn @ rn < STOP_RSS
+        # a halved step's small gain says the model is nonlinear there, not that the fit is done
+        small = k == 0 and r @ r - rn @ rn < STOP_RSS
         x, r = xn, rn
         if small:
             return x, r, J, True

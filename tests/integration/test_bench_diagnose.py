@@ -21,7 +21,7 @@ TRUTH = {"mu": 0.17}
 LOOSE = {"rtol": 1e-4, "atol": 1e-5}
 DURATION, RATE = 0.5, 500
 # clear faults of each kind (bench/benchlog_diagnose_grid.py uses the same sizes)
-FAULTS = {"booster_leak": 2e-5, "tip_clearance": 8e-6, "valve_late": 4000.0, "motor_friction": 0.02,
+FAULTS = {"booster_leak": 4e-5, "tip_clearance": 8e-6, "valve_late": 10000.0, "motor_friction": 0.05,
           "winding_heating": 0.15}
 
 
