@@ -2,6 +2,7 @@
 records. The result's `notes` are their sentences, in the order the steps made them."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 
@@ -10,6 +11,19 @@ class Note:
 
     def text(self) -> str:
         raise NotImplementedError
+
+
+class Budgeted:
+    """A diagnosis run with a time budget: `deadline` (perf_counter() after which no new step or
+    refit starts; None: no limit) and `budget` ({"seconds", "bound", "cut"})."""
+
+    def out_of_time(self, what: str) -> bool:
+        """True (and `what` listed as cut) once the time budget is spent."""
+        if self.deadline is None or time.perf_counter() < self.deadline:
+            return False
+        self.budget["bound"] = True
+        self.budget["cut"].append(what)
+        return True
 
 
 @dataclass(frozen=True)

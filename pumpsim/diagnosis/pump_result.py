@@ -8,6 +8,7 @@ import numpy as np
 
 from ..presentation import PLUS_MINUS, parameter_text
 from .pump_effects import PumpEffect
+from .result import NamedSteps
 
 NOISE_UNIT = "noise sigmas"  # every residual RMS of a bench-log diagnosis: channels over their noise sigma
 
@@ -62,7 +63,7 @@ class BenchStep:
 
 
 @dataclass(frozen=True)
-class BenchDiagnosis:
+class BenchDiagnosis(NamedSteps):
     """What `diagnose_bench` found. `to_json()` is the JSON (spec §7 names are its keys); the typed
     fields carry what a report draws: `measured`, `times` and each model's channels in `history`."""
 
@@ -87,13 +88,6 @@ class BenchDiagnosis:
     JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
             "verdict", "notes", "detectors", "ranking", "method", "wall_time", "budget", "runs")
 
-    @property
-    def effects(self) -> list[str]:
-        return [s.effect.name for s in self.steps]
-
-    @property
-    def notes(self) -> list[str]:
-        return [n.text() for n in self.log]
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in self.JSON}

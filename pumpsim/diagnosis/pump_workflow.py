@@ -23,9 +23,9 @@ from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import BudgetReached, Note, TooSmall
+from .log import Budgeted, BudgetReached, Note, TooSmall
 from .options import OPTIONS, DiagnosisOptions
-from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library
+from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
 from .pump_result import (
     NOISE_UNIT,
     BenchDiagnosis,
@@ -146,7 +146,7 @@ class Screened:
 
 
 @dataclass
-class Run:
+class Run(Budgeted):
     """What every step of one bench-log diagnosis shares."""
 
     drives: Drives
@@ -156,13 +156,6 @@ class Run:
     log: list = field(default_factory=list)
     confounded: list = field(default_factory=list)
     budget: dict = field(default_factory=dict)
-
-    def out_of_time(self, what: str) -> bool:
-        if self.deadline is None or _time.perf_counter() < self.deadline:
-            return False
-        self.budget["bound"] = True
-        self.budget["cut"].append(what)
-        return True
 
 
 def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | None = None, progress=None,
@@ -401,7 +394,7 @@ def where_unexplained(fit: Fit, detection: BenchDetection, opts: DiagnosisOption
         for a, b in spans:
             p = np.interp(t[a:b], tp, pb)
             out.append({"channel": c, "time": [float(t[a]), float(t[b - 1])], "pressure": [float(p.min()), float(p.max())],
-                        "mean_residual": float(np.mean(r[a:b] * weights[c][a:b]) * inner.sigma[c]),
+                        "mean_residual": float(np.mean(unweighted(r[a:b], weights[c][a:b])) * inner.sigma[c]),
                         "unit": UNITS[c]})
     return out
 
