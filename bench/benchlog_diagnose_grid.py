@@ -11,8 +11,9 @@ fault of each kind (FAULTS). The model integrator: rtol 1e-4 (the twins are made
 clean log's residual is the noise to ~1 %.
 
 Right answers: a library effect named alone, or -- supply_resistance and winding_resistance act
-identically on a log -- that pair reported `confounded` and neither named; with
---resistance-known the supply resistance itself. A clean log: nothing named, not unexplained. An
+identically on a log -- that pair reported `confounded` and neither named. A pair the log cannot
+separate (a booster leak and a grown tip clearance on a short log) reported `confounded` with the
+truth in it is counted apart (confounded_with_truth): honest, but no name. A clean log: nothing named, not unexplained. An
 outside fault: no library effect named (unexplained, or nothing, is right).
 """
 from __future__ import annotations
@@ -43,11 +44,11 @@ TWINS = {("supply_resistance", "winding_resistance")}  # identical on a log: `co
 
 def small_booster():
     table = with_changes(example_table("evp_booster"), {"booster.volume": 4.0e-4, "booster.target": 40000.0})
-    return config_from_dict(table, name="evp_small_booster")
+    return config_from_dict(table, "evp_small_booster")
 
 
 def outcome(fault, res, resistance_known) -> str:
-    """right / false_name / false_unexplained / missed / confounded_right."""
+    """right / confounded_with_truth / false_name / false_unexplained / missed."""
     named = res.effects
     pair = {tuple(sorted(p)) for p in res.confounded}
     if fault is None or fault in OUTSIDE:
@@ -58,6 +59,8 @@ def outcome(fault, res, resistance_known) -> str:
         return "right"
     if not named and not resistance_known and any(fault in p and p in TWINS for p in pair):
         return "right"
+    if not named and any(fault in p for p in pair):  # honest, not a name: the log cannot separate them
+        return "confounded_with_truth"
     if any(n != fault for n in named):
         return "false_name"
     return "false_unexplained" if res.unexplained else "missed"
@@ -83,7 +86,8 @@ def rates(cases) -> dict:
     lib = [c for c in cases if c["fault"] in FAULTS]
     clean = [c for c in cases if c["fault"] is None]
     outside = [c for c in cases if c["fault"] in OUTSIDE]
-    return {"named_right": share(lib, "right"), "false_names_library": share(lib, "false_name"),
+    return {"named_right": share(lib, "right"), "confounded_with_truth": share(lib, "confounded_with_truth"),
+            "false_names_library": share(lib, "false_name"),
             "false_names_clean": share(clean, "false_name"), "false_unexplained_clean": share(clean, "false_unexplained"),
             "false_names_outside": share(outside, "false_name"),
             "per_effect": {f: share((c for c in lib if c["fault"] == f), "right") for f in FAULTS}}
