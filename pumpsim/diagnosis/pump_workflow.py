@@ -172,7 +172,10 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
     rtol, atol: the model integrator's."""
     wall0 = _time.perf_counter()
     effects = library(resistance_known)
-    values = {"mu": float(cfg.values["friction.housing.dynamic"]), **{e.param: e.absent_value(cfg) for e in effects}}
+    # motor.resistance always: a supply resistance acts through it (pump_effects)
+    values = {"mu": float(cfg.values["friction.housing.dynamic"]),
+              "motor.resistance": float(cfg.pneumatic.values["motor.resistance"]),
+              **{e.param: e.absent_value(cfg) for e in effects}}
     run = Run(Drives(cfg, log, values, rtol, atol), options, progress or (lambda msg: None), None if budget is None else wall0 + budget,
               budget={"seconds": budget, "bound": False, "cut": []})
     run.say("fitting the baseline")
