@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, live, load_config, outputs, read_data, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, info, live, load_config, outputs, read_data, \
+    write_fit_outputs
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
 
@@ -22,6 +23,9 @@ def register(sub):
     dg.add_argument("--budget", type=float, default=None, metavar="SECONDS",
                     help=f"wall time after which no further search step starts; what it cuts is reported "
                          f"(default: {BUDGET_PER_5000:g} s per 5,000 samples; 0: no limit)")
+    dg.add_argument("--resistance-known", action="store_true", dest="resistance_known",
+                    help="bench log: the config's motor.resistance is measured (a stalled-rotor test at the "
+                         "motor terminals), so a supply resistance is told from a winding-resistance error")
     add_fit_outputs(dg)
     dg.set_defaults(func=run)
 
@@ -31,8 +35,14 @@ def run(a) -> int:
     from ..diagnosis import tty_progress
     from ..errors import ConfigError
 
+    from ..benchlog import is_bench_log
+
     outs = outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     cfg = load_config(a)
+    if any(is_bench_log(d, a.time_column, a.speed_column) for d in a.data):
+        return run_bench(a, cfg, outs)
+    if a.resistance_known:
+        raise ConfigError("--resistance-known is for a bench log (columns time, voltage, current, booster_pressure)")
     # several files: measurements of one pump at different speeds, fitted together
     data = [read_data(a, d, cfg.speed if cfg.mode == "speed" else None) for d in a.data]
     if a.budget is not None and not a.budget >= 0:
@@ -51,4 +61,33 @@ def run(a) -> int:
         diagnosis_report(out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data)
 
     write_fit_outputs(outs, a, out.to_json(), report)
+    return 0
+
+
+def run_bench(a, cfg, outs) -> int:
+    """diagnose on a bench log (the command recognised its columns): the pump-level library."""
+    from ..benchlog import read_bench_log
+    from ..diagnosis import tty_progress
+    from ..diagnosis.pump_workflow import diagnose_bench
+    from ..errors import ConfigError
+
+    if len(a.data) > 1:
+        raise ConfigError("a bench log is diagnosed on its own: give one log file")
+    for flag, given in (("--steady", a.steady), ("--resample", a.resample),
+                        ("--speed-tolerance", a.speed_tolerance is not None)):
+        if given:
+            raise ConfigError(f"{flag} is for torque data; a bench log is diagnosed as logged: drop {flag}")
+    if a.report:
+        raise ConfigError("--report: the HTML report of a bench-log diagnosis is not available yet; use --json")
+    if a.budget is not None and not a.budget >= 0:
+        raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
+    log = read_bench_log(a.data[0], cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
+    for note in log.notes:
+        info(f"{log.name}: {note}")
+    out = diagnose_bench(cfg, log, resistance_known=a.resistance_known,
+                         progress=tty_progress() if live() else None, budget=a.budget or None)
+    if live():
+        print(file=sys.stderr)
+    print(out)
+    write_fit_outputs(outs, a, out.to_json(), None)
     return 0

@@ -2,6 +2,7 @@
 records. The result's `notes` are their sentences, in the order the steps made them."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 
@@ -10,6 +11,19 @@ class Note:
 
     def text(self) -> str:
         raise NotImplementedError
+
+
+class Budgeted:
+    """A diagnosis run with a time budget: `deadline` (perf_counter() after which no new step or
+    refit starts; None: no limit) and `budget` ({"seconds", "bound", "cut"})."""
+
+    def out_of_time(self, what: str) -> bool:
+        """True (and `what` listed as cut) once the time budget is spent."""
+        if self.deadline is None or time.perf_counter() < self.deadline:
+            return False
+        self.budget["bound"] = True
+        self.budget["cut"].append(what)
+        return True
 
 
 @dataclass(frozen=True)
@@ -81,10 +95,12 @@ class TooSmall(Note):
     size: float
     factor: float
     scatter: float
+    unit: str = "N m"
+    quantity: str = "the torque"
 
     def text(self) -> str:
-        return (f"{self.label} not named: it changes (explains) the torque by {self.size:.3g} N m RMS, below "
-                f"{self.factor:g} x the noise's scatter {self.scatter:.3g} N m")
+        return (f"{self.label} not named: it changes (explains) {self.quantity} by {self.size:.3g} {self.unit} RMS, "
+                f"below {self.factor:g} x the noise's scatter {self.scatter:.3g} {self.unit}")
 
 
 @dataclass(frozen=True)
@@ -127,20 +143,22 @@ class SmallRemainder(Note):
     systematic: float
     relevant: float
     sigma: float
+    unit: str = "N m"
 
     def text(self) -> str:
-        return (f"a systematic residual of {self.systematic:.3g} N m remains, below {self.relevant:g} x the noise "
-                f"sigma ({self.sigma:.3g} N m): not claimed as a discrepancy")
+        return (f"a systematic residual of {self.systematic:.3g} {self.unit} remains, below {self.relevant:g} x the "
+                f"noise sigma ({self.sigma:.3g} {self.unit}): not claimed as a discrepancy")
 
 
 @dataclass(frozen=True)
 class HeavyTails(Note):
     excess_rms: float
     sigma: float
+    unit: str = "N m"
 
     def text(self) -> str:
-        return (f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add {self.excess_rms:.3g} N m "
-                f"RMS above the noise sigma {self.sigma:.3g} N m")
+        return (f"heavy-tailed residual (kurtosis test): spikes or non-Gaussian noise add {self.excess_rms:.3g} "
+                f"{self.unit} RMS above the noise sigma {self.sigma:.3g} {self.unit}")
 
 
 @dataclass(frozen=True)

@@ -152,8 +152,21 @@ class PolarEstimate:
     phase: dict  # {value, stderr} [rad]
 
 
+class NamedSteps:
+    """What every diagnosis result reads off its `steps` and its step `log`."""
+
+    @property
+    def effects(self) -> list[str]:
+        """The named effects, in the order added."""
+        return [s.effect.name for s in self.steps]
+
+    @property
+    def notes(self) -> list[str]:
+        return [n.text() for n in self.log]
+
+
 @dataclass(frozen=True)
-class DiagnosisResult:
+class DiagnosisResult(NamedSteps):
     """What `diagnose` found. `to_json()` is the JSON output (spec section 7: its names are the
     keys), `result["key"]` reads it; the typed fields (`steps`, `screens`, `history`, `log`) carry
     what the report draws; `str()` (or `summary()`) is the step table."""
@@ -182,14 +195,6 @@ class DiagnosisResult:
             "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected", "method", "wall_time",
             "drift", "budget")
 
-    @property
-    def effects(self) -> list[str]:
-        """The named effects, in the order added."""
-        return [s.effect.name for s in self.steps]
-
-    @property
-    def notes(self) -> list[str]:
-        return [n.text() for n in self.log]
 
     white_alpha = WHITE_ALPHA
 

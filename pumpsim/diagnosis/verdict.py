@@ -94,12 +94,13 @@ class Verdict:
     drifts: tuple  # identification.drift.Drift per drifting parameter
 
 
-def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS) -> Verdict:
+def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS, unit: str = "N m") -> Verdict:
+    """The verdict of a detection (consistent(), p["family"], systematic); `unit`: the residual's."""
     consistent = detection.consistent()
     # never "consistent with noise" while a detector rejects: a remainder below the relevance bar is
     # still said, with its size
     quiet = ("consistent with noise" if detection.p["family"] >= opts.unexplained_alpha else
-             f"a systematic remainder of {detection.systematic:.3g} N m below the relevance bar")
+             f"a systematic remainder of {detection.systematic:.3g} {unit} below the relevance bar")
     text = (quiet + (" after the named effects" if effects else "")) if consistent else \
         ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
     if drifts:
@@ -107,13 +108,14 @@ def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS) -> 
     return Verdict(consistent, text, tuple(drifts))
 
 
-def verdict_notes(detection, kurtosis: dict, consistent: bool, opts: DiagnosisOptions = OPTIONS) -> list:
+def verdict_notes(detection, kurtosis: dict, consistent: bool, opts: DiagnosisOptions = OPTIONS,
+                  unit: str = "N m") -> list:
     """What the verdict adds to the log: a remainder below the relevance bar, heavy tails."""
     notes = []
     if consistent and detection.p["family"] < opts.unexplained_alpha:
-        notes.append(SmallRemainder(detection.systematic, opts.relevant, detection.sigma))
+        notes.append(SmallRemainder(detection.systematic, opts.relevant, detection.sigma, unit))
     # claimed like a systematic residual: significant AND relevant (the tails add at least
     # `relevant` x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
     if kurtosis["p_value"] < opts.unexplained_alpha and kurtosis["excess_rms"] >= opts.relevant * kurtosis["mad_sigma"]:
-        notes.append(HeavyTails(kurtosis["excess_rms"], kurtosis["mad_sigma"]))
+        notes.append(HeavyTails(kurtosis["excess_rms"], kurtosis["mad_sigma"], unit))
     return notes

@@ -16,7 +16,7 @@ from ..identification import base_name, half_band, speed_band
 
 from .detectors import Detection, kurtosis_off_reversals, where_unexplained
 from .effects import candidates, harmonic_pair, plausible
-from .log import BaselineImplausible, BudgetReached, Drifting, Rivals, SpeedColumnDrift, SpeedHeld
+from .log import BaselineImplausible, Budgeted, BudgetReached, Drifting, Rivals, SpeedColumnDrift, SpeedHeld
 from .options import OPTIONS, DiagnosisOptions
 from .refit import contender_fits, try_speed
 from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, vane_cofs
@@ -53,7 +53,7 @@ def _fit(cfg, data, names, values, ripple, screen, multistart=True, screen_hold=
 
 
 @dataclass
-class Run:
+class Run(Budgeted):
     """What every step of one diagnosis shares: the options, the data (whole record and screening
     window), the torque scale the plausibility ranges need, and the step log the steps add to."""
 
@@ -75,14 +75,6 @@ class Run:
 
     def implausible(self, st) -> list:
         return plausible(st.cfg, st.values, self.torque_rms, self.mean_torque)
-
-    def out_of_time(self, what: str) -> bool:
-        """True (and `what` listed as cut) once the time budget is spent."""
-        if self.deadline is None or _time.perf_counter() < self.deadline:
-            return False
-        self.budget["bound"] = True
-        self.budget["cut"].append(what)
-        return True
 
 
 @dataclass(frozen=True)

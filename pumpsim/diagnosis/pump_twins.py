@@ -1,0 +1,70 @@
+"""Twin bench logs with a known fault, for the bench-log diagnosis's tests and benchmark grid: the
+library's effects (pump_effects) and faults outside it (a larger booster, a pressure sensor offset)."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..identification.pumpdown_fit import twin_log
+from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
+from .pump_effects import BY_NAME, RISE, SUPPLY
+
+HEATING_ITERATIONS = 3  # fixed-point passes for the heated drive's current (the rise is a small correction)
+
+# faults outside the library: (what changes, how it is set)
+OUTSIDE = {
+    "booster_volume": "the booster's volume differs from the config (booster.volume x size)",
+    "pressure_offset": "the pressure sensor reads `size` Pa high",
+}
+
+
+def fault_values(cfg, effect: str, size: float) -> dict:
+    """The config values a library effect of `size` (its parameter's change from absent) sets;
+    {} for the effects that are not config keys (SUPPLY as motor.resistance, RISE: heated_twin)."""
+    e = BY_NAME[effect]
+    if e.param == SUPPLY:
+        return {"motor.resistance": cfg.pneumatic.values["motor.resistance"] + size}
+    if e.param == RISE:
+        return {}
+    return {e.param: e.absent_value(cfg) + size}
+
+
+def twin_with_fault(cfg, duration, rate, fault=None, size=0.0, values=None, noise=0.005, seed=0,
+                    rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL):
+    """A twin bench log (pumpdown_fit.twin_log) of a pump with `fault` (a library effect's name or
+    one of OUTSIDE; None: none) of `size`: a parameter change in its unit, a volume factor, a sensor
+    offset in Pa. A winding heating is simulated with the drive V - dR (t/T) i, i the model's own
+    current (fixed point), and logged with the supply's voltage."""
+    vals = dict(values or {})
+    if fault in BY_NAME:
+        vals.update(fault_values(cfg, fault, size))
+    elif fault == "booster_volume":
+        vals["booster.volume"] = cfg.pneumatic.values["booster.volume"] * size
+    elif fault not in (None, "pressure_offset"):
+        raise ValueError(f"fault must be a library effect or one of {', '.join(OUTSIDE)}, got {fault!r}")
+    kw = {"values": vals, "noise": noise, "seed": seed, "rtol": rtol, "atol": atol}
+    if fault is not None and BY_NAME.get(fault) is not None and BY_NAME[fault].param == RISE:
+        return _heated_twin(cfg, duration, rate, size, kw)
+    log = twin_log(cfg, duration, rate, **kw)
+    if fault == "pressure_offset":
+        log = dataclasses.replace(log, booster_pressure=log.booster_pressure + size)
+    return log
+
+
+def _heated_twin(cfg, duration, rate, rise, kw):
+    v = cfg.pneumatic.values["motor.voltage"]
+    current = None
+    for _ in range(HEATING_ITERATIONS):
+        drive = _drive(v, rise, duration, current)
+        current = twin_log(cfg, duration, rate, voltage=drive, **{**kw, "noise": 0.0}).current
+    drive = _drive(v, rise, duration, current)
+    log = twin_log(cfg, duration, rate, voltage=drive, **kw)
+    # logged: the supply's voltage (with the log's noise), not the drive the winding sees
+    return dataclasses.replace(log, voltage=log.voltage + (v - drive(log.time)))
+
+
+def _drive(v, rise, duration, current):
+    if current is None:
+        return lambda t: np.full_like(t, v)
+    return lambda t: v - rise * (t / duration) * current[:t.size]

@@ -1,0 +1,128 @@
+"""`pumpsim diagnose CONFIG LOG` on bench logs (spec §10): twin logs of the EVP example with a
+0.4 L booster (0.5 s: its pump-down from the atmosphere to ~35 kPa), 0.5 % noise on every channel,
+vane COF 0.17 against the config's 0.15 (the baseline fits it), one fault each; the model at rtol
+1e-4 (the twins at 1e-6; a clean log's residual stays the noise: test_clean_log_names_nothing).
+Each diagnosis makes ~30-60 runs of the log: the effect cases are marked slow."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pumpsim.benchlog import write_bench_log
+from pumpsim.config import load_config
+from pumpsim.diagnosis.pump_effects import PUMP_EFFECTS, heated_drive
+from pumpsim.diagnosis.pump_twins import twin_with_fault
+from pumpsim.diagnosis.pump_workflow import diagnose_bench
+from tests.conftest import ROOT
+from tests.integration.test_bench_identify import small_booster
+
+TRUTH = {"mu": 0.17}
+LOOSE = {"rtol": 1e-4, "atol": 1e-5}
+DURATION, RATE = 0.5, 500
+# clear faults of each kind (bench/benchlog_diagnose_grid.py uses the same sizes)
+FAULTS = {"booster_leak": 4e-5, "tip_clearance": 8e-6, "valve_late": 10000.0, "motor_friction": 0.05,
+          "winding_heating": 0.15}
+
+
+@pytest.fixture(scope="module")
+def cfg(tmp_path_factory):
+    return load_config(small_booster(tmp_path_factory.mktemp("bench_diagnose")))
+
+
+def diagnosed(cfg, fault, size, seed=1, **kw):
+    log = twin_with_fault(cfg, DURATION, RATE, fault, size, values=TRUTH, noise=0.005, seed=seed)
+    return diagnose_bench(cfg, log, **LOOSE, **kw)
+
+
+def test_library_declares_the_spec_effects():
+    names = {e.name for e in PUMP_EFFECTS}
+    assert {"booster_leak", "tip_clearance", "valve_late", "motor_friction", "supply_resistance",
+            "winding_heating"} <= names
+
+
+def test_heated_drive_lowers_the_voltage_by_the_rising_drop(cfg):
+    log = twin_with_fault(cfg, 0.1, RATE, None, 0.0, noise=0.0, **LOOSE)
+    hot = heated_drive(log, 0.2)
+    drop = log.voltage - hot.voltage
+    assert drop[0] == 0.0 and drop[-1] == pytest.approx(0.2 * log.current[-1])
+    assert heated_drive(log, 0.0) is log
+
+
+def test_clean_log_names_nothing(cfg):
+    res = diagnosed(cfg, None, 0.0)
+    assert res.effects == [] and not res.unexplained, str(res)
+    assert res.baseline["params"]["mu"]["value"] == pytest.approx(0.17, rel=0.03)
+    js = res.to_json()
+    for key in ("baseline", "steps", "effects", "final", "unexplained", "confounded"):
+        assert key in js
+    json.dumps(js)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["valve_late", "motor_friction", "winding_heating"])
+def test_each_effect_is_named_and_the_gap_shrinks(cfg, fault):
+    """Named first, the gap shrinking to the noise. After a winding heating (fitted RMS 0.94 noise
+    sigmas on seed 1) the detectors still reject: its drive uses the logged current for the model's
+    (the errors-in-variables approximation, pump_effects), and the verdict says so."""
+    res = diagnosed(cfg, fault, FAULTS[fault])
+    assert res.effects[:1] == [fault], str(res)
+    step = res.steps[0]
+    assert step.rms_after < step.rms_before and step.bic_after < step.bic_before
+    assert step.rms_after < 1.2, str(res)
+    assert fault == "winding_heating" or not res.unexplained, str(res)
+    assert step.params["change"] == pytest.approx(FAULTS[fault], rel=0.5), str(res)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", ["booster_leak", "tip_clearance"])
+def test_a_leak_and_worn_tips_are_confounded_on_a_short_log_not_guessed(cfg, fault):
+    """On 0.5 s (down to ~35 kPa) their signatures are collinear (|cos| > 0.995 once mu is fitted):
+    the pair is reported with the experiments that separate them, and neither is named."""
+    res = diagnosed(cfg, fault, FAULTS[fault])
+    assert res.effects == [] and sorted(res.confounded[0]) == ["booster_leak", "tip_clearance"], str(res)
+    assert any("hold test" in n for n in res.notes)
+
+
+@pytest.mark.slow
+def test_supply_resistance_is_confounded_unless_the_winding_resistance_is_known(cfg):
+    log = twin_with_fault(cfg, DURATION, RATE, "supply_resistance", 0.08, values=TRUTH, noise=0.005, seed=1)
+    res = diagnose_bench(cfg, log, **LOOSE)
+    assert res.effects == [] and ["supply_resistance", "winding_resistance"] in [sorted(p) for p in res.confounded], \
+        str(res)
+    assert "confounded" in res.verdict
+    known = diagnose_bench(cfg, log, resistance_known=True, **LOOSE)
+    assert known.effects == ["supply_resistance"], str(known)
+    assert known.steps[0].params["change"] == pytest.approx(0.08, rel=0.3)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault,size", [
+    pytest.param("booster_volume", 1.3, marks=pytest.mark.xfail(strict=True, reason=(
+        "known failure: a 30 % larger booster is named as tip_clearance, winding_heating and valve_late in "
+        "turn (each step passes LR/BIC/size), the verdict saying 'named effects and an unexplained remainder'; "
+        "the greedy search has no guard against a misspecified model yet"))),
+    ("pressure_offset", 1500.0)])
+def test_an_outside_fault_is_not_named_as_a_library_effect(cfg, fault, size):
+    res = diagnosed(cfg, fault, size)
+    assert res.effects == [], str(res)
+
+
+def test_cli_diagnoses_a_bench_log_with_json_and_exit_codes(tmp_path, cfg):
+    cfg_path = small_booster(tmp_path)
+    log = twin_with_fault(cfg, 0.2, RATE, None, 0.0, values=TRUTH, noise=0.005, seed=3, **LOOSE)
+    path = tmp_path / "bench.csv"
+    write_bench_log(path, log)
+    js = tmp_path / "d.json"
+    # a budget spent at once: the baseline only, said in the budget (a whole search is the slow tests')
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), "--json", str(js),
+                        "--budget", "1e-6"], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(js.read_text())
+    assert set(out) >= {"baseline", "steps", "effects", "final", "unexplained", "confounded", "verdict"}
+    assert "mu" in out["baseline"]["params"] and out["budget"]["seconds"] == 1e-6
+    for extra, needle in ((["--report", str(tmp_path / "r.html")], "not available yet"),
+                          (["--budget", "-1"], "--budget"), (["--steady"], "--steady")):
+        r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), *extra],
+                           capture_output=True, text=True, cwd=ROOT)
+        assert r.returncode == 2 and needle in r.stderr and "Traceback" not in r.stderr, r.stderr
