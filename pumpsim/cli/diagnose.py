@@ -77,8 +77,6 @@ def run_bench(a, cfg, outs) -> int:
                         ("--speed-tolerance", a.speed_tolerance is not None)):
         if given:
             raise ConfigError(f"{flag} is for torque data; a bench log is diagnosed as logged: drop {flag}")
-    if a.report:
-        raise ConfigError("--report: the HTML report of a bench-log diagnosis is not available yet; use --json")
     if a.budget is not None and not a.budget >= 0:
         raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
     log = read_bench_log(a.data[0], cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
@@ -89,5 +87,11 @@ def run_bench(a, cfg, outs) -> int:
     if live():
         print(file=sys.stderr)
     print(out)
-    write_fit_outputs(outs, a, out.to_json(), None)
+
+    def report(path):
+        from ..report.bench_diagnosis import bench_diagnosis_report
+
+        bench_diagnosis_report(out, path, cfg=cfg, log=log)
+
+    write_fit_outputs(outs, a, out.to_json(), report)
     return 0

@@ -81,6 +81,7 @@ class BenchDiagnosis(NamedSteps):
     wall_time: float
     measured: dict = field(default_factory=dict)  # channel -> compared values (Pa, A, rad/s)
     times: dict = field(default_factory=dict)  # channel -> their times [s]
+    noise: dict = field(default_factory=dict)  # channel -> its noise sigma (Pa, A, rad/s): the RMS unit
     history: tuple = ()  # BenchModelFit: the baseline, then after each named effect
     budget: dict = field(default_factory=dict)
     runs: int = 0  # model runs the diagnosis made

@@ -443,5 +443,5 @@ def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wa
         verdict=text, log=tuple(run.log), detectors=detection.to_json(),
         ranking=[s.to_json(level) for s in ranking], method=method_text(opts),
         wall_time=_time.perf_counter() - wall0, measured=dict(inner.measured),
-        times={c: inner.bench.times(c) for c in inner.channel_names}, history=tuple(history), budget=run.budget,
-        runs=run.drives.runs)
+        times={c: inner.bench.times(c) for c in inner.channel_names}, noise=dict(inner.sigma),
+        history=tuple(history), budget=run.budget, runs=run.drives.runs)

@@ -121,8 +121,36 @@ def test_cli_diagnoses_a_bench_log_with_json_and_exit_codes(tmp_path, cfg):
     out = json.loads(js.read_text())
     assert set(out) >= {"baseline", "steps", "effects", "final", "unexplained", "confounded", "verdict"}
     assert "mu" in out["baseline"]["params"] and out["budget"]["seconds"] == 1e-6
-    for extra, needle in ((["--report", str(tmp_path / "r.html")], "not available yet"),
+    for extra, needle in ((["--report", str(tmp_path / "r.pdf")], "--report"),
                           (["--budget", "-1"], "--budget"), (["--steady"], "--steady")):
         r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), *extra],
                            capture_output=True, text=True, cwd=ROOT)
         assert r.returncode == 2 and needle in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+def test_cli_writes_the_html_report_of_a_bench_log_diagnosis(tmp_path, cfg):
+    """The clean log (nothing named): the page holds the verdict, the effects table, one figure
+    (measured against the model; no before/after figure without a named effect) and the provenance
+    with the log's SHA-256; a --report that is not .html is refused before any work."""
+    import hashlib
+    import re
+
+    cfg_path = small_booster(tmp_path)
+    log = twin_with_fault(cfg, DURATION, RATE, None, 0.0, values=TRUTH, noise=0.005, seed=1)
+    path = tmp_path / "bench.csv"
+    write_bench_log(path, log)
+    page, js = tmp_path / "d.html", tmp_path / "d.json"
+    r = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), "--report", str(page),
+                        "--json", str(js)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    html, out = page.read_text(), json.loads(js.read_text())
+    assert out["effects"] == [] and not out["unexplained"], out["verdict"]
+    assert f"Verdict: {out['verdict']}." in html and "No effect of the library is named." in html
+    assert "<h2>Effects</h2>" in html and ">mu<" in html
+    assert len(re.findall(r"<img [^>]*src=\"data:image/png;base64,", html)) == 1
+    assert "<h2>Provenance</h2>" in html and hashlib.sha256(path.read_bytes()).hexdigest() in html
+    assert "bench.csv" in html
+    bad = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), "--report",
+                          str(tmp_path / "d.txt")], capture_output=True, text=True, cwd=ROOT)
+    assert bad.returncode == 2 and "--report" in bad.stderr and ".html" in bad.stderr, bad.stderr
+    assert "Traceback" not in bad.stderr and not (tmp_path / "d.txt").exists()
