@@ -16,8 +16,8 @@ import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
+from ..distributions import chi2_sf
 from ..identification.optimiser import scaled_svd
 from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
@@ -273,7 +273,7 @@ def _screen(run, current: Fit, effects) -> list:
         base = np.linalg.lstsq(Jw, rw - cw * coef, rcond=None)[0]
         one = {n: current.values[n] + d for n, d in zip(current.names, base)}
         one[e.param] = float(np.clip(current.values[e.param] + coef, prob.lower[-1], prob.upper[-1]))
-        out.append(Screened(e, lm, float(stats.chi2.sf(lm, 1)), one, Mc, inside))
+        out.append(Screened(e, lm, float(chi2_sf(lm, 1)), one, Mc, inside))
     return sorted(out, key=lambda s: -s.score)
 
 
@@ -355,7 +355,7 @@ def _judge(run, current: Fit, group: list, detection) -> dict:
     # the current residual's would be the misfit's
     rho = ar1(fit.residual)
     comp = lr_bic(current, len(current.names), fit, len(names), rho, None)
-    lr_p = max(float(stats.chi2.sf(comp.lr, 1)), float(stats.chi2.sf(comp.lr_plain, 1)))
+    lr_p = max(float(chi2_sf(comp.lr, 1)), float(chi2_sf(comp.lr_plain, 1)))
     n = current.residual.size
     # contenders are compared by the plain BIC (each one's prewhitening filter is its own)
     bic0, bic1 = bic(float(current.residual @ current.residual), n, len(current.names)), \
