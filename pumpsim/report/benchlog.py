@@ -201,7 +201,7 @@ def effects_figure(rows, unit="noise σ") -> str:
     names = [r[0] for r in rows]
     y = np.arange(len(rows))
     fig, ax = plt.subplots(figsize=(8.5, 0.5 * len(rows) + 1.3))
-    ax.barh(y - 0.2, [r[1] for r in rows], height=0.38, color="0.7", label="before (nominal model)")
+    ax.barh(y - 0.2, [r[1] for r in rows], height=0.38, color="0.7", label="before (the model up to the previous effect)")
     ax.barh(y + 0.2, [r[2] for r in rows], height=0.38, color="C0", label="after refitting the effect")
     for k, (_, before, after) in enumerate(rows):
         ax.text(before, k - 0.2, f" {before:.3g}", va="center", fontsize=8)
