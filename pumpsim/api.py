@@ -1,6 +1,8 @@
 """The Python API behind `pumpsim.identify` and `pumpsim.diagnose`: the same inputs, defaults and
 checks as the command line, for a config given as a path or a `PumpConfig` and data given as a
-path, a `Dataset`, arrays, or a list of those (several measurements fitted together)."""
+path, a `Dataset`, arrays, or a list of those (several measurements fitted together) -- or a bench
+log (a `BenchLog`, or a file with the columns time, voltage, current, booster_pressure), which
+both recognise as the command line does."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -75,7 +77,19 @@ def as_datasets(data, options: DataOptions | None = None, nominal_speed=None) ->
     return out
 
 
-def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", relaxation=1.0,
+def bench_log(config: PumpConfig, data):
+    """The bench log `data` is (a BenchLog, or a file with a bench log's columns, read and checked
+    against `config`), or None for torque data."""
+    from .benchlog import BenchLog, is_bench_log, read_bench_log
+
+    if isinstance(data, BenchLog):
+        return data
+    if isinstance(data, (str, Path)) and is_bench_log(data):
+        return read_bench_log(data, config)
+    return None
+
+
+def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0,
              initial=None, max_iter=50, options: DataOptions | None = None, force=False, log=None):
     """Fit model parameters to measured drive torque at constant speed.
 
@@ -86,7 +100,8 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
     data : path, Dataset, {"time", "torque"[, "speed", "angle"]} arrays, (time, torque[, speed]), or a list
         Time [s], torque [N m], speed [rad/s], angle [rad]. Files: CSV (units from the header, e.g.
         `torque [N*mm]`), MATLAB .mat, NI .tdms. A list is fitted jointly (one pump, several speeds).
-    params : sequence of str, default ("mu", "theta0") as the command line
+    params : sequence of str, default ("mu", "theta0") as the command line (for a bench log: "mu",
+        "booster.leak", "motor.resistance", or any numeric config key path of the pump-down model)
         mu (vane-housing dynamic COF, slot COF tied to it in the configured proportion), mu_slot,
         theta0 [rad], speed [rad/s], torque_offset [N m], delay [s], or a numeric config key path
         (e.g. "housing.center.0").
@@ -114,7 +129,14 @@ def identify(config, data, params=("mu", "theta0"), *, method="gauss-newton", re
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
-    params = [params] if isinstance(params, str) else list(params)
+    params = [params] if isinstance(params, str) else (None if params is None else list(params))
+    log_data = bench_log(cfg, data)
+    if log_data is not None:
+        from .identification.pumpdown_fit import identify_bench
+
+        return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
+                              max_iter=max_iter, relaxation=relaxation, progress=log)
+    params = params or ["mu", "theta0"]
     nominal = None if "speed" in params or cfg.mode != "speed" else cfg.speed
     datasets = as_datasets(data, options, nominal)
     warnings = list(cfg.warnings)
@@ -145,6 +167,10 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     budget : wall seconds after which no further search step starts (None: no limit); what it cut
         is listed in `d["budget"]` and the notes
 
+    A bench log is diagnosed with the pump-level library (booster leak, tip clearance, late exhaust
+    valve, motor friction, supply resistance, winding heating) and returns a BenchDiagnosis
+    (`.to_json()`, `.summary()`).
+
     Returns
     -------
     DiagnosisResult: `d["key"]` reads the JSON output (baseline, steps, effects, final, verdict,
@@ -162,6 +188,11 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
+    log_data = bench_log(cfg, data)
+    if log_data is not None:
+        from .diagnosis.pump_workflow import diagnose_bench
+
+        return diagnose_bench(cfg, log_data, progress=progress, budget=budget)
     datasets = as_datasets(data, options, cfg.speed if cfg.mode == "speed" else None)
     warnings = list(cfg.warnings)
     for d in datasets:

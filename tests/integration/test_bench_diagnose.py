@@ -154,3 +154,22 @@ def test_cli_writes_the_html_report_of_a_bench_log_diagnosis(tmp_path, cfg):
                           str(tmp_path / "d.txt")], capture_output=True, text=True, cwd=ROOT)
     assert bad.returncode == 2 and "--report" in bad.stderr and ".html" in bad.stderr, bad.stderr
     assert "Traceback" not in bad.stderr and not (tmp_path / "d.txt").exists()
+
+
+def test_python_api_recognises_a_bench_log_as_the_command_line_does(tmp_path, cfg):
+    """pumpsim.identify / pumpsim.diagnose on a bench-log file: the pump-down model's fit (its
+    default parameters) and the pump-level diagnosis, as `identify CONFIG LOG` / `diagnose CONFIG LOG`."""
+    import pumpsim
+    from pumpsim.diagnosis.pump_result import BenchDiagnosis
+    from pumpsim.identification.pumpdown_fit import BenchFit
+
+    cfg_path = small_booster(tmp_path)
+    log = twin_with_fault(cfg, 0.2, RATE, None, 0.0, values=TRUTH, noise=0.005, seed=3, **LOOSE)
+    path = tmp_path / "bench.csv"
+    write_bench_log(path, log)
+    fit = pumpsim.identify(cfg_path, path)
+    assert isinstance(fit, BenchFit)
+    assert list(fit.result.estimates) == ["mu", "booster.leak", "motor.resistance"]
+    assert fit.result.estimates["mu"].value == pytest.approx(TRUTH["mu"], rel=0.05)
+    d = pumpsim.diagnose(cfg_path, path, budget=1e-6)  # the baseline only (the search is the slow tests')
+    assert isinstance(d, BenchDiagnosis) and "mu" in d.to_json()["baseline"]["params"]
