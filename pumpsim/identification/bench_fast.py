@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from ..pneumatics.pumpdown import orifice_factor
+
 MAP_POINTS = 8  # booster pressures mapped, geometric between the log's extremes
 MAP_STEP = 0.1  # a map parameter's step for the maps' sensitivity, of its scale
 # the maps' integration: they agree with rtol 1e-6 ones to ~0.1 % (EVP example) at 0.4 of the cost,
@@ -45,18 +47,9 @@ def map_pressures(log_pressure, start) -> np.ndarray:
 def leak_flows(v, p_b):
     """The booster leak's mass flow [kg/s] per kg/s of booster.leak at the booster pressures p_b
     (an array): the kernel's orifice law from the atmosphere, 1 at full vacuum."""
-    g, R, T, pa = v["gas.gamma"], v["gas.gas_constant"], v["gas.temperature"], v["gas.atmosphere"]
+    g = v["gas.gamma"]
     choked = math.sqrt(g) * (2 / (g + 1)) ** ((g + 1) / (2 * (g - 1)))
-    r_crit = (2 / (g + 1)) ** (g / (g - 1))
-    lin = 0.995
-
-    def psi(r):
-        r = np.maximum(r, r_crit)
-        return np.sqrt(np.maximum(2 * g / (g - 1) * (r ** (2 / g) - r ** ((g + 1) / g)), 0.0))
-
-    r = np.minimum(np.asarray(p_b, float) / pa, 1.0)
-    f = np.where(r > lin, psi(lin) * (1 - r) / (1 - lin), psi(r))
-    return f / choked
+    return orifice_factor(np.minimum(np.asarray(p_b, float) / v["gas.atmosphere"], 1.0), v) / choked
 
 
 def _nodes(n, m) -> np.ndarray:

@@ -334,18 +334,24 @@ def _leak_area(v):
     return v["booster.leak"] / flux
 
 
-def _orifice(p_up, p_down, area, v):
-    """The kernel's orifice law (codegen/gas.py) for the booster leak, p_up >= p_down."""
-    if area == 0.0:
-        return 0.0
-    g, R, T = v["gas.gamma"], v["gas.gas_constant"], v["gas.temperature"]
+def orifice_factor(r, v):
+    """The kernel's orifice law (codegen/gas.py) without its area and upstream state: the flow
+    function of the pressure ratio r = p_down / p_up <= 1 (a number or an array), linearised above
+    r = 0.995 so the flow goes to zero smoothly."""
+    g = v["gas.gamma"]
     r_crit = (2 / (g + 1)) ** (g / (g - 1))
 
-    def psi(r):
-        r = max(r, r_crit)
-        return math.sqrt(max(2 * g / (g - 1) * (r ** (2 / g) - r ** ((g + 1) / g)), 0.0))
+    def psi(x):
+        x = np.maximum(x, r_crit)
+        return np.sqrt(np.maximum(2 * g / (g - 1) * (x ** (2 / g) - x ** ((g + 1) / g)), 0.0))
 
-    r = p_down / p_up
     lin = 0.995
-    f = psi(lin) * (1 - r) / (1 - lin) if r > lin else psi(r)
-    return area * p_up / math.sqrt(R * T) * f
+    return np.where(r > lin, psi(lin) * (1 - r) / (1 - lin), psi(r))
+
+
+def _orifice(p_up, p_down, area, v):
+    """The booster leak's orifice flow, p_up >= p_down."""
+    if area == 0.0:
+        return 0.0
+    R, T = v["gas.gas_constant"], v["gas.temperature"]
+    return area * p_up / math.sqrt(R * T) * float(orifice_factor(p_down / p_up, v))
