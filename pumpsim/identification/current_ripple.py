@@ -39,6 +39,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 
@@ -152,14 +153,6 @@ def complex_factor(c) -> np.ndarray:
     return np.array([[c.real, -c.imag], [c.imag, c.real]])
 
 
-def block_diag(blocks) -> np.ndarray:
-    n = 2 * len(blocks)
-    M = np.zeros((n, n))
-    for k, b in enumerate(blocks):
-        M[2 * k:2 * k + 2, 2 * k:2 * k + 2] = b
-    return M
-
-
 def torque_harmonics(log, motor, sl, theta, orders) -> tuple:
     """The load torque's harmonics at `orders` over the window `sl` (module doc) and their
     covariance (the channels' noises independent)."""
@@ -175,7 +168,7 @@ def torque_harmonics(log, motor, sl, theta, orders) -> tuple:
         a_i = k + 1j * I * Om * (R + 1j * Om * L) / k
         a_x = -1j * I * Om / k
     tau = a_i * ci + a_x * cx
-    Mi, Mx = (block_diag([complex_factor(c) for c in a]) for a in (a_i, a_x))
+    Mi, Mx = (block_diag(*[complex_factor(c) for c in a]) for a in (a_i, a_x))
     return tau, Mi @ Ci @ Mi.T + Mx @ Cx @ Mx.T
 
 
