@@ -74,6 +74,7 @@ def structures(study) -> list:
 def kernel_keys(study) -> dict:
     """Variant -> content key of the compiled library this process loads (or builds)."""
     from ..kernels import load_kernels
+    from .alike import one_vane
     from .evaluate import fast_kernel
 
     out = {}
@@ -82,6 +83,9 @@ def kernel_keys(study) -> dict:
         fast = fast_kernel(st) if st.model == "constrained" else None
         if fast is not None:
             out[f"{st.variant} (SIMD)"] = fast.key
+        one = one_vane(st) if st.model == "constrained" else None
+        if one is not None:
+            out[f"{st.variant} (SIMD, one vane)"] = one.fast.key
     return out
 
 
@@ -306,12 +310,14 @@ def _build_kernels(study) -> None:
     """Builds missing kernel variants once, before local workers look."""
     from ..kernels import load_kernels
 
+    from .alike import one_vane
     from .evaluate import fast_kernel
 
     for st in structures(study):
         load_kernels(st)
         if st.model == "constrained":
             fast_kernel(st)
+            one_vane(st)
 
 
 def _plan(study, X, man, batch_size, get_client) -> Plan:
