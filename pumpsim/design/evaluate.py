@@ -528,9 +528,9 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict
     todo = _mapped_results(study, X, results, speeds_of)
     _per_design_results(study, X, todo, results, speeds_of)
     rows = []
-    for j in range(len(X)):
-        base = {"design": int(ids[j])}
-        keyvals = {k: float(x) for k, x in zip(keys, X[j])}
+    for j, (i, xs) in enumerate(zip(np.asarray(ids).tolist(), np.asarray(X, dtype=float).tolist())):
+        base = {"design": int(i)}
+        keyvals = dict(zip(keys, xs))
         status, per_speed = results[j]
         if per_speed is None:
             for w in speeds_of[j]:

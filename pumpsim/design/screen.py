@@ -26,6 +26,8 @@ def housing_samples(P, index: dict, n: int) -> tuple[np.ndarray, np.ndarray, np.
     a, b, cx, cy, psi = (P[:, index[k]][:, None] for k in
                          ("housing.a", "housing.b", "housing.center.0", "housing.center.1", "housing.angle"))
     alpha = np.linspace(-math.pi, math.pi, n, endpoint=False)
+    if np.all(psi == psi[0]):  # one orientation (the usual case): its angles' sines once
+        psi = psi[:1]
     beta = alpha[None, :] - psi
     c, s = np.cos(beta), np.sin(beta)
     r = a * b / np.sqrt((b * c) ** 2 + (a * s) ** 2)
