@@ -36,8 +36,7 @@ def kernel_alone(s, repeats=3):
     through the N-vane library (what a study evaluated before alike vanes went through one), and
     one vane through the 1-vane library (design.alike, what the study runs). Best of `repeats`,
     {name: (wall, CPU seconds)}."""
-    from pumpsim.design.alike import one_vane
-    from pumpsim.design.evaluate import BATCH_DESIGNS, KERNEL_OUTPUTS, evaluate_designs, revolution
+    from pumpsim.design.evaluate import BATCH_DESIGNS, KERNEL_OUTPUTS, evaluate_designs, one_vane, revolution
     from pumpsim.design.execute import study_designs
     from pumpsim.design.vector import design_maps
     from pumpsim.kernels import load_kernels

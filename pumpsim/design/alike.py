@@ -24,9 +24,6 @@ import numpy as np
 from ..model_spec import outputs as kernel_outputs
 from ..model_spec.parameters import layout_names
 
-_ONE: dict = {}  # structure -> OneVane
-
-
 class OneVane:
     """The 1-vane variant's SIMD library and where its parameters sit in the N-vane vector."""
 
@@ -68,19 +65,6 @@ class OneVane:
         return out
 
 
-def one_vane(structure):
-    """OneVane for an N-vane constrained structure (N > 1), or None where no 1-vane SIMD library can
-    be had (then every vane is evaluated)."""
-    from .evaluate import fast_kernel  # (looked up each time: PUMPSIM_DESIGN_KERNEL=scalar may be set)
-
-    fast = fast_kernel(dataclasses.replace(structure, vanes=1)) if structure.vanes > 1 else None
-    if fast is None:
-        return None
-    if structure not in _ONE or _ONE[structure].fast is not fast:
-        _ONE[structure] = OneVane(structure, fast)
-    return _ONE[structure]
-
-
 def spread(ev: dict, vanes: int, n: int) -> dict:
     """The N-vane arrays (D, N, n) from one vane's (D, 1, n): vane k is vane 0 shifted by k n / N."""
     step = n // vanes
@@ -88,4 +72,4 @@ def spread(ev: dict, vanes: int, n: int) -> dict:
             for nm, a in ev.items()}
 
 
-__all__ = ["OneVane", "one_vane", "spread"]
+__all__ = ["OneVane", "spread"]

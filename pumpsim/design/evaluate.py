@@ -7,6 +7,7 @@ builds its own from the hashed cache; compiled functions never travel between pr
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import threading
@@ -25,7 +26,7 @@ from .pneumatic import gas_outputs, motor_driven
 from .outputs import (BOOL_OUTPUTS, KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_batch,
                       reduce_revolution)
 from .study import SPEED_KEY, get_value
-from .alike import one_vane, spread
+from .alike import OneVane, spread
 from .screen import geometry_ok, housing_samples
 from .vector import design_maps, mouth_depths
 
@@ -100,6 +101,21 @@ def fast_kernel(structure):
             fk = None
         _MAPS.cache[key] = fk if fk is not None and fk.simd else None
     return _MAPS.cache[key]
+
+
+_ONE: dict = {}  # structure -> OneVane
+
+
+def one_vane(structure):
+    """alike.OneVane of an N-vane constrained structure (N > 1), or None where no 1-vane SIMD
+    library can be had (then every vane is evaluated). The library is looked up each time:
+    PUMPSIM_DESIGN_KERNEL=scalar may have been set since."""
+    fast = fast_kernel(dataclasses.replace(structure, vanes=1)) if structure.vanes > 1 else None
+    if fast is None:
+        return None
+    if structure not in _ONE or _ONE[structure].fast is not fast:
+        _ONE[structure] = OneVane(structure, fast)
+    return _ONE[structure]
 
 
 def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:

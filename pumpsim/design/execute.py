@@ -80,8 +80,7 @@ def structures(study) -> list:
 def kernel_keys(study) -> dict:
     """Variant -> content key of the compiled library this process loads (or builds)."""
     from ..kernels import load_kernels
-    from .alike import one_vane
-    from .evaluate import fast_kernel
+    from .evaluate import fast_kernel, one_vane
 
     out = {}
     for st in structures(study):
@@ -329,8 +328,7 @@ def _build_kernels(study) -> None:
     """Builds missing kernel variants once, before local workers look."""
     from ..kernels import load_kernels
 
-    from .alike import one_vane
-    from .evaluate import fast_kernel
+    from .evaluate import fast_kernel, one_vane
 
     for st in structures(study):
         load_kernels(st)

@@ -30,7 +30,7 @@ def _designs(vanes=4, n=360):
 @pytest.fixture(scope="module")
 def four():
     kern, P, theta, omega = _designs()
-    one = alike.one_vane(kern.structure)
+    one = evaluate.one_vane(kern.structure)
     if one is None:
         pytest.skip("no SIMD library on this machine")
     return kern, P, theta, omega, one
@@ -48,7 +48,7 @@ def test_the_one_vane_library_is_vane_zero_bit_for_bit(four):
 @pytest.mark.parametrize("vanes", [3, 4, 6])
 def test_one_vane_stands_for_every_vane_within_the_kernels_rounding(vanes):
     kern, P, theta, omega = _designs(vanes)
-    one = alike.one_vane(kern.structure)
+    one = evaluate.one_vane(kern.structure)
     if one is None:
         pytest.skip("no SIMD library on this machine")
     assert one.alike(P, 360).all()
