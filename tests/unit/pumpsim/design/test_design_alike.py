@@ -137,3 +137,22 @@ def test_study_rows_equal_the_every_vane_rows_within_the_kernels_rounding(study)
 def test_one_vane_is_found_for_its_structure(four):
     kern, *_, one = four
     assert one.structure == kern.structure and one.fast.structure == dataclasses.replace(kern.structure, vanes=1)
+
+
+def test_an_out_of_round_housing_goes_the_same_way_with_its_compiled_curve(tmp_path):
+    text = (EXAMPLES / "test_rig.toml").read_text().replace(
+        "[housing]\n", "[housing]\nharmonics = [[3, 3.0e-5, 0.3]]\n").replace("center = [0.0, 0.0]", "center = [4e-4, 2e-4]")
+    (tmp_path / "rig.toml").write_text(text)
+    s = study_from_dict({"study": {"config": str(tmp_path / "rig.toml"), "sampler": "random", "samples": 24, "seed": 1},
+                         "vary": {"vane.mass": {"distribution": "normal", "sd": 0.05, "relative": True},
+                                  "friction.housing.dynamic": {"distribution": "uniform", "low": 0.1, "high": 0.3}}})
+    from pumpsim.design.execute import study_designs
+    from pumpsim.design.vector import design_maps
+
+    maps, rest = design_maps(s, study_designs(s))
+    assert maps and maps[0][0].structure.harmonics == 1 and not len(rest)
+    a, b = _rows(s, False), _rows(s, True)
+    assert (a["status"] == "ok").all() and (b["status"] == "ok").all()
+    for c in ("mean_torque", "max_normal_force", "friction_power_2"):
+        assert np.abs(a[c] - b[c]).max() <= SIMD_REL * np.abs(b[c]).max(), c
+    assert np.abs(a["ptp_torque"] - b["ptp_torque"]).max() <= SIMD_REL * np.abs(b["rms_torque"]).max()
