@@ -44,10 +44,12 @@ def geometry_ok(rr, L, lm, pts, curv, s, res, margin=0.0) -> np.ndarray:
     comparison, the rotor's clearance by more than `margin`. A design this rejects gets its
     reason from geometry_verdict itself."""
     x, y = pts[:, 0], pts[:, 1]
-    qx, qy = np.roll(x, 1, axis=1), np.roll(y, 1, axis=1)
+    above = y > 0.0
+    d, i = np.nonzero(above != np.roll(above, 1, axis=1))  # the edges (previous point, point) the x axis cuts
+    x1, y1, x0, y0 = x[d, i], y[d, i], x[d, i - 1], y[d, i - 1]
     with np.errstate(divide="ignore", invalid="ignore"):
-        xc = (qx - x) * (0.0 - y) / (qy - y) + x
-    inside = np.count_nonzero(((y > 0.0) != (qy > 0.0)) & (0.0 < xc), axis=1) % 2 == 1
+        xc = (x0 - x1) * (0.0 - y1) / (y0 - y1) + x1
+    inside = np.bincount(d[0.0 < xc], minlength=len(x)) % 2 == 1  # geometry._point_in_polygon's rule
     with np.errstate(invalid="ignore"):
         res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
     s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))

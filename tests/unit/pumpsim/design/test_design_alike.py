@@ -156,3 +156,18 @@ def test_an_out_of_round_housing_goes_the_same_way_with_its_compiled_curve(tmp_p
     for c in ("mean_torque", "max_normal_force", "friction_power_2"):
         assert np.abs(a[c] - b[c]).max() <= SIMD_REL * np.abs(b[c]).max(), c
     assert np.abs(a["ptp_torque"] - b["ptp_torque"]).max() <= SIMD_REL * np.abs(b["rms_torque"]).max()
+
+
+def test_the_batch_screen_finds_the_rotor_axis_inside_as_the_polygon_rule_does():
+    from pumpsim.geometry import _point_in_polygon
+
+    rng = np.random.default_rng(5)
+    n, B = 36, 40
+    ang = np.sort(rng.uniform(0, 2 * math.pi, (B, n)), axis=1)
+    r = rng.uniform(0.8, 1.2, (B, n))
+    c = rng.uniform(-1.5, 1.5, (B, 2, 1))
+    pts = np.stack([r * np.cos(ang), r * np.sin(ang)], axis=1) + c
+    s, res = np.full((B, 1, n), 1e-3), np.zeros((B, 1, n))
+    ok = screen.geometry_ok(np.full(B, 1e-9), np.full(B, 0.012), np.full(B, 0.011), pts, None, s, res)
+    want = [_point_in_polygon(0.0, 0.0, p[0], p[1]) for p in pts]
+    assert ok.tolist() == want and 0 < sum(want) < B
