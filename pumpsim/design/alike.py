@@ -31,6 +31,8 @@ class OneVane:
         self.structure, self.fast, self.vanes = structure, fast, structure.vanes
         names = layout_names(structure)
         one = layout_names(dataclasses.replace(structure, vanes=1))
+        if not set(one) <= set(names):  # a per-vane parameter other than the friction factor
+            raise ValueError(f"{structure.variant}: the 1-vane layout has {sorted(set(one) - set(names))}")
         self.columns = np.array([names.index(nm) for nm in one])
         self.factors = np.array([names.index(f"effects.vane_friction_factor.{k}") for k in range(self.vanes)])
         self.bearing = names.index("operation.bearing_torque")

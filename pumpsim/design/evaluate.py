@@ -113,8 +113,11 @@ def one_vane(structure):
     fast = fast_kernel(dataclasses.replace(structure, vanes=1)) if structure.vanes > 1 else None
     if fast is None:
         return None
-    if structure not in _ONE or _ONE[structure].fast is not fast:
-        _ONE[structure] = OneVane(structure, fast)
+    if structure not in _ONE or (_ONE[structure] is not None and _ONE[structure].fast is not fast):
+        try:
+            _ONE[structure] = OneVane(structure, fast)
+        except ValueError:  # vanes that are not copies of one another in the parameters: every vane
+            _ONE[structure] = None
     return _ONE[structure]
 
 
