@@ -97,6 +97,9 @@ def reduce_batch(a: dict, k: dict, vanes: int | None = None) -> tuple[dict, dict
         """(value, flat index within the design's (N, n)) of x's max or min per design: the
         vane holding it, then the sample -- the first occurrence in flat order, as an arg-max of
         the flattened array gives it (NaN included), without copying a strided x to flatten it."""
+        if x.shape[1] == 1:  # one vane (standing for alike ones): its own extreme
+            k = pick(x[:, 0], axis=1)
+            return x[rows, 0, k], k
         vane = pick((np.max if pick is np.argmax else np.min)(x, axis=2), axis=1)
         within = x[rows, vane]
         k = pick(within, axis=1)
