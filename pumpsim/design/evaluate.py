@@ -1,8 +1,9 @@
 """Evaluate designs: config -> parameter vector -> one revolution of inverse dynamics -> outputs.
 
-`evaluate_designs(kern, P, theta, omega)` is the one place the compiled kernel is called for a batch
-of designs (P: one parameter vector per design); everything else (admissibility, reductions,
-status) is NumPy on its result. Kernels are loaded by whoever calls this -- a Dask worker loads or
+`evaluate_designs(kern, P, theta, omega)` calls the compiled kernel for a batch of designs (P: one
+parameter vector per design) on every vane; designs whose vanes are alike go through one vane
+instead (`one_vane`, alike.py; `revolutions` picks per design). Everything else (admissibility,
+reductions, status) is NumPy on their results. Kernels are loaded by whoever calls this -- a Dask worker loads or
 builds its own from the hashed cache; compiled functions never travel between processes.
 """
 from __future__ import annotations
