@@ -163,26 +163,26 @@ def run_batch(study, ids, X):
     return ids[0], table, sec, (worker_name(), w0, w0 + sec, time.thread_time() - c0)
 
 
-def pilot_time_per_design(study, X) -> tuple[float, float]:
+def pilot_time_per_design(study, X, repeats=3) -> tuple[float, float]:
     """(wall, CPU) seconds per design on this process (which also builds any missing variant into
-    the cache before the workers look for it): the least of three timings of PILOT_DESIGNS
+    the cache before the workers look for it): the least of `repeats` timings of PILOT_DESIGNS
     designs, as the machine may be shared and a disturbed timing only ever reads long."""
     from .evaluate import evaluate_rows
 
     evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
     n = min(len(X), PILOT_DESIGNS)
-    best = _best_time(study, X[:n])
+    best = _best_time(study, X[:n], repeats)
     if best[0] < 0.05 * TASK_SECONDS and len(X) > n:  # fast designs: a call's own cost would weigh on
         n = min(len(X), PILOT_BATCH)  # a few; time a kernel batch's worth instead
-        best = _best_time(study, X[:n])
+        best = _best_time(study, X[:n], repeats)
     return max(best[0] / n, 1e-6), max(best[1] / n, 1e-6)
 
 
-def _best_time(study, X) -> tuple[float, float]:
+def _best_time(study, X, repeats) -> tuple[float, float]:
     from .evaluate import evaluate_rows
 
     best = cpu = math.inf
-    for _ in range(3):
+    for _ in range(repeats):
         t0, c0 = time.perf_counter(), time.thread_time()
         evaluate_rows(study, X, np.arange(len(X)), max_vanes(study))
         best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.thread_time() - c0)
@@ -353,9 +353,14 @@ def _plan(study, X, man, batch_size, starting) -> Plan:
         return Plan(study, X, int(man["batch_size"]), bounds=list(man["batch_bounds"]))
     if man and man.get("batch_size"):
         return Plan(study, X, int(man["batch_size"]))
-    per, cpu = pilot_time_per_design(study, X) if len(X) > 1 else (TASK_SECONDS, TASK_SECONDS)
+    # in this process the batches only cut the results into parts: one timing sizes them; a
+    # cluster's batches balance its workers: the least of three
+    quick = starting.local or starting.lazy is not None
+    per, cpu = pilot_time_per_design(study, X, 1 if quick else 3) if len(X) > 1 else (TASK_SECONDS, TASK_SECONDS)
     if starting.lazy is not None and cpu * len(X) < IN_PROCESS_SECONDS:
         starting.stay_local()
+    elif starting.lazy is not None and len(X) > 1:
+        per, cpu = pilot_time_per_design(study, X)
     client = starting.get()  # (a LocalCluster started meanwhile)
     n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
     if n_workers > 1:
