@@ -25,14 +25,18 @@ def oscillator(tmp_path_factory):
     xdot = ca.vertcat(x[1], -p**2 * x[0])
     f = ca.Function("f", [x, p], [xdot])
     fj = ca.Function("f_jac", [x, p], [ca.jacobian(xdot, x)])
-    folder = tmp_path_factory.mktemp("osc")
-    gen = ca.CodeGenerator("osc.c")
-    gen.add(f)
-    gen.add(fj)
+    return _compiled(tmp_path_factory.mktemp("osc"), "osc", f, fj), fj.sparsity_out(0)
+
+
+def _compiled(folder, name, *functions):
+    """The functions compiled as the codegen writes them (CasADi's C calling convention)."""
+    gen = ca.CodeGenerator(f"{name}.c")
+    for f in functions:
+        gen.add(f)
     gen.generate(str(folder) + "/")
-    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / "osc.c"), "-o", str(folder / "osc.so")],
-                   check=True)
-    return folder / "osc.so", fj.sparsity_out(0)
+    so = folder / f"{name}.so"
+    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / f"{name}.c"), "-o", str(so)], check=True)
+    return so
 
 
 def _driver(oscillator, atol=1e-12):
@@ -128,14 +132,7 @@ def oscillator_with_quadrature(tmp_path_factory):
     xdot, qdot = ca.vertcat(y[1], -p**2 * y[0]), y[1] ** 2
     g = ca.Function("g", [y, p], [xdot, qdot])
     gj = ca.Function("g_jac", [y, p], [ca.jacobian(xdot, y), ca.SX(1, 3)])
-    folder = tmp_path_factory.mktemp("oscq")
-    gen = ca.CodeGenerator("oscq.c")
-    gen.add(g)
-    gen.add(gj)
-    gen.generate(str(folder) + "/")
-    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / "oscq.c"), "-o", str(folder / "oscq.so")],
-                   check=True)
-    return folder / "oscq.so", gj.sparsity_out(0), gj.sparsity_out(1)
+    return _compiled(tmp_path_factory.mktemp("oscq"), "oscq", g, gj), gj.sparsity_out(0), gj.sparsity_out(1)
 
 
 def test_the_leading_block_solver_gives_the_full_solvers_steps_and_states(oscillator_with_quadrature):
