@@ -52,9 +52,10 @@ def test_heated_drive_lowers_the_voltage_by_the_rising_drop(cfg):
 def test_clean_log_names_nothing(cfg):
     res = diagnosed(cfg, None, 0.0)
     assert res.effects == [] and not res.unexplained, str(res)
+    assert not res.consistency["fires"] and res.consistency["dof"] == 2, res.consistency  # mu over 3 parts
     assert res.baseline["params"]["mu"]["value"] == pytest.approx(0.17, rel=0.03)
     js = res.to_json()
-    for key in ("baseline", "steps", "effects", "final", "unexplained", "confounded"):
+    for key in ("baseline", "steps", "effects", "final", "unexplained", "confounded", "consistency", "withdrawn"):
         assert key in js
     json.dumps(js)
 
@@ -67,6 +68,8 @@ def test_each_effect_is_named_and_the_gap_shrinks(cfg, fault):
     (the errors-in-variables approximation, pump_effects), and the verdict says so."""
     res = diagnosed(cfg, fault, FAULTS[fault])
     assert res.effects[:1] == [fault], str(res)
+    # the misspecification guard: the named model's parameters agree over the log's thirds
+    assert not res.consistency["fires"] and not res.withdrawn, res.consistency
     step = res.steps[0]
     assert step.rms_after < step.rms_before and step.bic_after < step.bic_before
     assert step.rms_after < 1.2, str(res)
@@ -93,6 +96,7 @@ def test_supply_resistance_is_confounded_unless_the_winding_resistance_is_known(
     assert "confounded" in res.verdict
     known = diagnose_bench(cfg, log, resistance_known=True, **LOOSE)
     assert known.effects == ["supply_resistance"], str(known)
+    assert not known.consistency["fires"], known.consistency
     assert known.steps[0].params["change"] == pytest.approx(0.08, rel=0.3)
 
 
