@@ -81,7 +81,8 @@ def case(cfg, fault, size, noise, seed, duration, rate, resistance_known=False) 
     out = {"fault": fault or "clean", "size": size, "noise": noise, "seed": seed, "resistance_known": resistance_known,
            "named": res.effects, "named_before_guard": before, "confounded": res.confounded,
            "unexplained": res.unexplained, "unexplained_before_guard": not res.final["residual_white"],
-           "guard": res.consistency, "verdict": res.verdict, "runs": res.runs, "wall_time": time.perf_counter() - t0,
+           "guard": res.consistency, "verdict": res.verdict, "notes": res.notes, "runs": res.runs,
+           "wall_time": time.perf_counter() - t0,
            "steps": [s.to_json() for s in res.steps + res.withdrawn]}
     for tag, named, unexp in (("", res.effects, res.unexplained),
                               ("_before_guard", before, out["unexplained_before_guard"])):
@@ -120,6 +121,26 @@ def rates(cases) -> dict:
         "wrong_name": fires(c for c in cases if c["outcome_before_guard"] == "wrong_name"),
         "outside": fires(c for c in cases if c["fault"] in OUTSIDE)}
     return out
+
+
+def table(r) -> str:
+    """The rates as a Markdown table: per effect and kind, each outcome's rate after the guard (and
+    before it, where they differ)."""
+    def cell(a, b, o):
+        x, y = (round(100 * v[o]) for v in (b, a))
+        return f"{y} %" if x == y else f"{x} → {y} %"
+
+    cols = ("right",) + OUTCOMES
+    rows = ["| case | of | " + " | ".join(o.replace("_", " ") for o in cols) + " |",
+            "|---|---|" + "---|" * len(cols)]
+    after, before = r["after_guard"], r["before_guard"]
+    for group, key in (("per_effect", None), ("overall", None)):
+        for name, a in after[group].items():
+            if a is not None:
+                b = before[group][name]
+                label = f"**{name}** (all)" if group == "overall" else f"`{name}`"
+                rows.append(f"| {label} | {a['of']} | " + " | ".join(cell(a, b, o) for o in cols) + " |")
+    return "\n".join(rows)
 
 
 def _one(args):
@@ -177,7 +198,8 @@ def main(argv=None):
     res = run(a.quick, set(a.only.split(",")) if a.only else None, a.seeds,
               [float(x) for x in a.noise.split(",")] if a.noise else None, a.duration, a.rate, a.jobs, path,
               say=lambda m: print(m, flush=True))
-    print(json.dumps(res["rates"], indent=1))
+    print(json.dumps(res["rates"]["guard_fires"], indent=1))
+    print(table(res["rates"]))
     print(f"{len(res['cases'])} diagnoses in {res['wall_time']:.0f} s wall")
 
 

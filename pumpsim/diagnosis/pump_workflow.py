@@ -80,6 +80,19 @@ class Confounded(Note):
         return f"{self.first} and {self.second} {why}: neither is named; to separate them: {self.how}"
 
 
+@dataclass(frozen=True)
+class Alias(Note):
+    """A named effect that a change outside the library reads the same as on a pump-down log."""
+
+    effect: str
+    alias: str
+    how: str
+
+    def text(self) -> str:
+        return (f"{self.effect} is named assuming calibrated sensors: {self.alias} reads the same on a pump-down "
+                f"log; to rule it out: {self.how}")
+
+
 @dataclass
 class Fit:
     """One model's fit: its fitted names, every value it holds, the residual (noise sigmas) and
@@ -341,6 +354,9 @@ def _search_step(run, current: Fit, screened: list, detection):
                                                           next(g for g in best["group"] if g.effect is other)).direction)
                 run.log.append(Confounded(*pair, how, cos, None if grouped else opts.bic_decisive))
         return None
+    e = best["group"][0].effect
+    if e.alias:
+        run.log.append(Alias(e.name, e.alias, e.separate))
     return _step(best, current), best["fit"]
 
 
@@ -438,6 +454,7 @@ def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wa
     inadequate = guard["fires"] and (bool(steps) or verdict.consistent)
     if inadequate:
         withdrawn, steps = tuple(steps), []
+        run.log = [n for n in run.log if not isinstance(n, Alias)]  # said of names no longer given
         text = "model inadequate: nothing named; unexplained"
         run.log.append(Inconsistent(tuple(current.names), tuple(s.effect.name for s in withdrawn), guard["statistic"],
                                     guard["dof"], guard["p_value"], guard["alpha"], guard["worst"]))
