@@ -9,8 +9,9 @@ have pressure and time dependences of their own, and the change they stand in fo
 the values each part of the log asks for differ. A model that describes the log asks for the same
 values everywhere, up to the noise. The test is the torque workflow's stationarity test
 (stationarity.homogeneity: per-part linearised estimates at the fit, their spread against their
-covariance, chi-square), on time thirds of the log (a pump-down: falling pressure ranges). It
-costs no model run: the fit's residual and Jacobian are reused.
+covariance, chi-square), on time thirds of the log (a pump-down: falling pressure ranges), and
+the disagreement must be relevant as a named effect must: worth a quarter noise sigma (RMS) of
+model change. It costs no model run: the fit's residual and Jacobian are reused.
 
 When it fires, no library effect is named: the verdict is `model inadequate` with the parameter
 whose parts disagree most, its value on each part, and their times and booster pressures.
@@ -69,7 +70,7 @@ def consistency(names, values, residual, jacobian, times, pressure, opts: Diagno
     `pressure` (times, booster pressures) to say where a part lies. The parts' intervals are the
     noise's (the residual is in noise sigmas): a remainder the model leaves counts against it, as it
     should -- scaling by the residual's own scatter would excuse the worst models most. JSON-ready:
-    {"fires", "statistic", "dof", "p_value", "alpha", "parts": [...], "worst"}."""
+    {"fires", "statistic", "dof", "p_value", "alpha", "size", "relevant", "parts", "worst"}."""
     r = np.asarray(residual, float)
     J = np.asarray(jacobian, float)
     labels = part_labels(times, parts)
@@ -93,5 +94,10 @@ def consistency(names, values, residual, jacobian, times, pressure, opts: Diagno
                  "parts": [{**where[k], "value": float(values[names[j]] + est[i, j]), "stderr": float(se[i, j])}
                            for i, k in enumerate(h.labels)]}
     alpha = opts.stationary_alpha
-    return {"fires": bool(h.dof and h.p_value < alpha), "statistic": h.statistic, "dof": h.dof,
-            "p_value": h.p_value, "alpha": alpha, "parts": len(h.labels), "worst": worst}
+    # claimed as an effect is: significant and relevant -- letting the parameters differ between the
+    # parts must change the model by at least the naming size (RMS, noise sigmas; the statistic is
+    # the residual sum of squares it removes, its expectation under agreement subtracted)
+    size = float(np.sqrt(max(h.statistic - h.dof, 0.0) / max(int(used.sum()), 1)))
+    return {"fires": bool(h.dof and h.p_value < alpha and size >= opts.named_size), "statistic": h.statistic,
+            "dof": h.dof, "p_value": h.p_value, "alpha": alpha, "size": size, "relevant": opts.named_size,
+            "parts": len(h.labels), "worst": worst}

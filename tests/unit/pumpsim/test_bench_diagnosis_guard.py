@@ -78,3 +78,16 @@ def test_zero_rows_left_out_of_the_fit_carry_nothing():
     b = consistency(["a", "b"], {"a": 0.0, "b": 0.0}, r0[keep], J[keep],
                     [times[0], times[1][1:]], pressure)
     assert a["statistic"] == pytest.approx(b["statistic"], rel=1e-9)
+
+
+def test_a_significant_but_irrelevant_disagreement_does_not_fire():
+    """A long log makes a tiny disagreement significant: the guard claims it only once letting the
+    parameters differ between the parts would change the model by the naming size (a quarter noise
+    sigma RMS), as a named effect must."""
+    times, t, J, pressure = pumpdown(n=20000)
+    rng = np.random.default_rng(4)
+    r = fitted(J, J @ [0.3, -0.2] + 0.6 * (t - 0.25) ** 2 / 0.0625 + rng.standard_normal(t.size))[0]
+    g = consistency(["a", "b"], {"a": 0.0, "b": 0.0}, r, J, times, pressure)
+    assert g["p_value"] < 1e-6 and g["size"] < OPTIONS.named_size and not g["fires"], g
+    big = fitted(J, J @ [0.3, -0.2] + 6.0 * (t - 0.25) ** 2 / 0.0625 + rng.standard_normal(t.size))[0]
+    assert consistency(["a", "b"], {"a": 0.0, "b": 0.0}, big, J, times, pressure)["fires"]
