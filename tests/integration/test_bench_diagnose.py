@@ -122,6 +122,29 @@ def test_a_late_valve_is_named_with_the_pressure_span_it_cannot_be_told_from(cfg
             str(res)
 
 
+@pytest.mark.slow
+def test_a_firing_guard_withdraws_the_names_and_says_where(cfg, monkeypatch):
+    """The verdict's wiring when the guard fires (forced here; its statistics are
+    test_bench_diagnosis_guard's): the named late valve is withdrawn, kept under `withdrawn` with
+    its note on sensors dropped, the verdict is `model inadequate`, the note says which parameter
+    disagrees where."""
+    from pumpsim.diagnosis import pump_workflow
+
+    def firing(names, values, *args, **kw):
+        part = {"time": [0.0, 0.17], "pressure": [101325.0, 70000.0], "value": 0.2, "stderr": 0.001}
+        return {"fires": True, "statistic": 99.0, "dof": 2 * len(names), "p_value": 1e-12, "alpha": 0.0025,
+                "size": 0.5, "relevant": 0.25, "parts": 3, "worst": {"name": "mu", "spread_sigmas": 9.0,
+                                                                      "parts": [part] * 3}}
+
+    monkeypatch.setattr(pump_workflow, "consistency", firing)
+    res = diagnosed(cfg, "valve_late", FAULTS["valve_late"])
+    assert res.effects == [] and [s.effect.name for s in res.withdrawn] == ["valve_late"], str(res)
+    assert res.unexplained and res.verdict.startswith("model inadequate"), res.verdict
+    assert any(n.startswith("model inadequate") and "(valve_late) are withdrawn" in n for n in res.notes), str(res)
+    assert not any("assuming calibrated sensors" in n for n in res.notes)
+    assert res.to_json()["withdrawn"][0]["effect"] == "valve_late"
+
+
 def test_cli_diagnoses_a_bench_log_with_json_and_exit_codes(tmp_path, cfg):
     cfg_path = small_booster(tmp_path)
     log = twin_with_fault(cfg, 0.2, RATE, None, 0.0, values=TRUTH, noise=0.005, seed=3, **LOOSE)
