@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-ripple clean
+.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-ripple bench-benchlog-diagnose clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml setup.py
@@ -83,6 +83,13 @@ bench-diagnose: codegen
 bench-ripple: codegen
 	mkdir -p out
 	$(BIN)/python bench/ripple_rates.py $(if $(QUICK),--quick) --json out/bench_ripple.json
+
+# bench-log diagnosis: library effects, clean logs and changes outside the library x 2 noise levels x 2 seeds,
+# rates before and after the misspecification guard (QUICK=1: one seed at 0.5 % noise, ~13 diagnoses)
+bench-benchlog-diagnose: codegen
+	mkdir -p out
+	$(BIN)/python bench/benchlog_diagnose_grid.py $(if $(QUICK),--quick) $(if $(JOBS),--jobs $(JOBS)) \
+		--json out/bench_benchlog_diagnose.json
 
 # diagnose on records from an independent implementation of the spec (bench/independent; QUICK=1: ~20 cases)
 bench-diagnose-independent: codegen

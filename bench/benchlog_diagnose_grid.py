@@ -1,20 +1,22 @@
 """Robustness benchmark of the bench-log diagnosis (`pumpsim diagnose CONFIG LOG`, spec §10):
-twin logs made on the fly with fixed seeds -- every pump-level library effect x 2 noise levels x 2
-seeds, plus clean logs and faults outside the library (a larger booster, a pressure sensor
-offset) -- diagnosed with the nominal config. Prints each case and the rates; writes them (and
-every case) to JSON.
+twin logs made on the fly with fixed seeds -- every pump-level library effect, clean logs and
+changes outside the library that an independent rig plausibly has (another booster volume, a
+pressure sensor's offset and span error, a current shunt's gain error, a supply ripple the logger
+filters out) x 2 noise levels x 2 seeds -- diagnosed with the nominal config. Prints each case;
+writes every case and the rates, before the misspecification guard (pump_guard) and after it, to
+JSON. --quick: one seed at the lower noise (~13 diagnoses).
 
 The pump: the EVP example with a 0.4 L booster (a 0.5 s log covers its pump-down from the
 atmosphere to ~35 kPa), vane COF 0.17 (the config's 0.15: the baseline fits it). Noise: `noise` x
 each channel's range (0.5 % and 1 %), on every channel, voltage included. Fault sizes: a clear
-fault of each kind (FAULTS). The model integrator: rtol 1e-4 (the twins are made at 1e-6): a
-clean log's residual is the noise to ~1 %.
+fault of each kind (FAULTS, OUTSIDE). The model integrator: rtol 1e-4 (the twins are made at 1e-6).
 
-Right answers: a library effect named alone, or -- supply_resistance and winding_resistance act
-identically on a log -- that pair reported `confounded` and neither named. A pair the log cannot
-separate (a booster leak and a grown tip clearance on a short log) reported `confounded` with the
-truth in it is counted apart (confounded_with_truth): honest, but no name. A clean log: nothing named, not unexplained. An
-outside fault: no library effect named (unexplained, or nothing, is right).
+Each case's outcome is one of: named_right (the library effect alone), confounded_with_truth (no
+name; a pair holding the truth reported confounded), wrong_name (any name that is not the truth
+alone: the rate that must be ~0), unexplained (nothing named, unexplained), nothing (nothing named,
+consistent with noise). Right answers: a library effect named_right -- or, for supply_resistance
+and winding_resistance, which act identically on a log, their pair confounded; a clean log nothing;
+an outside change unexplained (nothing is not wrong by name, but silent).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ import argparse
 import json
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -34,7 +37,8 @@ from pumpsim.diagnosis.pump_workflow import diagnose_bench  # noqa: E402
 
 FAULTS = {"booster_leak": 4e-5, "tip_clearance": 8e-6, "valve_late": 10000.0, "motor_friction": 0.05,
           "supply_resistance": 0.08, "winding_heating": 0.15, "winding_resistance": 0.08}
-OUTSIDE = {"booster_volume": 1.3, "pressure_offset": 1500.0}
+OUTSIDE = {"booster_volume": 1.3, "pressure_offset": 1500.0, "pressure_gain": 1.03, "current_gain": 1.05,
+           "voltage_ripple": 0.5}
 NOISE = (0.005, 0.01)
 SEEDS = (1, 2)
 TRUTH = {"mu": 0.17}
@@ -47,79 +51,156 @@ def small_booster():
     return config_from_dict(table, "evp_small_booster")
 
 
-def outcome(fault, res, resistance_known) -> str:
-    """right / confounded_with_truth / false_name / false_unexplained / missed."""
-    named = res.effects
-    pair = {tuple(sorted(p)) for p in res.confounded}
-    if fault is None or fault in OUTSIDE:
-        if named:
-            return "false_name"
-        return "false_unexplained" if fault is None and res.unexplained else "right"
-    if named == [fault]:
-        return "right"
-    if not named and not resistance_known and any(fault in p and p in TWINS for p in pair):
-        return "right"
-    if not named and any(fault in p for p in pair):  # honest, not a name: the log cannot separate them
+OUTCOMES = ("named_right", "confounded_with_truth", "wrong_name", "unexplained", "nothing")
+
+
+def outcome(fault, named, confounded, unexplained) -> str:
+    """One of OUTCOMES (module doc)."""
+    if named:
+        return "named_right" if named == [fault] else "wrong_name"
+    if fault in FAULTS and any(fault in p for p in confounded):
         return "confounded_with_truth"
-    if any(n != fault for n in named):
-        return "false_name"
-    return "false_unexplained" if res.unexplained else "missed"
+    return "unexplained" if unexplained else "nothing"
+
+
+def is_right(fault, out, confounded, resistance_known) -> bool:
+    if fault is None:
+        return out == "nothing"
+    if fault in OUTSIDE:
+        return out == "unexplained"
+    twins = not resistance_known and any(tuple(sorted(p)) in TWINS and fault in p for p in confounded)
+    return out == "named_right" or (out == "confounded_with_truth" and twins)
 
 
 def case(cfg, fault, size, noise, seed, duration, rate, resistance_known=False) -> dict:
     t0 = time.perf_counter()
     log = twin_with_fault(cfg, duration, rate, fault, size, values=TRUTH, noise=noise, seed=seed)
     res = diagnose_bench(cfg, log, resistance_known=resistance_known, rtol=RTOL, atol=ATOL)
-    out = {"fault": fault, "size": size, "noise": noise, "seed": seed, "resistance_known": resistance_known,
-           "named": res.effects, "confounded": res.confounded, "unexplained": res.unexplained,
-           "verdict": res.verdict, "runs": res.runs, "wall_time": time.perf_counter() - t0,
-           "steps": [s.to_json() for s in res.steps]}
-    out["outcome"] = outcome(fault, res, resistance_known)
+    # before the guard: what the search named and whether its final residual was noise
+    before = [s.effect.name for s in (res.withdrawn or res.steps)]
+    out = {"fault": fault or "clean", "size": size, "noise": noise, "seed": seed, "resistance_known": resistance_known,
+           "named": res.effects, "named_before_guard": before, "confounded": res.confounded,
+           "unexplained": res.unexplained, "unexplained_before_guard": not res.final["residual_white"],
+           "guard": res.consistency, "verdict": res.verdict, "notes": res.notes, "runs": res.runs,
+           "wall_time": time.perf_counter() - t0,
+           "steps": [s.to_json() for s in res.steps + res.withdrawn]}
+    for tag, named, unexp in (("", res.effects, res.unexplained),
+                              ("_before_guard", before, out["unexplained_before_guard"])):
+        out["outcome" + tag] = o = outcome(fault, named, res.confounded, unexp)
+        out["right" + tag] = is_right(fault, o, res.confounded, resistance_known)
     return out
 
 
-def rates(cases) -> dict:
-    def share(sel, what):
-        sel = list(sel)
-        return {"rate": sum(c["outcome"] == what for c in sel) / len(sel), "of": len(sel)} if sel else None
+def shares(sel, key) -> dict | None:
+    """{outcome: rate, "right": rate, "of": n} of the cases `sel` by their `key` outcome."""
+    sel = list(sel)
+    if not sel:
+        return None
+    tag = key[len("outcome"):]
+    out = {o: sum(c[key] == o for c in sel) / len(sel) for o in OUTCOMES}
+    return {**out, "right": sum(c["right" + tag] for c in sel) / len(sel), "of": len(sel)}
 
-    lib = [c for c in cases if c["fault"] in FAULTS]
-    clean = [c for c in cases if c["fault"] is None]
-    outside = [c for c in cases if c["fault"] in OUTSIDE]
-    return {"named_right": share(lib, "right"), "confounded_with_truth": share(lib, "confounded_with_truth"),
-            "false_names_library": share(lib, "false_name"),
-            "false_names_clean": share(clean, "false_name"), "false_unexplained_clean": share(clean, "false_unexplained"),
-            "false_names_outside": share(outside, "false_name"),
-            "per_effect": {f: share((c for c in lib if c["fault"] == f), "right") for f in FAULTS}}
+
+def fires(sel) -> dict | None:
+    sel = list(sel)
+    return {"rate": sum(c["guard"]["fires"] for c in sel) / len(sel), "of": len(sel)} if sel else None
+
+
+def rates(cases) -> dict:
+    kinds = {"library": FAULTS, "clean": {"clean": 0}, "outside": OUTSIDE}
+    out = {}
+    for key in ("outcome_before_guard", "outcome"):
+        out["before_guard" if key.endswith("guard") else "after_guard"] = {
+            "overall": {k: shares((c for c in cases if c["fault"] in names), key) for k, names in kinds.items()},
+            "per_effect": {f: shares((c for c in cases if c["fault"] == f), key)
+                           for f in [*FAULTS, "clean", *OUTSIDE]}}
+    # the guard's false alarms (clean logs; a library fault the search named right) and its catches
+    out["guard_fires"] = {
+        "clean": fires(c for c in cases if c["fault"] == "clean"),
+        "named_right_single": fires(c for c in cases if c["outcome_before_guard"] == "named_right"),
+        "wrong_name": fires(c for c in cases if c["outcome_before_guard"] == "wrong_name"),
+        "outside": fires(c for c in cases if c["fault"] in OUTSIDE)}
+    return out
+
+
+def table(r) -> str:
+    """The rates as a Markdown table: per effect and kind, each outcome's rate after the guard (and
+    before it, where they differ)."""
+    def cell(a, b, o):
+        x, y = (round(100 * v[o]) for v in (b, a))
+        return f"{y} %" if x == y else f"{x} → {y} %"
+
+    cols = ("right",) + OUTCOMES
+    rows = ["| case | of | " + " | ".join(o.replace("_", " ") for o in cols) + " |",
+            "|---|---|" + "---|" * len(cols)]
+    after, before = r["after_guard"], r["before_guard"]
+    for group, key in (("per_effect", None), ("overall", None)):
+        for name, a in after[group].items():
+            if a is not None:
+                b = before[group][name]
+                label = f"**{name}** (all)" if group == "overall" else f"`{name}`"
+                rows.append(f"| {label} | {a['of']} | " + " | ".join(cell(a, b, o) for o in cols) + " |")
+    return "\n".join(rows)
+
+
+def _one(args):
+    cfg = small_booster()
+    fault, size, noise, seed, duration, rate = args
+    return case(cfg, None if fault == "clean" else fault, size, noise, seed, duration, rate)
+
+
+def run(quick=False, only=None, seeds=None, noise=None, duration=0.5, rate=500.0, jobs=1, path=None, say=print) -> dict:
+    """The grid's cases and rates ({"cases", "rates", ...}); `path`: rewritten after each case."""
+    kinds = {**FAULTS, "clean": 0.0, **OUTSIDE}
+    plan = [(f, s, n, seed, duration, rate) for f, s in kinds.items() if only is None or f in only
+            for n in (noise or (NOISE[:1] if quick else NOISE)) for seed in SEEDS[:seeds or (1 if quick else len(SEEDS))]]
+    t0, cases = time.perf_counter(), []
+    result = {}
+    with ProcessPoolExecutor(jobs) if jobs > 1 else _Serial() as pool:
+        for c in pool.map(_one, plan):
+            cases.append(c)
+            say(f"{c['fault']:<20} noise {c['noise']:<6g} seed {c['seed']}: {c['outcome']:<22} named {c['named']} "
+                f"(before the guard {c['named_before_guard']}) guard p {c['guard']['p_value']:.2g} confounded "
+                f"{c['confounded']} unexplained {c['unexplained']} ({c['runs']} runs, {c['wall_time']:.0f} s)")
+            result = {"cases": cases, "rates": rates(cases), "duration": duration, "rate": rate, "rtol": RTOL,
+                      "quick": quick, "jobs": jobs, "wall_time": time.perf_counter() - t0,
+                      "cpu_time_cases": sum(c["wall_time"] for c in cases)}
+            if path is not None:
+                path.write_text(json.dumps(result, indent=1))
+    return result
+
+
+class _Serial:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    @staticmethod
+    def map(f, items):
+        return map(f, items)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--json", default=str(ROOT / "out" / "benchlog_diagnose_grid.json"))
+    ap.add_argument("--json", default=str(ROOT / "out" / "bench_benchlog_diagnose.json"))
+    ap.add_argument("--quick", action="store_true", help="one seed at the lower noise level")
     ap.add_argument("--duration", type=float, default=0.5)
     ap.add_argument("--rate", type=float, default=500.0)
     ap.add_argument("--only", help="comma-separated faults (and 'clean', or outside faults)")
-    ap.add_argument("--seeds", type=int, default=len(SEEDS), help="the first N seeds")
+    ap.add_argument("--seeds", type=int, help=f"the first N seeds (default {len(SEEDS)}, --quick 1)")
     ap.add_argument("--noise", help=f"comma-separated noise levels (default {','.join(map(str, NOISE))})")
+    ap.add_argument("--jobs", type=int, default=1, help="diagnoses run at once (processes)")
     a = ap.parse_args(argv)
-    cfg = small_booster()
-    only = set(a.only.split(",")) if a.only else None
-    plan = [(f, s) for f, s in {**FAULTS, **OUTSIDE, "clean": 0.0}.items() if only is None or f in only]
-    cases = []
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
-    for fault, size in plan:
-        for noise in [float(x) for x in a.noise.split(",")] if a.noise else NOISE:
-            for seed in SEEDS[:a.seeds]:
-                c = case(cfg, None if fault == "clean" else fault, size, noise, seed, a.duration, a.rate,
-                         resistance_known=False)
-                cases.append(c)
-                print(f"{fault:<20} noise {noise:<6g} seed {seed}: {c['outcome']:<18} named {c['named']} "
-                      f"confounded {c['confounded']} unexplained {c['unexplained']} ({c['runs']} runs, "
-                      f"{c['wall_time']:.0f} s)", flush=True)
-                path.write_text(json.dumps({"cases": cases, "rates": rates(cases), "duration": a.duration,
-                                            "rate": a.rate, "rtol": RTOL}, indent=1))
-    print(json.dumps(rates(cases), indent=1))
+    res = run(a.quick, set(a.only.split(",")) if a.only else None, a.seeds,
+              [float(x) for x in a.noise.split(",")] if a.noise else None, a.duration, a.rate, a.jobs, path,
+              say=lambda m: print(m, flush=True))
+    print(json.dumps(res["rates"]["guard_fires"], indent=1))
+    print(table(res["rates"]))
+    print(f"{len(res['cases'])} diagnoses in {res['wall_time']:.0f} s wall")
 
 
 if __name__ == "__main__":

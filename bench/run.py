@@ -551,9 +551,20 @@ BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile,
            "identify": bench_identify, "identify_1e6": bench_identify_large, "jacobian_simd": bench_jacobian_simd,
            "diagnose": bench_diagnose, "benchlog": bench_benchlog,
            "load": bench_load}
-# run only when named (--only diagnose_scale benchlog_identifiability): the diagnosis scaling runs four diagnoses
-# up to 80,000 samples, the identifiability grid fits many generated logs (minutes each; docs/explanation)
-OPTIONAL = {"diagnose_scale": bench_diagnose_scale, "benchlog_identifiability": bench_benchlog_identifiability}
+def bench_benchlog_diagnose():
+    """The bench-log diagnosis grid's rates, quick form (bench/benchlog_diagnose_grid.py --quick)."""
+    sys.path.insert(0, str(ROOT / "bench"))
+    import benchlog_diagnose_grid
+
+    res = benchlog_diagnose_grid.run(quick=True)
+    return {k: res[k] for k in ("rates", "wall_time", "duration", "rate")}
+
+
+# run only when named (--only diagnose_scale benchlog_identifiability benchlog_diagnose): the diagnosis scaling
+# runs four diagnoses up to 80,000 samples, the identifiability grid fits many generated logs, the bench-log
+# diagnosis grid makes ~13 diagnoses (minutes each; docs/explanation)
+OPTIONAL = {"diagnose_scale": bench_diagnose_scale, "benchlog_identifiability": bench_benchlog_identifiability,
+            "benchlog_diagnose": bench_benchlog_diagnose}
 
 
 def main():

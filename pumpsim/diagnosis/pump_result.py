@@ -85,14 +85,16 @@ class BenchDiagnosis(NamedSteps):
     history: tuple = ()  # BenchModelFit: the baseline, then after each named effect
     budget: dict = field(default_factory=dict)
     runs: int = 0  # model runs the diagnosis made
+    withdrawn: tuple = ()  # BenchStep the search named before the guard found the model inadequate (pump_guard)
+    consistency: dict = field(default_factory=dict)  # the guard's test of the final model (pump_guard.consistency)
 
     JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
-            "verdict", "notes", "detectors", "ranking", "method", "wall_time", "budget", "runs")
-
+            "verdict", "notes", "detectors", "ranking", "method", "wall_time", "budget", "runs", "consistency")
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in self.JSON}
         out["steps"] = [s.to_json() for s in self.steps]
+        out["withdrawn"] = [s.to_json() for s in self.withdrawn]
         return out
 
     def __str__(self):

@@ -1,5 +1,7 @@
 """Twin bench logs with a known fault, for the bench-log diagnosis's tests and benchmark grid: the
-library's effects (pump_effects) and faults outside it (a larger booster, a pressure sensor offset)."""
+library's effects (pump_effects) and faults outside it -- what an independent rig plausibly has
+that the model of the config does not: another booster volume, a pressure sensor's offset or span
+error, a current shunt's gain error, a supply ripple the logger filters out."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +18,13 @@ HEATING_ITERATIONS = 3  # fixed-point passes for the heated drive's current (the
 OUTSIDE = {
     "booster_volume": "the booster's volume differs from the config (booster.volume x size)",
     "pressure_offset": "the pressure sensor reads `size` Pa high",
+    "pressure_gain": "the pressure sensor's span is off: it reads `size` x the pressure",
+    "current_gain": "the current sensor (shunt) reads `size` x the current",
+    "voltage_ripple": "the supply carries a 100 Hz ripple of `size` V amplitude that the logged voltage "
+                      "does not show (the logger's filter averages it)",
 }
+RIPPLE_HZ = 100.0  # a full-wave rectified 50 Hz supply
+SENSOR_GAINS = {"pressure_gain": "booster_pressure", "current_gain": "current"}
 
 
 def fault_values(cfg, effect: str, size: float) -> dict:
@@ -41,15 +49,27 @@ def twin_with_fault(cfg, duration, rate, fault=None, size=0.0, values=None, nois
         vals.update(fault_values(cfg, fault, size))
     elif fault == "booster_volume":
         vals["booster.volume"] = cfg.pneumatic.values["booster.volume"] * size
-    elif fault not in (None, "pressure_offset"):
+    elif fault not in (None, "pressure_offset", "voltage_ripple", *SENSOR_GAINS):
         raise ValueError(f"fault must be a library effect or one of {', '.join(OUTSIDE)}, got {fault!r}")
     kw = {"values": vals, "noise": noise, "seed": seed, "rtol": rtol, "atol": atol}
     if fault is not None and BY_NAME.get(fault) is not None and BY_NAME[fault].param == RISE:
         return _heated_twin(cfg, duration, rate, size, kw)
+    if fault == "voltage_ripple":
+        return _rippled_twin(cfg, duration, rate, size, kw)
     log = twin_log(cfg, duration, rate, **kw)
     if fault == "pressure_offset":
         log = dataclasses.replace(log, booster_pressure=log.booster_pressure + size)
+    elif fault in SENSOR_GAINS:
+        channel = SENSOR_GAINS[fault]
+        log = dataclasses.replace(log, **{channel: getattr(log, channel) * size})
     return log
+
+
+def _rippled_twin(cfg, duration, rate, amplitude, kw):
+    v = cfg.pneumatic.values["motor.voltage"]
+    log = twin_log(cfg, duration, rate, voltage=lambda t: v + amplitude * np.sin(2 * np.pi * RIPPLE_HZ * t), **kw)
+    # logged: the supply's mean with the log's noise
+    return dataclasses.replace(log, voltage=log.voltage - amplitude * np.sin(2 * np.pi * RIPPLE_HZ * log.time))
 
 
 def _heated_twin(cfg, duration, rate, rise, kw):

@@ -25,6 +25,7 @@ from ..signals import high_frequency_noise, ljung_box, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 from .log import Budgeted, BudgetReached, Note, TooSmall
 from .options import OPTIONS, DiagnosisOptions
+from .pump_guard import Inconsistent, consistency
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
 from .pump_result import (
     NOISE_UNIT,
@@ -77,6 +78,19 @@ class Confounded(Note):
             why = ("act identically on this log" if self.cos > SAME_MODEL else
                    f"have collinear signatures on this log (|cos| {self.cos:.4f})")
         return f"{self.first} and {self.second} {why}: neither is named; to separate them: {self.how}"
+
+
+@dataclass(frozen=True)
+class Alias(Note):
+    """A named effect that a change outside the library reads the same as on a pump-down log."""
+
+    effect: str
+    alias: str
+    how: str
+
+    def text(self) -> str:
+        return (f"{self.effect} is named assuming calibrated sensors: {self.alias} reads the same on a pump-down "
+                f"log; to rule it out: {self.how}")
 
 
 @dataclass
@@ -194,7 +208,7 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
         steps.append(step_record)
         history.append(_model_fit(step_record.effect.name, current))
         detection = _detect(current, options)
-    return _result(run, base, current, detection, steps, history, ranking, wall0)
+    return _result(run, base, current, detection, steps, history, ranking, wall0, _guard(current, options))
 
 
 def _fit(run, names, values, start) -> Fit:
@@ -245,6 +259,14 @@ def _detect(fit: Fit, opts) -> BenchDetection:
     p = fit.prob
     return BenchDetection(fit.residual, [p.drives.get(0.0).measured[c].size for c in p.channel_names],
                           p.channel_names, len(fit.names), opts)
+
+
+def _guard(fit: Fit, opts) -> dict:
+    """The final model's consistency over the log's time parts (pump_guard): no run."""
+    p = fit.prob
+    inner = p.drives.get(0.0)
+    return consistency(fit.names, fit.values, fit.residual, fit.jacobian, [inner.bench.times(c) for c in p.channel_names],
+                       (inner.bench.times("booster_pressure"), inner.measured["booster_pressure"]), opts)
 
 
 def _screen(run, current: Fit, effects) -> list:
@@ -332,6 +354,9 @@ def _search_step(run, current: Fit, screened: list, detection):
                                                           next(g for g in best["group"] if g.effect is other)).direction)
                 run.log.append(Confounded(*pair, how, cos, None if grouped else opts.bic_decisive))
         return None
+    e = best["group"][0].effect
+    if e.alias:
+        run.log.append(Alias(e.name, e.alias, e.separate))
     return _step(best, current), best["fit"]
 
 
@@ -420,10 +445,19 @@ def method_text(opts: DiagnosisOptions = OPTIONS) -> str:
             f"at least {opts.named_size:g} noise sigmas and a BIC lead of {opts.bic_decisive:g} over any rival")
 
 
-def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wall0) -> BenchDiagnosis:
+def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wall0, guard) -> BenchDiagnosis:
     opts = run.opts
     verdict = verdict_of(detection, [s.effect.name for s in steps], [], opts, NOISE_UNIT)
-    text = verdict.text
+    text, withdrawn = verdict.text, ()
+    # the names of a model that does not describe the log are no answer, nor is "consistent with
+    # noise" (where the detectors already say unexplained and nothing is named, that verdict stands)
+    inadequate = guard["fires"] and (bool(steps) or verdict.consistent)
+    if inadequate:
+        withdrawn, steps = tuple(steps), []
+        run.log = [n for n in run.log if not isinstance(n, Alias)]  # said of names no longer given
+        text = "model inadequate: nothing named; unexplained"
+        run.log.append(Inconsistent(tuple(current.names), tuple(s.effect.name for s in withdrawn), guard["statistic"],
+                                    guard["dof"], guard["p_value"], guard["alpha"], guard["worst"]))
     if run.confounded:
         text += "; confounded: " + ", ".join(" ~ ".join(p) for p in run.confounded)
     run.log += [n for n in verdict_notes(detection, {"p_value": 1.0, "excess_rms": 0.0, "mad_sigma": 1.0},
@@ -438,10 +472,10 @@ def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wa
         final={"rms": current.rms, "params": history[-1].params, "residual_white": verdict.consistent,
                "runs_p_value": p["runs_test"], "ljung_box_p_value": p["ljung_box"],
                "noise_level_p_value": p["noise_level"]},
-        unexplained=not verdict.consistent, confounded=run.confounded,
+        unexplained=not verdict.consistent or inadequate, confounded=run.confounded,
         unexplained_where=[] if verdict.consistent else where_unexplained(current, detection, opts),
         verdict=text, log=tuple(run.log), detectors=detection.to_json(),
         ranking=[s.to_json(level) for s in ranking], method=method_text(opts),
         wall_time=_time.perf_counter() - wall0, measured=dict(inner.measured),
         times={c: inner.bench.times(c) for c in inner.channel_names}, noise=dict(inner.sigma),
-        history=tuple(history), budget=run.budget, runs=run.drives.runs)
+        history=tuple(history), budget=run.budget, runs=run.drives.runs, withdrawn=withdrawn, consistency=guard)

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,6 +26,8 @@ class Homogeneity:
     dof: int
     p_value: float
     estimates: list  # per usable segment, the estimates (in J's units)
+    stderrs: list = field(default_factory=list)  # per usable segment, their standard errors (J's units)
+    labels: list = field(default_factory=list)  # the usable segments' labels
 
 
 def homogeneity(J, r, segments, sigma, nuisance=None) -> Homogeneity:
@@ -38,7 +40,7 @@ def homogeneity(J, r, segments, sigma, nuisance=None) -> Homogeneity:
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0
     A = A / scale
-    est, info = [], []
+    est, info, used = [], [], []
     for s in np.unique(segments):
         m = segments == s
         F = A[m].T @ A[m]
@@ -47,13 +49,16 @@ def homogeneity(J, r, segments, sigma, nuisance=None) -> Homogeneity:
         Finv = np.linalg.inv(F)
         est.append((Finv @ (A[m].T @ r[m]))[:q])
         info.append(np.linalg.inv(Finv[:q, :q]) / sigma ** 2)  # the profiled (Schur) information
+        used.append(s)
     if len(est) < 2:
         return Homogeneity(0.0, 0, 1.0, [])
     W = sum(info)
     pooled = np.linalg.solve(W, sum(I @ b for I, b in zip(info, est)))
     stat = float(sum((b - pooled) @ I @ (b - pooled) for I, b in zip(info, est)))
     dof = (len(est) - 1) * q
-    return Homogeneity(stat, dof, float(chi2_sf(stat, dof)), [(b / scale[:q]).tolist() for b in est])
+    se = [np.sqrt(np.diag(np.linalg.inv(I))) / scale[:q] for I in info]
+    return Homogeneity(stat, dof, float(chi2_sf(stat, dof)), [(b / scale[:q]).tolist() for b in est],
+                       [e.tolist() for e in se], [s.item() for s in used])
 
 
 def revolution_segments(angle, rows, opts: DiagnosisOptions = OPTIONS):
