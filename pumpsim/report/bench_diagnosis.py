@@ -71,6 +71,10 @@ def verdict_html(out) -> str:
             f"noise); detectors p: runs {_p(f['runs_p_value'])}, Ljung–Box {_p(f['ljung_box_p_value'])}, "
             f"noise level {_p(f['noise_level_p_value'])}.")
     items = [f"Named: {_named_text(s)}" for s in out.steps] or ["No effect of the library is named."]
+    if out.withdrawn:
+        items.append("<b>Withdrawn</b>: the search named " + html.escape(", ".join(s.effect.name for s in out.withdrawn))
+                     + ", but the model with them is not consistent over the log (its parameters differ between "
+                     "the log's parts): the model cannot describe this log; see the notes.")
     how = _separations(out)
     for a, b in out.confounded:
         sep = how.get(frozenset((a, b)), "a second experiment")
@@ -112,11 +116,15 @@ def _channels_html(out) -> str:
         fitted = ", ".join(base.params) or "nothing"
         models[f"baseline (config, {fitted} fitted)"] = base.channels
         if len(out.history) > 1:
-            models[f"final (after {', '.join(h.label for h in out.history[1:])})"] = out.history[-1].channels
+            after = ", ".join(h.label for h in out.history[1:])
+            label = (f"withdrawn (with {after}: not consistent over the log)" if out.withdrawn else
+                     f"final (after {after})")
+            models[label] = out.history[-1].channels
     if not models or not out.measured:
         return "<p class=note>The result carries no channels to draw.</p>"
     blocks = any(len(out.times.get(c, ())) < len(out.times.get("booster_pressure", ())) for c in out.times)
-    styles = (" (dashed: the baseline; solid: the final model)" if len(models) > 1 else
+    styles = (" (dashed: the baseline; solid: the model with the withdrawn effects)" if out.withdrawn else
+              " (dashed: the baseline; solid: the final model)" if len(models) > 1 else
               " (no effect named: the baseline is the final model)")
     return (channel_figure(out.times, out.measured, models, out.noise or None)
             + "<p class=note>Dots: the log; lines: the model, driven by the logged voltage" + styles + ". "

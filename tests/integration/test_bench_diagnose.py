@@ -123,7 +123,7 @@ def test_a_late_valve_is_named_with_the_pressure_span_it_cannot_be_told_from(cfg
 
 
 @pytest.mark.slow
-def test_a_firing_guard_withdraws_the_names_and_says_where(cfg, monkeypatch):
+def test_a_firing_guard_withdraws_the_names_and_says_where(cfg, monkeypatch, tmp_path):
     """The verdict's wiring when the guard fires (forced here; its statistics are
     test_bench_diagnosis_guard's): the named late valve is withdrawn, kept under `withdrawn` with
     its note on sensors dropped, the verdict is `model inadequate`, the note says which parameter
@@ -143,6 +143,13 @@ def test_a_firing_guard_withdraws_the_names_and_says_where(cfg, monkeypatch):
     assert any(n.startswith("model inadequate") and "(valve_late) are withdrawn" in n for n in res.notes), str(res)
     assert not any("assuming calibrated sensors" in n for n in res.notes)
     assert res.to_json()["withdrawn"][0]["effect"] == "valve_late"
+    # the report says so too: no curve is labelled the final model with the withdrawn name
+    from pumpsim.report.bench_diagnosis import bench_diagnosis_report
+
+    path = tmp_path / "withdrawn.html"
+    bench_diagnosis_report(res, path, cfg=cfg)
+    page = path.read_text()
+    assert "Withdrawn" in page and "not consistent over the log" in page and "final (after valve_late)" not in page
 
 
 def test_cli_diagnoses_a_bench_log_with_json_and_exit_codes(tmp_path, cfg):
