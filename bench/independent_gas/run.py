@@ -96,7 +96,17 @@ def identify_scores(entry: dict, js: dict) -> dict:
 
 
 def run_one(job):
+    """One command on one log; its row is kept beside its JSON, and a rerun reuses it."""
     kind, entry, logs, res_dir = job
+    row_path = res_dir / f"{kind}_{Path(entry['log']).stem}.row.json"
+    if row_path.exists():
+        return json.loads(row_path.read_text())
+    row = _run_one(kind, entry, logs, res_dir)
+    row_path.write_text(json.dumps(row, default=str))
+    return row
+
+
+def _run_one(kind, entry, logs, res_dir):
     log = logs / entry["log"]
     out = res_dir / f"{kind}_{Path(entry['log']).stem}.json"
     if kind == "diagnose":
@@ -167,20 +177,31 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", choices=("diagnose", "identify"))
-    ap.add_argument("--limit", type=int, default=None, help="at most this many logs (spread over the grid)")
+    ap.add_argument("--limit", type=int, default=None, help="at most this many logs (every case before the next seed, noise, format)")
+    ap.add_argument("--cases", help="comma-separated hidden changes (default: all)")
+    ap.add_argument("--summarise-only", action="store_true", help="score the rows earlier runs left")
     a = ap.parse_args(argv)
     out = Path(a.out)
-    manifest = G.generate(out, a.quick, a.jobs)
-    if a.limit and a.limit < len(manifest):
-        step = len(manifest) / a.limit
-        manifest = [manifest[int(k * step)] for k in range(a.limit)]
+    cases = a.cases.split(",") if a.cases else None
+    if a.summarise_only:
+        manifest = [e for e in json.loads((out / "manifest.json").read_text()) if cases is None or e["case"] in cases]
+    else:
+        manifest = G.generate(out, a.quick, a.jobs, cases)
+    # balanced first: every case at one seed, noise and format before the next
+    manifest.sort(key=lambda e: (e["seed"], list(G.NOISE).index(e["noise"]), G.FORMATS.index(e["format"])))
+    manifest = manifest[:a.limit]
     res_dir = out / "results"
     res_dir.mkdir(parents=True, exist_ok=True)
     kinds = [a.only] if a.only else ["diagnose", "identify"]
     jobs = [(k, e, out / "logs", res_dir) for e in manifest for k in kinds]
     t0 = time.time()
-    with ThreadPoolExecutor(a.jobs) as ex:
-        rows = list(ex.map(run_one, jobs))
+    if a.summarise_only:  # the rows the runs so far left (an interrupted grid)
+        rows = [json.loads(p.read_text()) for j in jobs
+                for p in [res_dir / f"{j[0]}_{Path(j[1]['log']).stem}.row.json"] if p.exists()]
+        manifest = [e for e in manifest if any(r["log"] == e["log"] for r in rows)]
+    else:
+        with ThreadPoolExecutor(a.jobs) as ex:
+            rows = list(ex.map(run_one, jobs))
     summ = summarise(rows)
     summ["wall"] = time.time() - t0
     summ["logs"] = len(manifest)
