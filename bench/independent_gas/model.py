@@ -18,9 +18,10 @@ Readings where the spec is silent (each a named choice below):
   p_down/p_up > 0.999 (the exact law has an infinite slope at equal pressures).
 * End-face leak: both end faces, each a gap `leak.end_gap` along the flank length exposed outside
   the rotor (zero where the flank is inside it).
-* Gas on a vane: the cell pressure difference on the exposed length (rotor circle to tip) x width
-  along w; the slot bottom pushes out with p_slot h W; the tip is pushed in with the mean of the two
-  cells' pressures x h W (the spec names only the slot bottom: TIP_PRESSURE switches this off).
+* Gas on a vane: each cell's pressure on the vane surface it wets -- the exposed flank and the tip
+  arc from the flank (or the rotor circle) up to the housing contact; the arc's resultant passes
+  through the arc's centre. The slot bottom pushes out with p_slot h W. (The spec names the exposed
+  face and the slot bottom; the tip is the same surface integral.)
 * Wall heat exchange area of a cell: both end plates + housing arc + rotor arc (x width).
 * Motor friction: motor.friction x tanh(omega / 1 rad/s) (a constant torque is undefined at rest).
 """
@@ -33,7 +34,6 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.integrate import solve_ivp
 
-TIP_PRESSURE = True
 LINEAR_BELOW = 1.0e-3          # orifice law linear for 1 - p_down/p_up < this
 TANH_SPEED = 1.0               # rad/s, motor friction's smoothing
 
@@ -379,6 +379,35 @@ def _cross_rows(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
+def gas_loads(p: Pump, v: Vanes, p_cell, G):
+    """Force (N, 2) and moment about G (N,) of the cells' pressures on each vane's wetted surface:
+    cell k on the +w side of vane k, cell k-1 on the -w side. A uniform pressure on a path from a
+    to b (the vane on its inner side) gives -side p W z x (b - a)."""
+    F = np.zeros((p.N, 2))
+    M = np.zeros(p.N)
+    top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4) if p.rho > 0 else 0.0
+    for side, pc in ((1.0, p_cell), (-1.0, np.roll(p_cell, 1))):
+        off = v.Ob + side * p.h / 2 * v.w
+        bo = off @ v.u
+        t_rot = -bo + math.sqrt(bo * bo - (off @ off - p.Rr ** 2))
+        for k in range(p.N):
+            P = v.Ob + v.ell[k] * v.u
+            end = v.contact[k]
+            if p.rho == 0.0:
+                pieces = [(off + t_rot * v.u, off + v.ell[k] * v.u, None), (off + v.ell[k] * v.u, end, None)]
+            elif t_rot <= v.ell[k] + top:
+                j = off + (v.ell[k] + top) * v.u
+                pieces = [(off + t_rot * v.u, j, None), (j, end, P)]
+            else:
+                pieces = [(_circle_cut(P, p.rho, p.Rr, side * v.w), end, P)]
+            for a, b, centre in pieces:
+                f = -side * pc[k] * p.W * _zx(b - a)
+                at = (a + b) / 2 if centre is None else centre
+                F[k] += f
+                M[k] += _cross(at - G[k], f)
+    return F, M
+
+
 def mechanics(p: Pump, v: Vanes, omega, p_cell, p_slot, drive, signs):
     """The 3N vane reactions (N, F1, F2 per vane) and omega' (spec §3 Model 2 with §8 gas loads):
     per vane a 3x3 system linear in omega' once the slot contact sides are fixed, closed by the
@@ -395,13 +424,8 @@ def mechanics(p: Pump, v: Vanes, omega, p_cell, p_slot, drive, signs):
     vt = np.sum((omega * zc + sdot[:, None] * u) * t_hat, 1)
     mu_t = np.array([mu_law(x, *p.fr_h) for x in vt])
     mu_r = np.array([mu_law(x, *p.fr_s) for x in sdot])
-    e = v.ell + p.rho - v.ell_mouth                          # length outside the rotor
-    pc_prev = np.roll(p_cell, 1)
-    fg = (pc_prev - p_cell) * e * p.W
-    fs = p_slot * p.h * p.W
-    ftip = 0.5 * (pc_prev + p_cell) * p.h * p.W if TIP_PRESSURE else 0.0 * fg
-    Fk = fg[:, None] * w + (fs - ftip)[:, None] * u
-    Mk = (v.ell_mouth + e / 2 - (v.s + p.L / 2)) * fg
+    Fk, Mk = gas_loads(p, v, p_cell, G)
+    Fk = Fk + p_slot * p.h * p.W * u                          # the slot bottom pushes out
     sig = np.array(signs, float)
     for _ in range(8):
         d0 = v.n - mu_t[:, None] * t_hat
@@ -419,7 +443,7 @@ def mechanics(p: Pump, v: Vanes, omega, p_cell, p_slot, drive, signs):
         X = np.linalg.solve(M, np.stack([r0, r1], 2))        # x = X0 + omega' X1
         # the rotor gets minus the slot-wall forces and the slot gas's push on the slot bottom
         c1, c2 = _cross_rows(p1, d1), _cross_rows(p2, d2)
-        gas = np.sum(_cross_rows(np.broadcast_to(Ob, (p.N, 2)), -fs * np.broadcast_to(u, (p.N, 2))))
+        gas = p.N * _cross(Ob, -p_slot * p.h * p.W * u)
         num = drive + gas - np.sum(c1 * X[:, 1, 0] + c2 * X[:, 2, 0])
         den = p.Ir + p.Im + np.sum(c1 * X[:, 1, 1] + c2 * X[:, 2, 1])
         dw = num / den

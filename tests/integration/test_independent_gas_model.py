@@ -98,3 +98,18 @@ def test_short_pump_down_conserves_mass(evp):
     gas = y[:N].sum(0) + y[2 * N] + y[2 * N + 2] + y[2 * N + 4] * p.Vb / (p.gas_R * p.T0)
     assert r["booster_pressure"][-1] < r["booster_pressure"][0]          # it pumps
     assert abs(gas[-1] - gas[0]) < 1e-7 * gas[0]
+
+
+@pytest.mark.parametrize("theta", [0.0, 0.7, 2.2])
+def test_gas_loads_do_the_cells_pdv_work(evp, theta):
+    # massless frictionless vanes, slot unpressurised: the drive's power is all gas work,
+    # tau omega = -sum p_i dV_i/dt (the loads are the pressures on the wetted vane surfaces)
+    p = replace(evp, m=0.0, J=0.0, fr_h=(0.0, 0.0, 1e-4, 1e-3), fr_s=(0.0, 0.0, 1e-4, 1e-3))
+    omega, d = 300.0, 1e-6
+    pc = np.array([60e3, 85e3, 140e3, 95e3])
+    v = M.Vanes(p, theta)
+    w0 = M.mechanics(p, v, omega, pc, 0.0, 0.0, [(1.0, 1.0)] * p.N)[0]
+    w1 = M.mechanics(p, v, omega, pc, 0.0, 1.0, [(1.0, 1.0)] * p.N)[0]
+    tau = -w0 / (w1 - w0)
+    dV = (np.array([c[0] for c in M.cells(p, theta + d)]) - np.array([c[0] for c in M.cells(p, theta - d)])) / (2 * d)
+    assert tau * omega == pytest.approx(-np.sum(pc * dV) * omega, rel=1e-6)
