@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import model as M  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
-CONFIG = ROOT / "examples" / "evp_booster.toml"
+CONFIG = Path(__file__).resolve().parent / "evp_small_booster.toml"
 DURATION = 0.5          # s: a short end-of-line run (runtime of the independent model: ~2 min per case)
 CLEAN_RATE = 10000.0    # Hz: the clean channels, resampled to the logs' rates and jittered times
 SOURCE_RESISTANCE = 0.02  # ohm: the bench supply sags with the current; the logged voltage shows it
@@ -32,13 +32,13 @@ SOURCE_RESISTANCE = 0.02  # ohm: the bench supply sags with the current; the log
 #          in pumpsim's parameter names where they exist)
 CASES = {
     "none": (None, {}, {}),
-    "booster_leak": ("booster_leak", {"booster_leak": 1.0e-4}, {"booster.leak": 1.0e-4}),
-    "tip_clearance": ("tip_clearance", {"tip_gap": 2.5e-5}, {"leak.tip_gap": 2.5e-5}),
+    "booster_leak": ("booster_leak", {"booster_leak": 5.0e-5}, {"booster.leak": 5.0e-5}),
+    "tip_clearance": ("tip_clearance", {"tip_gap": 2.0e-5}, {"leak.tip_gap": 2.0e-5}),
     "valve_late": ("valve_late", {"valve_crack": 8000.0, "valve_full": 11000.0}, {"valve.cracking": 8000.0}),
     "motor_friction": ("motor_friction", {"motor_friction": 0.03}, {"motor.friction": 0.03}),
     "supply_resistance": ("supply_resistance", {"supply_resistance": 0.05}, {"supply_resistance": 0.05}),
     "winding_heating": ("winding_heating", {"heating": 0.4}, {"heating_per_s": 0.4}),
-    "booster_volume": (None, {"Vb": 4.6e-3}, {"booster.volume": 4.6e-3}),
+    "booster_volume": (None, {"Vb": 4.6e-4}, {"booster.volume": 4.6e-4}),
 }
 # sensor changes: applied to a simulated case's channels (the pump itself unchanged)
 SENSOR_CASES = {
@@ -52,7 +52,7 @@ RATES = {"csv_kpa": 1000.0, "csv_mbar_ms": 500.0, "csv_pa": 1000.0, "mat": 1000.
          "csv_kpa_jitter": 1000.0}
 
 
-def simulate(name: str, out: Path) -> Path:
+def simulate(name: str, out: Path, duration: float = DURATION) -> Path:
     """Integrate one case and keep its clean channels (npz)."""
     path = out / "clean" / f"{name}.npz"
     if path.exists():
@@ -60,8 +60,8 @@ def simulate(name: str, out: Path) -> Path:
     pump = M.load(CONFIG)
     pump = replace(pump, **CASES[name][1])
     pd = M.PumpDown(pump, lambda t: pump.voltage, source_resistance=SOURCE_RESISTANCE)
-    t = np.arange(int(round(DURATION * CLEAN_RATE)) + 1) / CLEAN_RATE
-    r = pd.run(t, rtol=1e-6, method="LSODA")
+    t = np.arange(int(round(duration * CLEAN_RATE)) + 1) / CLEAN_RATE
+    r = pd.run(t, rtol=1e-5, method="LSODA")  # 1e-6 moves the channels by ~1e-5 of their value
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, **{k: r[k] for k in ("time", "voltage", "current", "booster_pressure", "speed")})
     return path
@@ -71,7 +71,7 @@ def sample(clean: dict, rate: float, jitter: float, rng) -> dict:
     """The channels at the bench's sample times: a uniform grid at `rate`, each time moved by up
     to +-jitter sample periods (the values taken at the true times; the log's time column shows
     them as the bench's clock did, to the microsecond)."""
-    n = int(round(DURATION * rate)) + 1
+    n = int(round(clean["time"][-1] * rate)) + 1
     t = np.arange(n) / rate
     if jitter:
         t[1:-1] += jitter / rate * rng.uniform(-1, 1, n - 2)
@@ -176,7 +176,8 @@ def generate(out: Path, quick: bool, jobs: int, cases=None) -> list:
         library, _, truth = CASES[base]
         manifest.append({"log": path.name, "case": case, "library": library if case not in SENSOR_CASES else None,
                          "truth": truth, "sensors": {k: list(g) for k, g in sensors.items()}, "noise": noise,
-                         "noise_sigma": NOISE[noise], "seed": seed, "format": fmt, "rate": RATES[fmt]})
+                         "noise_sigma": NOISE[noise], "seed": seed, "format": fmt, "rate": RATES[fmt],
+                         "duration": float(clean["time"][-1])})
     path = out / "manifest.json"
     known = {e["log"]: e for e in (json.loads(path.read_text()) if path.exists() else [])}
     known.update({e["log"]: e for e in manifest})

@@ -22,7 +22,8 @@ Readings where the spec is silent (each a named choice below):
   arc from the flank (or the rotor circle) up to the housing contact; the arc's resultant passes
   through the arc's centre. The slot bottom pushes out with p_slot h W. (The spec names the exposed
   face and the slot bottom; the tip is the same surface integral.)
-* Wall heat exchange area of a cell: both end plates + housing arc + rotor arc (x width).
+* Wall heat exchange area of a cell: both end plates + (housing arc + rotor arc + the wetted
+  flanks and tip arcs of its two vanes) x width.
 * Motor friction: motor.friction x tanh(omega / 1 rad/s) (a constant torque is undefined at rest).
 """
 from __future__ import annotations
@@ -35,6 +36,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 LINEAR_BELOW = 1.0e-3          # orifice law linear for 1 - p_down/p_up < this
+WALL_TIP_ARCS = True           # the tip arcs count in a cell's heat-exchange area
 TANH_SPEED = 1.0               # rad/s, motor friction's smoothing
 
 
@@ -270,7 +272,7 @@ def _path_green(pieces, reverse=False):
 
 
 def _path_length(pieces):
-    return sum(np.linalg.norm(pc[2] - pc[1]) if pc[0] == "line" else pc[2] * abs(pc[4] - pc[3])
+    return sum(np.linalg.norm(pc[2] - pc[1]) if pc[0] == "line" else pc[2] * abs(pc[4] - pc[3]) * WALL_TIP_ARCS
                for pc in pieces)
 
 

@@ -44,7 +44,7 @@ def truth_of(entry: dict) -> dict:
     if "supply_resistance" in tr:
         t["motor.resistance"] += tr["supply_resistance"]
     if "heating_per_s" in tr:
-        t["motor.resistance"] *= 1 + tr["heating_per_s"] * G.DURATION / 2
+        t["motor.resistance"] *= 1 + tr["heating_per_s"] * entry["duration"] / 2
     return t
 
 
@@ -64,7 +64,7 @@ def call(args: list, out_json: Path) -> dict:
     res = {"rc": r.returncode, "wall": time.time() - t0, "stderr": r.stderr[-2000:]}
     if r.returncode not in (0, 1) or "Traceback" in r.stderr:
         res["failure"] = f"exit {r.returncode}" + (" with a traceback" if "Traceback" in r.stderr else "")
-    if r.returncode == 0 and out_json.exists():
+    if r.returncode in (0, 1) and out_json.exists():  # exit 1 (e.g. not converged) may still hold the fit
         res["json"] = json.loads(out_json.read_text())
     return res
 
@@ -121,8 +121,8 @@ def _run_one(kind, entry, logs, res_dir):
             r["scores"] = identify_scores(entry, r["json"])
             r["fit"] = r["json"].get("fit")
     r.pop("json", None)
-    if r.get("rc") == 1 and "failure" not in r:
-        r["outcome"] = r.get("outcome", "exit 1")
+    if r.get("rc") == 1 and "failure" not in r and kind == "diagnose":
+        r["outcome"] = "exit 1"
     return {"kind": kind, **entry, **r}
 
 
@@ -139,6 +139,8 @@ def summarise(rows: list) -> dict:
         elif r.get("scores"):
             d = summ["identify"].setdefault(r["case"], {"n": 0, "well_specified": well_specified(r)})
             d["n"] += 1
+            if r["rc"] == 1:
+                d["exit1"] = d.get("exit1", 0) + 1
             for k, s in r["scores"].items():
                 e = d.setdefault(k, {"abs_rel_errors": [], "inside95": 0})
                 e["abs_rel_errors"].append(abs(s["rel_error"]))
