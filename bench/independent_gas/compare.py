@@ -1,7 +1,7 @@
 """The independent model against pumpsim's pump-down on the EVP example, no hidden change, constant
-supply voltage: booster pressure, current and speed over the first 0.5 s.
+supply voltage: booster pressure, current and speed over the first 0.15 s (~1 CPU min).
 
-    python bench/independent_gas/compare.py [--duration 0.5] [--json out/independent_gas/compare.json]
+    python bench/independent_gas/compare.py [--duration 0.15] [--json out/independent_gas/compare.json]
 
 pumpsim is run through its command line (`pumpsim pumpdown --out CSV`, rtol 1e-6); the independent
 model with LSODA at rtol 1e-6 (1e-7 moves its channels by < 1e-5 relative over 0.05 s).
@@ -69,7 +69,7 @@ def agreement(a, b):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--duration", type=float, default=0.5)
+    ap.add_argument("--duration", type=float, default=0.15)
     ap.add_argument("--json", default=str(ROOT / "out" / "independent_gas" / "compare.json"))
     a = ap.parse_args(argv)
     rows = agreement(independent_curves(a.duration), pumpsim_curves(a.duration))

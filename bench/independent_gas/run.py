@@ -57,7 +57,8 @@ def call(args: list, out_json: Path) -> dict:
     t0 = time.time()
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     try:
-        r = subprocess.run(["nice", "-n", "10", *PUMPSIM, *args, "--json", str(out_json)], cwd=ROOT, env=env,
+        nice = ["nice", "-n", str(max(0, 10 - os.nice(0)))]  # niceness 10 in all, not 10 more
+        r = subprocess.run([*nice, *PUMPSIM, *args, "--json", str(out_json)], cwd=ROOT, env=env,
                            capture_output=True, text=True, timeout=TIMEOUT)
     except subprocess.TimeoutExpired:
         return {"rc": None, "failure": f"timeout after {TIMEOUT:g} s", "wall": time.time() - t0}
