@@ -182,6 +182,7 @@ def main(argv=None):
     ap.add_argument("--only", choices=("diagnose", "identify"))
     ap.add_argument("--limit", type=int, default=None, help="at most this many logs (every case before the next seed, noise, format)")
     ap.add_argument("--cases", help="comma-separated hidden changes (default: all)")
+    ap.add_argument("--noise", choices=tuple(G.NOISE), help="only logs at this noise level")
     ap.add_argument("--summarise-only", action="store_true", help="score the rows earlier runs left")
     a = ap.parse_args(argv)
     out = Path(a.out)
@@ -190,6 +191,7 @@ def main(argv=None):
         manifest = [e for e in json.loads((out / "manifest.json").read_text()) if cases is None or e["case"] in cases]
     else:
         manifest = G.generate(out, a.quick, a.jobs, cases)
+    manifest = [e for e in manifest if a.noise is None or e["noise"] == a.noise]
     # balanced first: every case at one seed, noise and format before the next
     manifest.sort(key=lambda e: (e["seed"], list(G.NOISE).index(e["noise"]), G.FORMATS.index(e["format"])))
     manifest = manifest[:a.limit]
