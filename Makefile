@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-ripple bench-benchlog-diagnose clean
+.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-independent-gas bench-ripple bench-benchlog-diagnose clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml setup.py
@@ -95,6 +95,12 @@ bench-benchlog-diagnose: codegen
 bench-diagnose-independent: codegen
 	mkdir -p out
 	$(BIN)/python bench/independent/run.py $(if $(QUICK),--quick) --json out/bench_independent.json
+
+# pumpsim diagnose/identify on bench logs from an independent pump-down model with hidden changes
+# (bench/independent_gas; the truth in out/independent_gas/manifest.json; QUICK=1: ~20 logs)
+bench-independent-gas: codegen
+	mkdir -p out
+	nice -n 10 $(BIN)/python bench/independent_gas/run.py $(if $(QUICK),--quick)
 
 clean:
 	rm -rf generated/*/ out .pytest_cache docs/_build docs/auto_examples docs/reference/generated
