@@ -39,6 +39,9 @@ GAUGE_MARKS = ("(gauge)", "gauge", "(relative)", "relative", "(rel)", "rel", "(g
 # gauge: an absolute pump-down from atmosphere starts near it, a gauge one near 0
 GAUGE_START_FRACTION = 0.5
 START_SAMPLES = 20  # samples a quadratic is fitted to for the log's start pressure
+# a log that starts above the config's atmosphere by more than this share (and 3 noise sigmas of its
+# start) is named: a booster is evacuated from the atmosphere at most
+ATMOSPHERE_MARGIN = 0.005
 VOLTAGE_FACTOR = 5.0  # a median voltage this far from motor.voltage is a unit mistake
 MIN_SAMPLES = 10
 
@@ -91,6 +94,25 @@ class BenchLog:
         extra = ", speed" if self.speed is not None else ""
         return (f"BenchLog({self.name!r}: {self.n} samples, {self.time[-1] - self.time[0]:.4g} s, voltage, "
                 f"current, booster_pressure{extra})")
+
+
+def start_above_atmosphere(log: BenchLog, cfg) -> str | None:
+    """A sentence when the log starts above the config's gas.atmosphere by more than
+    ATMOSPHERE_MARGIN and 3 noise sigmas of the start estimate, else None. The model starts the
+    cells at, and exhausts to, gas.atmosphere and the booster at the log's start; a pressure
+    sensor reading high (span or offset) or a day's atmosphere other than the config's then
+    enters every fitted figure, and a span error reads like a model effect on a pump-down log."""
+    if cfg is None or cfg.pneumatic is None:
+        return None
+    atm = cfg.pneumatic.values["gas.atmosphere"]
+    start = log.start_pressure()
+    sigma = noise_sigma(log.booster_pressure[:max(START_SAMPLES, 50)]) / math.sqrt(min(START_SAMPLES, log.n) / 3)
+    if start <= atm * (1 + ATMOSPHERE_MARGIN) or start - atm <= 3 * sigma:
+        return None
+    return (f"the log starts at {start / 1e3:.4g} kPa, {100 * (start / atm - 1):.2g} % above the config's "
+            f"gas.atmosphere {atm / 1e3:.4g} kPa: set gas.atmosphere to the day's barometer reading, or check "
+            "the pressure sensor's span and offset against a reference -- a sensor reading high enters every "
+            "figure fitted here, and its span error can read as a model effect")
 
 
 def _reader(p: Path):

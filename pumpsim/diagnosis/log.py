@@ -27,6 +27,16 @@ class Budgeted:
 
 
 @dataclass(frozen=True)
+class DataNote(Note):
+    """What the data's own checks found worth saying (a sentence made where the check is)."""
+
+    sentence: str
+
+    def text(self) -> str:
+        return self.sentence
+
+
+@dataclass(frozen=True)
 class SpeedColumnDrift(Note):
     measurement: int
     relative_change: float

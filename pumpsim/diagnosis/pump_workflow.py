@@ -17,13 +17,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..benchlog import start_above_atmosphere
 from ..distributions import chi2_sf
 from ..identification.optimiser import scaled_svd
 from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import Budgeted, BudgetReached, Note, TooSmall
+from .log import Budgeted, BudgetReached, DataNote, Note, TooSmall
 from .options import OPTIONS, DiagnosisOptions
 from .pump_guard import Inconsistent, consistency
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
@@ -192,6 +193,9 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
               **{e.param: e.absent_value(cfg) for e in effects}}
     run = Run(Drives(cfg, log, values, rtol, atol), options, progress or (lambda msg: None), None if budget is None else wall0 + budget,
               budget={"seconds": budget, "bound": False, "cut": []})
+    above = start_above_atmosphere(log, cfg)
+    if above:
+        run.log.append(DataNote(above))
     run.say("fitting the baseline")
     base = _weighted(run, _fit(run, list(BASELINE), values, None))
     current, steps, history, ranking = base, [], [_model_fit("baseline", base)], []

@@ -3,6 +3,7 @@
 vane COF 0.17 against the config's 0.15 (the baseline fits it), one fault each; the model at rtol
 1e-4 (the twins at 1e-6; a clean log's residual stays the noise: test_clean_log_names_nothing).
 Each diagnosis makes ~30-60 runs of the log: the effect cases are marked slow."""
+import dataclasses
 import json
 import subprocess
 import sys
@@ -217,3 +218,8 @@ def test_python_api_recognises_a_bench_log_as_the_command_line_does(tmp_path, cf
     assert fit.result.estimates["mu"].value == pytest.approx(TRUTH["mu"], rel=0.05)
     d = pumpsim.diagnose(cfg_path, path, budget=1e-6)  # the baseline only (the search is the slow tests')
     assert isinstance(d, BenchDiagnosis) and "mu" in d.to_json()["baseline"]["params"]
+    assert not any("above the config's gas.atmosphere" in n for n in d.notes)
+    # the same log through a pressure sensor reading 2 % high: the diagnosis says where to look
+    high = dataclasses.replace(log, booster_pressure=1.02 * log.booster_pressure)
+    d = diagnose_bench(cfg, high, budget=1e-6)
+    assert any("% above the config's gas.atmosphere" in n for n in d.notes), d.notes

@@ -93,3 +93,24 @@ def test_fit_percent_is_the_nrmse_fit():
     assert fit_percent(y, y) == 100.0
     assert fit_percent(y, np.full(4, y.mean())) == pytest.approx(0.0)
     assert fit_percent(y, y + np.array([0.1, -0.1, 0.1, -0.1])) == pytest.approx(100 * (1 - 0.2 / np.sqrt(5)))
+
+
+def test_a_log_starting_above_the_atmosphere_is_named(tmp_path):
+    """A booster is evacuated from the atmosphere at most: a start 2 % above the config's
+    gas.atmosphere (a sensor span error, or the day's barometer) is said; 0.2 % is not (inside the
+    margin), nor a start below it."""
+    from pumpsim.benchlog import BenchLog, start_above_atmosphere
+
+    cfg = load_config(EXAMPLES / "evp_booster.toml")
+    atm = cfg.pneumatic.values["gas.atmosphere"]
+    t = np.arange(200) * 1e-3
+    rng = np.random.default_rng(0)
+
+    def log(scale):
+        p = scale * (atm - 4e4 * (1 - np.exp(-t / 0.3))) + 50.0 * rng.standard_normal(t.size)
+        return BenchLog(t, np.full_like(t, 13.5), np.full_like(t, 10.0), p, None, source="", notes=[])
+
+    note = start_above_atmosphere(log(1.02), cfg)
+    assert note is not None and "2 % above" in note and "gas.atmosphere" in note and "span" in note
+    assert start_above_atmosphere(log(1.002), cfg) is None
+    assert start_above_atmosphere(log(0.97), cfg) is None
