@@ -48,10 +48,66 @@ typedef struct {
   /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
      goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
   call_t g; int gn1, gns, gnslot; const ci *gslot, *goff, *gidx; double *gbuf, gtouch;
+  /* a drive: p[dslot] linear in t on the uniform grid k * dstep of dn values dv */
+  double *pbuf, dstep; const double *dv; int dslot, dn;
+  /* forward sensitivities along parameter directions pdir (ns x np, dense) */
+  int ns, np; const double *pdir, *ph; N_Vector *yS; double *sy, *sfp, *sjac, *sf0, st; int sfresh; long nsrhs;
+  const ci *srow, *scol;
+  /* switches of the right-hand side at fixed angles of y[0] (a vane reversing in its slot): nev
+     angles evt in [0, 2 pi), their band half-widths evw / |y[1]| (at most wmax); kpos: the
+     next one above the angle */
+  int nev; const double *evt, *evw; double wmax, *yb, *fa, *fb; long kpos, njumps;
 } drv_t;
+
+static const double TWO_PI = 6.283185307179586;
+
+static double ev_angle(drv_t *d, long k) {
+  long q = k >= 0 ? k / d->nev : -((-k + d->nev - 1) / d->nev);
+  return d->evt[k - q * d->nev] + q * TWO_PI;
+}
+
+static double ev_width(drv_t *d, long k, double omega) {
+  long q = k >= 0 ? k / d->nev : -((-k + d->nev - 1) / d->nev);
+  double w = d->evw[k - q * d->nev] / fabs(omega);
+  return w < d->wmax ? w : 0.0;  /* a wider band (slow turning) is resolved by the steps */
+}
+
+/* Y with its angle moved out of a switch's band (to the edge on its side) into d->yb: the
+   sensitivities take the switch as a jump (sjump), not through the steep band */
+static const double *band_edge(drv_t *d, const double *Y) {
+  if (!d->nev) return Y;
+  double up = ev_angle(d, d->kpos), lo = ev_angle(d, d->kpos - 1), th = Y[0];
+  double wu = ev_width(d, d->kpos, Y[1]), wl = ev_width(d, d->kpos - 1, Y[1]);
+  double edge = th;
+  if (wu > 0 && up - th < wu) edge = up - wu;
+  else if (wl > 0 && th - lo < wl) edge = lo + wl;
+  if (edge == th) return Y;
+  memcpy(d->yb, Y, d->n * sizeof(double)); d->yb[0] = edge;
+  return d->yb;
+}
+
+static int sroot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
+  drv_t *d = (drv_t *)u; double th = N_VGetArrayPointer(y)[0];
+  g[0] = th - ev_angle(d, d->kpos); g[1] = th - ev_angle(d, d->kpos - 1);
+  return 0;
+}
+
+static void drive(drv_t *d, double t) {
+  if (!d->dv) return;
+  int i = (int)floor(t / d->dstep);
+  if (i > d->dn - 2) i = d->dn - 2;
+  if (i < 0) i = 0;
+  double f = t / d->dstep - i;
+  d->pbuf[d->dslot] = d->dv[i] * (1 - f) + d->dv[i + 1] * f;
+}
+
+void drv_drive(drv_t *d, double *pbuf, int slot, double step, int n, const double *v) {
+  d->pbuf = pbuf; d->dslot = slot; d->dstep = step; d->dn = n; d->dv = v;
+}
 
 static int groot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
   drv_t *d = (drv_t *)u; double *Y = N_VGetArrayPointer(y);
+  drive(d, t);
   for (int i = 0; i < d->gnslot; i++) d->g.arg[d->gslot[i]] = Y + d->goff[i];
   if (d->gn1 && d->g.f(d->g.arg, d->g.res, d->g.iw, d->g.w, 0)) return 1;
   for (int i = 0; i < d->gn1; i++) g[i] = d->gbuf[i];
@@ -67,17 +123,114 @@ int drv_roots(drv_t *d, fn_t f, const double **arg, double **res, ci *iw, double
   return CVodeRootInit(d->cv, n1 + ns, groot);
 }
 
-static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
-  drv_t *d = (drv_t *)u; double *D = N_VGetArrayPointer(yd);
-  d->rhs.arg[d->rhs.slot] = N_VGetArrayPointer(y);
+static int feval(drv_t *d, double t, double *Y, double *D) {
+  drive(d, t);
+  d->rhs.arg[d->rhs.slot] = Y;
   for (int k = 0; k < d->nout; k++) d->rhs.res[k] = d->off[k] < 0 ? NULL : D + d->off[k];
-  d->nrhs++;
   return d->rhs.f(d->rhs.arg, d->rhs.res, d->rhs.iw, d->rhs.w, 0) ? 1 : 0;
+}
+
+static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
+  drv_t *d = (drv_t *)u;
+  d->nrhs++;
+  return feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+}
+
+/* s_i' = J s_i + df/dp pdir_i: J from the Jacobian kernel, df/dp pdir_i a forward difference of
+   the right-hand side over the step ph[i]; both kept while (t, y) stays (the staggered corrector's
+   iterations) */
+static int sensrhs(int Ns, sunrealtype t, N_Vector y, N_Vector fy, N_Vector *yS, N_Vector *ySd, void *u,
+                   N_Vector t1, N_Vector t2) {
+  drv_t *d = (drv_t *)u; int n = d->n; double *Y = N_VGetArrayPointer(y), *F = N_VGetArrayPointer(fy);
+  if (!d->sfresh || t != d->st || memcmp(Y, d->sy, n * sizeof(double))) {
+    memcpy(d->sy, Y, n * sizeof(double));
+    Y = (double *)band_edge(d, Y);
+    drive(d, t);
+    d->jac.arg[d->jac.slot] = Y;
+    if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
+    memcpy(d->sjac, d->jbuf, d->jnnz * sizeof(double));
+    if (feval(d, t, Y, d->sf0)) return 1;
+    F = d->sf0;
+    for (int i = 0; i < Ns; i++) {
+      const double *dir = d->pdir + (long)i * d->np; double h = d->ph[i], *G = d->sfp + (long)i * n;
+      for (int k = 0; k < d->np; k++) d->pbuf[k] += h * dir[k];
+      int bad = feval(d, t, Y, G);
+      for (int k = 0; k < d->np; k++) d->pbuf[k] -= h * dir[k];
+      if (bad) return 1;
+      for (int r = 0; r < n; r++) G[r] = (G[r] - F[r]) / h;
+      d->nsrhs++;
+    }
+    d->st = t; d->sfresh = 1;
+  }
+  for (int i = 0; i < Ns; i++) {
+    double *S = N_VGetArrayPointer(yS[i]), *D = N_VGetArrayPointer(ySd[i]);
+    memcpy(D, d->sfp + (long)i * n, n * sizeof(double));
+    for (ci k = 0; k < d->jnnz; k++) if (d->srow[k] >= 0) D[d->srow[k]] += d->sjac[k] * S[d->scol[k]];
+  }
+  return 0;
+}
+
+/* a switch crossed at the root just returned: s += (f(band edge after) - f(band edge before))
+   s_angle / |omega| (the crossing time's shift by the parameter, -s_angle / omega, times the jump
+   of f), added to the sensitivities where the solver stands (tcur, past the root) */
+static int sjump(drv_t *d, double tr) {
+  int found[2]; double tcur; CVodeGetRootInfo(d->cv, found);
+  double *Y = N_VGetArrayPointer(d->y);
+  long k = found[0] ? d->kpos : d->kpos - 1;
+  d->kpos += found[0] ? 1 : -1;
+  double w = ev_width(d, k, Y[1]), th = ev_angle(d, k);
+  d->sfresh = 0;
+  if (w <= 0) return 0;
+  memcpy(d->yb, Y, d->n * sizeof(double));
+  d->yb[0] = th + w; if (feval(d, tr, d->yb, d->fa)) return 1;
+  d->yb[0] = th - w; if (feval(d, tr, d->yb, d->fb)) return 1;
+  if (CVodeGetSens(d->cv, &tr, d->yS)) return 1;
+  double *c = calloc(d->ns, sizeof(double));
+  for (int i = 0; i < d->ns; i++) c[i] = N_VGetArrayPointer(d->yS[i])[0] / fabs(Y[1]);
+  CVodeGetCurrentTime(d->cv, &tcur);
+  if (CVodeGetSensDky(d->cv, tcur, 0, d->yS)) { free(c); return 1; }
+  for (int i = 0; i < d->ns; i++) {
+    double *S = N_VGetArrayPointer(d->yS[i]);
+    for (int r = 0; r < d->n; r++) S[r] += (d->fa[r] - d->fb[r]) * c[i];
+  }
+  free(c);
+  d->njumps++;
+  return CVodeSensReInit(d->cv, CV_STAGGERED, d->yS) ? 1 : 0;
+}
+
+/* the switch angles (nev, sorted in [0, 2 pi)) and their band coefficients (half-width x |omega|),
+   bands wider than wmax ignored; after drv_sens */
+int drv_switches(drv_t *d, int nev, const double *evt, const double *evw, double wmax) {
+  if (nev < 1) return 0;
+  d->nev = nev; d->evt = evt; d->evw = evw; d->wmax = wmax;
+  d->yb = calloc(d->n, sizeof(double)); d->fa = calloc(d->n, sizeof(double)); d->fb = calloc(d->n, sizeof(double));
+  return CVodeRootInit(d->cv, 2, sroot);
+}
+
+/* ns sensitivities along the directions pdir (ns x np) of the parameter buffer (drv_drive's), the
+   difference steps ph, absolute tolerances atol / pscale[i]; errcon: in the error test or not
+   (the staggered corrector either way) */
+int drv_sens(drv_t *d, int ns, int np, const double *pdir, const double *ph, const double *pscale, int errcon,
+             double rtol, const ci *srow, const ci *scol) {
+  d->ns = ns; d->np = np; d->pdir = pdir; d->ph = ph; d->srow = srow; d->scol = scol;
+  d->yS = N_VCloneVectorArray(ns, d->y);
+  d->sy = calloc(d->n, sizeof(double)); d->sf0 = calloc(d->n, sizeof(double)); d->sfp = calloc((long)ns * d->n, sizeof(double));
+  d->sjac = calloc(d->jnnz, sizeof(double));
+  N_Vector *aS = N_VCloneVectorArray(ns, d->y); double *as = calloc(ns, sizeof(double));
+  for (int i = 0; i < ns; i++) {
+    N_VConst(0.0, d->yS[i]); N_VScale(1.0 / pscale[i], d->atol, aS[i]);
+  }
+  int f = CVodeSensInit(d->cv, ns, CV_STAGGERED, sensrhs, d->yS);
+  if (!f) f = CVodeSensSVtolerances(d->cv, rtol, aS);
+  if (!f) f = CVodeSetSensErrCon(d->cv, errcon);
+  N_VDestroyVectorArray(aS, ns); free(as);
+  return f;
 }
 
 static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *u, N_Vector t1,
                N_Vector t2, N_Vector t3) {
   drv_t *d = (drv_t *)u;
+  drive(d, t);
   d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
   d->njac++;
   if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
@@ -127,17 +280,19 @@ static void counters(drv_t *d, long *c) {
   CVodeGetNumNonlinSolvIters(d->cv, c + 3); CVodeGetNumNonlinSolvConvFails(d->cv, c + 4);
 }
 
-/* stats: steps, rhs, Jacobians, set-ups, error-test failures, Newton iterations, Newton failures */
+/* stats: steps, rhs, Jacobians, set-ups, error-test failures, Newton iterations, Newton failures,
+   the sensitivities' right-hand-side differences */
 static void stats_of(drv_t *d, long *st) {
   long c[5]; counters(d, c);
   st[0] = d->base[0] + c[0]; st[1] = d->nrhs; st[2] = d->njac;
   for (int i = 1; i < 5; i++) st[i + 2] = d->base[i] + c[i];
+  st[7] = d->nsrhs; st[8] = d->njumps;
 }
 
 /* Y at tout[0..m); on a root (flag CV_ROOT_RETURN) it stops there: *done full rows, the root's
    time and state in *troot and yroot, which functions in found */
 int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
-            long *st, int *done, double *troot, double *yroot, int *found) {
+            long *st, int *done, double *troot, double *yroot, int *found, const double *yS0, double *SY) {
   int flag = 0; sunrealtype tr;
   d->msg[0] = 0; *done = 0;
   if (!resume) {
@@ -145,14 +300,36 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
     for (int i = 0; i < 5; i++) d->base[i] += c[i];
     memcpy(N_VGetArrayPointer(d->y), y0, d->n * sizeof(double));
     flag = CVodeReInit(d->cv, t0, d->y);
+    if (!flag && d->ns) {
+      for (int i = 0; i < d->ns; i++) memcpy(N_VGetArrayPointer(d->yS[i]), yS0 + (long)i * d->n, d->n * sizeof(double));
+      d->sfresh = 0;
+      flag = CVodeSensReInit(d->cv, CV_STAGGERED, d->yS);
+    }
+    if (d->nev) {  /* the first switch above the start angle */
+      d->kpos = (long)floor(y0[0] / TWO_PI) * d->nev;
+      while (ev_angle(d, d->kpos) <= y0[0]) d->kpos++;
+      while (ev_angle(d, d->kpos - 1) > y0[0]) d->kpos--;
+    }
   }
   for (int k = 0; k < m && flag >= 0; k++) {
     flag = CVode(d->cv, tout[k], d->y, &tr, CV_NORMAL);
+    if (flag == CV_ROOT_RETURN && d->nev) {
+      if (sjump(d, tr)) { flag = -99; snprintf(d->msg, sizeof d->msg, "a sensitivity jump failed"); break; }
+      k--;
+      continue;
+    }
     if (flag == CV_ROOT_RETURN) {
       *troot = tr; memcpy(yroot, N_VGetArrayPointer(d->y), d->n * sizeof(double));
       CVodeGetRootInfo(d->cv, found); break;
     }
-    if (flag >= 0) { memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double)); *done = k + 1; }
+    if (flag >= 0) {
+      memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double)); *done = k + 1;
+      if (d->ns) {
+        CVodeGetSens(d->cv, &tr, d->yS);
+        for (int i = 0; i < d->ns; i++)
+          memcpy(SY + ((long)k * d->ns + i) * d->n, N_VGetArrayPointer(d->yS[i]), d->n * sizeof(double));
+      }
+    }
     else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
   }
   stats_of(d, st);
@@ -171,11 +348,13 @@ int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
 
 void drv_free(drv_t *d) {
   if (!d) return;
+  if (d->ns) { N_VDestroyVectorArray(d->yS, d->ns); free(d->sy); free(d->sf0); free(d->sfp); free(d->sjac); }
+  if (d->nev) { free(d->yb); free(d->fa); free(d->fb); }
   CVodeFree(&d->cv); SUNLinSolFree(d->LS); SUNMatDestroy(d->A); N_VDestroy(d->y); N_VDestroy(d->atol);
   SUNContext_Free(&d->ctx); free(d);
 }
 """
-STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails")
+STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails", "nsens_fevals", "njumps")
 _LIB: dict = {}
 
 
@@ -207,7 +386,10 @@ def _build() -> ctypes.CDLL:
     dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
                             ctypes.c_longlong, p, p]
-    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p]
+    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
+    dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p]
+    dll.drv_switches.argtypes = [p, ctypes.c_int, p, p, ctypes.c_double]
+    dll.drv_sens.argtypes = [p, ctypes.c_int, ctypes.c_int, p, p, p, ctypes.c_int, ctypes.c_double, p, p]
     dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
                               ctypes.c_double]
     dll.drv_message.restype = ctypes.c_char_p
@@ -312,6 +494,7 @@ class Driver:
                     start += block[0].nnz()
         self.jpos = np.concatenate(pos)
         self.atol = np.ascontiguousarray(atol, dtype=float)
+        self.rtol = float(rtol)
         self.stats_now = np.zeros(len(STAT_NAMES), dtype=np.int64)
         self.handle = self.lib.drv_new(
             n, float(rtol), _ptr(self.atol), int(max_order), int(max_steps), float(max_step or 0.0),
@@ -324,6 +507,40 @@ class Driver:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
         self.last = None  # (t, y) where the solver memory stands
         self.n_roots, self.root = 0, None
+        self.n_sens, self.sensitivities = 0, None
+
+    def set_drive(self, pbuf, slot, step, values):
+        """A time-dependent input: before every kernel call pbuf[slot] (pbuf: the kernels' parameter
+        array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ..."""
+        self._drive = (pbuf, np.ascontiguousarray(values, dtype=float))
+        self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]))
+
+    def set_sensitivities(self, directions, steps, scales, error_control=False):
+        """Forward sensitivities of y along parameter directions (rows of `directions`, in the
+        drive's parameter buffer, set_drive): s' = J s + df/dp d with J the Jacobian kernel's and
+        df/dp d a forward difference of the right-hand side over `steps`; absolute tolerances
+        atol / scales; error_control: the sensitivities in the error test (the staggered corrector
+        either way). Before any run; `run` then also fills self.sensitivities (m, ns, n)."""
+        D = np.ascontiguousarray(directions, dtype=float)
+        rows, cols = self.jpos % self.n, self.jpos // self.n
+        self._sens = (D, np.ascontiguousarray(steps, dtype=float), np.ascontiguousarray(scales, dtype=float),
+                      np.ascontiguousarray(rows, dtype=np.int64), np.ascontiguousarray(cols, dtype=np.int64))
+        self.n_sens = D.shape[0]
+        if self.lib.drv_sens(self.handle, self.n_sens, D.shape[1], _ptr(D), _ptr(self._sens[1]), _ptr(self._sens[2]),
+                             int(bool(error_control)), float(self.rtol), _ptr(self._sens[3]), _ptr(self._sens[4])):
+            raise OSError("CVODES could not set up its forward sensitivities")
+
+    def set_switches(self, angles, widths, max_width):
+        """Switches of the right-hand side where y[0] (an angle) crosses `angles` (mod 2 pi): the
+        sensitivities jump there by (f after - f before) s[0] / |y[1]|, f taken at the edges of
+        the switch's band (half-width widths / |y[1]|, ignored beyond max_width), and their
+        right-hand side is taken at the band's edge inside it. After set_sensitivities."""
+        order = np.argsort(np.mod(angles, 2 * np.pi))
+        self._switches = (np.ascontiguousarray(np.mod(angles, 2 * np.pi)[order], dtype=float),
+                          np.ascontiguousarray(np.asarray(widths, float)[order]))
+        if self.lib.drv_switches(self.handle, len(order), _ptr(self._switches[0]), _ptr(self._switches[1]),
+                                 float(max_width)):
+            raise OSError("CVODES could not set up its root finding")
 
     def set_roots(self, call, slots, offsets, output, n_out, state_idx, touch):
         """Switching functions located by CVODES: the kernel call's output `output` (its first
@@ -340,24 +557,29 @@ class Driver:
                               len(state_idx), _ptr(self._g[4]), float(touch)):
             raise OSError("CVODES could not set up its root finding")
 
-    def run(self, t0, y0, touts):
+    def run(self, t0, y0, touts, s0=None):
         """y at each of touts (increasing, > t0) from y0 at t0 -> (m, n). The solver carries on
         without a restart when (t0, y0) is where the last call ended. With switching functions
-        it stops at the first root: fewer rows, and self.root = (time, state, indices)."""
+        it stops at the first root: fewer rows, and self.root = (time, state, indices). With
+        sensitivities: s0 (ns, n) their start, self.sensitivities (m, ns, n) at touts."""
         touts = np.ascontiguousarray(touts, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
-        resume = self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
+        resume = (self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
+                  and s0 is None)
         Y = np.empty((touts.size, self.n))
+        S0 = np.ascontiguousarray(np.zeros((self.n_sens, self.n)) if s0 is None else s0, dtype=float)
+        SY = np.empty((touts.size, self.n_sens, self.n))
         done, t_root, y_root = ctypes.c_int(), ctypes.c_double(), np.empty(self.n)
         found = self._found if self.n_roots else np.zeros(1, dtype=np.int32)
         flag = self.lib.drv_run(self.handle, float(t0), _ptr(y0), int(resume), touts.size, _ptr(touts), _ptr(Y),
                                 _ptr(self.stats_now), ctypes.byref(done), ctypes.byref(t_root), _ptr(y_root),
-                                _ptr(found))
+                                _ptr(found), _ptr(S0), _ptr(SY))
         if flag < 0:
             self.last = None
             msg = self.lib.drv_message(self.handle).decode(errors="replace")
             raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
         Y = Y[:done.value]
+        self.sensitivities = SY[:done.value] if self.n_sens else None
         self.root = None
         if flag == 2:  # CV_ROOT_RETURN
             self.root = (t_root.value, y_root, np.nonzero(found)[0])
