@@ -5,8 +5,8 @@ import pytest
 
 from pumpsim.config import load_config
 from pumpsim.identification import bench_sens
-from pumpsim.identification.pumpdown_fit import BenchLogProblem, identify_bench, twin_log
-from tests.integration.test_bench_identify import small_booster
+from pumpsim.identification.pumpdown_fit import BenchLogProblem, twin_log
+from tests.integration.test_bench_identify import small_booster, twin_fit
 
 pytestmark = pytest.mark.skipif(not bench_sens.usable(), reason="no direct CVODES driver on this machine")
 
@@ -63,15 +63,5 @@ def test_sensitivity_jacobian_matches_central_differences(tmp_path):
 def test_twin_recovery_with_sensitivities(tmp_path):
     """The twin experiment of test_bench_identify with the sensitivities' Jacobian: mu within 2 %,
     resistance 3 %, leak 10 % (the issue's bounds), each within 3.5 standard errors."""
-    cfg = load_config(small_booster(tmp_path))
-    truth = {"mu": 0.165, "booster.leak": 3e-5, "motor.resistance": 0.275}
-    log = twin_log(cfg, 0.5, 1000, values=truth, noise=0.005, seed=0)
-    fit = identify_bench(cfg, log, list(truth), jacobian="sensitivities")
-    est = fit.result.estimates
-    assert fit.result.converged and not fit.problems(), str(fit)
+    fit = twin_fit(tmp_path, jacobian="sensitivities")[2]
     assert "sensitivities" in fit.jacobian
-    assert est["mu"].value == pytest.approx(truth["mu"], rel=0.02)
-    assert est["motor.resistance"].value == pytest.approx(truth["motor.resistance"], rel=0.03)
-    assert est["booster.leak"].value == pytest.approx(truth["booster.leak"], rel=0.10)
-    for n, e in est.items():
-        assert abs(e.value - truth[n]) < 3.5 * e.stderr, (n, e)
