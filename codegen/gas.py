@@ -23,8 +23,9 @@ def _flow_function(r, g):
     """sqrt(2g/(g-1) (r^(2/g) - r^((g+1)/g))) with choking; per p_up / sqrt(R T_up)."""
     r_crit = (2 / (g + 1)) ** (g / (g - 1))
     rr = ca.fmax(r, r_crit)
-    sub = ca.sqrt(ca.fmax(2 * g / (g - 1) * (rr ** (2 / g) - rr ** ((g + 1) / g)), 0.0))
-    return sub
+    # one power per flow: with q = rr^(1/g), rr^(2/g) = q^2 and rr^((g+1)/g) = rr q
+    q = rr ** (1 / g)
+    return ca.sqrt(ca.fmax(2 * g / (g - 1) * (q * q - rr * q), 0.0))
 
 
 def orifice_flow(p1, T1, p2, T2, area, R, g):

@@ -38,6 +38,7 @@ SOURCE = r"""
 #include <nvector/nvector_serial.h>
 #include <sunmatrix/sunmatrix_dense.h>
 #include <sunlinsol/sunlinsol_dense.h>
+#include <sundials/sundials_dense.h>
 typedef long long ci;
 typedef int (*fn_t)(const double **, double **, ci *, double *, int);
 typedef struct { fn_t f; const double **arg; double **res; ci *iw; double *w; int slot; } call_t;
@@ -336,6 +337,53 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
   return flag;
 }
 
+/* Leading-block dense solver: the Newton matrix I - gamma J of a system whose rows from nl on
+   have a zero Jacobian (quadratures riding along as states) is [[M11, 0], [0, I]]; only M11 is
+   factored and solved, with the dense solver's own LU, so the results are those of the full LU
+   (its extra rows and columns only add zeros) at a fraction of the cost. */
+typedef struct { sunindextype nl; SUNMatrix B; sunindextype *piv; } blk_t;
+static SUNLinearSolver_Type blk_type(SUNLinearSolver S) { return SUNLINEARSOLVER_DIRECT; }
+static SUNLinearSolver_ID blk_id(SUNLinearSolver S) { return SUNLINEARSOLVER_CUSTOM; }
+static int blk_init(SUNLinearSolver S) { return 0; }
+static int blk_setup(SUNLinearSolver S, SUNMatrix A) {
+  blk_t *b = (blk_t *)S->content; sunindextype nl = b->nl, n = SM_ROWS_D(A);
+  for (sunindextype j = 0; j < nl; j++) memcpy(SM_COLUMN_D(b->B, j), SM_DATA_D(A) + j * n, nl * sizeof(double));
+#ifdef SUNLS_LUFACT_FAIL
+  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? SUNLS_LUFACT_FAIL : 0;
+#else
+  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? 1 : 0;
+#endif
+}
+static int blk_solve(SUNLinearSolver S, SUNMatrix A, N_Vector x, N_Vector r, sunrealtype tol) {
+  blk_t *b = (blk_t *)S->content;
+  N_VScale(1.0, r, x);
+  SUNDlsMat_denseGETRS(SM_COLS_D(b->B), b->nl, b->piv, N_VGetArrayPointer(x));
+  return 0;
+}
+static int blk_free(SUNLinearSolver S) {
+  if (!S) return 0;
+  blk_t *b = (blk_t *)S->content;
+  if (b) { SUNMatDestroy(b->B); free(b->piv); free(b); }
+  S->content = NULL; SUNLinSolFreeEmpty(S);
+  return 0;
+}
+
+/* solve the Newton systems on the leading nl x nl block only (rows nl.. of the Jacobian zero);
+   before drv_tune: attaching a linear solver resets CVODES' Jacobian settings */
+int drv_block_solver(drv_t *d, int nl) {
+  SUNLinearSolver S = SUNLinSolNewEmpty(d->ctx);
+  if (!S) return -1;
+  blk_t *b = calloc(1, sizeof(blk_t));
+  S->content = b; S->ops->gettype = blk_type; S->ops->getid = blk_id; S->ops->initialize = blk_init;
+  S->ops->setup = blk_setup; S->ops->solve = blk_solve; S->ops->free = blk_free;
+  b->nl = nl; b->B = SUNDenseMatrix(nl, nl, d->ctx); b->piv = malloc(nl * sizeof(sunindextype));
+  if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetJacFn(d->cv, jac)) {
+    blk_free(S); return -1;
+  }
+  SUNLinSolFree(d->LS); d->LS = S;
+  return 0;
+}
+
 /* Newton iterations per step, steps between Jacobian updates, Newton convergence coefficient
    (0: CVODES' default) */
 int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
@@ -396,6 +444,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_message.argtypes = [p]
     dll.drv_free.argtypes = [p]
     dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
+    dll.drv_block_solver.argtypes = [p, ctypes.c_int]
     return dll
 
 
@@ -465,10 +514,12 @@ class Driver:
     rhs, jac: KernelCall of the right-hand side and its Jacobian; out_offsets: where each rhs
     output starts in y' (-1: not wanted); jac_blocks: per Jacobian output, (sparsity, row offset)
     or None (not wanted); atol: per component; jac_every: steps between Jacobian updates at
-    most (CVODES' default 51)."""
+    most (CVODES' default 51); lin_size: the Jacobian's rows from lin_size on are zero (states
+    that do not feed back, such as quadratures riding along): the Newton systems are then solved
+    on the leading block only, with the same results."""
 
     def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
-                 max_step=None, jac_every=None):
+                 max_step=None, jac_every=None, lin_size=None):
         self.lib = library()
         if self.lib is None:
             raise OSError(available()[1])
@@ -503,6 +554,8 @@ class Driver:
             self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
         if not self.handle:
             raise OSError("SUNDIALS could not set up CVODES")
+        if lin_size is not None and lin_size < n and self.lib.drv_block_solver(self.handle, int(lin_size)):
+            raise OSError("SUNDIALS could not set up the leading-block linear solver")
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
         self.last = None  # (t, y) where the solver memory stands

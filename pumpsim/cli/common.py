@@ -237,6 +237,25 @@ def read_data(a, path, nominal_speed):
     return ds
 
 
+def refuse_torque_only(given: dict, verb: str) -> None:
+    """Refuse on a bench log the options only torque data takes (given: flag -> whether given)."""
+    from ..errors import ConfigError
+
+    for flag, on in given.items():
+        if on:
+            raise ConfigError(f"{flag} is for torque data; a bench log is {verb} as logged: drop {flag}")
+
+
+def read_bench(a, path, cfg):
+    """A bench log with the command's data options; what the reading did is said on stderr."""
+    from ..benchlog import read_bench_log
+
+    log = read_bench_log(path, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
+    for note in log.notes:
+        info(f"{log.name}: {note}")
+    return log
+
+
 def data_options(a):
     from ..data import DataOptions
 

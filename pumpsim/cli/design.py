@@ -198,7 +198,7 @@ def register(sub) -> None:
         g = p.add_argument_group("execution (dask.distributed)")
         g.add_argument("--scheduler", metavar="ADDRESS",
                        help="existing Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)")
-        g.add_argument("--workers", type=int, help="local workers (default: one per core)")
+        g.add_argument("--workers", type=int, help="local workers (default: one per core; a study too small to pay for a cluster's start runs in this process)")
 
     sw = sub.add_parser("sweep", help="evaluate a study's designs (grid, Monte Carlo)")
     sw.add_argument("study", help="study file (TOML)")

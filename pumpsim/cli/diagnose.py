@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, info, live, load_config, outputs, read_data, \
-    write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, live, load_config, outputs, read_bench, read_data, \
+    refuse_torque_only, write_fit_outputs
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
 
@@ -66,22 +66,17 @@ def run(a) -> int:
 
 def run_bench(a, cfg, outs) -> int:
     """diagnose on a bench log (the command recognised its columns): the pump-level library."""
-    from ..benchlog import read_bench_log
     from ..diagnosis import tty_progress
     from ..diagnosis.pump_workflow import diagnose_bench
     from ..errors import ConfigError
 
     if len(a.data) > 1:
         raise ConfigError("a bench log is diagnosed on its own: give one log file")
-    for flag, given in (("--steady", a.steady), ("--resample", a.resample),
-                        ("--speed-tolerance", a.speed_tolerance is not None)):
-        if given:
-            raise ConfigError(f"{flag} is for torque data; a bench log is diagnosed as logged: drop {flag}")
+    refuse_torque_only({"--steady": a.steady, "--resample": a.resample,
+                        "--speed-tolerance": a.speed_tolerance is not None}, "diagnosed")
     if a.budget is not None and not a.budget >= 0:
         raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
-    log = read_bench_log(a.data[0], cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
-    for note in log.notes:
-        info(f"{log.name}: {note}")
+    log = read_bench(a, a.data[0], cfg)
     out = diagnose_bench(cfg, log, resistance_known=a.resistance_known,
                          progress=tty_progress() if live() else None, budget=a.budget or None)
     if live():

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, fit_log, info, live, load_config, outputs, \
-    positive_int, read_data, warn, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, fit_log, live, load_config, outputs, positive_int, \
+    read_bench, read_data, refuse_torque_only, warn, write_fit_outputs
 
 BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
 
@@ -116,20 +116,14 @@ def run(a) -> int:
 
 def run_bench(a, cfg, outs) -> int:
     """identify on a bench log (the command recognised its columns): fitted as logged."""
-    from ..benchlog import read_bench_log
-    from ..errors import ConfigError
     from ..identification.pumpdown_fit import identify_bench
     from ..limits import read_limits
 
     params = parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS))
     initial = parse_initial(a.start)
-    for flag, given in (("--transient", a.transient), ("--steady", a.steady), ("--resample", a.resample)):
-        if given:
-            raise ConfigError(f"{flag} is for torque data; a bench log is fitted as logged: drop {flag}")
+    refuse_torque_only({"--transient": a.transient, "--steady": a.steady, "--resample": a.resample}, "fitted")
     limits = read_limits(a.limits, params) if a.limits else {}
-    log = read_bench_log(a.data, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
-    for note in log.notes:
-        info(f"{log.name}: {note}")
+    log = read_bench(a, a.data, cfg)
     shown = live()
     fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
                          _bench_progress if shown else None)

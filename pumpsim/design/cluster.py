@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import sys
 
 from .. import interrupt
 from ..errors import ConfigError
@@ -81,6 +82,8 @@ def quiet_dask() -> None:
 
 
 def worker_name() -> str:
+    if "distributed" not in sys.modules:  # a process that never imported Dask runs no Dask task
+        return "local"
     try:
         from distributed import get_worker
 

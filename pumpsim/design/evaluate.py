@@ -1,12 +1,14 @@
 """Evaluate designs: config -> parameter vector -> one revolution of inverse dynamics -> outputs.
 
-`evaluate_designs(kern, P, theta, omega)` is the one place the compiled kernel is called for a batch
-of designs (P: one parameter vector per design); everything else (admissibility, reductions,
-status) is NumPy on its result. Kernels are loaded by whoever calls this -- a Dask worker loads or
+`evaluate_designs(kern, P, theta, omega)` calls the compiled kernel for a batch of designs (P: one
+parameter vector per design) on every vane; designs whose vanes are alike go through one vane
+instead (`one_vane`, alike.py; `revolutions` picks per design). Everything else (admissibility,
+reductions, status) is NumPy on their results. Kernels are loaded by whoever calls this -- a Dask worker loads or
 builds its own from the hashed cache; compiled functions never travel between processes.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import threading
@@ -25,6 +27,8 @@ from .pneumatic import gas_outputs, motor_driven
 from .outputs import (BOOL_OUTPUTS, KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_constants, per_vane_name, reduce_batch,
                       reduce_revolution)
 from .study import SPEED_KEY, get_value
+from .alike import OneVane, spread
+from .screen import geometry_ok, housing_samples
 from .vector import design_maps, mouth_depths
 
 
@@ -98,6 +102,24 @@ def fast_kernel(structure):
             fk = None
         _MAPS.cache[key] = fk if fk is not None and fk.simd else None
     return _MAPS.cache[key]
+
+
+_ONE: dict = {}  # structure -> OneVane
+
+
+def one_vane(structure):
+    """alike.OneVane of an N-vane constrained structure (N > 1), or None where no 1-vane SIMD
+    library can be had (then every vane is evaluated). The library is looked up each time:
+    PUMPSIM_DESIGN_KERNEL=scalar may have been set since."""
+    fast = fast_kernel(dataclasses.replace(structure, vanes=1)) if structure.vanes > 1 else None
+    if fast is None:
+        return None
+    if structure not in _ONE or (_ONE[structure] is not None and _ONE[structure].fast is not fast):
+        try:
+            _ONE[structure] = OneVane(structure, fast)
+        except ValueError:  # vanes that are not copies of one another in the parameters: every vane
+            _ONE[structure] = None
+    return _ONE[structure]
 
 
 def evaluate_designs(kern, P, theta, omega, outputs=KERNEL_OUTPUTS) -> dict:
@@ -181,23 +203,6 @@ def housing_batch(kern, P, n):
     return alpha, pts, curv
 
 
-def _geometry_ok(rr, L, lm, pts, curv, s, res) -> np.ndarray:
-    """geometry.geometry_verdict is None, over B designs (rotor radius rr, vane length L, mouth
-    depth lm (B,); pts (B, 2, n), curv (B, n), s and res (B, N, n)): each of its tests as one
-    array comparison. A design this rejects gets its reason from geometry_verdict itself."""
-    B = len(rr)
-    x, y = pts[:, 0], pts[:, 1]
-    qx, qy = np.roll(x, 1, axis=1), np.roll(y, 1, axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = (qx - x) * (0.0 - y) / (qy - y) + x
-    inside = np.count_nonzero(((y > 0.0) != (qy > 0.0)) & (0.0 < xc), axis=1) % 2 == 1
-    with np.errstate(invalid="ignore"):
-        res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
-    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
-    return (~np.any(curv <= 0, axis=1) & inside & (np.hypot(x, y).min(axis=1) > rr) & res_ok
-            & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm))
-
-
 class Prepared:
     """One design: its validated config and parameter vector, or why it has none."""
 
@@ -257,20 +262,58 @@ def _status(out):
     return "; ".join(msgs) or "ok"
 
 
+def revolutions(kern, P, theta, omega) -> list[dict]:
+    """Per design (rows of P): its kernel outputs over its uniform revolution (theta (D, n) or
+    (n,), from `revolution`) at speed omega (D,) -- through one vane where its vanes are alike
+    (alike.py: vane outputs (1, n)), else every vane's (N, n). A design gets the same bits in any
+    batch."""
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    D, n = len(P), np.shape(theta)[-1]
+    theta, omega = np.broadcast_to(theta, (D, n)), np.broadcast_to(np.asarray(omega, dtype=float), (D,))
+    one = one_vane(kern.structure)
+    same = one.alike(P, n) if one is not None else np.zeros(D, bool)
+    out = [None] * D
+    for idx, ov in ((np.flatnonzero(same), one), (np.flatnonzero(~same), None)):
+        if len(idx):
+            ev = (ov.evaluate(P[idx], theta[idx], omega[idx], KERNEL_OUTPUTS) if ov is not None
+                  else evaluate_designs(kern, P[idx], theta[idx], omega[idx]))
+            for i, d in enumerate(idx):
+                out[d] = {nm: a[i] for nm, a in ev.items()}
+    return out
+
+
+def _stacked(evs: list) -> dict:
+    return {nm: np.stack([ev[nm] for ev in evs]) for nm in evs[0]}
+
+
+def _verdict(kern, pr, theta, ev, w0):
+    """geometry_verdict of one design (its speeds' outputs ev); a design evaluated through one
+    vane and rejected is evaluated on every vane (at its first speed w0) for the reason: which
+    vane, at which angle, as the N-vane kernel's rounding has it."""
+    alpha, pts, curv = housing_check_samples(kern, pr.p, theta.size)
+    s, res = ev["s"][0], ev["position_residual"][0]
+    if s.shape[0] != kern.structure.vanes:
+        full = spread({"s": s[None], "position_residual": res[None]}, kern.structure.vanes, theta.size)
+        if geometry_verdict(pr.values, alpha, pts, curv, theta, full["s"][0], full["position_residual"][0]) is None:
+            return None
+        ev = evaluate_designs(kern, pr.p[None, :], theta, np.array([w0]))
+        s, res = ev["s"][0], ev["position_residual"][0]
+    return geometry_verdict(pr.values, alpha, pts, curv, theta, s, res)
+
+
 def _evaluate_one(study, kern, pr, nrev, ev=None):
     """(status, [(speed, outputs or None)] or None) of one prepared design; `ev`: its kernel
     outputs at design_speeds when a batch computed them already (pre_evaluated)."""
     theta = revolution(pr.cfg.angle, nrev)
     speeds = design_speeds(study, pr.cfg)
-    run = lambda ws: evaluate_designs(kern, np.repeat(pr.p[None, :], len(ws), axis=0), theta,  # noqa: E731
-                                      np.asarray(ws))
+    run = lambda ws: _stacked(revolutions(kern, np.repeat(pr.p[None, :], len(ws), axis=0), theta,  # noqa: E731
+                                          np.asarray(ws)))
     try:  # (the positions, hence the geometry verdict, do not depend on the speed)
         if ev is None:
             ev = run(np.nan_to_num(speeds, nan=1.0))
-        alpha, pts, curv = housing_check_samples(kern, pr.p, nrev)
+        verdict = _verdict(kern, pr, theta, ev, np.nan_to_num(speeds, nan=1.0)[0])
     except PumpsimError as e:
         return f"numerical: {e}", None
-    verdict = geometry_verdict(pr.values, alpha, pts, curv, theta, ev["s"][0], ev["position_residual"][0])
     if verdict:
         return f"geometry: {verdict}", None
     try:
@@ -287,7 +330,7 @@ def _evaluate_one(study, kern, pr, nrev, ev=None):
     per_speed = []
     for k, w in enumerate(speeds):
         a = {nm: arr[k] for nm, arr in ev.items()}
-        out, _ = reduce_revolution(a, const)
+        out, _ = reduce_revolution(a, const, vanes=kern.structure.vanes)
         out.update(gas.get(w, {}))
         if not all(np.isfinite(x) for o, x in out.items() if not isinstance(x, bool) and _asked(study, o)):
             out = None
@@ -307,14 +350,13 @@ def pre_evaluated(study, kern, prepared: dict, members, nrev) -> dict:
         rows = [(j, w) for j in members[lo:lo + BATCH_DESIGNS]
                 for w in np.nan_to_num(design_speeds(study, prepared[j].cfg), nan=1.0)]
         try:
-            ev = evaluate_designs(kern, np.array([prepared[j].p for j, _ in rows]),
-                                  np.array([revolution(prepared[j].cfg.angle, nrev) for j, _ in rows]),
-                                  np.array([w for _, w in rows]))
+            evs = revolutions(kern, np.array([prepared[j].p for j, _ in rows]),
+                              np.array([revolution(prepared[j].cfg.angle, nrev) for j, _ in rows]),
+                              np.array([w for _, w in rows]))
         except PumpsimError:
             continue
-        js = np.array([j for j, _ in rows])
         for j in members[lo:lo + BATCH_DESIGNS]:
-            found[j] = {nm: arr[js == j] for nm, arr in ev.items()}
+            found[j] = _stacked([ev for (i, _), ev in zip(rows, evs) if i == j])
     return found
 
 
@@ -365,16 +407,29 @@ def _evaluate_contact(study, pr, nrev):
     return "ok", per_speed
 
 
-def _mapped_batch(study, dm, kern, P, speed, nrev, theta) -> list | None:
-    """(status, [(speed, outputs or None)] or None) of B admitted designs of one variant
-    (DesignMap rows P, speeds): one kernel call, one housing call, the geometry and the
-    reductions as array operations. None when the kernel fails (then each design runs alone)."""
+def _housing(kern, dm, P, nrev):
+    """(alpha, points, curvature or None, clearance margin) of B designs' housings: the base
+    ellipse in NumPy where there are no harmonics (screen.py), else the compiled curve."""
+    if kern.structure.harmonics == 0:
+        alpha, pts, margin = housing_samples(P, dm.index, nrev)
+        return alpha, pts, None, margin
+    alpha, pts, curv = housing_batch(kern, P, nrev)
+    return alpha, pts, curv, 0.0
+
+
+def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | None:
+    """[(status, [(speed, outputs or None)] or None)] of B admitted designs of one variant
+    (DesignMap rows P, speeds): one kernel call (`one`: alike.OneVane, when every design's vanes
+    are alike), the housing, the geometry and the reductions as array operations. None when the
+    kernel fails (then each design runs alone); an entry None: a design the geometry screen does
+    not admit, left to the per-design path for the config's own verdict."""
     W = list(study.speeds) if study.speeds else None
     S, B = (len(W) if W else 1), len(P)
     omega = np.tile(np.asarray(W, dtype=float), B) if W else speed
+    PS = np.repeat(P, S, axis=0)
     try:
-        ev = evaluate_designs(kern, np.repeat(P, S, axis=0), theta, omega)
-        alpha, pts, curv = housing_batch(kern, P, nrev)
+        ev = one.evaluate(PS, theta, omega, KERNEL_OUTPUTS) if one else evaluate_designs(kern, PS, theta, omega)
+        _, pts, curv, margin = _housing(kern, dm, P, nrev)
     except PumpsimError:
         return None
     col = lambda k: P[:, dm.index[k]]  # noqa: E731
@@ -382,28 +437,24 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta) -> list | None:
     width = get_value(dm.table, "rotor.width")
     const = {"c_visc": col("effects.viscous_tip_friction"), "L": col("vane.length"), "lm": lm,
              "tip_area": width * col("vane.thickness") if width else np.full(B, math.nan)}
-    good = _geometry_ok(col("rotor.radius"), col("vane.length"), lm, pts, curv, ev["s"][::S],
-                        ev["position_residual"][::S])
+    good = geometry_ok(col("rotor.radius"), col("vane.length"), lm, pts, curv, ev["s"][::S],
+                       ev["position_residual"][::S], margin)
     res = ev["position_residual"]
     with np.errstate(invalid="ignore"):
         converged = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
-    out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()})
+    out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()}, kern.structure.vanes)
     asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
     fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)
     rows = [dict(zip(out, vals)) for vals in zip(*(out[o].tolist() for o in out))]
     found = []
     for d in range(B):
         if not good[d]:
-            values = dict(zip(dm.names, P[d].tolist()))
-            verdict = geometry_verdict(values, alpha, pts[d], curv[d], theta, ev["s"][d * S], ev["position_residual"][d * S])
-            if verdict:
-                found.append((f"geometry: {verdict}", None))
-                continue
-        if not converged[d * S:(d + 1) * S].all():
+            found.append(None)
+        elif not converged[d * S:(d + 1) * S].all():
             found.append(("numerical: position problem did not converge", None))
-            continue
-        ws = W or [float(speed[d])]
-        found.append(("ok", [(w, rows[d * S + k] if fin[d * S + k] else None) for k, w in enumerate(ws)]))
+        else:
+            ws = W or [float(speed[d])]
+            found.append(("ok", [(w, rows[d * S + k] if fin[d * S + k] else None) for k, w in enumerate(ws)]))
     return found
 
 
@@ -428,20 +479,34 @@ def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:
             rest += members[adm].tolist()
             continue
         theta = revolution(dm.cfg.angle, nrev)
-        for lo in range(0, len(adm), BATCH_DESIGNS):
-            idx = adm[lo:lo + BATCH_DESIGNS]
-            try:
-                got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta)
-            except Exception:  # noqa: BLE001 - then each design runs alone and reports its own failure
-                interrupt.check()
-                got = None
-            if got is None:
-                rest += members[idx].tolist()
-                continue
-            for i, r in zip(idx, got):
-                results[members[i]] = r
-                speeds_of[members[i]] = list(study.speeds) if study.speeds else [float(speed[i])]
+        one = one_vane(dm.structure)
+        same = one.alike(P[adm], nrev) if one is not None else np.zeros(len(adm), bool)
+        for group, ov in ((adm[same], one), (adm[~same], None)):
+            rest += _mapped_group(study, dm, kern, P, speed, nrev, theta, ov, group, members, results, speeds_of)
     return sorted(rest)
+
+
+def _mapped_group(study, dm, kern, P, speed, nrev, theta, one, group, members, results, speeds_of) -> list:
+    """_mapped_batch over the rows `group` of P, BATCH_DESIGNS at a time; returns the design rows
+    left to the per-design path."""
+    rest = []
+    for lo in range(0, len(group), BATCH_DESIGNS):
+        idx = group[lo:lo + BATCH_DESIGNS]
+        try:
+            got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta, one)
+        except Exception:  # noqa: BLE001 - then each design runs alone and reports its own failure
+            interrupt.check()
+            got = None
+        if got is None:
+            rest += members[idx].tolist()
+            continue
+        for i, r in zip(idx, got):
+            if r is None:
+                rest.append(int(members[i]))
+                continue
+            results[members[i]] = r
+            speeds_of[members[i]] = list(study.speeds) if study.speeds else [float(speed[i])]
+    return rest
 
 
 def _per_design_results(study, X, todo, results: dict, speeds_of: dict) -> None:
@@ -483,9 +548,9 @@ def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict
     todo = _mapped_results(study, X, results, speeds_of)
     _per_design_results(study, X, todo, results, speeds_of)
     rows = []
-    for j in range(len(X)):
-        base = {"design": int(ids[j])}
-        keyvals = {k: float(x) for k, x in zip(keys, X[j])}
+    for j, (i, xs) in enumerate(zip(np.asarray(ids).tolist(), np.asarray(X, dtype=float).tolist())):
+        base = {"design": int(i)}
+        keyvals = dict(zip(keys, xs))
         status, per_speed = results[j]
         if per_speed is None:
             for w in speeds_of[j]:

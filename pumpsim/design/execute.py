@@ -30,6 +30,7 @@ from ..fsfaults import guard
 from ..io import atomic_path
 from ..locks import study_folder
 from .cluster import connect, quiet_dask, worker_name
+from .vector import covered
 from .sampling import design_matrix
 from .store import (PART, check_out_dir, columns, max_vanes, ordered, read_manifest, read_results,  # noqa: F401 (read_manifest: the CLI)
                     rows_to_table, write_manifest)
@@ -43,6 +44,11 @@ TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the worke
 GUIDED_SHARE = 4
 PILOT_DESIGNS = 6
 PILOT_BATCH = 64  # designs timed when PILOT_DESIGNS take little (evaluate.BATCH_DESIGNS per kernel call)
+# A study left to choose its workers runs in this process when all its designs take less CPU
+# time than this: about what a LocalCluster's start costs (each worker process imports the
+# runtime), so no number of workers could finish it sooner. CPU, not wall time: on a shared
+# machine the wall time of a pilot says more about the other processes than about the study.
+IN_PROCESS_SECONDS = 2.0
 
 
 def structures(study) -> list:
@@ -74,7 +80,7 @@ def structures(study) -> list:
 def kernel_keys(study) -> dict:
     """Variant -> content key of the compiled library this process loads (or builds)."""
     from ..kernels import load_kernels
-    from .evaluate import fast_kernel
+    from .evaluate import fast_kernel, one_vane
 
     out = {}
     for st in structures(study):
@@ -82,6 +88,9 @@ def kernel_keys(study) -> dict:
         fast = fast_kernel(st) if st.model == "constrained" else None
         if fast is not None:
             out[f"{st.variant} (SIMD)"] = fast.key
+        one = one_vane(st) if st.model == "constrained" else None
+        if one is not None:
+            out[f"{st.variant} (SIMD, one vane)"] = one.fast.key
     return out
 
 
@@ -154,33 +163,32 @@ def run_batch(study, ids, X):
     return ids[0], table, sec, (worker_name(), w0, w0 + sec, time.thread_time() - c0)
 
 
-def pilot_time_per_design(study, X) -> float:
-    """Seconds per design on this process (which also builds any missing variant into the cache
-    before the workers look for it): the least of three timings of PILOT_DESIGNS designs, as the
-    machine may be shared and a disturbed timing only ever reads long."""
+def pilot_time_per_design(study, X, repeats=3) -> tuple[float, float]:
+    """(wall, CPU) seconds per design on this process (which also builds any missing variant into
+    the cache before the workers look for it): the least of `repeats` timings of PILOT_DESIGNS
+    designs, as the machine may be shared and a disturbed timing only ever reads long."""
     from .evaluate import evaluate_rows
 
     evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
     n = min(len(X), PILOT_DESIGNS)
-    best = _best_time(study, X[:n])
-    if best < 0.05 * TASK_SECONDS and len(X) > n:  # fast designs: a call's own cost would weigh on
+    best = _best_time(study, X[:n], repeats)
+    if best[0] < 0.05 * TASK_SECONDS and len(X) > n:  # fast designs: a call's own cost would weigh on
         n = min(len(X), PILOT_BATCH)  # a few; time a kernel batch's worth instead
-        best = _best_time(study, X[:n])
-    return max(best / n, 1e-6)
+        best = _best_time(study, X[:n], repeats)
+    return max(best[0] / n, 1e-6), max(best[1] / n, 1e-6)
 
 
-def _best_time(study, X) -> float:
+def _best_time(study, X, repeats) -> tuple[float, float]:
     from .evaluate import evaluate_rows
 
-    best = math.inf
-    for _ in range(3):
-        t0 = time.perf_counter()
+    best = cpu = math.inf
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.thread_time()
         evaluate_rows(study, X, np.arange(len(X)), max_vanes(study))
-        best = min(best, time.perf_counter() - t0)
+        best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.thread_time() - c0)
         if best > 2 * TASK_SECONDS:  # slow designs: one timing says enough
             break
-    return best
-
+    return best, cpu
 
 
 @dataclass
@@ -227,6 +235,8 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
     on_batch(done, total): called after each batch is written (a test may interrupt here)."""
     scheduler = scheduler or study.scheduler
     workers = study.workers if workers is None else workers
+    # cheap designs (parameter vectors): timed before any cluster starts, which they may not need
+    lazy = workers is None and not scheduler and client is None and covered(study)
     X = study_designs(study) if X is None else np.asarray(X, dtype=float)
     check_out_dir(out, study.study_hash())
     # one run at a time per folder (a second one fails here, before any work); the manifest is
@@ -235,7 +245,7 @@ def run_study(study, out=None, scheduler=None, workers=None, processes=True, bat
         man = check_out_dir(out, study.study_hash())
         t0 = time.perf_counter()
         starting = _Cluster(scheduler, workers, processes, client,
-                            lambda c: _warm_workers(study, X, workers, c))
+                            lambda c: _warm_workers(study, X, workers, c), lazy)
         try:
             return _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
                         starting, t0)
@@ -251,31 +261,43 @@ class _Cluster:
     one, before any work or output), or a LocalCluster started in a thread while this process
     builds or loads the kernels and times the pilot (its worker processes import the runtime as
     they start: worker_setup). warm(client): the warm-up tasks, submitted as soon as there is a
-    client (held here: they are not released before they ran). `get()` waits for the client;
-    `close()` closes what the run started."""
+    client (held here: they are not released before they ran). lazy: the LocalCluster starts when
+    `get()` first asks for it, unless `stay_local()` came first (then there is none: workers 0).
+    `get()` waits for the client; `close()` closes what the run started."""
 
-    def __init__(self, scheduler, workers, processes, client, warm):
+    def __init__(self, scheduler, workers, processes, client, warm, lazy=False):
         self.client, self.own, self.thread, self.error, self.warm = client, None, None, None, []
-        if workers == 0:
+        self.warm_up = warm
+        self.lazy, self.local = (workers, processes) if lazy else None, workers == 0
+        if workers == 0 or lazy:
             return
         if client is not None or scheduler:
             if client is None:
                 self.client, self.own = connect(scheduler, workers, processes)
             self.warm = warm(self.client)
             return
+        self._start(workers, processes)
+
+    def _start(self, workers, processes):
         import threading
 
         def start():
             try:
                 self.client, self.own = connect(None, workers, processes)
-                self.warm = warm(self.client)
+                self.warm = self.warm_up(self.client)
             except BaseException as e:  # noqa: BLE001 - raised again by get() in the run's thread
                 self.error = e
 
         self.thread = threading.Thread(target=start, name="pumpsim-cluster-start", daemon=True)
         self.thread.start()
 
+    def stay_local(self):
+        self.lazy, self.local = None, True
+
     def get(self):
+        if self.lazy is not None:
+            self._start(*self.lazy)
+            self.lazy = None
         if self.thread is not None:
             self.thread.join()
             self.thread = None
@@ -306,18 +328,20 @@ def _build_kernels(study) -> None:
     """Builds missing kernel variants once, before local workers look."""
     from ..kernels import load_kernels
 
-    from .evaluate import fast_kernel
+    from .evaluate import fast_kernel, one_vane
 
     for st in structures(study):
         load_kernels(st)
         if st.model == "constrained":
             fast_kernel(st)
+            one_vane(st)
 
 
-def _plan(study, X, man, batch_size, get_client) -> Plan:
+def _plan(study, X, man, batch_size, starting) -> Plan:
     """The batches: of the size asked (option, then study key), of a resumed run's manifest, or
-    from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker,
-    guided_bounds on several."""
+    from the pilot's time per design -- equal batches of >= TASK_SECONDS on one worker (or in
+    this process: a lazy cluster not worth starting, IN_PROCESS_SECONDS), guided_bounds on
+    several."""
     bs = batch_size or study.batch_size
     if man and bs and (man.get("batch_bounds") or int(man.get("batch_size") or 0) != int(bs)):
         raise ConfigError(f"the results folder holds batches laid out as {_layout(man)}, not of {int(bs)} "
@@ -329,8 +353,15 @@ def _plan(study, X, man, batch_size, get_client) -> Plan:
         return Plan(study, X, int(man["batch_size"]), bounds=list(man["batch_bounds"]))
     if man and man.get("batch_size"):
         return Plan(study, X, int(man["batch_size"]))
-    per = pilot_time_per_design(study, X) if len(X) > 1 else TASK_SECONDS
-    client = get_client()  # (a LocalCluster started meanwhile)
+    # in this process the batches only cut the results into parts: one timing sizes them; a
+    # cluster's batches balance its workers: the least of three
+    quick = starting.local or starting.lazy is not None
+    per, cpu = pilot_time_per_design(study, X, 1 if quick else 3) if len(X) > 1 else (TASK_SECONDS, TASK_SECONDS)
+    if starting.lazy is not None and cpu * len(X) < IN_PROCESS_SECONDS:
+        starting.stay_local()
+    elif starting.lazy is not None and len(X) > 1:
+        per, cpu = pilot_time_per_design(study, X)
+    client = starting.get()  # (a LocalCluster started meanwhile)
     n_workers = len(client.scheduler_info().get("workers", {})) if client is not None else 1
     if n_workers > 1:
         bounds = guided_bounds(len(X), per, n_workers)
@@ -410,8 +441,9 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
     stats = RunStats(designs=len(X))
     interrupt.progress(_how_far(0, len(X), out))
     _check_kernels(study, man, out, scheduler)  # (the workers warm up meanwhile: _Cluster)
-    plan = _plan(study, X, man, batch_size, starting.get)
+    plan = _plan(study, X, man, batch_size, starting)
     client = starting.get()
+    workers = 0 if starting.local else workers
     stats.batch_size, stats.batches = min(plan.batch_size, max(1, len(X))), plan.n_batches
     stats.guided = plan.bounds is not None
     folder = Path(out) if out else None

@@ -61,29 +61,31 @@ def design_constants(values: dict, lm: float, width: float | None) -> dict:
 
 
 def reduce_revolution(a: dict, k: dict, da: dict | None = None,
-                      dpar: dict | None = None) -> tuple[dict, dict]:
+                      dpar: dict | None = None, vanes: int | None = None) -> tuple[dict, dict]:
     """Outputs of one design from its revolution `a` (kernel outputs: torque (n,), per vane (N, n))
     and its constants k (design_constants). da: the same arrays' tangents with a leading axis of
     directions; dpar: tangents of k's entries along those directions. Returns (values,
-    derivatives); derivatives is {} without da."""
-    out, at = _values(a, k)
+    derivatives); derivatives is {} without da. vanes: as for reduce_batch (values only)."""
+    out, at = _values(a, k, vanes)
     return out, ({} if da is None else _derivatives(a, k, da, dpar, out, at))
 
 
-def _values(a: dict, k: dict) -> tuple[dict, dict]:
+def _values(a: dict, k: dict, vanes=None) -> tuple[dict, dict]:
     """(outputs, where each extreme sits and the per-sample arrays the derivatives reuse): one
     design as a batch of one (the same arithmetic, hence the same bits, as in a batch)."""
     many, at = reduce_batch({nm: x[None] for nm, x in a.items()},
-                            {nm: np.asarray([x], dtype=float) for nm, x in k.items()})
+                            {nm: np.asarray([x], dtype=float) for nm, x in k.items()}, vanes)
     out = {nm: (bool(x[0]) if nm in BOOL_OUTPUTS else x[0]) for nm, x in many.items()}
     at = {nm: (x[0] if isinstance(x, np.ndarray) else x) for nm, x in at.items()}
     at["pv"] = a["normal"] * np.abs(a["tip_slip"]) / k["tip_area"]
     return out, at
 
 
-def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
+def reduce_batch(a: dict, k: dict, vanes: int | None = None) -> tuple[dict, dict]:
     """The outputs of B designs at once: a holds the kernel outputs with a leading design axis
     (torque (B, n), per vane (B, N, n)), k the constants as (B,) arrays (design_constants).
+    vanes: a's per-vane arrays hold one vane standing for that many alike ones (design.alike:
+    the others are its samples shifted, so its extremes are theirs and its means each one's).
     Returns (output -> (B,) array, where each extreme sits)."""
     out = {}
     c_visc, L, lm, area = (np.asarray(k[nm], dtype=float)[:, None, None] for nm in ("c_visc", "L", "lm", "tip_area"))
@@ -95,6 +97,9 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
         """(value, flat index within the design's (N, n)) of x's max or min per design: the
         vane holding it, then the sample -- the first occurrence in flat order, as an arg-max of
         the flattened array gives it (NaN included), without copying a strided x to flatten it."""
+        if x.shape[1] == 1:  # one vane (standing for alike ones): its own extreme
+            k = pick(x[:, 0], axis=1)
+            return x[rows, 0, k], k
         vane = pick((np.max if pick is np.argmax else np.min)(x, axis=2), axis=1)
         within = x[rows, vane]
         k = pick(within, axis=1)
@@ -110,6 +115,8 @@ def reduce_batch(a: dict, k: dict) -> tuple[dict, dict]:
     tip = mh * N * v + c_visc * v * v
     slot = mr * sd * (aF1 + aF2)
     tip_v, slot_v = tip.mean(axis=-1), slot.mean(axis=-1)
+    if vanes is not None and tip_v.shape[1] != vanes:
+        tip_v, slot_v = np.repeat(tip_v, vanes, axis=1), np.repeat(slot_v, vanes, axis=1)
     out["tip_friction_power"] = tip_v.sum(axis=-1)
     out["slot_friction_power"] = slot_v.sum(axis=-1)
     out["friction_power"] = out["tip_friction_power"] + out["slot_friction_power"]

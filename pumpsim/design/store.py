@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import importlib.metadata
 import json
-import math
 import platform
 from pathlib import Path
+
+import numpy as np
 
 from ..errors import ConfigError
 from ..fsfaults import guard, probe_folder
@@ -61,8 +62,8 @@ def rows_to_table(study, rows):
     data, fields = {}, []
     for name, typ in columns(study):
         vals = [r.get(name) for r in rows]
-        if typ == "float":
-            vals = [math.nan if v is None else float(v) for v in vals]
+        if typ == "float":  # a missing value (None) is NaN
+            vals = np.array(vals, dtype=float) if vals else np.empty(0)
         data[name] = pa.array(vals, type=types[typ])
         fields.append(pa.field(name, types[typ]))
     return pa.table(data, schema=pa.schema(fields))

@@ -358,3 +358,16 @@ def test_ipopt_prints_no_banner_and_converges_where_the_others_do(tmp_path, caps
         assert code == 0 and doc["converged"], err
         rms[method] = doc["rms"]
     assert rms["ipopt"] <= rms["gauss-newton"] * (1 + 1e-6)
+
+
+@pytest.mark.parametrize("command,flag", [("identify", "--steady"), ("identify", "--transient"),
+                                          ("diagnose", "--resample")])
+def test_torque_only_options_are_refused_on_a_bench_log(tmp_path, capsys, command, flag):
+    """A bench log (recognised by its columns) refuses before any work the options that only torque
+    data takes, naming the flag and the fix."""
+    t = np.arange(0.0, 0.05, 1e-3)
+    path = write(tmp_path / "bench.csv", "time [s],voltage [V],current [A],booster_pressure [kPa]",
+                 t, np.full_like(t, 13.5), np.full_like(t, 10.0), np.full_like(t, 90.0))
+    extra = {"--steady": ["--steady"], "--transient": ["--transient"], "--resample": ["--resample", "1000"]}[flag]
+    code, _, err = run(capsys, command, str(EXAMPLES / "evp_booster.toml"), str(path), *extra)
+    assert code == 2 and flag in err and "is for torque data" in err and f"drop {flag}" in err, err

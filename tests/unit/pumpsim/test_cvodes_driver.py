@@ -25,14 +25,18 @@ def oscillator(tmp_path_factory):
     xdot = ca.vertcat(x[1], -p**2 * x[0])
     f = ca.Function("f", [x, p], [xdot])
     fj = ca.Function("f_jac", [x, p], [ca.jacobian(xdot, x)])
-    folder = tmp_path_factory.mktemp("osc")
-    gen = ca.CodeGenerator("osc.c")
-    gen.add(f)
-    gen.add(fj)
+    return _compiled(tmp_path_factory.mktemp("osc"), "osc", f, fj), fj.sparsity_out(0)
+
+
+def _compiled(folder, name, *functions):
+    """The functions compiled as the codegen writes them (CasADi's C calling convention)."""
+    gen = ca.CodeGenerator(f"{name}.c")
+    for f in functions:
+        gen.add(f)
     gen.generate(str(folder) + "/")
-    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / "osc.c"), "-o", str(folder / "osc.so")],
-                   check=True)
-    return folder / "osc.so", fj.sparsity_out(0)
+    so = folder / f"{name}.so"
+    subprocess.run(["cc", "-O2", "-fPIC", "-shared", str(folder / f"{name}.c"), "-o", str(so)], check=True)
+    return so
 
 
 def _driver(oscillator, atol=1e-12):
@@ -116,3 +120,35 @@ def test_a_driver_that_cannot_be_built_falls_back(monkeypatch, tmp_path):
     assert not ok and "CVODES driver" in why
     res = pumpsim.simulate(make_config("test_rig"), model="contact", duration=0.002, rate=2000)
     assert res.stats["driver"] == "cvodes (casadi)" and res.termination == "completed"
+
+
+@pytest.fixture(scope="module")
+def oscillator_with_quadrature(tmp_path_factory):
+    """The oscillator with a quadrature riding along as a third state, q' = x'^2, as the gas
+    model's budgets do: kernel `g`(y, p) -> (xdot, qdot) and `g_jac` with zero quadrature rows."""
+    if not cvodes_driver.available()[0]:
+        pytest.skip(f"direct CVODES driver not available: {cvodes_driver.available()[1]}")
+    y, p = ca.SX.sym("y", 3), ca.SX.sym("p")
+    xdot, qdot = ca.vertcat(y[1], -p**2 * y[0]), y[1] ** 2
+    g = ca.Function("g", [y, p], [xdot, qdot])
+    gj = ca.Function("g_jac", [y, p], [ca.jacobian(xdot, y), ca.SX(1, 3)])
+    return _compiled(tmp_path_factory.mktemp("oscq"), "oscq", g, gj), gj.sparsity_out(0), gj.sparsity_out(1)
+
+
+def test_the_leading_block_solver_gives_the_full_solvers_steps_and_states(oscillator_with_quadrature):
+    """lin_size: the Newton systems solved on the states' block alone are the full dense solver's
+    to the last bit (same steps, states and quadrature), and the quadrature is the integral."""
+    so, sp_x, sp_q = oscillator_with_quadrature
+    t = np.linspace(0.0, 0.5, 51)
+    runs = {}
+    for lin_size in (None, 2):
+        y, p = np.zeros(3), np.array([W])
+        rhs = cvodes_driver.KernelCall(so, "g", [y, p], 0)
+        jac = cvodes_driver.KernelCall(so, "g_jac", [y, p], 0)
+        d = cvodes_driver.Driver(3, rhs, [0, 2], jac, [(sp_x, 0), (sp_q, 2)], OSCILLATOR_RTOL,
+                                 np.full(3, 1e-12), lin_size=lin_size)
+        runs[lin_size] = (d.run(0.0, np.array([0.0, 1.0, 0.0]), t[1:]), d.stats)
+    (full, st_full), (block, st_block) = runs[None], runs[2]
+    assert np.array_equal(full, block) and st_full == st_block
+    exact = t[1:] / 2 + np.sin(2 * W * t[1:]) / (4 * W)  # integral of cos^2(W t)
+    assert np.max(np.abs(block[:, 2] - exact)) <= OSCILLATOR_REL * np.max(exact)

@@ -53,3 +53,19 @@ def test_guided_layout_gives_the_same_table_resumes_and_splits_the_idle_time(tmp
     (out / "manifest.json").write_text((out / "manifest.json").read_text().replace('"complete"', '"running"'))
     again, st2 = design.sweep(s, out=out, workers=2, processes=False)
     assert st2.batches_skipped == st.batches and again.equals(serial)
+
+
+def test_a_study_left_to_choose_runs_in_process_when_a_cluster_could_not_pay_for_its_start(monkeypatch):
+    from pumpsim.design import cluster, execute
+
+    started = []
+    real = cluster.connect
+    monkeypatch.setattr(execute, "connect", lambda *a: started.append(a) or real(None, 2, False))
+    s = study_from_dict({"study": {"config": RIG, "sampler": "random", "samples": 40, "seed": 3},
+                         "vary": {"vane.mass": {"distribution": "normal", "sd": 0.05, "relative": True}}})
+    serial, _ = design.sweep(s, workers=0)
+    df, st = design.sweep(s)  # 40 cheap designs: far below a cluster's start
+    assert not started and st.workers == 1 and df.equals(serial)
+    monkeypatch.setattr(execute, "IN_PROCESS_SECONDS", 0.0)  # every study is worth a cluster
+    df, st = design.sweep(s)
+    assert len(started) == 1 and st.workers == 2 and df.equals(serial)

@@ -72,7 +72,8 @@ def test_rows_equal_the_per_design_path_bit_for_bit_with_rejections():
     assert status[4].startswith("config:") and "operation.speed" in status[5]
     assert status[6].startswith("geometry:")
     res, speeds = {}, {}
-    assert evaluate._mapped_results(s, X, res, speeds) == [2, 3, 4, 5]  # the rest: per design
+    # the rest: per design (the map's rejections, and the geometry screen's for their reason)
+    assert evaluate._mapped_results(s, X, res, speeds) == [2, 3, 4, 5, 6]
 
 
 def test_vane_counts_each_get_their_variant_and_study_speeds_apply():
