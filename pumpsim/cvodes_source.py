@@ -190,14 +190,14 @@ int drv_sens(drv_t *d, int ns, int np, const double *pdir, const double *ph, con
   d->yS = N_VCloneVectorArray(ns, d->y);
   d->sy = calloc(d->n, sizeof(double)); d->sf0 = calloc(d->n, sizeof(double)); d->sfp = calloc((long)ns * d->n, sizeof(double));
   d->sjac = calloc(d->jnnz, sizeof(double));
-  N_Vector *aS = N_VCloneVectorArray(ns, d->y); double *as = calloc(ns, sizeof(double));
+  N_Vector *aS = N_VCloneVectorArray(ns, d->y);
   for (int i = 0; i < ns; i++) {
     N_VConst(0.0, d->yS[i]); N_VScale(1.0 / pscale[i], d->atol, aS[i]);
   }
   int f = CVodeSensInit(d->cv, ns, CV_STAGGERED, sensrhs, d->yS);
   if (!f) f = CVodeSensSVtolerances(d->cv, rtol, aS);
   if (!f) f = CVodeSetSensErrCon(d->cv, errcon);
-  N_VDestroyVectorArray(aS, ns); free(as);
+  N_VDestroyVectorArray(aS, ns);
   return f;
 }
 
