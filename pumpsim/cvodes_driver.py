@@ -24,206 +24,13 @@ import subprocess
 
 import numpy as np
 
+from .cvodes_source import SOURCE
 from .errors import SolverError
 
 ENV = "PUMPSIM_CVODES"
 LIBS = ["-lsundials_cvodes", "-lsundials_nvecserial", "-lsundials_sunmatrixdense",
         "-lsundials_sunlinsoldense", "-lm"]
-SOURCE = r"""
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <math.h>
-#include <cvodes/cvodes.h>
-#include <nvector/nvector_serial.h>
-#include <sunmatrix/sunmatrix_dense.h>
-#include <sunlinsol/sunlinsol_dense.h>
-#include <sundials/sundials_dense.h>
-typedef long long ci;
-typedef int (*fn_t)(const double **, double **, ci *, double *, int);
-typedef struct { fn_t f; const double **arg; double **res; ci *iw; double *w; int slot; } call_t;
-typedef struct {
-  SUNContext ctx; void *cv; N_Vector y, atol; SUNMatrix A; SUNLinearSolver LS; int n;
-  call_t rhs, jac; int nout; const ci *off; ci jnnz; const ci *jpos; const double *jbuf;
-  long nrhs, njac, base[5]; char msg[512];
-  /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
-     goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
-  call_t g; int gn1, gns, gnslot; const ci *gslot, *goff, *gidx; double *gbuf, gtouch;
-} drv_t;
-
-static int groot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
-  drv_t *d = (drv_t *)u; double *Y = N_VGetArrayPointer(y);
-  for (int i = 0; i < d->gnslot; i++) d->g.arg[d->gslot[i]] = Y + d->goff[i];
-  if (d->gn1 && d->g.f(d->g.arg, d->g.res, d->g.iw, d->g.w, 0)) return 1;
-  for (int i = 0; i < d->gn1; i++) g[i] = d->gbuf[i];
-  for (int j = 0; j < d->gns; j++) g[d->gn1 + j] = Y[d->gidx[j]];
-  for (int i = 0; i < d->gn1 + d->gns; i++) if (fabs(g[i]) < d->gtouch) g[i] = 0.0;
-  return 0;
-}
-
-int drv_roots(drv_t *d, fn_t f, const double **arg, double **res, ci *iw, double *w, int nslot,
-              const ci *slot, const ci *off, int n1, double *buf, int ns, const ci *idx, double touch) {
-  d->g = (call_t){f, arg, res, iw, w, 0}; d->gnslot = nslot; d->gslot = slot; d->goff = off;
-  d->gn1 = n1; d->gbuf = buf; d->gns = ns; d->gidx = idx; d->gtouch = touch;
-  return CVodeRootInit(d->cv, n1 + ns, groot);
-}
-
-static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
-  drv_t *d = (drv_t *)u; double *D = N_VGetArrayPointer(yd);
-  d->rhs.arg[d->rhs.slot] = N_VGetArrayPointer(y);
-  for (int k = 0; k < d->nout; k++) d->rhs.res[k] = d->off[k] < 0 ? NULL : D + d->off[k];
-  d->nrhs++;
-  return d->rhs.f(d->rhs.arg, d->rhs.res, d->rhs.iw, d->rhs.w, 0) ? 1 : 0;
-}
-
-static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *u, N_Vector t1,
-               N_Vector t2, N_Vector t3) {
-  drv_t *d = (drv_t *)u;
-  d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
-  d->njac++;
-  if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
-  SUNMatZero(J);
-  double *A = SM_DATA_D(J);  /* column-major, leading dimension n; jpos = col * n + row */
-  for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = d->jbuf[k];
-  return 0;
-}
-
-#if SUNDIALS_VERSION_MAJOR < 7
-static void quiet(int code, const char *mod, const char *fn, char *msg, void *u) {
-  drv_t *d = (drv_t *)u; snprintf(d->msg, sizeof d->msg, "%s: %s", fn, msg);
-}
-#endif
-
-const char *drv_message(drv_t *d) { return d->msg; }
-
-drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_steps, double max_step,
-               fn_t f, const double **farg, double **fres, ci *fiw, double *fw, int fslot, int nout,
-               const ci *off, fn_t j, const double **jarg, double **jres, ci *jiw, double *jw, int jslot,
-               ci jnnz, const ci *jpos, const double *jbuf) {
-  drv_t *d = calloc(1, sizeof(drv_t));
-#if SUNDIALS_VERSION_MAJOR >= 7
-  if (SUNContext_Create(SUN_COMM_NULL, &d->ctx)) return NULL;
-#else
-  if (SUNContext_Create(NULL, &d->ctx)) return NULL;
-#endif
-  d->n = n; d->nout = nout; d->off = off; d->jnnz = jnnz; d->jpos = jpos; d->jbuf = jbuf;
-  d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
-  d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
-  for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
-  d->cv = CVodeCreate(CV_BDF, d->ctx);
-  if (!d->cv || CVodeInit(d->cv, rhs, 0.0, d->y) || CVodeSVtolerances(d->cv, rtol, d->atol)) return NULL;
-  CVodeSetUserData(d->cv, d);
-#if SUNDIALS_VERSION_MAJOR < 7
-  CVodeSetErrHandlerFn(d->cv, quiet, d);
-#endif
-  d->A = SUNDenseMatrix(n, n, d->ctx); d->LS = SUNLinSol_Dense(d->y, d->A, d->ctx);
-  if (CVodeSetLinearSolver(d->cv, d->LS, d->A) || CVodeSetJacFn(d->cv, jac)) return NULL;
-  CVodeSetMaxOrd(d->cv, max_order); CVodeSetMaxNumSteps(d->cv, max_steps);
-  if (max_step > 0) CVodeSetMaxStep(d->cv, max_step);
-  return d;
-}
-
-static void counters(drv_t *d, long *c) {
-  CVodeGetNumSteps(d->cv, c); CVodeGetNumLinSolvSetups(d->cv, c + 1); CVodeGetNumErrTestFails(d->cv, c + 2);
-  CVodeGetNumNonlinSolvIters(d->cv, c + 3); CVodeGetNumNonlinSolvConvFails(d->cv, c + 4);
-}
-
-/* stats: steps, rhs, Jacobians, set-ups, error-test failures, Newton iterations, Newton failures */
-static void stats_of(drv_t *d, long *st) {
-  long c[5]; counters(d, c);
-  st[0] = d->base[0] + c[0]; st[1] = d->nrhs; st[2] = d->njac;
-  for (int i = 1; i < 5; i++) st[i + 2] = d->base[i] + c[i];
-}
-
-/* Y at tout[0..m); on a root (flag CV_ROOT_RETURN) it stops there: *done full rows, the root's
-   time and state in *troot and yroot, which functions in found */
-int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
-            long *st, int *done, double *troot, double *yroot, int *found) {
-  int flag = 0; sunrealtype tr;
-  d->msg[0] = 0; *done = 0;
-  if (!resume) {
-    long c[5]; counters(d, c);
-    for (int i = 0; i < 5; i++) d->base[i] += c[i];
-    memcpy(N_VGetArrayPointer(d->y), y0, d->n * sizeof(double));
-    flag = CVodeReInit(d->cv, t0, d->y);
-  }
-  for (int k = 0; k < m && flag >= 0; k++) {
-    flag = CVode(d->cv, tout[k], d->y, &tr, CV_NORMAL);
-    if (flag == CV_ROOT_RETURN) {
-      *troot = tr; memcpy(yroot, N_VGetArrayPointer(d->y), d->n * sizeof(double));
-      CVodeGetRootInfo(d->cv, found); break;
-    }
-    if (flag >= 0) { memcpy(Y + (long)k * d->n, N_VGetArrayPointer(d->y), d->n * sizeof(double)); *done = k + 1; }
-    else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
-  }
-  stats_of(d, st);
-  return flag;
-}
-
-/* Leading-block dense solver: the Newton matrix I - gamma J of a system whose rows from nl on
-   have a zero Jacobian (quadratures riding along as states) is [[M11, 0], [0, I]]; only M11 is
-   factored and solved, with the dense solver's own LU, so the results are those of the full LU
-   (its extra rows and columns only add zeros) at a fraction of the cost. */
-typedef struct { sunindextype nl; SUNMatrix B; sunindextype *piv; } blk_t;
-static SUNLinearSolver_Type blk_type(SUNLinearSolver S) { return SUNLINEARSOLVER_DIRECT; }
-static SUNLinearSolver_ID blk_id(SUNLinearSolver S) { return SUNLINEARSOLVER_CUSTOM; }
-static int blk_init(SUNLinearSolver S) { return 0; }
-static int blk_setup(SUNLinearSolver S, SUNMatrix A) {
-  blk_t *b = (blk_t *)S->content; sunindextype nl = b->nl, n = SM_ROWS_D(A);
-  for (sunindextype j = 0; j < nl; j++) memcpy(SM_COLUMN_D(b->B, j), SM_DATA_D(A) + j * n, nl * sizeof(double));
-#ifdef SUNLS_LUFACT_FAIL
-  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? SUNLS_LUFACT_FAIL : 0;
-#else
-  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? 1 : 0;
-#endif
-}
-static int blk_solve(SUNLinearSolver S, SUNMatrix A, N_Vector x, N_Vector r, sunrealtype tol) {
-  blk_t *b = (blk_t *)S->content;
-  N_VScale(1.0, r, x);
-  SUNDlsMat_denseGETRS(SM_COLS_D(b->B), b->nl, b->piv, N_VGetArrayPointer(x));
-  return 0;
-}
-static int blk_free(SUNLinearSolver S) {
-  if (!S) return 0;
-  blk_t *b = (blk_t *)S->content;
-  if (b) { SUNMatDestroy(b->B); free(b->piv); free(b); }
-  S->content = NULL; SUNLinSolFreeEmpty(S);
-  return 0;
-}
-
-/* solve the Newton systems on the leading nl x nl block only (rows nl.. of the Jacobian zero);
-   before drv_tune: attaching a linear solver resets CVODES' Jacobian settings */
-int drv_block_solver(drv_t *d, int nl) {
-  SUNLinearSolver S = SUNLinSolNewEmpty(d->ctx);
-  if (!S) return -1;
-  blk_t *b = calloc(1, sizeof(blk_t));
-  S->content = b; S->ops->gettype = blk_type; S->ops->getid = blk_id; S->ops->initialize = blk_init;
-  S->ops->setup = blk_setup; S->ops->solve = blk_solve; S->ops->free = blk_free;
-  b->nl = nl; b->B = SUNDenseMatrix(nl, nl, d->ctx); b->piv = malloc(nl * sizeof(sunindextype));
-  if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetJacFn(d->cv, jac)) {
-    blk_free(S); return -1;
-  }
-  SUNLinSolFree(d->LS); d->LS = S;
-  return 0;
-}
-
-/* Newton iterations per step, steps between Jacobian updates, Newton convergence coefficient
-   (0: CVODES' default) */
-int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
-  int f = 0;
-  if (maxcor > 0) f |= CVodeSetMaxNonlinIters(d->cv, maxcor);
-  if (msbj > 0) f |= CVodeSetJacEvalFrequency(d->cv, msbj);
-  if (nlscoef > 0) f |= CVodeSetNonlinConvCoef(d->cv, nlscoef);
-  return f;
-}
-
-void drv_free(drv_t *d) {
-  if (!d) return;
-  CVodeFree(&d->cv); SUNLinSolFree(d->LS); SUNMatDestroy(d->A); N_VDestroy(d->y); N_VDestroy(d->atol);
-  SUNContext_Free(&d->ctx); free(d);
-}
-"""
-STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails")
+STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails", "nsens_fevals", "njumps")
 _LIB: dict = {}
 
 
@@ -255,7 +62,10 @@ def _build() -> ctypes.CDLL:
     dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
                             ctypes.c_longlong, p, p]
-    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p]
+    dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
+    dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p]
+    dll.drv_switches.argtypes = [p, ctypes.c_int, p, p, ctypes.c_double]
+    dll.drv_sens.argtypes = [p, ctypes.c_int, ctypes.c_int, p, p, p, ctypes.c_int, ctypes.c_double, p, p]
     dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
                               ctypes.c_double]
     dll.drv_message.restype = ctypes.c_char_p
@@ -363,6 +173,7 @@ class Driver:
                     start += block[0].nnz()
         self.jpos = np.concatenate(pos)
         self.atol = np.ascontiguousarray(atol, dtype=float)
+        self.rtol = float(rtol)
         self.stats_now = np.zeros(len(STAT_NAMES), dtype=np.int64)
         self.handle = self.lib.drv_new(
             n, float(rtol), _ptr(self.atol), int(max_order), int(max_steps), float(max_step or 0.0),
@@ -377,6 +188,40 @@ class Driver:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
         self.last = None  # (t, y) where the solver memory stands
         self.n_roots, self.root = 0, None
+        self.n_sens, self.sensitivities = 0, None
+
+    def set_drive(self, pbuf, slot, step, values):
+        """A time-dependent input: before every kernel call pbuf[slot] (pbuf: the kernels' parameter
+        array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ..."""
+        self._drive = (pbuf, np.ascontiguousarray(values, dtype=float))
+        self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]))
+
+    def set_sensitivities(self, directions, steps, scales, error_control=False):
+        """Forward sensitivities of y along parameter directions (rows of `directions`, in the
+        drive's parameter buffer, set_drive): s' = J s + df/dp d with J the Jacobian kernel's and
+        df/dp d a forward difference of the right-hand side over `steps`; absolute tolerances
+        atol / scales; error_control: the sensitivities in the error test (the staggered corrector
+        either way). Before any run; `run` then also fills self.sensitivities (m, ns, n)."""
+        D = np.ascontiguousarray(directions, dtype=float)
+        rows, cols = self.jpos % self.n, self.jpos // self.n
+        self._sens = (D, np.ascontiguousarray(steps, dtype=float), np.ascontiguousarray(scales, dtype=float),
+                      np.ascontiguousarray(rows, dtype=np.int64), np.ascontiguousarray(cols, dtype=np.int64))
+        self.n_sens = D.shape[0]
+        if self.lib.drv_sens(self.handle, self.n_sens, D.shape[1], _ptr(D), _ptr(self._sens[1]), _ptr(self._sens[2]),
+                             int(bool(error_control)), float(self.rtol), _ptr(self._sens[3]), _ptr(self._sens[4])):
+            raise OSError("CVODES could not set up its forward sensitivities")
+
+    def set_switches(self, angles, widths, max_width):
+        """Switches of the right-hand side where y[0] (an angle) crosses `angles` (mod 2 pi): the
+        sensitivities jump there by (f after - f before) s[0] / |y[1]|, f taken at the edges of
+        the switch's band (half-width widths / |y[1]|, ignored beyond max_width), and their
+        right-hand side is taken at the band's edge inside it. After set_sensitivities."""
+        order = np.argsort(np.mod(angles, 2 * np.pi))
+        self._switches = (np.ascontiguousarray(np.mod(angles, 2 * np.pi)[order], dtype=float),
+                          np.ascontiguousarray(np.asarray(widths, float)[order]))
+        if self.lib.drv_switches(self.handle, len(order), _ptr(self._switches[0]), _ptr(self._switches[1]),
+                                 float(max_width)):
+            raise OSError("CVODES could not set up its root finding")
 
     def set_roots(self, call, slots, offsets, output, n_out, state_idx, touch):
         """Switching functions located by CVODES: the kernel call's output `output` (its first
@@ -393,24 +238,29 @@ class Driver:
                               len(state_idx), _ptr(self._g[4]), float(touch)):
             raise OSError("CVODES could not set up its root finding")
 
-    def run(self, t0, y0, touts):
+    def run(self, t0, y0, touts, s0=None):
         """y at each of touts (increasing, > t0) from y0 at t0 -> (m, n). The solver carries on
         without a restart when (t0, y0) is where the last call ended. With switching functions
-        it stops at the first root: fewer rows, and self.root = (time, state, indices)."""
+        it stops at the first root: fewer rows, and self.root = (time, state, indices). With
+        sensitivities: s0 (ns, n) their start, self.sensitivities (m, ns, n) at touts."""
         touts = np.ascontiguousarray(touts, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
-        resume = self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
+        resume = (self.last is not None and self.last[0] == t0 and np.array_equal(self.last[1], y0)
+                  and s0 is None)
         Y = np.empty((touts.size, self.n))
+        S0 = np.ascontiguousarray(np.zeros((self.n_sens, self.n)) if s0 is None else s0, dtype=float)
+        SY = np.empty((touts.size, self.n_sens, self.n))
         done, t_root, y_root = ctypes.c_int(), ctypes.c_double(), np.empty(self.n)
         found = self._found if self.n_roots else np.zeros(1, dtype=np.int32)
         flag = self.lib.drv_run(self.handle, float(t0), _ptr(y0), int(resume), touts.size, _ptr(touts), _ptr(Y),
                                 _ptr(self.stats_now), ctypes.byref(done), ctypes.byref(t_root), _ptr(y_root),
-                                _ptr(found))
+                                _ptr(found), _ptr(S0), _ptr(SY))
         if flag < 0:
             self.last = None
             msg = self.lib.drv_message(self.handle).decode(errors="replace")
             raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
         Y = Y[:done.value]
+        self.sensitivities = SY[:done.value] if self.n_sens else None
         self.root = None
         if flag == 2:  # CV_ROOT_RETURN
             self.root = (t_root.value, y_root, np.nonzero(found)[0])

@@ -64,9 +64,14 @@ PUMPDOWN_RTOL, PUMPDOWN_ATOL = 1e-4, 1e-5
 # Model 1 with gas (`pumpdown --model contact`) keeps 1e-5: rtol sets the error on the vane
 # positions s_i (~5e-3 m), and 1e-4 would allow ~5e-7 m against ~1 um penetrations.
 CONTACT_PUMPDOWN_RTOL, CONTACT_PUMPDOWN_ATOL = 1e-5, 1e-5
-# Bench-log fits (pumpsim.identification.pumpdown_fit): the Jacobian is a central difference of two
-# simulations, and each simulation's own error (a different step sequence per run, ~rtol of each
-# channel) enters it over the step. On the EVP example at 1e-4/1e-5 the pressure column's
+# Bench-log fits (pumpsim.identification.pumpdown_fit): the default Jacobian is a forward difference
+# of two simulations, and each simulation's own error (a different step sequence per run, ~rtol of
+# each channel) enters it over the step. On the EVP example at 1e-4/1e-5 the pressure column's
 # derivative by mu changed by 280 % between a 1e-3 and a 5e-4 relative step, at 1e-5/1e-6 by 35 %,
-# at 1e-6/1e-7 by 2.5 % (1.3x the wall time of 1e-4).
+# at 1e-6/1e-7 by 2.5 % (1.3x the wall time of 1e-4). Against central differences at 1e-9 (0.5 s
+# log) the fit's 1e-2 steps are 2-4 % off at 1e-6, 4-7 % at 1e-5, 7-27 % at 1e-4. The forward
+# sensitivities (jacobian="sensitivities": no run-to-run noise, but the vane reversals' friction
+# switch crossed by the steps) are 2-3.5 % off at 1e-6 and 12-17 % at 1e-5 for mu and the
+# resistance: they do not allow a looser tolerance either. The 5 s fit's estimates against an
+# rtol 1e-7 fit (direct driver): within 0.85 standard errors at 1e-6, 0.42 at 1e-5, 1.46 at 1e-4.
 BENCH_FIT_RTOL, BENCH_FIT_ATOL = 1e-6, 1e-7

@@ -3,9 +3,11 @@ voltage, the booster pressure per sample, the current and the speed as block mea
 of pumpdown_fit says why and how).
 
 Without a reed exhaust valve the model has no events, and a run over the whole log is one CVODES
-call on the log's output grid (`GridRuns`): no restart every few revolutions, no quadratures
-carried along, and the runs of several parameter vectors (a finite-difference Jacobian) at once in
-threads. With a reed valve the runtime's event-locating integration (pneumatics.run) is used.
+call on the log's output grid: by the direct driver (bench_sens.DirectRuns, with forward
+sensitivities for a Jacobian) where it is available, else by CasADi's plugin (`GridRuns`, the runs
+of several parameter vectors -- a finite-difference Jacobian -- at once in threads). No restart
+every few revolutions, no quadratures carried along. With a reed valve the runtime's
+event-locating integration (pneumatics.run) is used.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import numpy as np
 from ..errors import SolverError
 from ..model_spec.parameters import pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
+from . import bench_sens
 
 BLOCK_REVOLUTIONS = 1.0  # current and speed are compared as means over blocks this many revolutions long
 MAX_ORDER = 3  # BDF order cap, as the runtime's (pneumatics.run.PumpIntegrator says why)
@@ -146,7 +149,8 @@ class BenchModel:
         self.runup = runup_blocks(dict(zip(self.names, parameter_vector(cfg))), self.t[self.edges])
         self.block_time = 0.5 * (self.t[self.edges[1:]] + self.t[self.edges[:-1]]) + time[0]
         self.mean_speed = 0.0
-        self._grid_runs = None  # GridRuns, made at the first run (its state scale from that run's start)
+        self._grid_runs = None  # GridRuns or DirectRuns, made at the first run (its state scale from that run's start)
+        self.direct = bench_sens.usable()  # the direct driver: its runs, and sensitivities
 
     def compared(self, logged: dict) -> dict:
         """A log's channels as the model gives them: pressure per sample, current and speed as
@@ -159,7 +163,9 @@ class BenchModel:
     @property
     def stats(self) -> dict:
         """The integrator's work so far: runs, and steps, right-hand sides, Jacobians and error-test
-        failures of the runs made one at a time (a threaded batch reports none)."""
+        failures (CasADi's plugin: of the runs made one at a time, a threaded batch reports none;
+        the direct driver: of every run, and the sensitivities' right-hand-side differences and
+        jumps)."""
         return dict(self._grid_runs.stats) if self._grid_runs is not None else {}
 
     def start_state(self, p):
@@ -188,17 +194,47 @@ class BenchModel:
                     raise SolverError(f"the pump-down model stopped at sample {r.states.shape[0]} of {self.n}")
                 out.append(r.states[:self.n])
             return out
+        return self._runs(x0s[0], ps[0]).runs(x0s, ps)
+
+    def _runs(self, x0, p):
         if self._grid_runs is None:
-            scale = run.state_scale(x0s[0], ps[0], self.kern.structure)
-            self._grid_runs = GridRuns(self.kern, self.grid, self.drive, scale, self.rtol, self.atol)
-        return self._grid_runs.runs(x0s, ps)
+            from ..pneumatics import run
+
+            scale = run.state_scale(x0, p, self.kern.structure)
+            self._grid_runs = (bench_sens.DirectRuns(self.kern, self.grid, self.volt, scale, self.rtol, self.atol)
+                               if self.direct else GridRuns(self.kern, self.grid, self.drive, scale, self.rtol, self.atol))
+        return self._grid_runs
+
+    def has_sensitivities(self, p) -> bool:
+        """Whether channels_and_jacobian can run at p: the direct driver, and no reed valve (its
+        events go through the runtime's integration)."""
+        return self.direct and p[self.names.index("valve.reed")] <= 0.5
+
+    def channels_and_jacobian(self, p, directions, scales):
+        """(channels(p), {channel: (m, k) derivatives}) along the runtime parameter directions
+        (k, n_p), one run with forward sensitivities (bench_sens); scales: the fitted parameters'
+        sizes (the sensitivities' tolerances and the difference steps are relative to them)."""
+        x0 = self.start_state(p)
+        h = bench_sens.MAP_STEP * np.asarray(scales, float)
+        s0 = np.array([(self.start_state(p + hj * d) - self.start_state(p - hj * d)) / (2 * hj)
+                       for hj, d in zip(h, directions)])
+        X, SX = self._runs(x0, p).run(x0, p, directions, bench_sens.P_STEP * np.asarray(scales, float), scales, s0)
+        if self.jittered:
+            X = self._onto_log(X)
+            SX = np.stack([self._onto_log(SX[:, j, :]) for j in range(SX.shape[1])], axis=1)
+        self.mean_speed = float((X[-1, 0] - X[0, 0]) / max(self.t[-1], 1e-300))
+        return bench_sens.channel_derivatives(lambda Y, q: self._compared(Y, dict(zip(self.names, q))), X, SX, p,
+                                              directions, scales)
+
+    def _onto_log(self, X):
+        return np.column_stack([np.interp(self.t, self.grid, c) for c in X.T])
 
     def _states_many(self, ps) -> list:
         """[(states at the log's times, parameter values by name)] for runtime parameter vectors."""
         out = []
         for p, X in zip(ps, self._grid_states(ps)):
             if self.jittered:  # the model onto the log's own times
-                X = np.column_stack([np.interp(self.t, self.grid, c) for c in X.T])
+                X = self._onto_log(X)
             out.append((X, dict(zip(self.names, p))))
         X = out[0][0]
         self.mean_speed = float((X[-1, 0] - X[0, 0]) / max(self.t[-1], 1e-300))

@@ -22,14 +22,25 @@ model explains the log to its noise).
 
 The fit starts from a fast model on the pump's cycle-averaged maps (bench_fast: its fit, then
 full-model steps with its Jacobian corrected by Broyden updates); the full model's Jacobian, last,
-gives the covariance: forward differences of the compiled model, one run per parameter, the runs
-of one Jacobian integrated at once in threads (bench_model.GridRuns: the whole log in one CVODES call).
-Exact forward sensitivities (the kernel's forward derivative in x and p, CVODES on the system
-augmented with one sensitivity block per parameter, blocks in the error test) were measured on the
-EVP example: at rtol 1e-6 a 0.5 s log took 237,726 steps (a run alone 38,000) and 113 us per step
-(a run alone 21 us), ~33x one run against 3 runs for the differences; the sensitivities' kinks at
-the port edges and orifice branches make CVODES step short. At BENCH_FIT_RTOL the differences
-agree with halved steps to ~1e-3 (tests).
+gives the covariance. The full model runs by the direct CVODES driver where it is available
+(bench_sens.DirectRuns), else by CasADi's plugin (bench_model.GridRuns); the whole log in one call.
+Its Jacobian (`jacobian`):
+- "differences" (the default): forward differences, one run per parameter, the runs of one
+  Jacobian at once in threads. The 1 % step's curvature error is a few % of a column (0.2 s log,
+  rtol 1e-8: mu 6 %, motor.resistance 12 %; 0.5 s, rtol 1e-6: 2-4 %), each run's integration
+  error on top at a loose tolerance (rtol 1e-4: 7-27 %).
+- "sensitivities": forward sensitivities of one run (bench_sens), excluded from the error test:
+  the Jacobian kernel's J s plus a difference of the right-hand side along the parameter's
+  direction. A vane reversing in its slot flips its Coulomb friction within |ds/dt| < v_static
+  (~1e-4 rad): a switch of the right-hand side that the sensitivities must cross as a jump (located
+  by CVODES; without it the columns of mu and the resistance were 6-15 % off). With the jumps: within
+  0.3 % (mu), 0.01 % (leak), 1 % (resistance), 0.2-0.3 % (tip gap, cracking, motor friction) of
+  central differences at rtol 1e-8; but at rtol 1e-6 2-3.5 % and at 1e-5 12-17 % (mu, resistance),
+  the band between the static and the dynamic friction the steps cross too coarsely. So it does not
+  let the fit loosen its tolerance, and at rtol 1e-6 one run with sensitivities costs ~1.2 times the
+  base run and the three of the differences (0.5 s log: 3.8 against 3.2 CPU s); it is the more accurate
+  Jacobian at a tight tolerance (standard errors; the booster leak's column at any tolerance).
+The first attempt at sensitivities kept them in the error test: 6x the steps, 33x a run's cost.
 """
 from __future__ import annotations
 
@@ -76,6 +87,7 @@ SEPARATING = (
      "a pump-down to a lower booster pressure, or a run with the inlet closed (24 -> 17 %): the exhaust "
      "valve's cracking shapes the compression work at low inlet pressure"),
 )
+JACOBIANS = ("differences", "sensitivities")  # BenchLogProblem's Jacobian (module doc)
 CORRELATED = 0.95  # |correlation| above which two estimates are named as hard to separate
 WEAK = 0.1  # relative standard error above which an estimate is named as weakly determined
 
@@ -102,13 +114,15 @@ class BenchLogProblem(Problem):
     SPECIAL = COF_ALIASES
 
     def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
-                 atol=BENCH_FIT_ATOL):
+                 atol=BENCH_FIT_ATOL, jacobian="differences"):
         from ..kernels.pneumatic import kernels
 
         if cfg.pneumatic is None or not cfg.pneumatic.motor:
             raise ConfigError(f"{cfg.path or cfg.name}: a bench log is fitted with the pump-down model: the config "
                               "needs the gas tables and operation.mode = \"motor\" (spec §8, §10)")
-        self.cfg, self.data, self.rtol, self.atol = cfg, log, rtol, atol
+        if jacobian not in JACOBIANS:
+            raise ConfigError(f"jacobian must be one of {', '.join(JACOBIANS)}, got '{jacobian}'")
+        self.cfg, self.data, self.rtol, self.atol, self.jacobian = cfg, log, rtol, atol, jacobian
         self.kern = kernels(cfg)
         self._index, self.p0, self._ratios, mu_slot, self._follow = fit_map(cfg)
         self.names = list(names)
@@ -189,12 +203,16 @@ class BenchLogProblem(Problem):
         return h if x[j] + h <= self.upper[j] else -h
 
     def model_and_jacobian(self, x, cols=None):
-        """The model and its forward-difference Jacobian (the step away from a bound), the
-        perturbed runs integrated at once."""
+        """The model and its Jacobian: forward sensitivities of one run where the bench model has
+        them (bench_model.BenchModel.has_sensitivities), else forward differences (the step away
+        from a bound), the perturbed runs integrated at once."""
         x = np.asarray(x, dtype=float)
+        cols = list(range(len(self.names)) if cols is None else cols)
+        p = self.parameter_vector(x)
+        if cols and self.jacobian == "sensitivities" and self.bench.has_sensitivities(p):
+            return self._sensitivity_jacobian(x, p, cols)
         m = self.model(x)
         last = self.last
-        cols = list(range(len(self.names)) if cols is None else cols)
         xs, hs = [], []
         for j in cols:
             xj = x.copy()
@@ -206,6 +224,31 @@ class BenchLogProblem(Problem):
         J = np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if xs else np.zeros((m.size, 0))
         self.last = last
         return m, J
+
+    def _sensitivity_jacobian(self, x, p, cols):
+        from .bench_sens import parameter_directions
+
+        scales = np.array([self.scale_of(j, x) for j in range(len(self.names))])
+        D = parameter_directions(self.parameter_vector, x, scales, self.names_index_voltage)[cols]
+        ch, dch = self.bench.channels_and_jacobian(p, D, scales[cols])
+        self.n_eval += 1
+        ch = {c: ch[c] for c in self.channel_names}
+        m = self.scaled(ch)
+        self.last = ch
+        self._at = (x.copy(), m, ch)
+        J = np.vstack([dch[c] / self.sigma[c] for c in self.channel_names])
+        return m, J
+
+    @property
+    def names_index_voltage(self):
+        return self._index["motor.voltage"]
+
+    def jacobian_text(self, x) -> str:
+        """How model_and_jacobian takes the Jacobian at x (the fit's report says it)."""
+        if self.jacobian == "sensitivities" and self.bench.has_sensitivities(self.parameter_vector(x)):
+            return ("forward sensitivities of the compiled model (CVODES, one run; a vane's reversal in its slot "
+                    "as a jump)")
+        return "forward differences of the compiled model (one run per parameter)"
 
     def symbolic_model(self, phi):
         raise ConfigError("--method ipopt fits torque data; a bench log uses gauss-newton or levenberg-marquardt")
@@ -308,7 +351,7 @@ class BenchFit:
     fitted: dict
     time: dict  # channel -> the times of its compared values
     notes: list = field(default_factory=list)
-    jacobian: str = "forward differences of the compiled model (one run per parameter, in threads)"
+    jacobian: str = "forward differences of the compiled model (one run per parameter)"
     start: str = "the config's values"
     ripple: object = None  # current_ripple.RippleFit: mu from the vane-passing ripple, or why not
 
@@ -359,7 +402,7 @@ class BenchFit:
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
                    initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps", rtol=BENCH_FIT_RTOL,
-                   atol=BENCH_FIT_ATOL, ripple=True) -> BenchFit:
+                   atol=BENCH_FIT_ATOL, ripple=True, jacobian="differences") -> BenchFit:
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
     start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
     steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
@@ -367,7 +410,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     log cannot determine (no effect, or a near-null direction of the noise-scaled Jacobian) get no
     number and the note says what experiment would separate them. rtol, atol: the full model's
     integration. ripple: then mu from the current's vane-passing ripple where the log resolves it
-    (current_ripple)."""
+    (current_ripple). jacobian: the full model's, "differences" or "sensitivities" (module doc)."""
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
@@ -378,7 +421,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         raise ConfigError(f"start must be 'maps' or 'config', got '{start}'")
     optimiser = Optimiser(method, relaxation, max_iter, progress)
     wall0 = _time.perf_counter()
-    prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol)
+    prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol, jacobian=jacobian)
     x_start, how = prob.x0.copy(), "the config's values"
     if start == "maps":
         from .bench_fast import FastBenchModel, fast_then_full
@@ -395,7 +438,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
 
     def reduced(active, fixed, unident):
         return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident},
-                               rtol, atol)
+                               rtol, atol, jacobian)
 
     fit = fit_identifiable(prob, x_start, optimiser, reduced)
     fitted_prob = prob if fit.outcome is None else fit.prob
@@ -438,7 +481,8 @@ def _bench_fit(fitted_prob, res, x, how, names=None, unident=()) -> BenchFit:
     rel = {n: e.stderr / abs(e.value) for n, e in res.estimates.items() if e.identifiable and e.value}
     notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified, rel)
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
-                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how)
+                    fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how,
+                    jacobian=fitted_prob.jacobian_text(x))
 
 
 def _with_ripple(bench: BenchFit, cfg, log, prob, fitted_prob, x) -> BenchFit:
