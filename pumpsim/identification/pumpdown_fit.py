@@ -50,7 +50,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..benchlog import BenchLog, fit_percent
+from ..benchlog import BenchLog, fit_percent, start_above_atmosphere
 from ..signals import noise_sigma
 from ..errors import ConfigError
 from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
@@ -434,7 +434,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         if not any(to_fix(prob.names, out.jacobian, out.x, prob.y - out.residual)):
             res = _result(prob, prob, out, [], [], 0, log, cfg, wall0, method)
             fit = _bench_fit(prob, res, out.x, how)
-            return _with_ripple(fit, cfg, log, prob, prob, out.x) if ripple else fit
+            return _checked(_with_ripple(fit, cfg, log, prob, prob, out.x) if ripple else fit, cfg, log)
 
     def reduced(active, fixed, unident):
         return BenchLogProblem(cfg, log, active, {n: fixed[n] for n in active}, {n: fixed[n] for n in unident},
@@ -445,7 +445,15 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     res = _result(prob, fitted_prob, fit.outcome, fit.unident, fit.no_effect, fit.evaluations, log, cfg, wall0, method)
     x = prob.x0 if fit.outcome is None else fit.outcome.x
     bench = _bench_fit(fitted_prob, res, x, how, prob.names, fit.unident)
-    return _with_ripple(bench, cfg, log, prob, fitted_prob, x) if ripple else bench
+    return _checked(_with_ripple(bench, cfg, log, prob, fitted_prob, x) if ripple else bench, cfg, log)
+
+
+def _checked(bench: BenchFit, cfg, log) -> BenchFit:
+    """bench with what the log's own checks say about the figures (a start above the atmosphere)."""
+    above = start_above_atmosphere(log, cfg)
+    if above:
+        bench.notes.insert(0, above)
+    return bench
 
 
 def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, wall0, method):

@@ -223,3 +223,7 @@ def test_python_api_recognises_a_bench_log_as_the_command_line_does(tmp_path, cf
     high = dataclasses.replace(log, booster_pressure=1.02 * log.booster_pressure)
     d = diagnose_bench(cfg, high, budget=1e-6)
     assert any("% above the config's gas.atmosphere" in n for n in d.notes), d.notes
+    assert not any("gas.atmosphere" in n for n in fit.notes)
+    from pumpsim.identification.pumpdown_fit import identify_bench
+
+    assert "gas.atmosphere" in identify_bench(cfg, high, ["mu"], ripple=False).notes[0]
