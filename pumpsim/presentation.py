@@ -22,6 +22,7 @@ OPTIMISTIC = ("the residual is not white: the ± and the intervals assume indepe
 # fitted names that are not config keys (identification: Problem.SPECIAL): label, SI unit
 _SPECIAL = {
     "mu": ("vane–housing COF μ (dynamic)", "-"),
+    "booster.pressure": ("booster pressure at the log's first sample (fitted with the log)", "Pa"),
     "mu_slot": ("slot-wall COF μ_r (dynamic)", "-"),
     "theta0": ("rotor angle at the first sample θ0", "rad"),
     "speed": ("rotor speed ω", "rad/s"),

@@ -69,7 +69,7 @@ class FastBenchModel:
         self.x_map = np.asarray(x0, float).copy()
         self.map_cols = [j for j, n in enumerate(self.names) if maps_change(n)]
         pressures = map_pressures(log_pressure, bench.start_pressure)
-        base = pump_maps(cfg, pressures, MAP_RTOL, MAP_ATOL, p=parameter_vector(self.x_map))
+        base = pump_maps(cfg, pressures, MAP_RTOL, MAP_ATOL, p=bench.split(parameter_vector(self.x_map))[0])
         self.log_p = np.log(base.pressure)
         self.pumping_speed = float(np.max(base.pumping_speed))  # m^3/s: the booster's fastest time constant
         self.base = self._tables(base)
@@ -78,7 +78,7 @@ class FastBenchModel:
             h = MAP_STEP * scale(j, self.x_map)
             xj = self.x_map.copy()
             xj[j] += h
-            m = pump_maps(cfg, pressures, MAP_RTOL, MAP_ATOL, p=parameter_vector(xj))
+            m = pump_maps(cfg, pressures, MAP_RTOL, MAP_ATOL, p=bench.split(parameter_vector(xj))[0])
             self.map_seconds += m.wall_time
             self.slopes.append((self._tables(m) - self.base) / h)
 
@@ -92,8 +92,8 @@ class FastBenchModel:
         tab = self.base.copy()
         for j, s in zip(self.map_cols, self.slopes):
             tab = tab + s * (x[j] - self.x_map[j])
-        v = dict(zip(self.bench.names, self.pv(x)))
-        return tab, v
+        p, start = self.bench.split(self.pv(x))
+        return tab, dict(zip(self.bench.names, p), start=start)
 
     def channels_many(self, xs) -> list:
         runs = [self._run_values(x) for x in xs]
@@ -133,7 +133,7 @@ class FastBenchModel:
         # RK4 steps of whole sample intervals, each at most STAGE_LIMIT tau (substeps where one
         # interval is longer), the voltage its mean over the step; the states interpolated back
         nodes = _nodes(b.n, max(1, int(STAGE_LIMIT * tau / b.step)))
-        p, w = np.full(len(runs), b.start_pressure), np.full(len(runs), b.omega0)
+        p, w = col("start"), np.full(len(runs), b.omega0)
         Pn, Wn = [p], [w]
         for i0, i1 in zip(nodes[:-1], nodes[1:]):
             span = b.grid[i1] - b.grid[i0]

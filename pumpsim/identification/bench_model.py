@@ -22,6 +22,7 @@ from . import bench_sens
 BLOCK_REVOLUTIONS = 1.0  # current and speed are compared as means over blocks this many revolutions long
 MAX_ORDER = 3  # BDF order cap, as the runtime's (pneumatics.run.PumpIntegrator says why)
 RUNUP_TIME_CONSTANTS = 3.0  # the run-up: this many mechanical time constants (runup_blocks)
+START_NAME = "booster.pressure"  # the fitted start pressure's name (the config key of the booster's start)
 MAX_STEPS = 20_000_000  # a whole log in one call: ~80,000 steps per simulated second at rtol 1e-6
 
 
@@ -168,22 +169,30 @@ class BenchModel:
         jumps)."""
         return dict(self._grid_runs.stats) if self._grid_runs is not None else {}
 
+    def split(self, p):
+        """(the runtime parameter vector, the start pressure) of p: a vector one longer than the
+        runtime's carries a fitted start pressure last (START_NAME), else the log's estimate."""
+        p = np.asarray(p, float).ravel()
+        return (p[:-1], float(p[-1])) if p.size == len(self.names) + 1 else (p, self.start_pressure)
+
     def start_state(self, p):
         """The state at the log's first sample: the pump at rest (or the logged speed), the cells at
-        the atmosphere, inlet manifold and booster at the log's start pressure."""
+        the atmosphere, inlet manifold and booster at the start pressure (split)."""
         from ..pneumatics import run
 
+        p, start = self.split(p)
         pv = dict(zip(self.names, p))
         x0 = run.initial_state(self.cfg, self.kern, p, omega0=self.omega0)
         RT = pv["gas.gas_constant"] * pv["gas.temperature"]
-        x0[self.i_in] = self.start_pressure * pv["ports.inlet_volume"] / RT
-        x0[self.i_b] = self.start_pressure * pv["booster.volume"] / RT
+        x0[self.i_in] = start * pv["ports.inlet_volume"] / RT
+        x0[self.i_b] = start * pv["booster.volume"] / RT
         return x0
 
     def _grid_states(self, ps) -> list:
         from ..pneumatics import run
 
         x0s = [self.start_state(p) for p in ps]
+        ps = [self.split(p)[0] for p in ps]
         reed = self.names.index("valve.reed")
         if any(p[reed] > 0.5 for p in ps):  # valve events: the runtime's event-locating integration
             out = []
@@ -208,7 +217,7 @@ class BenchModel:
     def has_sensitivities(self, p) -> bool:
         """Whether channels_and_jacobian can run at p: the direct driver, and no reed valve (its
         events go through the runtime's integration)."""
-        return self.direct and p[self.names.index("valve.reed")] <= 0.5
+        return self.direct and len(p) == len(self.names) and p[self.names.index("valve.reed")] <= 0.5
 
     def channels_and_jacobian(self, p, directions, scales):
         """(channels(p), {channel: (m, k) derivatives}) along the runtime parameter directions

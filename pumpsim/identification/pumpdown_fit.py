@@ -56,7 +56,7 @@ from ..errors import ConfigError
 from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 from .current_ripple import bench_ripple
-from .bench_model import BenchModel, block_edges, block_means, block_samples  # noqa: F401 (public here too)
+from .bench_model import START_NAME, BenchModel, block_edges, block_means, block_samples  # noqa: F401 (public here too)
 from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
@@ -126,6 +126,9 @@ class BenchLogProblem(Problem):
         self.kern = kernels(cfg)
         self._index, self.p0, self._ratios, mu_slot, self._follow = fit_map(cfg)
         self.names = list(names)
+        if START_NAME in self.names:  # the start pressure rides last in the vector (BenchModel.split)
+            self._index = {**self._index, START_NAME: self.p0.size}
+            self.p0 = np.append(self.p0, log.start_pressure())
         if not self.names:
             raise ConfigError("--params names no parameter to fit")
         for n in self.names:
@@ -137,8 +140,8 @@ class BenchLogProblem(Problem):
         self.hold = dict(hold or {})
         initial = initial or {}
         self.x0 = np.array([float(initial.get(n, self.fixed.get(n, v.get(n, 0.0)))) for n in self.names])
-        bounds = [_GAS[n].fit_bounds() if n in _GAS else fit_bounds(n, cfg.parameters("constrained").structure)
-                  for n in self.names]
+        bounds = [(0.5 * v[n], 1.5 * v[n]) if n == START_NAME else _GAS[n].fit_bounds() if n in _GAS else
+                  fit_bounds(n, cfg.parameters("constrained").structure) for n in self.names]
         self.lower, self.upper = (np.array(b, dtype=float) for b in zip(*bounds))
         self.t = log.time - log.time[0]
         self.channel_names = list(log.channels())
@@ -402,7 +405,7 @@ class BenchFit:
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
                    initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps", rtol=BENCH_FIT_RTOL,
-                   atol=BENCH_FIT_ATOL, ripple=True, jacobian="differences") -> BenchFit:
+                   atol=BENCH_FIT_ATOL, ripple=True, jacobian="differences", fit_start=True) -> BenchFit:
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
     start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
     steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
@@ -410,7 +413,12 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     log cannot determine (no effect, or a near-null direction of the noise-scaled Jacobian) get no
     number and the note says what experiment would separate them. rtol, atol: the full model's
     integration. ripple: then mu from the current's vane-passing ripple where the log resolves it
-    (current_ripple). jacobian: the full model's, "differences" or "sensitivities" (module doc)."""
+    (current_ripple). jacobian: the full model's, "differences" or "sensitivities" (module doc).
+    fit_start: the booster's pressure at the first sample (START_NAME) is fitted with the others
+    (a nuisance parameter, reported last): the log's own estimate of it carries its noise, and
+    the model started there biases the leak and the resistance by several standard errors (docs:
+    bench-log fit); False keeps the estimate (and its bias). A fitted start takes the Jacobian by
+    differences (the sensitivities' runs have no start-pressure direction yet)."""
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
@@ -421,6 +429,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         raise ConfigError(f"start must be 'maps' or 'config', got '{start}'")
     optimiser = Optimiser(method, relaxation, max_iter, progress)
     wall0 = _time.perf_counter()
+    params = list(params) + ([START_NAME] if fit_start and START_NAME not in params else [])
     prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol, jacobian=jacobian)
     x_start, how = prob.x0.copy(), "the config's values"
     if start == "maps":

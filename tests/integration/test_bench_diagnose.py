@@ -214,7 +214,7 @@ def test_python_api_recognises_a_bench_log_as_the_command_line_does(tmp_path, cf
     write_bench_log(path, log)
     fit = pumpsim.identify(cfg_path, path)
     assert isinstance(fit, BenchFit)
-    assert list(fit.result.estimates) == ["mu", "booster.leak", "motor.resistance"]
+    assert list(fit.result.estimates) == ["mu", "booster.leak", "motor.resistance", "booster.pressure"]
     assert fit.result.estimates["mu"].value == pytest.approx(TRUTH["mu"], rel=0.05)
     d = pumpsim.diagnose(cfg_path, path, budget=1e-6)  # the baseline only (the search is the slow tests')
     assert isinstance(d, BenchDiagnosis) and "mu" in d.to_json()["baseline"]["params"]

@@ -67,8 +67,11 @@ def twin_fit(tmp_path, **kw):
     assert est["mu"].value == pytest.approx(TWIN_TRUTH["mu"], rel=0.02)
     assert est["motor.resistance"].value == pytest.approx(TWIN_TRUTH["motor.resistance"], rel=0.03)
     assert est["booster.leak"].value == pytest.approx(TWIN_TRUTH["booster.leak"], rel=0.10)
+    # the start pressure is fitted with them unless fit_start=False
+    truth = {**TWIN_TRUTH, **({"booster.pressure": cfg.pneumatic.booster_start} if kw.get("fit_start", True) else {})}
+    assert list(est) == list(truth)
     for n, e in est.items():
-        assert abs(e.value - TWIN_TRUTH[n]) < 3.5 * e.stderr, (n, e)
+        assert abs(e.value - truth[n]) < 3.5 * e.stderr, (n, e)
     return cfg, log, fit
 
 
