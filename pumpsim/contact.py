@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 import time as _time
-from pathlib import Path
 from types import SimpleNamespace
 
 import casadi as ca
@@ -61,16 +60,14 @@ def direct_driver(kern, name, dyn, drive, p):
     CVODES."""
 
     def build(rtol, atol, max_steps, max_step):
-        so = next(Path(kern.folder).glob("*.so"))
         x, d, pv = np.zeros(kern[name].size1_in(0)), np.array([drive], float), np.asarray(p, float).copy()
-        rhs = cvodes_driver.KernelCall(so, name, [x, d, pv], 0)
-        jac = cvodes_driver.KernelCall(so, name + "_jac", [x, d, pv], 0)
+        rhs, jac = cvodes_driver.rhs_and_jacobian(kern, name, [x, d, pv])
         blocks = [(kern[name + "_jac"].sparsity_out(0), 0), None]  # d xdot / dx; not d / d drive
         drv = cvodes_driver.Driver(x.size, rhs, [0], jac, blocks, rtol, atol, max_steps=max_steps,
                                    max_step=max_step)
         N = (x.size - 2) // 2
         # dyn(theta, omega, drive, s, sdot, p): the state's pieces at slots 0, 1, 3, 4
-        g = cvodes_driver.KernelCall(so, dyn, [x[:1], x[1:2], d, x[2:2 + N], x[2 + N:], pv], 0)
+        g = cvodes_driver.KernelCall(cvodes_driver.kernel_library(kern), dyn, [x[:1], x[1:2], d, x[2:2 + N], x[2 + N:], pv], 0)
         drv.set_roots(g, [0, 1, 3, 4], [0, 1, 2, 2 + N], kern[dyn].name_out().index("penetration"), N,
                       list(range(2, 2 + N)), TOUCHING)
         return drv

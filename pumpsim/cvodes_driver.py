@@ -21,6 +21,7 @@ import hashlib
 import logging
 import os
 import subprocess
+from pathlib import Path
 
 import numpy as np
 
@@ -134,6 +135,17 @@ class KernelCall:
 
     def address(self) -> int:
         return ctypes.cast(self.fn, ctypes.c_void_p).value
+
+
+def kernel_library(kern) -> Path:
+    """The compiled library of a loaded variant (kern: kernels.*'s loaded kernels)."""
+    return next(Path(kern.folder).glob("*.so"))
+
+
+def rhs_and_jacobian(kern, name, inputs, state_slot=0) -> tuple[KernelCall, KernelCall]:
+    """KernelCall of the compiled ODE `name` and of its Jacobian `name`_jac, both reading `inputs`."""
+    so = kernel_library(kern)
+    return KernelCall(so, name, inputs, state_slot), KernelCall(so, name + "_jac", inputs, state_slot)
 
 
 class Driver:

@@ -12,7 +12,6 @@ import dataclasses
 import math
 import os
 import threading
-import time
 
 import numpy as np
 
@@ -575,13 +574,6 @@ def evaluate_rows(study, X, ids, n_vanes_max: int) -> list[dict]:
                  **{o: float(y) for o, y in zip(fn.outputs, ys)}, "status": "ok"}
                 for i, xs, ys in zip(ids, X, Y)]
     return evaluate_pump_rows(study, X, ids, n_vanes_max)
-
-
-def time_per_design(study, X, n_vanes_max) -> float:
-    """Wall time of one design on this process (a pilot run, for sizing batches)."""
-    t0 = time.perf_counter()
-    evaluate_rows(study, X, np.arange(len(X)), n_vanes_max)
-    return (time.perf_counter() - t0) / max(1, len(X))
 
 
 __all__ = ["evaluate_designs", "kernel_tangents", "evaluate_rows", "revolution", "per_vane_name"]

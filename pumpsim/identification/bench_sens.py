@@ -16,7 +16,6 @@ reversal in its slot) they jump (reversal_switches).
 from __future__ import annotations
 
 import threading
-from pathlib import Path
 
 import numpy as np
 
@@ -55,7 +54,6 @@ class DirectRuns:
         self.kern, self.grid, self.volt = kern, np.asarray(grid, float), np.asarray(volt, float)
         self.S, self.rtol, self.atol = np.asarray(scale, float), rtol, atol
         self.iv = parameter_index(kern.structure, "motor.voltage")
-        self.so = next(Path(kern.folder).glob("*.so"))
         self.nx = kern["pump_rhs"].size1_in(0)
         self.stats = {"runs": 0, "nsteps": 0, "nfevals": 0, "njevals": 0, "netfails": 0, "nsens_fevals": 0, "njumps": 0}
         self._lock = threading.Lock()
@@ -64,8 +62,7 @@ class DirectRuns:
     def _driver(self, p):
         x = np.zeros(self.nx)
         pbuf = np.array(p, dtype=float)
-        rhs = cvodes_driver.KernelCall(self.so, "pump_rhs", [x, pbuf], 0)
-        jac = cvodes_driver.KernelCall(self.so, "pump_rhs_jac", [x, pbuf], 0)
+        rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [x, pbuf])
         pbuf = rhs.keep[1]  # the one buffer both kernels read (KernelCall keeps contiguous arrays as given)
         fj = self.kern["pump_rhs_jac"]
         d = cvodes_driver.Driver(self.nx, rhs, [0, -1], jac, [(fj.sparsity_out(0), 0), None], self.rtol,
@@ -142,13 +139,13 @@ def reversal_switches(kern, p):
     return np.array(angles), np.array(widths)
 
 
-def parameter_directions(parameter_vector, x, scales, iv):
-    """The runtime parameter vector's derivative by each fitted parameter at x (k, n_p), a central
-    difference of the map (linear in most parameters; the voltage slot, the log's, zeroed)."""
+def parameter_directions(parameter_vector, x, scales, iv, cols):
+    """The runtime parameter vector's derivative by the fitted parameters `cols` at x (k, n_p), a
+    central difference of the map (linear in most parameters; the voltage slot, the log's, zeroed)."""
     x = np.asarray(x, float)
     out = []
-    for j, s in enumerate(scales):
-        h = MAP_STEP * s
+    for j in cols:
+        h = MAP_STEP * scales[j]
         xp, xm = x.copy(), x.copy()
         xp[j] += h
         xm[j] -= h

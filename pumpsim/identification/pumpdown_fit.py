@@ -232,7 +232,7 @@ class BenchLogProblem(Problem):
         from .bench_sens import parameter_directions
 
         scales = np.array([self.scale_of(j, x) for j in range(len(self.names))])
-        D = parameter_directions(self.parameter_vector, x, scales, self.names_index_voltage)[cols]
+        D = parameter_directions(self.parameter_vector, x, scales, self.names_index_voltage, cols)
         ch, dch = self.bench.channels_and_jacobian(p, D, scales[cols])
         self.n_eval += 1
         ch = {c: ch[c] for c in self.channel_names}

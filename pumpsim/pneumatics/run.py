@@ -15,7 +15,6 @@ import math
 import time as _time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -130,11 +129,8 @@ class PumpIntegrator:
         (quadratures riding along) and per-component tolerances; None where it is not available."""
         if not cvodes_driver.available()[0]:
             return None
-        so = next(Path(self.kern.folder).glob("*.so"))
         self._pbuf = self.p.copy()
-        x = np.zeros(self.nx)
-        rhs = cvodes_driver.KernelCall(so, "pump_rhs", [x, self._pbuf], 0)
-        jac = cvodes_driver.KernelCall(so, "pump_rhs_jac", [x, self._pbuf], 0)
+        rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [np.zeros(self.nx), self._pbuf])
         fj = self.kern["pump_rhs_jac"]
         blocks = [(fj.sparsity_out(0), 0), (fj.sparsity_out(1), self.nx)]
         # the quadratures do not feed back: with their Jacobian rows zero, CVODES' Newton systems
