@@ -140,7 +140,9 @@ class Drives:
 
     def get(self, rise: float) -> BenchLogProblem:
         key = float(rise)
-        if key not in self._by_rise:
+        if key in self._by_rise:  # least recently used goes first: the no-heating problem stays
+            self._by_rise[key] = self._by_rise.pop(key)
+        else:
             if len(self._by_rise) >= 4:  # each holds a compiled integrator: keep the last few
                 self._retired += self._by_rise.pop(next(iter(self._by_rise))).n_eval
             self._by_rise[key] = BenchLogProblem(self.cfg, heated_drive(self.log, key), self.names,

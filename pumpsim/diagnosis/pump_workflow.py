@@ -203,7 +203,7 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
     limit = options.max_effects if max_effects is None else max_effects
     while len(steps) < limit and detection.searching() and not run.out_of_time("the search for a further effect"):
         named = {OF_PARAM[n].name for n in current.names if n in OF_PARAM}
-        screened = _screen(run, current, [e for e in effects if e.name not in named])
+        screened = _screen(run, current, library(resistance_known, exclude=named))
         ranking = screened
         step = _search_step(run, current, screened, detection)
         if step is None:
@@ -280,23 +280,21 @@ def _screen(run, current: Fit, effects) -> list:
     pressure gap), not the noise's -- a filter fitted to it would leave only the misfit's slope.
     Coloured noise is guarded against where an effect is accepted (_judge)."""
     r, Jb = current.residual, current.jacobian
-    rw, Jw = r, Jb
-    Q = np.linalg.qr(Jw)[0]
-    Mr = rw - Q @ (Q.T @ rw)
-    sigma2 = float(Mr @ Mr) / max(rw.size - Jw.shape[1], 1)
+    Q = np.linalg.qr(Jb)[0]
+    Mr = r - Q @ (Q.T @ r)
+    sigma2 = float(Mr @ Mr) / max(r.size - Jb.shape[1], 1)
     m0 = current.prob.model(np.array([current.values[n] for n in current.names]))
     out = []
     for e in effects:
         run.say(f"screening {e.name}")
         prob = EffectProblem(run.drives, current.names + [e.param], current.values)
         c = prob.column(prob.x0, len(current.names), e.probe, m0)
-        cw = c
-        Mc = cw - Q @ (Q.T @ cw)
-        inside = float(np.linalg.norm(Q.T @ cw) / max(np.linalg.norm(cw), 1e-300))
+        Mc = c - Q @ (Q.T @ c)
+        inside = float(np.linalg.norm(Q.T @ c) / max(np.linalg.norm(c), 1e-300))
         mc2 = float(Mc @ Mc)
         lm = float(Mr @ Mc) ** 2 / max(mc2, 1e-300) / max(sigma2, 1e-300) if mc2 > 0 else 0.0
         coef = float(Mr @ Mc) / mc2 if mc2 > 0 else 0.0
-        base = np.linalg.lstsq(Jw, rw - cw * coef, rcond=None)[0]
+        base = np.linalg.lstsq(Jb, r - c * coef, rcond=None)[0]
         one = {n: current.values[n] + d for n, d in zip(current.names, base)}
         one[e.param] = float(np.clip(current.values[e.param] + coef, prob.lower[-1], prob.upper[-1]))
         out.append(Screened(e, lm, float(chi2_sf(lm, 1)), one, Mc, inside))
