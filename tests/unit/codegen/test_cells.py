@@ -46,7 +46,9 @@ def _vane_area_outside_rotor(s, phi, v):
     return quad(length, -h / 2, h / 2, epsabs=0, epsrel=1e-13, limit=200)[0]
 
 
-@pytest.mark.parametrize("name", list(HOUSINGS))
+# the harmonic housing builds its own gas kernel (about a minute of C compile on a fresh machine)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if "harmonic" in n else n
+                                  for n in HOUSINGS])
 def test_volume_identity_every_angle(name):
     cfg = gas_config(**HOUSINGS[name])
     v = {**cfg.values}
