@@ -84,6 +84,29 @@ def run_one(case: str, samples: int, kernel: str = "simd", profile=None) -> dict
             "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"]}
 
 
+def columns_ratio(base, data, repeats: int = 3) -> dict:
+    """CPU seconds of `repeats` diagnoses of `data` each with the geometric Jacobian columns from
+    exact derivatives (today's path) and from the sub-sample runs on every sample
+    (PUMPSIM_INTERVAL_COLUMNS=runs, the path before), interleaved under the same load: the
+    medians, their ratio and whether both named the same effects."""
+    cpu = {"exact": [], "runs": []}
+    effects = {}
+    for _ in range(repeats):
+        for path in ("exact", "runs"):
+            if path == "runs":
+                os.environ["PUMPSIM_INTERVAL_COLUMNS"] = "runs"
+            c0 = time.process_time()
+            try:
+                out = diagnose(base, data)
+            finally:
+                os.environ.pop("PUMPSIM_INTERVAL_COLUMNS", None)
+            cpu[path].append(time.process_time() - c0)
+            effects[path] = list(out["effects"])
+    med = {k: float(np.median(v)) for k, v in cpu.items()}
+    return {"cpu_seconds": med["exact"], "cpu_seconds_runs": med["runs"], "ratio": med["runs"] / med["exact"],
+            "cpu_all": cpu, "same_effects": effects["exact"] == effects["runs"]}
+
+
 def scaling_terms(rows, window: int = OPTIONS.screen_samples) -> list[dict]:
     """Per (case, kernel): CPU seconds = fixed + per_window_sample x min(samples, window) +
     per_sample x samples by least squares (the search runs on the first `window` samples, the

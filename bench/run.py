@@ -286,12 +286,15 @@ def bench_identify(duration=0.5, rate=10000.0):
 DIAGNOSE_CPU_TARGET_S = 3.0  # one effect, 5,000 samples (and <= 20 s for the worst case of bench/diagnose_grid.py)
 
 
-def bench_diagnose(duration=0.5, rate=10000.0):
+def bench_diagnose(duration=0.5, rate=10000.0, repeats=3):
     """The whole discrepancy workflow (full library) on 0.5 s of 10 kHz data with one hidden effect
     (housing out-of-round, order 4) and 5 % noise. The kernels of the variants it uses
     (diagnose_scale.warm_kernels) are built or loaded before the clock and that time is printed on its own line; the
     clock then covers the first diagnosis in the process (its one-time costs included). Wall and
-    CPU time (all threads); the CPU time is held against DIAGNOSE_CPU_TARGET_S."""
+    CPU time (all threads); the CPU time is held against DIAGNOSE_CPU_TARGET_S. Then, warm, the
+    same diagnosis `repeats` times each with the geometric columns from exact derivatives (today's
+    path) and from sub-sample runs on every sample (PUMPSIM_INTERVAL_COLUMNS=runs, the path before),
+    interleaved: the median CPU of each and their ratio."""
     import dataclasses
 
     from pumpsim.data import Dataset
@@ -310,16 +313,20 @@ def bench_diagnose(duration=0.5, rate=10000.0):
     t0, c0 = time.perf_counter(), time.process_time()
     out = diagnose(base, data)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    warm = diagnose_scale.columns_ratio(base, data, repeats)
     print(f"\nDiscrepancy workflow, full library, {sim.time.size} samples (first diagnosis in the process)")
     print(f"  kernels ({', '.join(v.variant for v in variants)}, SIMD {'with' if jac else 'WITHOUT'} "
           f"Jacobian entries) ready before the clock: {t_kernels:.1f} s (a build, if any, is in that figure)")
     print(f"  effects named: {out['effects']}; wall {wall:.1f} s, CPU {cpu:.1f} s (target <= "
           f"{DIAGNOSE_CPU_TARGET_S:g} s CPU: {'met' if cpu <= DIAGNOSE_CPU_TARGET_S else 'MISSED'}); "
           f"load {os.getloadavg()[0]:.1f}")
+    print(f"  warm, median of {repeats} interleaved: CPU {warm['cpu_seconds']:.1f} s against "
+          f"{warm['cpu_seconds_runs']:.1f} s with the sub-sample runs on every sample (x{warm['ratio']:.2f}); "
+          f"the same effects: {warm['same_effects']}")
     return {"samples": int(sim.time.size), "seconds": wall, "cpu_seconds": cpu, "kernels_seconds": t_kernels,
             "simd_jacobian": jac, "effects": out["effects"],
             "final_rms": out["final"]["rms"], "target_cpu_seconds": DIAGNOSE_CPU_TARGET_S,
-            "target_met": cpu <= DIAGNOSE_CPU_TARGET_S, "load": os.getloadavg()[0]}
+            "target_met": cpu <= DIAGNOSE_CPU_TARGET_S, "load": os.getloadavg()[0], "warm": warm}
 
 
 def bench_diagnose_scale(samples=(1000, 5000, 20000, 80000)):

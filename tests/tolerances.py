@@ -422,6 +422,12 @@ INTERVAL_COS_GAIN = 0.2
 # grid's SNR-5 tilted3 oval; n = 1001 samples, so sqrt(1 - 6/n) +- 2 % for noise alone); one stalled on
 # the reversal staircase leaves 1.5-2.4 (a reversal a sample off costs a whole Coulomb step)
 INTERVAL_VALLEY_RMS = 1.03
+# the geometric columns from the exact derivatives where the torque is smooth on the sample scale
+# (identification/interval.py) against the sub-sample runs on every sample: their difference over
+# the column's norm. Measured 1e-7 - 5e-6 on the 4-vane ellipse's k = 2 and k = 4 ovals at 10 and
+# 20 kHz and 2.4e-6 on the tilted3 oval (the smooth formula's O(h^4) remainder); a missed step or
+# narrow transition costs far more (one such sample on the concentric rig: 5x the column's norm)
+INTERVAL_SMOOTH_REL = 1e-4
 
 # Dataset.mean_speed: the stretch of whole revolutions ends within one sample of the last whole
 # turn, so a ripple eps can bias it by at most eps x (one sample's share of the stretch)

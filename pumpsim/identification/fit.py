@@ -71,8 +71,14 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
                             ripple_order, transient, reversals, interval, speed_in_band)
 
     start = prob.start(prob.x0) if multistart and prob.moves_phase() else prob.x0.copy()
-    initial_model = prob.model(prob.x0)
-    fit = fit_identifiable(prob, start, optimiser, reduced)
+    at_start = None
+    if isinstance(prob, ConstantSpeedProblem) and np.array_equal(start, prob.x0):
+        # its model is the model at the start, to the bit: one model run fewer per fit
+        at_start = prob.model_and_jacobian(start)
+        initial_model = at_start[0]
+    else:
+        initial_model = prob.model(prob.x0)
+    fit = fit_identifiable(prob, start, optimiser, reduced, at_start)
     res = _result(prob, fit, multistart, adequacy)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
@@ -111,11 +117,12 @@ class _Fit:
     evaluations: int  # model evaluations of the problems fitted and dropped on the way
 
 
-def fit_identifiable(prob, start, optimiser, reduced) -> _Fit:
+def fit_identifiable(prob, start, optimiser, reduced, at_start=None) -> _Fit:
     """Identifiability at the start and again at the fit: a parameter without effect, or in a
     near-null direction of J'J (over-parameterised: COF and offset on a concentric rig), gets no
-    number; it is fixed and the others are fitted again."""
-    at_start = prob.model_and_jacobian(start)
+    number; it is fixed and the others are fitted again. `at_start`: the model and Jacobian at
+    `start` when the caller has them."""
+    at_start = prob.model_and_jacobian(start) if at_start is None else at_start
     m_start = at_start[0]
     fixed = dict(zip(prob.names, start))
     active, unident, no_effect = list(prob.names), [], []

@@ -19,8 +19,9 @@ from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
+from .interval import smooth_interval_columns, stepped_samples, subpoint_offsets
 from .reversals import reversal_keep
-from .sampled import drive_motion, pointwise_columns, sample_blocks, simd_torque, simd_torque_designs
+from .sampled import drive_motion, pointwise_columns, simd_torque, simd_torque_designs
 from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
@@ -275,23 +276,19 @@ class ConstantSpeedProblem(Problem):
         theta, dtheta = self.angle_and_jacobian(x)
         m, (theta, dtheta, *kin) = self._grid(T, theta, dtheta, self.tau, *self._rates)
         z = self.z(x)
-        # the pointwise columns (those the interval columns replace below are not computed)
+        # the geometric defects' columns: the interval averages' derivatives (_interval_columns)
         geo = [i for i, n in enumerate(names) if interval_geometric(n)] if self.interval_geometry and T == 0 else []
-        pointwise = [i for i in range(len(cols)) if i not in geo]
         J = np.zeros((theta.size, len(cols)))
-        tq, J[:, pointwise] = self._pointwise(theta, z, kin, [cols[i] for i in pointwise])
-        slope = None
-        if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0):
+        tq, J[:] = self._pointwise(theta, z, kin, cols)
+        slope = ends = None
+        if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0) or geo:
             h = abs(self.speed_of(x)) * self._half_step / m
-            slope = np.empty(theta.size)
-            blocks = sample_blocks(theta.size)
-            for sl in blocks:  # per sample: block by block (memory); one block: the arrays themselves
-                th, kn = (theta, kin) if len(blocks) == 1 else (theta[sl], [a[sl] for a in kin])
-                slope[sl] = (self._torque(th + h, z, kn) - self._torque(th - h, z, kn)) / (2 * h)
+            ends = self._torque(theta - h, z, kin), self._torque(theta + h, z, kin)  # the intervals' ends
+            slope = (ends[1] - ends[0]) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
-        self._interval_columns(x, J, geo, cols)
+        self._interval_columns(x, J, geo, cols, tq, ends)
         if T > 0:
             y, J = self._sensed(tq, T, m), self._sensed(J, T, m)
             if "lag" in names:  # d y / d T by finite steps of the exact filter (1-D)
@@ -315,34 +312,47 @@ class ConstantSpeedProblem(Problem):
         tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols or [0]])
         return np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, -1)[:, :len(cols)]
 
-    def _interval_averages(self, xs):
-        """The model torque at each of the points xs averaged over each sample interval
-        (INTERVAL_SUBPOINTS points at the interval's sub-sample angles, centred on the sample): a
-        friction reversal inside the interval contributes its step times the fraction of the
-        interval it covers. On the SIMD library all points' sub-sample runs go in one call."""
-        offsets = (np.arange(INTERVAL_SUBPOINTS) + 0.5) / INTERVAL_SUBPOINTS - 0.5
-        kin = (self.tau, *self._rates)
+    def _interval_averages(self, xs, at):
+        """The model torque at each of the points xs averaged over the sample intervals of the
+        samples `at` (indices; INTERVAL_SUBPOINTS points at the interval's sub-sample angles,
+        centred on the sample): a friction reversal inside the interval contributes its step times
+        the fraction of the interval it covers. On the SIMD library all points' sub-sample runs go
+        in one call; the CasADi map runs over every sample (its graphs are per length)."""
+        offsets = subpoint_offsets(INTERVAL_SUBPOINTS)
+        sub = at if self._simd is not None else slice(None)
+        kin = tuple(np.asarray(a)[sub] for a in (self.tau, *self._rates))
         thetas, zs = [], []
         for x in xs:
-            theta, z, h = self.angle(x), self.z(x), abs(self.speed_of(x)) * self.dt
+            theta, z, h = self.angle(x)[sub], self.z(x), abs(self.speed_of(x)) * self.dt
             thetas += [theta + o * h for o in offsets]
             zs += [z] * offsets.size
         if self._simd is None:
-            runs = [self._torque(th, z, kin) for th, z in zip(thetas, zs)]
+            runs = [self._torque(th, z, kin)[at] for th, z in zip(thetas, zs)]
         else:
             runs = simd_torque_designs(self._simd, np.array(thetas), np.array(zs), self.ripple_order, *kin)
         return [np.mean(runs[i:i + offsets.size], axis=0) for i in range(0, len(runs), offsets.size)]
 
-    def _interval_columns(self, x, J, which, cols):
-        """Replace the columns `which` of J (by the fit names of `cols`) with central differences
-        of the sample-interval average. A geometric defect moves the Coulomb friction reversals:
-        at a sample the point model then jumps by a whole step when a reversal crosses the sample
-        and is flat in between, so its exact derivative (which sees only the smooth part) leaves a
-        Gauss-Newton fit on a staircase whose valleys are ~1 um wide; the average's
-        derivative carries the reversals' motion at the sampling scale, as the interval slope
-        does for the angle-acting parameters. The step: INTERVAL_STEP of the housing's size."""
+    def _interval_columns(self, x, J, which, cols, samples, ends):
+        """Replace the columns `which` of J (by the fit names of `cols`; on entry the exact
+        derivatives at the samples `samples`, the torque at the intervals' ends `ends`) with the
+        derivatives of the sample-interval average. A geometric defect moves the Coulomb friction
+        reversals: at a sample the point model then jumps by a whole step when a reversal crosses
+        the sample and is flat in between, so its exact derivative (which sees only the smooth
+        part) leaves a Gauss-Newton fit on a staircase whose valleys are ~1 um wide; the average's
+        derivative carries the reversals' motion at the sampling scale, as the interval slope does
+        for the angle-acting parameters. Where the torque is smooth on the sample scale that
+        derivative follows from the exact ones (interval.smooth_interval_columns); at and next to
+        a step it is the central difference of the average by INTERVAL_STEP of the housing's size
+        (PUMPSIM_INTERVAL_COLUMNS=runs: on every sample, as the reference)."""
         if not which:
             return
+        if os.environ.get("PUMPSIM_INTERVAL_COLUMNS", "") == "runs":  # the reference: runs on every sample
+            at = np.arange(samples.size)
+        else:
+            at = np.nonzero(stepped_samples(samples, *ends, np.max(np.abs(samples)), J[:, which]))[0]
+            J[:, which] = smooth_interval_columns(J[:, which], INTERVAL_SUBPOINTS)
+            if at.size == 0:
+                return
         v = self.pv.values
         step = INTERVAL_STEP * max(v["housing.a"], v["housing.b"])
         x = np.asarray(x, dtype=float)
@@ -351,9 +361,9 @@ class ConstantSpeedProblem(Problem):
             e = np.zeros_like(x)
             e[cols[i]] = step
             points += [x + e, x - e]
-        avg = self._interval_averages(points)
+        avg = self._interval_averages(points, at)
         for j, i in enumerate(which):
-            J[:, i] = (avg[2 * j] - avg[2 * j + 1]) / (2 * step)
+            J[at, i] = (avg[2 * j] - avg[2 * j + 1]) / (2 * step)
 
     def symbolic_model(self, phi):
         """The (unfiltered) model torque as a CasADi expression of symbolic fitted values phi."""

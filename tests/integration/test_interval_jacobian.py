@@ -14,7 +14,7 @@ from bench.diagnose_grid import make_case, rig
 from pumpsim.data import Dataset
 from pumpsim.diagnosis.effects import with_harmonic_pair
 from pumpsim.identification import identify, make_problem, problem
-from tests.tolerances import INTERVAL_COS_GAIN, INTERVAL_VALLEY_RMS
+from tests.tolerances import INTERVAL_COS_GAIN, INTERVAL_SMOOTH_REL, INTERVAL_VALLEY_RMS
 
 AMPLITUDE, PHASE, K = 1.5e-5, 0.3, 2  # a 15 um oval on the 3-vane tilted-slot ellipse
 
@@ -82,3 +82,23 @@ def test_gauss_newton_on_interval_columns_reaches_the_oval_where_the_exact_jacob
         exact = identify(cfg, ds, params, initial=init, multistart=False)
         assert with_interval.rms < INTERVAL_VALLEY_RMS * info["sigma"]
         assert exact.rms > INTERVAL_VALLEY_RMS * info["sigma"]
+
+
+def test_interval_columns_from_exact_derivatives_match_the_sub_sample_runs_everywhere(oval):
+    """The geometric columns take the sub-sample runs only at and next to the friction reversals'
+    steps (interval.stepped_samples) and the exact derivatives' interval average elsewhere: against
+    the sub-sample runs on every sample they are identical on the stepped samples and within
+    INTERVAL_SMOOTH_REL of the column's norm overall (the smooth formula's O(h^4) remainder)."""
+    cfg, ds, names, ab, _ = oval
+    init = {"theta0": 0.4, names[0]: ab[0] + 3e-6, names[1]: ab[1] - 2e-6}
+    prob = make_problem(cfg, ds, ["mu", "theta0"] + names, initial=init, interval=True)
+    x = prob.x0
+    _, J = prob.model_and_jacobian(x)
+    step = problem.INTERVAL_STEP * max(prob.pv.values["housing.a"], prob.pv.values["housing.b"])
+    points = [x + sgn * step * np.eye(x.size)[j] for j in (2, 3) for sgn in (1, -1)]
+    avg = prob._interval_averages(points, np.arange(ds.n))
+    for k, j in enumerate((2, 3)):
+        every = (avg[2 * k] - avg[2 * k + 1]) / (2 * step)
+        same = J[:, j] == every  # the stepped samples (sub-sample runs, the same bits)
+        assert same.any() and not same.all()
+        assert np.linalg.norm(J[:, j] - every) < INTERVAL_SMOOTH_REL * np.linalg.norm(every)
