@@ -48,10 +48,11 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
              ripple_order=1, extra=None, transient=False, reversals=None,
-             interval=False, speed_in_band=False, adequacy=True) -> IdentificationResult:
+             interval=False, speed_in_band=False, adequacy=True, at=None) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
-    engine behind `pumpsim.identify`, which also takes paths and arrays; see there."""
+    engine behind `pumpsim.identify`, which also takes paths and arrays; see there. `at`: (x,
+    model, Jacobian) the caller already has, used if x is this fit's start."""
     optimiser = Optimiser(method, relaxation, max_iter, log)
     datasets = data if isinstance(data, (list, tuple)) else [data]
     if method == "ipopt" and len(datasets) > 1:
@@ -74,7 +75,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
     at_start = None
     if isinstance(prob, ConstantSpeedProblem) and np.array_equal(start, prob.x0):
         # its model is the model at the start, to the bit: one model run fewer per fit
-        at_start = prob.model_and_jacobian(start)
+        at_start = at[1:] if at is not None and np.array_equal(at[0], start) else prob.model_and_jacobian(start)
         initial_model = at_start[0]
     else:
         initial_model = prob.model(prob.x0)
@@ -86,10 +87,11 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
         # the interval columns lead into the valley; the exact ones polish inside it (their
         # difference quotients resolve a reversal's motion to 1/8 interval only: noisy near the
         # minimum), the better of the two kept
-        at = {n: e.value for n, e in res.estimates.items() if e.value is not None}
-        polished = identify(cfg, data, params, method, relaxation, {**(initial or {}), **at}, max_iter, log,
+        values = {n: e.value for n, e in res.estimates.items() if e.value is not None}
+        exact = fit.prob.exact_at(fit.outcome.x) if fit.prob.names == prob.names else None
+        polished = identify(cfg, data, params, method, relaxation, {**(initial or {}), **values}, max_iter, log,
                             False, ripple_order, extra, transient, reversals, speed_in_band=speed_in_band,
-                            adequacy=adequacy)
+                            adequacy=adequacy, at=None if exact is None else (fit.outcome.x, *exact))
         if polished.rms <= res.rms:
             polished.wall_time = _time.perf_counter() - wall0
             return polished

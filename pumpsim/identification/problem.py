@@ -58,6 +58,10 @@ class Problem:
         """The samples the reversal-aware cost keeps at x (bool per sample), None: all."""
         return None
 
+    def exact_at(self, x):
+        """(model, Jacobian without interval columns) at x if the problem kept them, else None."""
+        return None
+
     def _setup(self, cfg: PumpConfig, data: Dataset, names, starts: dict, initial=None):
         self.cfg, self.data = cfg, data
         self.pv = cfg.parameters("constrained")
@@ -288,6 +292,10 @@ class ConstantSpeedProblem(Problem):
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:
                     J[:, i] += slope * dtheta[:, c]
+        if T == 0 and "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
+            J[:, names.index("lag")] = -self.speed_of(x) * slope
+        if geo and len(cols) == len(self.names):  # before the interval columns replace the exact ones
+            self._exact = (np.array(x, dtype=float), tq.copy(), J.copy())
         self._interval_columns(x, J, geo, cols, tq, ends)
         if T > 0:
             y, J = self._sensed(tq, T, m), self._sensed(J, T, m)
@@ -295,9 +303,16 @@ class ConstantSpeedProblem(Problem):
                 dT = 1e-6 * T
                 J[:, names.index("lag")] = (self._sensed(tq, T + dT, m) - self._sensed(tq, T - dT, m)) / (2 * dT)
             return y, J
-        if "lag" in names:  # at T = 0 the filter is y = tau - T dtau/dt to first order
-            J[:, names.index("lag")] = -self.speed_of(x) * slope
         return tq, J
+
+    def exact_at(self, x):
+        """(torque, Jacobian with every column exact) at x -- what a problem without the interval
+        columns returns there, to the bit -- if this problem's last full evaluation with interval
+        columns was at x, else None: the exact polish of an interval fit starts where it ended."""
+        got = self.__dict__.get("_exact")
+        if got is None or not np.array_equal(got[0], np.asarray(x, dtype=float)):
+            return None
+        return got[1].copy(), got[2].copy()
 
     def _pointwise(self, theta, z, kin, cols):
         """The torque at theta and its derivatives along the seed columns `cols` with theta held:

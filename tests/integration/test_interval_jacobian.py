@@ -102,3 +102,30 @@ def test_interval_columns_from_exact_derivatives_match_the_sub_sample_runs_every
         same = J[:, j] == every  # the stepped samples (sub-sample runs, the same bits)
         assert same.any() and not same.all()
         assert np.linalg.norm(J[:, j] - every) < INTERVAL_SMOOTH_REL * np.linalg.norm(every)
+
+
+def test_the_exact_polish_starts_from_the_interval_fits_own_exact_evaluation(oval, monkeypatch):
+    """An interval problem keeps, from its last full evaluation, the model and the Jacobian before
+    the interval columns replace the exact ones: bit for bit what a problem without interval
+    columns computes there; nothing at another point or after a column subset. The exact polish of
+    an interval fit starts from them: the same fit, to the bit, as recomputing them."""
+    cfg, ds, names, ab, _ = oval
+    params = ["mu", "theta0"] + names
+    init = {"theta0": 0.4, names[0]: ab[0] + 3e-6, names[1]: ab[1] - 2e-6}
+    exact = make_problem(cfg, ds, params, initial=init)
+    prob = make_problem(cfg, ds, params, initial=init, interval=True)
+    assert prob.exact_at(prob.x0) is None
+    prob.model_and_jacobian(prob.x0)
+    kept, fresh = prob.exact_at(prob.x0), exact.model_and_jacobian(exact.x0)
+    assert np.array_equal(kept[0], fresh[0]) and np.array_equal(kept[1], fresh[1])
+    assert prob.exact_at(prob.x0 + np.eye(prob.x0.size)[2] * 1e-7) is None
+    prob.model_and_jacobian(prob.x0 + np.eye(prob.x0.size)[2] * 1e-7, cols=[2])
+    assert np.array_equal(prob.exact_at(prob.x0)[1], fresh[1])
+    reused = identify(cfg, ds, params, initial=init, multistart=False, interval=True)
+    monkeypatch.setattr(problem.ConstantSpeedProblem, "exact_at", lambda self, x: None)
+    recomputed = identify(cfg, ds, params, initial=init, multistart=False, interval=True)
+    assert reused.iterations == recomputed.iterations and reused.rms == recomputed.rms
+    assert np.array_equal(reused.fitted, recomputed.fitted)
+    assert all(reused.estimates[n].value == recomputed.estimates[n].value
+               and reused.estimates[n].stderr == recomputed.estimates[n].stderr for n in params)
+    assert reused.n_evaluations < recomputed.n_evaluations  # the polish's start not evaluated again
