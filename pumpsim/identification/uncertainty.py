@@ -119,9 +119,11 @@ class Intervals:
                              f" {c.effective_samples:.0f} effective of {c.samples} samples)" for c in structured)
             parts.append(f"the residual is correlated from sample to sample in {what}")
         if self.widening >= NOTABLE_WIDENING:
+            why = ("the residual is not independent noise (the model does not describe the data to its noise level, "
+                   "or the noise is coloured)" if structured else
+                   "the residual's size varies along the record where these parameters act (no correlation found)")
             parts.append(f"the ± and the 95 % intervals use the Newey-West (residual-aware) standard errors, up to "
-                         f"{self.widening:.2g}x wider than the white-noise ones: the residual is not independent noise "
-                         "(the model does not describe the data to its noise level, or the noise is coloured)")
+                         f"{self.widening:.2g}x wider than the white-noise ones: {why}")
         missed = [c for c in self.channels if c.misses_signal]
         if missed:
             parts.append("the residual holds a slow part larger than its white-noise floor in " + ", ".join(

@@ -133,3 +133,18 @@ def test_a_misfit_larger_than_the_noise_is_named_as_such():
     note = iv.note()
     assert "as if it were random" in note and "misses that share of the signal" in note
     assert f"pressure ({c.systematic_rms / c.noise_rms:.2g}x the floor, {100 * c.systematic_share:.2g} % of its" in note
+
+
+def test_a_residual_whose_size_varies_widens_without_being_called_correlated():
+    """Independent errors 4x larger where the slope's column is large: the sandwich (lag ~0) is
+    wider than the pooled sigma^2 (J'J)^-1 and the note blames the size, not a correlation."""
+    n = 4000
+    t = np.linspace(-1, 1, n)
+    J = np.column_stack([np.ones(n), t])
+    r = np.random.default_rng(4).standard_normal(n) * np.where(np.abs(t) > 0.5, 4.0, 1.0)
+    r -= J @ np.linalg.lstsq(J, r, rcond=None)[0]
+    est, _, iv = fit_estimates(["a", "b"], np.zeros(2), [0.0, 0.0], r, J)
+    assert not iv.channels[0].structured and iv.widening > 1.1
+    assert est["b"].stderr_residual_aware > 1.1 * est["b"].stderr_white
+    note = iv.note()
+    assert "size varies along the record" in note and "autocorrelation" not in note
