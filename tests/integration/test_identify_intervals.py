@@ -80,3 +80,35 @@ def test_coverage_and_spread_over_seeds(clean, rho):
         assert ratio < 1.03 and covered_white >= 0.90
     else:
         assert covered_white < 0.7 and ratio > 2.5
+
+
+def test_bench_log_fit_reports_both_standard_errors_and_widens_for_coloured_pressure_noise(tmp_path):
+    """A 0.3 s twin log of the small booster: white noise keeps the intervals (both s.e.s in the
+    JSON, the channels' rows the residual's); the same log with AR(1) (rho 0.9) noise on the pressure
+    instead is called correlated in the pressure, and its intervals are widened and say so."""
+    from pumpsim.config import load_config
+    from pumpsim.identification.pumpdown_fit import identify_bench, twin_log
+    from tests.integration.test_bench_identify import small_booster
+
+    cfg = load_config(small_booster(tmp_path))
+    white = twin_log(cfg, 0.3, 1000, values={"mu": 0.165}, noise=0.002, seed=1)
+    fit = identify_bench(cfg, white, ["mu"], ripple=False)
+    js = fit.to_json()
+    iv = js["intervals"]
+    assert [c["channel"] for c in iv["channels"]] == ["booster_pressure", "current"]
+    assert sum(c["samples"] for c in iv["channels"]) == sum(v.size for v in fit.measured.values())
+    for name, p in js["params"].items():
+        assert p["stderr_white"] > 0 and p["stderr_residual_aware"] > 0
+        assert p["stderr"] == max(p["stderr_white"], p["stderr_residual_aware"]) or iv["quantile"][name] > 1.97
+    assert not any(c["structured"] for c in iv["channels"] if c["channel"] == "booster_pressure")
+
+    clean = twin_log(cfg, 0.3, 1000, values={"mu": 0.165}, noise=0.0)
+    pb = clean.booster_pressure + 0.002 * np.ptp(clean.booster_pressure) * noise(clean.n, 0.9, 2)
+    coloured = dataclasses.replace(white, booster_pressure=pb)
+    fit_c = identify_bench(cfg, coloured, ["mu"], ripple=False)
+    ch = {c.channel: c for c in fit_c.result.intervals.channels}
+    assert ch["booster_pressure"].structured and ch["booster_pressure"].lag1 > 0.5
+    assert fit_c.result.intervals.widening > 1.5
+    note = [n for n in fit_c.notes if n.startswith("intervals:")]
+    assert note and "booster_pressure (lag-1 autocorrelation" in note[0] and "Newey-West" in note[0]
+    assert "intervals:" in str(fit_c)
