@@ -10,6 +10,7 @@ import pumpsim
 from pumpsim.data import Dataset
 from pumpsim.identification import identify
 from tests.conftest import make_config
+from tests.unit.pumpsim.identification.test_uncertainty import ar1 as noise  # unit-variance AR(1)
 
 MU, THETA0 = 0.17, 0.15
 
@@ -25,16 +26,6 @@ def clean():
     truth = make_config("ellipse_4vanes", **cof(MU))
     r = pumpsim.simulate(dataclasses.replace(truth, angle=THETA0), duration=0.1, rate=10000)
     return r.time, r.torque.copy(), 0.05 * math.sqrt(float(np.mean(r.torque**2))), make_config("ellipse_4vanes", **cof(0.15))
-
-
-def noise(n, rho, seed):
-    """Unit-variance AR(1) noise (white for rho = 0)."""
-    w = np.random.default_rng(seed).standard_normal(n)
-    e = np.empty(n)
-    e[0] = w[0]
-    for i in range(1, n):
-        e[i] = rho * e[i - 1] + math.sqrt(1 - rho**2) * w[i]
-    return e
 
 
 def fit(clean, rho, seed):
