@@ -157,8 +157,10 @@ class IdentificationResult:
         if e.identifiable and e.value is not None:
             unit = UNIT_TEXT.get(describe(e.name)[1], describe(e.name)[1])
             unit = "" if unit in ("–", "?") else f" {unit}"
+            white = ("" if e.stderr_white is None or e.stderr == e.stderr_white
+                     else f"; white-noise ± {e.stderr_white:.3g}")
             return (f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}{unit}  (95%: {e.lower95:.6g} .. "
-                    f"{e.upper95:.6g}; start {e.initial:.6g})")
+                    f"{e.upper95:.6g}; start {e.initial:.6g}{white})")
         if e.name in self.no_effect:
             return f"  {e.name:<22} not identifiable: no effect on the torque in this data"
         return f"  {e.name:<22} not identifiable from this data"

@@ -48,6 +48,7 @@ def test_white_noise_keeps_the_intervals_and_coloured_noise_widens_them(clean):
     assert js["params"]["mu"]["stderr_white"] == c.stderr_white and js["intervals"]["note"]
     assert js["params"]["mu"]["ci95"] == [c.lower95, c.upper95]
     assert "Newey-West" in str(coloured) and f"lag-1 autocorrelation {ch.lag1:.2f}" in str(coloured)
+    assert f"white-noise ± {c.stderr_white:.3g}" in str(coloured)
 
 
 @pytest.mark.slow
