@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-independent-gas bench-ripple bench-benchlog-diagnose clean
+.PHONY: demo-pumpdown install codegen docs demo demo-design test test-all bench bench-design bench-diagnose bench-diagnose-independent bench-independent-gas bench-ripple bench-benchlog-diagnose bench-intervals clean
 
 install: $(STAMP)
 $(STAMP): pyproject.toml setup.py
@@ -101,6 +101,10 @@ bench-diagnose-independent: codegen
 bench-independent-gas: codegen
 	mkdir -p out
 	nice -n 10 $(BIN)/python bench/independent_gas/run.py $(if $(QUICK),--quick)
+
+bench-intervals: codegen
+	mkdir -p out
+	nice -n 10 $(BIN)/python bench/interval_coverage.py $(if $(QUICK),--seeds 6)
 
 clean:
 	rm -rf generated/*/ out .pytest_cache docs/_build docs/auto_examples docs/reference/generated

@@ -156,7 +156,7 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         r, w, x = prob.y - fit.model_at_start, prob.speed_of(fit.start), fit.start
         est, corr, k, history = {}, None, 0, [{"params": dict(zip(prob.names, map(float, x))),
                                                 "rms": float(np.sqrt(np.mean(r**2)))}]
-        converged, message, on_bound, fitted_prob = False, "", [], prob
+        converged, message, on_bound, fitted_prob, intervals = False, "", [], prob, None
     else:
         out, fitted_prob = fit.outcome, fit.prob
         x, r, history = np.array(out.x, dtype=float), out.residual, out.history
@@ -166,8 +166,8 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
                 x[i] = 0.0 if x[i] > 2 * math.pi - 1e-12 else x[i]
         k, w = len(fitted_prob.names), fitted_prob.speed_of(x)
         kept = slice(None) if out.keep is None else out.keep  # the reversal-aware cost's samples
-        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r[kept],
-                                  out.jacobian[kept])
+        est, corr, intervals = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r[kept],
+                                             out.jacobian[kept], fitted_prob.y[kept], _channels(fitted_prob, out.keep))
         converged, message, on_bound = out.converged, out.message + prob.NOTE, bounds_reached(fitted_prob, x)
     for name in fit.unident:
         est[name] = Estimate(name, None, None, None, None, x0[name], identifiable=False)
@@ -183,7 +183,17 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
-        keep=keep, adequacy=adequacy)
+        keep=keep, adequacy=adequacy, intervals=intervals)
+
+
+def _channels(prob, keep) -> list:
+    """[(name, kept rows)] of the residual's own time axes: each measurement of a joint fit."""
+    n = prob.y.size
+    edges = list(prob.rows) if isinstance(prob, JointProblem) else [0, n]
+    kept = np.ones(n, bool) if keep is None else np.asarray(keep, bool)
+    names = [f"measurement {i + 1}" for i in range(len(edges) - 1)] if len(edges) > 2 else [
+        "speed" if isinstance(prob, TransientProblem) else "torque"]
+    return [(nm, int(kept[lo:hi].sum())) for nm, lo, hi in zip(names, edges[:-1], edges[1:])]
 
 
 def _adequacy(prob, x, fitted):

@@ -474,9 +474,11 @@ def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, w
     if out is None:
         r = prob.y - prob.model(prob.x0)
         est, corr, history, converged, message, on_bound = {}, None, [], False, "nothing identifiable", []
+        intervals = None
     else:
         x, r, history = np.asarray(out.x, float), out.residual, out.history
-        est, corr = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian)
+        est, corr, intervals = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r, out.jacobian,
+                                             fitted_prob.y, [(c, fitted_prob.measured[c].size) for c in fitted_prob.channel_names])
         converged, message, on_bound = out.converged, out.message, bounds_reached(fitted_prob, x)
     for n in unident:
         est[n] = Estimate(n, None, None, None, None, x0[n], identifiable=False)
@@ -484,7 +486,8 @@ def _result(prob, fitted_prob, out, unident, no_effect, evaluations, log, cfg, w
         estimates={n: est[n] for n in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(r ** 2))),
         converged=converged, message=message, correlation=corr, diagnostics={}, method=method + prob.METHOD_TAG,
         wall_time=0.0, unidentifiable=unident, time=log.time, on_bound=on_bound, no_effect=no_effect,
-        n_evaluations=prob.n_eval + evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0))
+        n_evaluations=prob.n_eval + evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0),
+        intervals=intervals)
     res.provenance = provenance(cfg, _AsData(log), prob.kern)
     res.wall_time = _time.perf_counter() - wall0
     if unident:
@@ -497,6 +500,7 @@ def _bench_fit(fitted_prob, res, x, how, names=None, unident=()) -> BenchFit:
     identified = list(fitted_prob.names) if res.correlation is not None else []
     rel = {n: e.stderr / abs(e.value) for n, e in res.estimates.items() if e.identifiable and e.value}
     notes = separation_notes(names or fitted_prob.names, list(unident), res.correlation, identified, rel)
+    notes += res.interval_notes()
     return BenchFit(result=res, channels=channel_fits(fitted_prob, fitted), measured=fitted_prob.measured,
                     fitted=fitted, time={c: fitted_prob.bench.times(c) for c in fitted}, notes=notes, start=how,
                     jacobian=fitted_prob.jacobian_text(x))

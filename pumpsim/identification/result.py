@@ -11,6 +11,7 @@ from ..distributions import t_ppf
 from ..presentation import OPTIMISTIC, PLUS_MINUS, UNIT_TEXT, describe, samples_sha256, sha256
 from .adequacy import Adequacy
 from .optimiser import scaled_svd
+from .uncertainty import Intervals, fixed_b_quantile, residual_aware
 
 
 @dataclass
@@ -22,6 +23,8 @@ class Estimate:
     upper95: float | None = None
     initial: float | None = None
     identifiable: bool = True
+    stderr_white: float | None = None  # sigma^2 (J'J)^-1: independent errors of one size
+    stderr_residual_aware: float | None = None  # Newey-West sandwich (uncertainty.py)
 
 
 def provenance(cfg, data, kern) -> dict:
@@ -60,6 +63,7 @@ class IdentificationResult:
     warnings: list = field(default_factory=list)  # plausibility warnings accepted under force
     keep: np.ndarray | None = None  # samples kept by the reversal-aware cost (None: all); rms over them
     adequacy: Adequacy | None = None  # how well the model describes the data (adequacy.py)
+    intervals: Intervals | None = None  # white or residual-aware intervals, the residual's structure
 
     @property
     def residual(self):
@@ -69,6 +73,11 @@ class IdentificationResult:
     def value(self, name):
         """The estimate of `name` (None when it is not identifiable from the data)."""
         return self.estimates[name].value
+
+    def interval_notes(self) -> list[str]:
+        """What the intervals mean when the residual is not white (empty when it is)."""
+        note = None if self.intervals is None else self.intervals.note()
+        return [f"intervals: {note}"] if note else []
 
     def problems(self) -> list[str]:
         """Why this fit is not a usable estimate (empty when it is): not converged, a parameter on
@@ -104,7 +113,8 @@ class IdentificationResult:
         names = list(self.estimates)
         return {
             "params": {n: {"value": e.value, "stderr": e.stderr, "ci95": [e.lower95, e.upper95],
-                           "initial": e.initial, "identifiable": e.identifiable}
+                           "initial": e.initial, "identifiable": e.identifiable, "stderr_white": e.stderr_white,
+                           "stderr_residual_aware": e.stderr_residual_aware}
                        for n, e in self.estimates.items()},
             "iterations": self.iterations, "rms": self.rms, "converged": self.converged,
             "message": self.message, "method": self.method, "unidentifiable": self.unidentifiable,
@@ -114,6 +124,7 @@ class IdentificationResult:
             "on_bound": [{"name": n, "bound": b} for n, b in self.on_bound], "no_effect": self.no_effect,
             "problems": self.problems(), "warnings": self.warnings,
             "adequacy": None if self.adequacy is None else self.adequacy.to_json(),
+            "intervals": None if self.intervals is None else self.intervals.to_json(),
         }
 
     def __str__(self):
@@ -137,7 +148,8 @@ class IdentificationResult:
         if self.adequacy is not None:
             lines.append("  " + self.adequacy.summary().replace("\n", "\n  "))
         lines.append(f"  {PLUS_MINUS}")
-        if not d["white_at_5pct"]:
+        lines += [f"  {n}" for n in self.interval_notes()]
+        if not self.interval_notes() and not d["white_at_5pct"]:
             lines.append(f"  {OPTIMISTIC}")
         return "\n".join(lines)
 
@@ -145,8 +157,10 @@ class IdentificationResult:
         if e.identifiable and e.value is not None:
             unit = UNIT_TEXT.get(describe(e.name)[1], describe(e.name)[1])
             unit = "" if unit in ("–", "?") else f" {unit}"
+            white = ("" if e.stderr_white is None or e.stderr == e.stderr_white
+                     else f"; white-noise ± {e.stderr_white:.3g}")
             return (f"  {e.name:<22} {e.value:.8g} ± {e.stderr:.3g}{unit}  (95%: {e.lower95:.6g} .. "
-                    f"{e.upper95:.6g}; start {e.initial:.6g})")
+                    f"{e.upper95:.6g}; start {e.initial:.6g}{white})")
         if e.name in self.no_effect:
             return f"  {e.name:<22} not identifiable: no effect on the torque in this data"
         return f"  {e.name:<22} not identifiable from this data"
@@ -162,17 +176,32 @@ def bounds_reached(prob, x) -> list:
     return out
 
 
-def fit_estimates(names, x, initial, r, J):
-    """Estimates with standard errors, 95 % t-intervals and their correlation from the residual r
-    and Jacobian J at the fit x: covariance sigma^2 (J'J)^-1 through the column-scaled SVD."""
+def fit_estimates(names, x, initial, r, J, y=None, channels=None):
+    """Estimates with standard errors, 95 % intervals and their correlation from the residual r
+    and Jacobian J at the fit x, and how the intervals were made (uncertainty.Intervals): the
+    white-noise covariance sigma^2 (J'J)^-1 (through the column-scaled SVD; t quantile) and the
+    residual-aware Newey-West sandwich over `channels` [(name, rows)] (fixed-b quantile); each
+    interval is the wider of the two and `stderr` the standard error it uses. y: the measured
+    values in r's units (the channels' spread, for the note). The correlation is the white one."""
     n, k = r.size, len(names)
     sigma2 = float(r @ r) / max(n - k, 1)
     scale, _, s, Vt = scaled_svd(J)
-    cov = (Vt.T / s**2) @ Vt / np.outer(scale, scale) * sigma2
+    bread = (Vt.T / s**2) @ Vt / np.outer(scale, scale)
+    cov = bread * sigma2
     se = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):  # a noise-free fit has se = 0
         corr = np.where(np.outer(se, se) > 0, cov / np.outer(se, se), np.eye(k))
+    cov_ra, structure, b = residual_aware(J, r, r if y is None else y, bread, channels)
+    se_ra = np.sqrt(np.maximum(np.diag(cov_ra), 0.0))
     tq = t_ppf(0.975, max(n - k, 1))
-    est = {nm: Estimate(nm, float(x[i]), float(se[i]), float(x[i] - tq * se[i]), float(x[i] + tq * se[i]),
-                        float(initial[i])) for i, nm in enumerate(names)}
-    return est, corr
+    q_ra = np.maximum(tq, [fixed_b_quantile(bi) for bi in b])
+    wide = q_ra * se_ra > tq * se
+    use_se, use_q = np.where(wide, se_ra, se), np.where(wide, q_ra, tq)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(se > 0, q_ra * se_ra / (tq * se), 1.0)
+    intervals = Intervals("residual-aware" if np.any(wide) else "white", float(max(1.0, np.max(ratio, initial=1.0))),
+                          structure, {nm: float(q) for nm, q in zip(names, use_q)})
+    est = {nm: Estimate(nm, float(x[i]), float(use_se[i]), float(x[i] - use_q[i] * use_se[i]),
+                        float(x[i] + use_q[i] * use_se[i]), float(initial[i]), stderr_white=float(se[i]),
+                        stderr_residual_aware=float(se_ra[i])) for i, nm in enumerate(names)}
+    return est, corr, intervals

@@ -2,7 +2,8 @@
 over the measurement, the residual with its order spectrum and synchronous average, the iterations.
 Every parameter is shown with its unit and "±" for one standard error exactly as the terminal output
 does (`presentation.PLUS_MINUS`). When the residual is not white the intervals are flagged as
-optimistic, with the AR(1) inflation factor that would widen them."""
+optimistic, with the AR(1) inflation factor that would widen them -- or, where the identification
+already widened them (residual-aware standard errors), by how much and why."""
 from __future__ import annotations
 
 import html
@@ -211,8 +212,11 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
         parts.append(f"<p class=warn>Not identifiable from this data (no number given): "
                      f"{html.escape(', '.join(res.unidentifiable))}</p>")
     d = res.diagnostics
-    parts.append(interval_warning(d["white_at_5pct"], d["runs_test"]["p_value"], d["ljung_box"]["p_value"],
-                                  res.residual))
+    if res.intervals is not None and res.intervals.basis == "residual-aware":  # already widened: say by what
+        parts += [f"<p class=warn><b>Intervals widened.</b> {html.escape(n)}</p>" for n in res.interval_notes()]
+    else:
+        parts.append(interval_warning(d["white_at_5pct"], d["runs_test"]["p_value"], d["ljung_box"]["p_value"],
+                                      res.residual))
     if res.adequacy is not None:
         cls = {"adequate": "ok", "systematic": "note", "inadequate": "warn"}[res.adequacy.verdict]
         parts.append(f"<h2>Model adequacy: {res.adequacy.verdict}</h2><p class={cls}>"

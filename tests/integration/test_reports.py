@@ -58,12 +58,13 @@ def test_identify_report_provenance_units_and_interval_meaning(tmp_path):
     assert not re.search(r"<(img|script|link)[^>]+(src|href)=\"(http|/|\.)", page)
 
 
-def test_identify_warns_that_intervals_are_optimistic_when_the_residual_is_not_white(tmp_path):
+def test_identify_widens_the_intervals_when_the_residual_is_not_white(tmp_path):
     stdout, page = _identify(tmp_path, HIDDEN, "mu,theta0")  # two hidden effects: residual not white
-    assert OPTIMISTIC in stdout and "Intervals are optimistic" in page and OPTIMISTIC in page
-    # the AR(1) inflation factor is stated and > 1
-    f = float(re.search(r"= ([0-9.]+)×", page).group(1))
-    assert f > OPTIMISTIC_FACTOR_MIN
+    # the intervals are already the residual-aware ones: no "optimistic" warning, the widening stated
+    assert OPTIMISTIC not in stdout and "Intervals are optimistic" not in page
+    assert "Intervals widened" in page and "Newey-West" in stdout and "lag-1 autocorrelation" in stdout
+    f = float(re.search(r"up to ([0-9.]+)x wider", stdout).group(1))
+    assert f > OPTIMISTIC_FACTOR_MIN and f"up to {f:.2g}x wider" in page
 
 
 def test_parameter_units_come_from_the_registry():
