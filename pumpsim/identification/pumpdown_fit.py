@@ -417,8 +417,8 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     fit_start: the booster's pressure at the first sample (START_NAME) is fitted with the others
     (a nuisance parameter, reported last): the log's own estimate of it carries its noise, and
     the model started there biases the leak and the resistance by several standard errors (docs:
-    bench-log fit); False keeps the estimate (and its bias). A fitted start takes the Jacobian by
-    differences (the sensitivities' runs have no start-pressure direction yet)."""
+    bench-log fit); False keeps the estimate (and its bias). With jacobian "sensitivities" the
+    start's column is an initial-condition sensitivity of the same run."""
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
