@@ -248,23 +248,23 @@ class BenchLogProblem(Problem):
         return self.scaled(self.bench.channels(self.parameter_vector(x)))
 
     def model_and_loose_jacobian(self, x, loose: "BenchLogProblem"):
-        """(this problem's model at x, the Jacobian of `loose` -- the same log and parameters at a
-        looser tolerance -- at x), the run at x and the Jacobian's runs at once on the cores (the
-        longest first; each run single-threaded, so no more threads than default_threads())."""
+        """(this problem's model at x, the forward-difference Jacobian of `loose` -- the same log and
+        parameters at a looser tolerance -- at x), the run at x and the Jacobian's runs at once on
+        the cores, the longest first, each run single-threaded: no more threads than
+        default_threads(). Only the direct driver's runs share the cores (each on its own solver
+        memory); CasADi's plugin and the reed valve's event-locating runs go one after another."""
         from concurrent.futures import ThreadPoolExecutor
 
         from ..kernels.scalar import default_threads
 
         x = np.asarray(x, dtype=float)
-        if loose.jacobian == "sensitivities" and loose.bench.has_sensitivities(loose.parameter_vector(x)):
-            jobs, xs, hs = [lambda: loose.model_and_jacobian(x)[1]], [], []
-        else:
-            xs, hs = loose.difference_points(x, range(len(loose.names)))
-            jobs = [lambda: loose.model(x)] + [lambda xj=xj: loose.evaluate(xj) for xj in xs]
-            loose.n_eval += len(xs)
-        with ThreadPoolExecutor(max_workers=min(len(jobs) + 1, default_threads())) as pool:
-            done = list(pool.map(lambda job: job(), [lambda: self.model(x)] + jobs))
-        return done[0], done[1] if not xs else differences(done[1], done[2:], hs)
+        xs, hs = loose.difference_points(x, range(len(loose.names)))
+        loose.n_eval += len(xs)
+        jobs = [lambda: self.model(x), lambda: loose.model(x)] + [lambda xj=xj: loose.evaluate(xj) for xj in xs]
+        direct = all(pr.bench.has_sensitivities(pr.parameter_vector(x)) for pr in (self, loose))
+        with ThreadPoolExecutor(max_workers=min(len(jobs), default_threads()) if direct else 1) as pool:
+            done = list(pool.map(lambda job: job(), jobs))
+        return done[0], differences(done[1], done[2:], hs)
 
     def _sensitivity_jacobian(self, x, p, cols):
         from .bench_sens import parameter_directions
