@@ -344,25 +344,31 @@ def bench_diagnose_scale(samples=(1000, 5000, 20000, 80000)):
 def bench_benchlog(duration=5.0, rate=1000.0):
     """Identify mu, booster.leak, motor.resistance from a 5 s bench log at 1 kHz (the EVP example,
     a twin log with 0.5 % noise on every channel, the truth 10 % off the config) from the fast
-    model's start (cycle-averaged maps, then full-model steps); target <= 30 s on a quiet machine:
-    the CPU time is the figure compared (on a shared machine the wall time is the others' load)."""
+    model's start (cycle-averaged maps; the Broyden steps and the Jacobian at rtol 1e-5, the last
+    steps at 1e-6: tolerance continuation); target <= 30 s waited. Both times are reported with the
+    load average: the wall time is what a user waits (the Jacobian's runs use both cores), the CPU
+    time the figure that holds on a shared machine, where the wall time is the others' load."""
     from pumpsim.identification.pumpdown_fit import identify_bench, twin_log
 
     cfg = load_config(ROOT / "examples" / "evp_booster.toml")
     truth = {"mu": 0.165, "booster.leak": 3e-5, "motor.resistance": 0.275}
     log = twin_log(cfg, duration, rate, values=truth, noise=0.005, seed=0)
+    load0 = os.getloadavg()[0]
     t0, c0 = time.perf_counter(), time.process_time()
     fit = identify_bench(cfg, log, list(truth))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     est = {n: e.value for n, e in fit.result.estimates.items()}
     err = {n: e.stderr for n, e in fit.result.estimates.items()}
+    load = (load0, os.getloadavg()[0])
     print(f"\nBench-log identification, {log.n} samples ({duration:g} s), {len(truth)} parameters, "
           f"{fit.result.n_evaluations} simulations, {len(fit.result.iterations) - 1} iterations")
     print(f"  {est} ± {err} (truth {truth})")
-    print(f"  wall {wall:.1f} s, CPU {cpu:.1f} s (target <= 30 s CPU); start: {fit.start}")
-    return {"samples": int(log.n), "seconds": wall, "cpu_seconds": cpu, "simulations": fit.result.n_evaluations,
-            "iterations": len(fit.result.iterations) - 1, "estimates": est, "stderr": err, "truth": truth,
-            "start": fit.start, "target_met": cpu <= 30.0}
+    print(f"  wall {wall:.1f} s, CPU {cpu:.1f} s (target <= 30 s) at load average {load[0]:.1f}-{load[1]:.1f}; "
+          f"start: {fit.start}")
+    return {"samples": int(log.n), "seconds": wall, "cpu_seconds": cpu, "load_average": load,
+            "simulations": fit.result.n_evaluations, "iterations": len(fit.result.iterations) - 1, "estimates": est,
+            "stderr": err, "truth": truth, "start": fit.start, "jacobian": fit.jacobian,
+            "target_met": cpu <= 30.0, "wall_target_met": wall <= 30.0}
 
 
 def bench_benchlog_identifiability(seeds=2):

@@ -127,6 +127,9 @@ static int sensrhs(int Ns, sunrealtype t, N_Vector y, N_Vector fy, N_Vector *yS,
     F = d->sf0;
     for (int i = 0; i < Ns; i++) {
       const double *dir = d->pdir + (long)i * d->np; double h = d->ph[i], *G = d->sfp + (long)i * n;
+      int moves = 0;
+      for (int k = 0; k < d->np; k++) moves |= dir[k] != 0.0;
+      if (!moves) { memset(G, 0, n * sizeof(double)); continue; }  /* an initial-condition direction */
       for (int k = 0; k < d->np; k++) d->pbuf[k] += h * dir[k];
       int bad = feval(d, t, Y, G);
       for (int k = 0; k < d->np; k++) d->pbuf[k] -= h * dir[k];

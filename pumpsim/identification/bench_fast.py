@@ -210,42 +210,67 @@ def _broyden(J, d, dm):
     return J + np.outer(dm - J @ d, ds / (ds @ ds)) * s
 
 
-def fast_then_full(prob, fast, x0, max_iter=30, log=None):
+def fast_then_full(prob, fast, x0, max_iter=30, log=None, loose=None):
     """The fit from the maps' start: Gauss-Newton on the fast model from x0; then full-model steps
     (one run each) with the fast model's Jacobian corrected by Broyden's updates, while they pay
     (BROYDEN_GAIN); then the full model's forward-difference Jacobian, its Gauss-Newton steps until
     one is below STEP_SE standard errors or no longer lowers the residual. The covariance comes
-    from that Jacobian (at the last step's start, within a step of the end). Returns
-    (FitOutcome, x of the fast fit)."""
-    from .optimiser import FitOutcome, gauss_newton
+    from that Jacobian (at the last step's start, within a step of the end).
+    loose: the same problem at a looser tolerance (tolerance continuation): the Broyden steps and
+    the Jacobian are its (a run at 1e-5 costs ~0.6 of one at 1e-6), the last steps, their
+    residuals and the convergence test the tight problem's; the tight run where the Jacobian is
+    taken runs beside the Jacobian's. Returns (FitOutcome, x of the fast fit)."""
+    from .optimiser import gauss_newton
 
     fp = FastProblem(prob, fast)
     x_fast = np.asarray(gauss_newton(fp, np.asarray(x0, float), max_iter=min(max_iter, FAST_ITERATIONS),
                                      tol=FAST_TOL).x, float)
-    x = x_fast.copy()
-    m, J = prob.model(x), fp.model_and_jacobian(x)[1]
-    history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m), "stage": "fast model"}]
+    early = prob if loose is None else loose
+    history = []
 
     def accept(xn, mn, stage):
         history.append({"params": dict(zip(prob.names, map(float, xn))), "rms": _rms(prob.y - mn), "stage": stage})
-        if log:
+        if log and len(history) > 1:
             log(history[-1])
 
+    x, m = x_fast.copy(), early.model(x_fast)
+    accept(x, m, "fast model")
+    x = _broyden_steps(early, x, m, fp.model_and_jacobian(x)[1], accept, "" if loose is None else
+                       f" (rtol {loose.rtol:g})")
+    if loose is None:
+        m, J = prob.model_and_jacobian(x)  # the full model's (its run at x is cached)
+    else:
+        m, J = prob.model_and_loose_jacobian(x, loose)
+    return _chord_steps(prob, x, m, J, accept, history), x_fast
+
+
+def _broyden_steps(prob, x, m, J, accept, tag=""):
+    """Full-model steps with J (the fast model's) corrected by Broyden's updates while each lowers
+    the residual RMS by more than BROYDEN_GAIN, at most BROYDEN_STEPS; returns where they end."""
+    rms = _rms(prob.y - m)
     for _ in range(BROYDEN_STEPS):
         dx, se = _step(J, prob.y - m)
         if np.all(np.abs(dx) <= STEP_SE * se):
             break
         xn = np.clip(x + dx, prob.lower, prob.upper)
         mn = prob.model(xn)
-        gain = 1 - _rms(prob.y - mn) / history[-1]["rms"]
+        gain = 1 - _rms(prob.y - mn) / rms
         if gain <= 0:
             break
         J = _broyden(J, xn - x, mn - m)
-        x, m = xn, mn
-        accept(x, m, "full model, Broyden")
+        x, m, rms = xn, mn, _rms(prob.y - mn)
+        accept(x, m, "full model, Broyden" + tag)
         if gain < BROYDEN_GAIN:
             break
-    m, J = prob.model_and_jacobian(x)  # the full model's (its run at x is cached)
+    return x
+
+
+def _chord_steps(prob, x, m, J, accept, history):
+    """Gauss-Newton steps with the Jacobian J kept, until one is below STEP_SE standard errors or
+    no longer lowers the residual, at most FULL_STEPS."""
+    from .optimiser import FitOutcome
+
+    rms = _rms(prob.y - m)
     converged, message = False, f"full-model steps did not settle within {FULL_STEPS}"
     for _ in range(FULL_STEPS + 1):
         dx, se = _step(J, prob.y - m)
@@ -254,12 +279,12 @@ def fast_then_full(prob, fast, x0, max_iter=30, log=None):
             break
         xn = np.clip(x + dx, prob.lower, prob.upper)
         mn = prob.model(xn)
-        if _rms(prob.y - mn) >= history[-1]["rms"]:
+        if _rms(prob.y - mn) >= rms:
             converged, message = True, "no further decrease of the residual"
             break
-        x, m = xn, mn
+        x, m, rms = xn, mn, _rms(prob.y - mn)
         accept(x, m, "full model, its Jacobian")
-    return FitOutcome(x, prob.y - m, J, history, converged, message), x_fast
+    return FitOutcome(x, prob.y - m, J, history, converged, message)
 
 
 def _rms(r) -> float:

@@ -215,19 +215,22 @@ class BenchModel:
         return self._grid_runs
 
     def has_sensitivities(self, p) -> bool:
-        """Whether channels_and_jacobian can run at p: the direct driver, and no reed valve (its
-        events go through the runtime's integration)."""
-        return self.direct and len(p) == len(self.names) and p[self.names.index("valve.reed")] <= 0.5
+        """Whether channels_and_jacobian can run at p (a fitted start pressure last or not): the
+        direct driver, and no reed valve (its events go through the runtime's integration)."""
+        return self.direct and self.split(p)[0][self.names.index("valve.reed")] <= 0.5
 
     def channels_and_jacobian(self, p, directions, scales):
         """(channels(p), {channel: (m, k) derivatives}) along the runtime parameter directions
         (k, n_p), one run with forward sensitivities (bench_sens); scales: the fitted parameters'
-        sizes (the sensitivities' tolerances and the difference steps are relative to them)."""
-        x0 = self.start_state(p)
+        sizes (the sensitivities' tolerances and the difference steps are relative to them). A
+        fitted start pressure (p and the directions one longer, split) moves the start state only:
+        its sensitivity starts at the start state's derivative and has no right-hand-side term."""
+        x0, q = self.start_state(p), self.split(p)[0]
         h = bench_sens.MAP_STEP * np.asarray(scales, float)
         s0 = np.array([(self.start_state(p + hj * d) - self.start_state(p - hj * d)) / (2 * hj)
                        for hj, d in zip(h, directions)])
-        X, SX = self._runs(x0, p).run(x0, p, directions, bench_sens.P_STEP * np.asarray(scales, float), scales, s0)
+        X, SX = self._runs(x0, q).run(x0, q, np.ascontiguousarray(np.asarray(directions, float)[:, :q.size]),
+                                      bench_sens.P_STEP * np.asarray(scales, float), scales, s0)
         if self.jittered:
             X = self._onto_log(X)
             SX = np.stack([self._onto_log(SX[:, j, :]) for j in range(SX.shape[1])], axis=1)

@@ -41,6 +41,9 @@ Its Jacobian (`jacobian`):
   base run and the three of the differences (0.5 s log: 3.8 against 3.2 CPU s); it is the more accurate
   Jacobian at a tight tolerance (standard errors; the booster leak's column at any tolerance).
 The first attempt at sensitivities kept them in the error test: 6x the steps, 33x a run's cost.
+From the maps' start with differences, the fit continues in the tolerance (CONTINUATION_RTOL): the
+Broyden steps and the Jacobian run at rtol 1e-5 with a 3 % step, the last Gauss-Newton steps, their
+residuals and the convergence test at the fit's rtol, the run there beside the Jacobian's.
 """
 from __future__ import annotations
 
@@ -60,7 +63,14 @@ from .bench_model import START_NAME, BenchModel, block_edges, block_means, block
 from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
-DIFFERENCE_STEP = 1e-2  # central-difference step, of the parameter's scale (see scale_of)
+DIFFERENCE_STEP = 1e-2  # forward-difference step, of the parameter's scale (see scale_of)
+# tolerance continuation (identify_bench, bench_fast.fast_then_full): the Broyden steps and the
+# Jacobian at this rtol (atol in proportion), a run there costing ~0.6 of one at 1e-6, with a wider
+# difference step (each run's own integration error over the step). The Jacobian's noise moves
+# where the last steps settle: measured on a 5 s twin log, the Gauss-Newton fixed point moved by
+# up to 0.12 standard errors from the 1e-6 Jacobian's over atol changes of 1e-12 (rtol 1e-4: up to
+# 0.47), the standard errors within 3 % (docs, bench-log fit)
+CONTINUATION_RTOL, CONTINUATION_STEP = 1e-5, 3e-2
 # a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
 TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
            "motor.friction": 1e-3, "mu": 0.01, "mu_slot": 0.01}
@@ -114,7 +124,7 @@ class BenchLogProblem(Problem):
     SPECIAL = COF_ALIASES
 
     def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
-                 atol=BENCH_FIT_ATOL, jacobian="differences"):
+                 atol=BENCH_FIT_ATOL, jacobian="differences", step=DIFFERENCE_STEP):
         from ..kernels.pneumatic import kernels
 
         if cfg.pneumatic is None or not cfg.pneumatic.motor:
@@ -123,6 +133,7 @@ class BenchLogProblem(Problem):
         if jacobian not in JACOBIANS:
             raise ConfigError(f"jacobian must be one of {', '.join(JACOBIANS)}, got '{jacobian}'")
         self.cfg, self.data, self.rtol, self.atol, self.jacobian = cfg, log, rtol, atol, jacobian
+        self.step = step  # the forward differences' step, of the parameter's scale
         self.kern = kernels(cfg)
         self._index, self.p0, self._ratios, mu_slot, self._follow = fit_map(cfg)
         self.names = list(names)
@@ -202,7 +213,7 @@ class BenchLogProblem(Problem):
 
     def difference_step(self, j, x) -> float:
         """Parameter j's forward-difference step at x, away from its upper bound."""
-        h = DIFFERENCE_STEP * self.scale_of(j, x)
+        h = self.step * self.scale_of(j, x)
         return h if x[j] + h <= self.upper[j] else -h
 
     def model_and_jacobian(self, x, cols=None):
@@ -216,17 +227,44 @@ class BenchLogProblem(Problem):
             return self._sensitivity_jacobian(x, p, cols)
         m = self.model(x)
         last = self.last
+        xs, hs = self.difference_points(x, cols)
+        self.n_eval += len(xs)
+        ms = [self.scaled(ch) for ch in self._simulated(xs)] if xs else []
+        self.last = last
+        return m, differences(m, ms, hs)
+
+    def difference_points(self, x, cols) -> tuple[list, list]:
+        """The forward-difference Jacobian's points and steps for the columns cols at x."""
         xs, hs = [], []
         for j in cols:
             xj = x.copy()
             xj[j] += self.difference_step(j, x)
             xs.append(xj)
             hs.append(xj[j] - x[j])
-        self.n_eval += len(xs)
-        ms = [self.scaled(ch) for ch in self._simulated(xs)] if xs else []
-        J = np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if xs else np.zeros((m.size, 0))
-        self.last = last
-        return m, J
+        return xs, hs
+
+    def evaluate(self, x):
+        """The noise-scaled model at x by one run of its own, touching no cache (for runs in threads)."""
+        return self.scaled(self.bench.channels(self.parameter_vector(x)))
+
+    def model_and_loose_jacobian(self, x, loose: "BenchLogProblem"):
+        """(this problem's model at x, the forward-difference Jacobian of `loose` -- the same log and
+        parameters at a looser tolerance -- at x), the run at x and the Jacobian's runs at once on
+        the cores, the longest first, each run single-threaded: no more threads than
+        default_threads(). Only the direct driver's runs share the cores (each on its own solver
+        memory); CasADi's plugin and the reed valve's event-locating runs go one after another."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        from ..kernels.scalar import default_threads
+
+        x = np.asarray(x, dtype=float)
+        xs, hs = loose.difference_points(x, range(len(loose.names)))
+        loose.n_eval += len(xs)
+        jobs = [lambda: self.model(x), lambda: loose.model(x)] + [lambda xj=xj: loose.evaluate(xj) for xj in xs]
+        direct = all(pr.bench.has_sensitivities(pr.parameter_vector(x)) for pr in (self, loose))
+        with ThreadPoolExecutor(max_workers=min(len(jobs), default_threads()) if direct else 1) as pool:
+            done = list(pool.map(lambda job: job(), jobs))
+        return done[0], differences(done[1], done[2:], hs)
 
     def _sensitivity_jacobian(self, x, p, cols):
         from .bench_sens import parameter_directions
@@ -265,6 +303,11 @@ class BenchLogProblem(Problem):
 
     def angle(self, x):
         return None
+
+
+def differences(m, ms, hs) -> np.ndarray:
+    """The forward-difference Jacobian from the model m, the models ms at the steps hs."""
+    return np.column_stack([(mj - m) / h for mj, h in zip(ms, hs)]) if ms else np.zeros((m.size, 0))
 
 
 def values_vector(cfg, values=None) -> np.ndarray:
@@ -405,7 +448,8 @@ class BenchFit:
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",
                    initial=None, max_iter=30, relaxation=1.0, progress=None, start="maps", rtol=BENCH_FIT_RTOL,
-                   atol=BENCH_FIT_ATOL, ripple=True, jacobian="differences", fit_start=True) -> BenchFit:
+                   atol=BENCH_FIT_ATOL, ripple=True, jacobian="differences", fit_start=True,
+                   continuation=True) -> BenchFit:
     """Fit `params` (config key paths, mu, mu_slot) of the pump-down model to a bench log.
     start "maps": a fit of the fast model from the pump's cycle-averaged maps, then full-model
     steps (bench_fast.fast_then_full); "config": the full model's Gauss-Newton from the config's
@@ -417,8 +461,11 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     fit_start: the booster's pressure at the first sample (START_NAME) is fitted with the others
     (a nuisance parameter, reported last): the log's own estimate of it carries its noise, and
     the model started there biases the leak and the resistance by several standard errors (docs:
-    bench-log fit); False keeps the estimate (and its bias). A fitted start takes the Jacobian by
-    differences (the sensitivities' runs have no start-pressure direction yet)."""
+    bench-log fit); False keeps the estimate (and its bias). With jacobian "sensitivities" the
+    start's column is an initial-condition sensitivity of the same run. continuation (the maps'
+    start, forward differences, rtol below CONTINUATION_RTOL): the Broyden steps and the Jacobian
+    (the covariance's) at CONTINUATION_RTOL, the last steps and the convergence test at rtol
+    (bench_fast.fast_then_full); the sensitivities do not survive the loose tolerance (docs)."""
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
@@ -431,18 +478,19 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     wall0 = _time.perf_counter()
     params = list(params) + ([START_NAME] if fit_start and START_NAME not in params else [])
     prob = BenchLogProblem(cfg, log, params, initial, rtol=rtol, atol=atol, jacobian=jacobian)
-    x_start, how = prob.x0.copy(), "the config's values"
+    x_start, how, loose_runs = prob.x0.copy(), "the config's values", 0
     if start == "maps":
-        from .bench_fast import FastBenchModel, fast_then_full
-
-        fast = FastBenchModel(cfg, prob.bench, log.booster_pressure, prob.names, prob.parameter_vector, prob.x0,
-                              prob.scale_of)
-        out, x_start = fast_then_full(prob, fast, prob.x0, max_iter, progress)
-        how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
-               f"{len(out.history) - 1} full-model steps")
+        loose = (BenchLogProblem(cfg, log, params, initial, rtol=CONTINUATION_RTOL, atol=atol * CONTINUATION_RTOL / rtol,
+                                 step=CONTINUATION_STEP)
+                 if continuation and jacobian == "differences" and rtol < CONTINUATION_RTOL else None)
+        out, x_start, how = _from_maps(prob, loose, max_iter, progress)
+        loose_runs = 0 if loose is None else loose.n_eval
         if not any(to_fix(prob.names, out.jacobian, out.x, prob.y - out.residual)):
-            res = _result(prob, prob, out, [], [], 0, log, cfg, wall0, method)
+            res = _result(prob, prob, out, [], [], loose_runs, log, cfg, wall0, method)
             fit = _bench_fit(prob, res, out.x, how)
+            if loose is not None:
+                fit.jacobian = (f"{loose.jacobian_text(out.x)} at rtol {loose.rtol:g} (a {100 * loose.step:g} % step), "
+                                f"the residuals at {rtol:g}")
             return _checked(_with_ripple(fit, cfg, log, prob, prob, out.x) if ripple else fit, cfg, log)
 
     def reduced(active, fixed, unident):
@@ -451,10 +499,24 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
 
     fit = fit_identifiable(prob, x_start, optimiser, reduced)
     fitted_prob = prob if fit.outcome is None else fit.prob
-    res = _result(prob, fitted_prob, fit.outcome, fit.unident, fit.no_effect, fit.evaluations, log, cfg, wall0, method)
+    res = _result(prob, fitted_prob, fit.outcome, fit.unident, fit.no_effect, fit.evaluations + loose_runs, log, cfg,
+                  wall0, method)
     x = prob.x0 if fit.outcome is None else fit.outcome.x
     bench = _bench_fit(fitted_prob, res, x, how, prob.names, fit.unident)
     return _checked(_with_ripple(bench, cfg, log, prob, fitted_prob, x) if ripple else bench, cfg, log)
+
+
+def _from_maps(prob, loose, max_iter, progress):
+    """(FitOutcome, x of the fast fit, how the fit started) of the maps' start (bench_fast)."""
+    from .bench_fast import FastBenchModel, fast_then_full
+
+    fast = FastBenchModel(prob.cfg, prob.bench, prob.data.booster_pressure, prob.names, prob.parameter_vector, prob.x0,
+                          prob.scale_of)
+    out, x_fast = fast_then_full(prob, fast, prob.x0, max_iter, progress, loose)
+    how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
+           f"{len(out.history) - 1} full-model steps" + ("" if loose is None else
+           f" (the Broyden steps and the Jacobian at rtol {loose.rtol:g}: {loose.n_eval} runs)"))
+    return out, x_fast, how
 
 
 def _checked(bench: BenchFit, cfg, log) -> BenchFit:

@@ -82,7 +82,8 @@ def test_twin_experiment_recovers_friction_leak_and_resistance(tmp_path):
     resistance 0.6 %, leak 3 %: the start-pressure estimate's error, docs/explanation/bench-log.md),
     each within 3.5 of its standard errors; then the full model's own Gauss-Newton from there
     moves no estimate by more than a third of its standard error (the fast start ends where the
-    full fit does)."""
+    full fit does) and gives standard errors within 10 % (the maps' start takes its Jacobian at
+    rtol 1e-5, 6 % from the 1e-6 one: tolerance continuation)."""
     cfg, log, fit = twin_fit(tmp_path)
     est = fit.result.estimates
     assert "fast model" in fit.start
@@ -91,7 +92,7 @@ def test_twin_experiment_recovers_friction_leak_and_resistance(tmp_path):
                           max_iter=2)
     for n, e in full.result.estimates.items():
         assert abs(e.value - est[n].value) < est[n].stderr / 3, (n, e.value, est[n])
-        assert e.stderr == pytest.approx(est[n].stderr, rel=0.05)
+        assert e.stderr == pytest.approx(est[n].stderr, rel=0.10)
 
 
 def test_run_up_current_is_compared_as_logged(tmp_path):
