@@ -88,7 +88,7 @@ bench-ripple: codegen
 # rates before and after the misspecification guard (QUICK=1: one seed at 0.5 % noise, ~13 diagnoses)
 bench-benchlog-diagnose: codegen
 	mkdir -p out
-	$(BIN)/python bench/benchlog_diagnose_grid.py $(if $(QUICK),--quick) $(if $(JOBS),--jobs $(JOBS)) \
+	$(BIN)/python bench/benchlog_diagnose_grid.py $(if $(QUICK),--quick) $(if $(JOBS),--jobs $(JOBS)) $(if $(ATMOSPHERE),--atmosphere-known) \
 		--json out/bench_benchlog_diagnose.json
 
 # diagnose on records from an independent implementation of the spec (bench/independent; QUICK=1: ~20 cases)

@@ -2,7 +2,8 @@
 twin logs made on the fly with fixed seeds -- every pump-level library effect, clean logs and
 changes outside the library that an independent rig plausibly has (another booster volume, a
 pressure sensor's offset and span error, a current shunt's gain error, a supply ripple the logger
-filters out) x 2 noise levels x 2 seeds -- diagnosed with the nominal config. Prints each case;
+filters out) x 2 noise levels x 2 seeds -- diagnosed with the nominal config. The sensor faults
+(a pressure sensor's offset and span, a current shunt's gain) are the library's sensor rivals. Prints each case;
 writes every case and the rates, before the misspecification guard (pump_guard) and after it, to
 JSON. --quick: one seed at the lower noise (~13 diagnoses).
 
@@ -14,9 +15,12 @@ fault of each kind (FAULTS, OUTSIDE). The model integrator: rtol 1e-4 (the twins
 Each case's outcome is one of: named_right (the library effect alone), confounded_with_truth (no
 name; a pair holding the truth reported confounded), wrong_name (any name that is not the truth
 alone: the rate that must be ~0), unexplained (nothing named, unexplained), nothing (nothing named,
-consistent with noise). Right answers: a library effect named_right -- or, for supply_resistance
-and winding_resistance, which act identically on a log, their pair confounded; a clean log nothing;
-an outside change unexplained (nothing is not wrong by name, but silent).
+consistent with noise). Right answers: a pump effect named_right -- or, for supply_resistance
+and winding_resistance, which act identically on a log, their pair confounded; a sensor fault
+named_right or confounded_with_truth (the log cannot always tell a sensor from the pump: the pair
+is reported with the check that separates them); a clean log nothing; an outside change
+unexplained (nothing is not wrong by name, but silent). Rates per kind: library (the pump's
+effects), sensor, clean, outside.
 """
 from __future__ import annotations
 
@@ -37,8 +41,10 @@ from pumpsim.diagnosis.pump_workflow import diagnose_bench  # noqa: E402
 
 FAULTS = {"booster_leak": 4e-5, "tip_clearance": 8e-6, "valve_late": 10000.0, "motor_friction": 0.05,
           "supply_resistance": 0.08, "winding_heating": 0.15, "winding_resistance": 0.08}
-OUTSIDE = {"booster_volume": 1.3, "pressure_offset": 1500.0, "pressure_gain": 1.03, "current_gain": 1.05,
-           "voltage_ripple": 0.5}
+# the bench's sensors (changes from a calibrated sensor: gain - 1, offset in Pa)
+SENSOR_FAULTS = {"pressure_offset": 1500.0, "pressure_gain": 0.03, "current_gain": 0.05}
+OUTSIDE = {"booster_volume": 1.3, "voltage_ripple": 0.5}
+LIBRARY = {**FAULTS, **SENSOR_FAULTS}
 NOISE = (0.005, 0.01)
 SEEDS = (1, 2)
 TRUTH = {"mu": 0.17}
@@ -58,7 +64,7 @@ def outcome(fault, named, confounded, unexplained) -> str:
     """One of OUTCOMES (module doc)."""
     if named:
         return "named_right" if named == [fault] else "wrong_name"
-    if fault in FAULTS and any(fault in p for p in confounded):
+    if fault in LIBRARY and any(fault in p for p in confounded):
         return "confounded_with_truth"
     return "unexplained" if unexplained else "nothing"
 
@@ -68,17 +74,21 @@ def is_right(fault, out, confounded, resistance_known) -> bool:
         return out == "nothing"
     if fault in OUTSIDE:
         return out == "unexplained"
+    if fault in SENSOR_FAULTS:
+        return out in ("named_right", "confounded_with_truth")
     twins = not resistance_known and any(tuple(sorted(p)) in TWINS and fault in p for p in confounded)
     return out == "named_right" or (out == "confounded_with_truth" and twins)
 
 
-def case(cfg, fault, size, noise, seed, duration, rate, resistance_known=False) -> dict:
+def case(cfg, fault, size, noise, seed, duration, rate, resistance_known=False, atmosphere_known=False) -> dict:
     t0 = time.perf_counter()
     log = twin_with_fault(cfg, duration, rate, fault, size, values=TRUTH, noise=noise, seed=seed)
-    res = diagnose_bench(cfg, log, resistance_known=resistance_known, rtol=RTOL, atol=ATOL)
+    res = diagnose_bench(cfg, log, resistance_known=resistance_known, rtol=RTOL, atol=ATOL,
+                         atmosphere_known=atmosphere_known)
     # before the guard: what the search named and whether its final residual was noise
     before = [s.effect.name for s in (res.withdrawn or res.steps)]
     out = {"fault": fault or "clean", "size": size, "noise": noise, "seed": seed, "resistance_known": resistance_known,
+           "atmosphere_known": atmosphere_known,
            "named": res.effects, "named_before_guard": before, "confounded": res.confounded,
            "unexplained": res.unexplained, "unexplained_before_guard": not res.final["residual_white"],
            "guard": res.consistency, "verdict": res.verdict, "notes": res.notes, "runs": res.runs,
@@ -107,18 +117,19 @@ def fires(sel) -> dict | None:
 
 
 def rates(cases) -> dict:
-    kinds = {"library": FAULTS, "clean": {"clean": 0}, "outside": OUTSIDE}
+    kinds = {"library": FAULTS, "sensor": SENSOR_FAULTS, "clean": {"clean": 0}, "outside": OUTSIDE}
     out = {}
     for key in ("outcome_before_guard", "outcome"):
         out["before_guard" if key.endswith("guard") else "after_guard"] = {
             "overall": {k: shares((c for c in cases if c["fault"] in names), key) for k, names in kinds.items()},
             "per_effect": {f: shares((c for c in cases if c["fault"] == f), key)
-                           for f in [*FAULTS, "clean", *OUTSIDE]}}
+                           for f in [*LIBRARY, "clean", *OUTSIDE]}}
     # the guard's false alarms (clean logs; a library fault the search named right) and its catches
     out["guard_fires"] = {
         "clean": fires(c for c in cases if c["fault"] == "clean"),
         "named_right_single": fires(c for c in cases if c["outcome_before_guard"] == "named_right"),
         "wrong_name": fires(c for c in cases if c["outcome_before_guard"] == "wrong_name"),
+        "sensor": fires(c for c in cases if c["fault"] in SENSOR_FAULTS),
         "outside": fires(c for c in cases if c["fault"] in OUTSIDE)}
     return out
 
@@ -145,14 +156,17 @@ def table(r) -> str:
 
 def _one(args):
     cfg = small_booster()
-    fault, size, noise, seed, duration, rate = args
-    return case(cfg, None if fault == "clean" else fault, size, noise, seed, duration, rate)
+    fault, size, noise, seed, duration, rate, atmosphere_known = args
+    return case(cfg, None if fault == "clean" else fault, size, noise, seed, duration, rate,
+                atmosphere_known=atmosphere_known)
 
 
-def run(quick=False, only=None, seeds=None, noise=None, duration=0.5, rate=500.0, jobs=1, path=None, say=print) -> dict:
-    """The grid's cases and rates ({"cases", "rates", ...}); `path`: rewritten after each case."""
-    kinds = {**FAULTS, "clean": 0.0, **OUTSIDE}
-    plan = [(f, s, n, seed, duration, rate) for f, s in kinds.items() if only is None or f in only
+def run(quick=False, only=None, seeds=None, noise=None, duration=0.5, rate=500.0, jobs=1, path=None, say=print,
+        atmosphere_known=False) -> dict:
+    """The grid's cases and rates ({"cases", "rates", ...}); `path`: rewritten after each case.
+    atmosphere_known: every diagnosis is told the booster starts at the config's atmosphere."""
+    kinds = {**LIBRARY, "clean": 0.0, **OUTSIDE}
+    plan = [(f, s, n, seed, duration, rate, atmosphere_known) for f, s in kinds.items() if only is None or f in only
             for n in (noise or (NOISE[:1] if quick else NOISE)) for seed in SEEDS[:seeds or (1 if quick else len(SEEDS))]]
     t0, cases = time.perf_counter(), []
     result = {}
@@ -163,7 +177,8 @@ def run(quick=False, only=None, seeds=None, noise=None, duration=0.5, rate=500.0
                 f"(before the guard {c['named_before_guard']}) guard p {c['guard']['p_value']:.2g} confounded "
                 f"{c['confounded']} unexplained {c['unexplained']} ({c['runs']} runs, {c['wall_time']:.0f} s)")
             result = {"cases": cases, "rates": rates(cases), "duration": duration, "rate": rate, "rtol": RTOL,
-                      "quick": quick, "jobs": jobs, "wall_time": time.perf_counter() - t0,
+                      "quick": quick, "jobs": jobs, "atmosphere_known": atmosphere_known,
+                      "wall_time": time.perf_counter() - t0,
                       "wall_time_cases": sum(c["wall_time"] for c in cases)}
             if path is not None:
                 path.write_text(json.dumps(result, indent=1))
@@ -192,12 +207,14 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, help=f"the first N seeds (default {len(SEEDS)}, --quick 1)")
     ap.add_argument("--noise", help=f"comma-separated noise levels (default {','.join(map(str, NOISE))})")
     ap.add_argument("--jobs", type=int, default=1, help="diagnoses run at once (processes)")
+    ap.add_argument("--atmosphere-known", action="store_true", help="diagnose with the booster's start known "
+                    "(the config's atmosphere: diagnose --atmosphere-known)")
     a = ap.parse_args(argv)
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     res = run(a.quick, set(a.only.split(",")) if a.only else None, a.seeds,
               [float(x) for x in a.noise.split(",")] if a.noise else None, a.duration, a.rate, a.jobs, path,
-              say=lambda m: print(m, flush=True))
+              say=lambda m: print(m, flush=True), atmosphere_known=a.atmosphere_known)
     print(json.dumps(res["rates"]["guard_fires"], indent=1))
     print(table(res["rates"]))
     print(f"{len(res['cases'])} diagnoses in {res['wall_time']:.0f} s wall")

@@ -168,8 +168,10 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
         is listed in `d["budget"]` and the notes
 
     A bench log is diagnosed with the pump-level library (booster leak, tip clearance, late exhaust
-    valve, motor friction, supply resistance, winding heating) and returns a BenchDiagnosis
-    (`.to_json()`, `.summary()`).
+    valve, motor friction, supply resistance, winding heating, and the bench's current and pressure
+    sensors' calibration) and returns a BenchDiagnosis (`.to_json()`, `.summary()`);
+    `pumpsim.diagnosis.pump_workflow.diagnose_bench` takes its options (resistance_known,
+    atmosphere_known).
 
     Returns
     -------

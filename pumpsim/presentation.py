@@ -32,6 +32,9 @@ _SPECIAL = {
     "lag": ("torque-sensor time constant", "s"),
     "ripple_cos": ("speed ripple, cos component (relative)", "-"),
     "ripple_sin": ("speed ripple, sin component (relative)", "-"),
+    "sensor.current_gain": ("current sensor's gain (1: calibrated)", "-"),
+    "sensor.pressure_gain": ("pressure sensor's span (1: calibrated)", "-"),
+    "sensor.pressure_offset": ("pressure sensor's offset (0: calibrated)", "Pa"),
 }
 _CONFIG_DOC = {
     "housing.center.0": "housing centre x (rotor eccentricity)",

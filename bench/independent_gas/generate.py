@@ -40,7 +40,8 @@ CASES = {
     "winding_heating": ("winding_heating", {"heating": 0.4}, {"heating_per_s": 0.4}),
     "booster_volume": (None, {"Vb": 4.6e-4}, {"booster.volume": 4.6e-4}),
 }
-# sensor changes: applied to a simulated case's channels (the pump itself unchanged)
+# sensor changes (pumpsim's sensor rivals, the same names): applied to a simulated case's channels
+# (the pump itself unchanged)
 SENSOR_CASES = {
     "pressure_offset": ("none", {"booster_pressure": (1.0, 800.0)}),
     "pressure_gain": ("none", {"booster_pressure": (1.02, 0.0)}),
@@ -174,7 +175,7 @@ def generate(out: Path, quick: bool, jobs: int, cases=None) -> list:
         ch = add_noise(ch, NOISE[noise], rng, sensors)
         path = write_log(ch, fmt, out / "logs" / f"log_{key}")
         library, _, truth = CASES[base]
-        manifest.append({"log": path.name, "case": case, "library": library if case not in SENSOR_CASES else None,
+        manifest.append({"log": path.name, "case": case, "library": case if case in SENSOR_CASES else library,
                          "truth": truth, "sensors": {k: list(g) for k, g in sensors.items()}, "noise": noise,
                          "noise_sigma": NOISE[noise], "seed": seed, "format": fmt, "rate": RATES[fmt],
                          "duration": float(clean["time"][-1])})

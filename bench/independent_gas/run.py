@@ -7,7 +7,7 @@ print a table.
 diagnose outcomes: right (the true effect named alone), right+extra (named with others),
 confounded (the truth inside a confounded pair), wrong (other names only), unexplained (no name,
 the verdict 'unexplained'), nothing (no name, not unexplained). For `none` nothing is right; for
-the changes outside pumpsim's library (booster volume, sensor gain/offset) the honest outcomes are
+the changes outside pumpsim's library (booster volume) the honest outcomes are
 unexplained or a named effect whose refit a reader may accept (listed as they are).
 identify: mu, booster.leak, motor.resistance; relative errors against the truth and whether the
 truth lies inside the reported 95 % interval (cases whose change lies outside these parameters are

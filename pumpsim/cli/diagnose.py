@@ -26,6 +26,10 @@ def register(sub):
     dg.add_argument("--resistance-known", action="store_true", dest="resistance_known",
                     help="bench log: the config's motor.resistance is measured (a stalled-rotor test at the "
                          "motor terminals), so a supply resistance is told from a winding-resistance error")
+    dg.add_argument("--atmosphere-known", action="store_true", dest="atmosphere_known",
+                    help="bench log: it starts with the booster vented and the config's gas.atmosphere (the "
+                         "booster's start) is the day's barometer reading, so a pressure sensor's offset and "
+                         "span are told from the pump's effects")
     add_fit_outputs(dg)
     dg.set_defaults(func=run)
 
@@ -41,8 +45,9 @@ def run(a) -> int:
     cfg = load_config(a)
     if any(is_bench_log(d, a.time_column, a.speed_column) for d in a.data):
         return run_bench(a, cfg, outs)
-    if a.resistance_known:
-        raise ConfigError("--resistance-known is for a bench log (columns time, voltage, current, booster_pressure)")
+    for flag, given in (("--resistance-known", a.resistance_known), ("--atmosphere-known", a.atmosphere_known)):
+        if given:
+            raise ConfigError(f"{flag} is for a bench log (columns time, voltage, current, booster_pressure)")
     # several files: measurements of one pump at different speeds, fitted together
     data = [read_data(a, d, cfg.speed if cfg.mode == "speed" else None) for d in a.data]
     if a.budget is not None and not a.budget >= 0:
@@ -77,7 +82,7 @@ def run_bench(a, cfg, outs) -> int:
     if a.budget is not None and not a.budget >= 0:
         raise ConfigError(f"--budget must be >= 0 seconds (0: no limit), got {a.budget:g}")
     log = read_bench(a, a.data[0], cfg)
-    out = diagnose_bench(cfg, log, resistance_known=a.resistance_known,
+    out = diagnose_bench(cfg, log, resistance_known=a.resistance_known, atmosphere_known=a.atmosphere_known,
                          progress=tty_progress() if live() else None, budget=a.budget or None)
     if live():
         print(file=sys.stderr)

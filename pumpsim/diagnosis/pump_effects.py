@@ -14,6 +14,12 @@ tips, a late exhaust valve, motor friction, a winding resistance). Two are not c
   is driven by V_log - dR (t / T) i_log, the logged current standing in for the model's (an
   errors-in-variables approximation: the current's noise enters the drive scaled by dR, far below
   the voltage's own noise for a rise of a few tenths of an ohm).
+
+Three are the bench's sensors, not the pump (identification.bench_sensors: measured = gain * model
++ offset, the booster starting from the start reading mapped back): a current sensor (shunt)
+reading `gain` x the current, a pressure sensor whose span or offset is off. They are named like
+the pump's effects, or reported `confounded` with the pump effect that reads the same on the log,
+with the check that separates them.
 """
 from __future__ import annotations
 
@@ -23,13 +29,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..benchlog import BenchLog
+from ..identification import bench_sensors
+from ..identification.bench_model import START_NAME
 from ..identification.pumpdown_fit import BenchLogProblem
 from ..signals import noise_sigma
 
 SUPPLY = "supply.resistance"  # ohm in series before the motor terminals
 RISE = "motor.resistance_rise"  # ohm the winding resistance rises over the log
-PSEUDO = (SUPPLY, RISE)
-PSEUDO_BOUNDS = {SUPPLY: (0.0, 10.0), RISE: (-1.0, 10.0)}
+# the fitted names that are not config keys: a drive's, the sensors'
+PSEUDO = (SUPPLY, RISE, *bench_sensors.NAMES)
+PSEUDO_BOUNDS = {SUPPLY: (0.0, 10.0), RISE: (-1.0, 10.0), **{s.name: s.bounds for s in bench_sensors.SENSORS}}
 
 
 @dataclass(frozen=True)
@@ -62,7 +71,8 @@ PUMP_EFFECTS = (
                "the exhaust valve opens at a higher pressure difference", unit="Pa",
                separate="the pressure sensor checked against a reference at the atmosphere and at a low pressure",
                # measured: a 0.5 s twin with the valve 10 kPa late is fitted to its noise by the vane COF and
-               # the pressure reading 5.7 % high; a reading 3 % high is named valve_late (bench grid)
+               # the pressure reading 5.7 % high, unless the booster's start is known (the barometer read):
+               # the span scales the start, the valve does not move it
                alias="a pressure sensor whose span is a few per cent high"),
     PumpEffect("motor_friction", "motor.friction", 5e-3, "the motor's friction torque has grown (bearings, brushes)",
                unit="N m", separate="a free-running current with the inlet open at two voltages"),
@@ -76,6 +86,16 @@ PUMP_EFFECTS = (
     PumpEffect("winding_resistance", "motor.resistance", 0.05,
                "the winding resistance differs from the config (another batch, a warm motor)", unit="ohm",
                separate="a stalled-rotor current at a low voltage measured at the motor terminals"),
+    PumpEffect("current_gain", "sensor.current_gain", 0.02,
+               "the current sensor (shunt, clamp) reads this factor times the current", absent=1.0, unit="x",
+               separate="the current sensor calibrated against a reference ammeter (or the shunt's resistance "
+                        "measured)"),
+    PumpEffect("pressure_gain", "sensor.pressure_gain", 0.02,
+               "the pressure sensor's span is off: it reads this factor times the pressure", absent=1.0, unit="x",
+               separate="the pressure sensor read at a low pressure against a reference gauge"),
+    PumpEffect("pressure_offset", "sensor.pressure_offset", 1000.0,
+               "the pressure sensor reads this much above the pressure (zero offset)", absent=0.0, unit="Pa",
+               separate="the pressure sensor read with the booster vented against the barometer"),
 )
 BY_NAME = {e.name: e for e in PUMP_EFFECTS}
 OF_PARAM = {e.param: e for e in PUMP_EFFECTS}
@@ -107,8 +127,11 @@ class Drives:
     every real config name any model of the diagnosis holds: the candidates' problems share them,
     and with them their compiled integrators and the last run."""
 
-    def __init__(self, cfg, log: BenchLog, values: dict, rtol, atol):
+    def __init__(self, cfg, log: BenchLog, values: dict, rtol, atol, start_known: bool = False):
         self.cfg, self.log, self.rtol, self.atol = cfg, log, rtol, atol
+        # the booster's start pressure (START_NAME's value) is known (the config's booster start, the
+        # barometer read), not the pressure sensor's start reading
+        self.start_known = start_known
         self.names = [n for n in values if n not in PSEUDO]
         self.values = {n: float(values[n]) for n in self.names}
         self._by_rise = {}
@@ -169,21 +192,27 @@ class EffectProblem:
         self.n_eval = 0
 
     def _point(self, x) -> tuple:
-        """(the bench-log problem, its x) for fitted values x."""
+        """(the bench-log problem, its x, every value) for fitted values x: the booster starts from
+        the start reading mapped back through the pressure sensor (bench_sensors.true_start), or
+        from the known start (Drives.start_known)."""
         v = {**self.values, **dict(zip(self.names, map(float, x)))}
         inner = self.drives.get(v.get(RISE, 0.0))
-        xi = np.array([v[n] + (v.get(SUPPLY, 0.0) if n == "motor.resistance" else 0.0) for n in inner.names])
-        return inner, xi
+        xi = np.array([bench_sensors.true_start(v[n], v) if n == START_NAME and not self.drives.start_known else
+                       v[n] + (v.get(SUPPLY, 0.0) if n == "motor.resistance" else 0.0) for n in inner.names])
+        return inner, xi, v
 
     def model(self, x):
         self.n_eval += 1
-        inner, xi = self._point(x)
-        return inner.model(xi) / self.w
+        inner, xi, v = self._point(x)
+        m = inner.model(xi)
+        if not bench_sensors.calibrated(v):  # the run is the one just made (inner caches it)
+            m = inner.scaled(bench_sensors.read(inner.simulate(xi), v))
+        return m / self.w
 
     def channels(self, x) -> dict:
-        """{channel: model values (unscaled)} at x, as compared."""
-        inner, xi = self._point(x)
-        return inner.simulate(xi)
+        """{channel: model values (unscaled), as the sensors read them} at x, as compared."""
+        inner, xi, v = self._point(x)
+        return bench_sensors.read(inner.simulate(xi), v)
 
     def column(self, x, j, h, m) -> np.ndarray:
         """The secant column of name j over a step h (away from the upper bound), m the model at x."""

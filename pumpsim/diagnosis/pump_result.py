@@ -110,7 +110,8 @@ class BenchDiagnosis(NamedSteps):
                          + ", ".join(s.parameter_texts()))
         f = self.final
         lines.append(f"final: RMS {f['rms']:.4g} {NOISE_UNIT}; detectors p: runs {f['runs_p_value']:.2g}, "
-                     f"Ljung-Box {f['ljung_box_p_value']:.2g}, noise level {f['noise_level_p_value']:.2g}")
+                     f"Ljung-Box {f['ljung_box_p_value']:.2g}, noise level {f['noise_level_p_value']:.2g}"
+                     + (f", mean level {f['mean_level_p_value']:.2g}" if "mean_level_p_value" in f else ""))
         lines.append(f"verdict: {self.verdict}")
         for w in self.unexplained_where:
             lines.append(f"  unexplained in {w['channel']}: t {w['time'][0]:.3g}-{w['time'][1]:.3g} s, booster "

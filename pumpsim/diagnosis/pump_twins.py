@@ -1,13 +1,14 @@
 """Twin bench logs with a known fault, for the bench-log diagnosis's tests and benchmark grid: the
-library's effects (pump_effects) and faults outside it -- what an independent rig plausibly has
-that the model of the config does not: another booster volume, a pressure sensor's offset or span
-error, a current shunt's gain error, a supply ripple the logger filters out."""
+library's effects (pump_effects; a sensor's calibration error maps the model's channels, the log's
+own noise added after) and faults outside it -- what an independent rig plausibly has that the
+model of the config does not: another booster volume, a supply ripple the logger filters out."""
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
 
+from ..identification import bench_sensors
 from ..identification.pumpdown_fit import twin_log
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 from .pump_effects import BY_NAME, RISE, SUPPLY
@@ -17,23 +18,20 @@ HEATING_ITERATIONS = 3  # fixed-point passes for the heated drive's current (the
 # faults outside the library: (what changes, how it is set)
 OUTSIDE = {
     "booster_volume": "the booster's volume differs from the config (booster.volume x size)",
-    "pressure_offset": "the pressure sensor reads `size` Pa high",
-    "pressure_gain": "the pressure sensor's span is off: it reads `size` x the pressure",
-    "current_gain": "the current sensor (shunt) reads `size` x the current",
     "voltage_ripple": "the supply carries a 100 Hz ripple of `size` V amplitude that the logged voltage "
                       "does not show (the logger's filter averages it)",
 }
 RIPPLE_HZ = 100.0  # a full-wave rectified 50 Hz supply
-SENSOR_GAINS = {"pressure_gain": "booster_pressure", "current_gain": "current"}
 
 
 def fault_values(cfg, effect: str, size: float) -> dict:
     """The config values a library effect of `size` (its parameter's change from absent) sets;
-    {} for the effects that are not config keys (SUPPLY as motor.resistance, RISE: heated_twin)."""
+    {} for the effects that are not config keys (SUPPLY as motor.resistance, RISE: heated_twin, a
+    sensor's: twin_with_fault reads the channels through it)."""
     e = BY_NAME[effect]
     if e.param == SUPPLY:
         return {"motor.resistance": cfg.pneumatic.values["motor.resistance"] + size}
-    if e.param == RISE:
+    if e.param == RISE or e.param in bench_sensors.BY_NAME:
         return {}
     return {e.param: e.absent_value(cfg) + size}
 
@@ -41,28 +39,33 @@ def fault_values(cfg, effect: str, size: float) -> dict:
 def twin_with_fault(cfg, duration, rate, fault=None, size=0.0, values=None, noise=0.005, seed=0,
                     rtol=BENCH_FIT_RTOL, atol=BENCH_FIT_ATOL):
     """A twin bench log (pumpdown_fit.twin_log) of a pump with `fault` (a library effect's name or
-    one of OUTSIDE; None: none) of `size`: a parameter change in its unit, a volume factor, a sensor
-    offset in Pa. A winding heating is simulated with the drive V - dR (t/T) i, i the model's own
+    one of OUTSIDE; None: none) of `size`: a parameter change in its unit (a sensor gain's from 1,
+    its offset in Pa), a volume factor. A winding heating is simulated with the drive V - dR (t/T) i, i the model's own
     current (fixed point), and logged with the supply's voltage."""
     vals = dict(values or {})
     if fault in BY_NAME:
         vals.update(fault_values(cfg, fault, size))
     elif fault == "booster_volume":
         vals["booster.volume"] = cfg.pneumatic.values["booster.volume"] * size
-    elif fault not in (None, "pressure_offset", "voltage_ripple", *SENSOR_GAINS):
+    elif fault not in (None, "voltage_ripple"):
         raise ValueError(f"fault must be a library effect or one of {', '.join(OUTSIDE)}, got {fault!r}")
     kw = {"values": vals, "noise": noise, "seed": seed, "rtol": rtol, "atol": atol}
     if fault is not None and BY_NAME.get(fault) is not None and BY_NAME[fault].param == RISE:
         return _heated_twin(cfg, duration, rate, size, kw)
     if fault == "voltage_ripple":
         return _rippled_twin(cfg, duration, rate, size, kw)
+    if fault in BY_NAME and BY_NAME[fault].param in bench_sensors.BY_NAME:
+        return _misread_twin(cfg, duration, rate, BY_NAME[fault], size, kw)
+    return twin_log(cfg, duration, rate, **kw)
+
+
+def _misread_twin(cfg, duration, rate, effect, size, kw):
+    """The log a sensor with this calibration error writes: the log's channels, noise and all (the
+    noise of what the sensor reads), read through it (bench_sensors.read)."""
     log = twin_log(cfg, duration, rate, **kw)
-    if fault == "pressure_offset":
-        log = dataclasses.replace(log, booster_pressure=log.booster_pressure + size)
-    elif fault in SENSOR_GAINS:
-        channel = SENSOR_GAINS[fault]
-        log = dataclasses.replace(log, **{channel: getattr(log, channel) * size})
-    return log
+    read = bench_sensors.read({c: getattr(log, c) for c in ("current", "booster_pressure")},
+                              {effect.param: effect.absent + size})
+    return dataclasses.replace(log, **read)
 
 
 def _rippled_twin(cfg, duration, rate, amplitude, kw):

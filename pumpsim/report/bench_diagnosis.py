@@ -69,7 +69,8 @@ def verdict_html(out) -> str:
     head = (f"<b>Verdict: {html.escape(out.verdict)}.</b> Residual RMS {nb(base_rms)} "
             f"(baseline) → {nb(final_rms)} (final; 1: the model explains the log to its "
             f"noise); detectors p: runs {_p(f['runs_p_value'])}, Ljung–Box {_p(f['ljung_box_p_value'])}, "
-            f"noise level {_p(f['noise_level_p_value'])}.")
+            f"noise level {_p(f['noise_level_p_value'])}"
+            + (f", mean level {_p(f['mean_level_p_value'])}" if "mean_level_p_value" in f else "") + ".")
     items = [f"Named: {_named_text(s)}" for s in out.steps] or ["No effect of the library is named."]
     if out.withdrawn:
         items.append("<b>Withdrawn</b>: the search named " + html.escape(", ".join(s.effect.name for s in out.withdrawn))

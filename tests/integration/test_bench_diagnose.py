@@ -52,7 +52,7 @@ def test_heated_drive_lowers_the_voltage_by_the_rising_drop(cfg):
 
 def test_clean_log_names_nothing(cfg):
     res = diagnosed(cfg, None, 0.0)
-    assert res.effects == [] and not res.unexplained, str(res)
+    assert res.effects == [] and res.confounded == [] and not res.unexplained, str(res)  # no sensor either
     assert not res.consistency["fires"] and res.consistency["dof"] == 2, res.consistency  # mu over 3 parts
     assert res.baseline["params"]["mu"]["value"] == pytest.approx(0.17, rel=0.03)
     js = res.to_json()
@@ -66,8 +66,10 @@ def test_clean_log_names_nothing(cfg):
 def test_each_effect_is_named_and_the_gap_shrinks(cfg, fault):
     """Named first, the gap shrinking to the noise. After a winding heating (fitted RMS 0.94 noise
     sigmas on seed 1) the detectors still reject: its drive uses the logged current for the model's
-    (the errors-in-variables approximation, pump_effects), and the verdict says so."""
-    res = diagnosed(cfg, fault, FAULTS[fault])
+    (the errors-in-variables approximation, pump_effects), and the verdict says so. The late valve
+    with the booster's start known (from the curve alone it is confounded with a pressure span:
+    test_a_late_valve_and_a_pressure_span_are_confounded_from_the_curve_alone)."""
+    res = diagnosed(cfg, fault, FAULTS[fault], atmosphere_known=fault == "valve_late")
     assert res.effects[:1] == [fault], str(res)
     # the misspecification guard: the named model's parameters agree over the log's thirds
     assert not res.consistency["fires"] and not res.withdrawn, res.consistency
@@ -75,7 +77,7 @@ def test_each_effect_is_named_and_the_gap_shrinks(cfg, fault):
     assert step.rms_after < step.rms_before and step.bic_after < step.bic_before
     assert step.rms_after < 1.2, str(res)
     assert fault == "winding_heating" or not res.unexplained, str(res)
-    assert (fault == "valve_late") == any("assuming calibrated sensors" in n for n in res.notes), str(res)
+    assert not any("assuming calibrated sensors" in n for n in res.notes), str(res)
     assert step.params["change"] == pytest.approx(FAULTS[fault], rel=0.5), str(res)
 
 
@@ -103,24 +105,28 @@ def test_supply_resistance_is_confounded_unless_the_winding_resistance_is_known(
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault,size", [("booster_volume", 1.3), ("pressure_offset", 1500.0), ("voltage_ripple", 0.5)])
+@pytest.mark.parametrize("fault,size", [("booster_volume", 1.3), ("voltage_ripple", 0.5)])
 def test_an_outside_fault_is_not_named_as_a_library_effect(cfg, fault, size):
-    """A 30 % larger booster, a pressure sensor reading 1.5 kPa high, a 100 Hz supply ripple of 0.5 V
-    the logged voltage does not show: no library effect named, the log unexplained."""
+    """A 30 % larger booster, a 100 Hz supply ripple of 0.5 V the logged voltage does not show: no
+    library effect named, the log unexplained."""
     res = diagnosed(cfg, fault, size)
     assert res.effects == [] and res.unexplained, str(res)
 
 
 @pytest.mark.slow
-def test_a_late_valve_is_named_with_the_pressure_span_it_cannot_be_told_from(cfg):
-    """A pressure sensor reading 3 % high is fitted to the noise by a late exhaust valve (and a late
-    valve by a span error: pump_effects): where valve_late is named, the diagnosis says which sensor
-    check would rule the span error out -- never a silent name."""
-    res = diagnosed(cfg, "pressure_gain", 1.03)
+def test_a_late_valve_and_a_pressure_span_are_confounded_from_the_curve_alone(cfg):
+    """A late exhaust valve is fitted to the noise by a pressure reading a few per cent high (and a
+    span error by a late valve: pump_effects): from the pump-down curve alone the pair is reported
+    confounded with the sensor check that separates them, or the valve named with that check --
+    never a silent name."""
+    res = diagnosed(cfg, "valve_late", FAULTS["valve_late"])
     assert res.effects in ([], ["valve_late"]), str(res)
     if res.effects:
         assert any("span" in n and "valve_late is named assuming calibrated sensors" in n for n in res.notes), \
             str(res)
+    else:
+        assert ["pressure_gain", "valve_late"] in [sorted(p) for p in res.confounded], str(res)
+        assert any("reference gauge" in n for n in res.notes), str(res)
 
 
 @pytest.mark.slow
@@ -138,7 +144,7 @@ def test_a_firing_guard_withdraws_the_names_and_says_where(cfg, monkeypatch, tmp
                                                                       "parts": [part] * 3}}
 
     monkeypatch.setattr(pump_workflow, "consistency", firing)
-    res = diagnosed(cfg, "valve_late", FAULTS["valve_late"])
+    res = diagnosed(cfg, "valve_late", FAULTS["valve_late"], atmosphere_known=True)
     assert res.effects == [] and [s.effect.name for s in res.withdrawn] == ["valve_late"], str(res)
     assert res.unexplained and res.verdict.startswith("model inadequate"), res.verdict
     assert any(n.startswith("model inadequate") and "(valve_late) are withdrawn" in n for n in res.notes), str(res)
