@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 # "±" means the same on the terminal, in JSON ("stderr") and in the HTML reports.
-PLUS_MINUS = "± = one standard error (1σ, from σ²(JᵀJ)⁻¹); 95 % intervals use the t distribution"
+PLUS_MINUS = ("± = one standard error (1σ, from σ²(JᵀJ)⁻¹, or the residual-aware Newey-West one where an "
+              "intervals note says so); 95 % intervals use the t distribution")
 
 OPTIMISTIC = ("the residual is not white: the ± and the intervals assume independent errors and are "
               "optimistic (too narrow)")

@@ -213,7 +213,8 @@ def identification_report(res, path, title="pumpsim identification", cfg=None, d
                      f"{html.escape(', '.join(res.unidentifiable))}</p>")
     d = res.diagnostics
     if res.intervals is not None and res.intervals.basis == "residual-aware":  # already widened: say by what
-        parts += [f"<p class=warn><b>Intervals widened.</b> {html.escape(n)}</p>" for n in res.interval_notes()]
+        parts += [f"<p class=warn><b>Intervals widened.</b> {html.escape(n.removeprefix('intervals: '))}</p>"
+                  for n in res.interval_notes()]
     else:
         parts.append(interval_warning(d["white_at_5pct"], d["runs_test"]["p_value"], d["ljung_box"]["p_value"],
                                       res.residual))
