@@ -109,6 +109,7 @@ def test_oval_on_an_eccentric_five_vane_circle_is_named_alone():
     assert out["steps"][0]["params"]["order"] == 2
 
 
+@pytest.mark.slow  # ~60 s of make test's wall on 2 cores
 def test_tip_and_slot_spread_is_one_effect_with_per_vane_cofs():
     """Finding 6: one vane's COF 30 % higher on its tip and its slot walls (3-vane ellipse: every
     factor identifiable). vane_friction_spread alone explains it; each vane's COF is reported and
@@ -229,6 +230,7 @@ def test_eccentricity_on_a_one_vane_ellipse_off_its_axes_is_named_alone():
         < EFFECT_PARAM_REL * e
 
 
+@pytest.mark.slow  # ~60 s of make test's wall on 2 cores
 def test_an_effect_a_later_one_supersedes_is_dropped(monkeypatch):
     """Independent finding F11: forward selection is greedy -- on the 1-vane ellipse with an
     eccentricity a speed ripple of order 1 was named first and kept, though once the eccentricity

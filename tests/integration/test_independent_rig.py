@@ -30,7 +30,9 @@ def _revolution(rig, n=720, theta0=0.0):
     return t, *motion(t, rig.speed, theta0)
 
 
-@pytest.mark.parametrize("name", sorted(RIGS))
+# the tilted 3-vane rig builds its own kernel variant (~50 s on a fresh machine): make test-all
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n == "tilted3" else n
+                                  for n in sorted(RIGS)])
 def test_pumpsim_matches_the_independent_model(name):
     """Torque and every vane's s, N, F1, F2 over a revolution agree to rounding."""
     rig = RIGS[name]
