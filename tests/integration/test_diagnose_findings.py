@@ -170,6 +170,7 @@ def test_long_no_effect_record_is_consistent_with_noise():
     assert out["effects"] == [] and not out["unexplained"], str(out)
 
 
+@pytest.mark.slow  # ~60 s of make test's wall on 2 cores
 def test_lowpass_sensor_of_a_vane_passing_period_is_named_alone():
     """Independent finding F6: a first-order low-pass torque sensor with T = 0.25 / (N omega)
     (1.7 samples at 10 kHz on the 3-vane ellipse) attenuates and shifts every vane-passing order;
@@ -263,7 +264,8 @@ def test_an_effect_a_later_one_supersedes_is_dropped(monkeypatch):
     assert len(out["steps"]) == 1
 
 
-@pytest.mark.parametrize("snr", [pytest.param(5.0, marks=pytest.mark.slow), 10.0])  # SNR 5: ~70 s
+@pytest.mark.slow  # ~60-70 s per SNR on 2 cores
+@pytest.mark.parametrize("snr", [5.0, 10.0])
 def test_pulse_train_at_a_non_shaft_frequency_names_no_pump_effect(snr):
     """F16: a 3-sample pulse every 1/1.37 revolution over 10 revolutions has a non-zero
     shaft-synchronous average, which a rotor eccentricity lowers the RSS by (LR passes); its

@@ -139,6 +139,7 @@ def test_one_vane_is_found_for_its_structure(four):
     assert one.structure == kern.structure and one.fast.structure == dataclasses.replace(kern.structure, vanes=1)
 
 
+@pytest.mark.slow  # builds the out-of-round housing's SIMD variant (~40 s on a fresh machine)
 def test_an_out_of_round_housing_goes_the_same_way_with_its_compiled_curve(tmp_path):
     text = (EXAMPLES / "test_rig.toml").read_text().replace(
         "[housing]\n", "[housing]\nharmonics = [[3, 3.0e-5, 0.3]]\n").replace("center = [0.0, 0.0]", "center = [4e-4, 2e-4]")
