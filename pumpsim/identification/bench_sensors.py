@@ -33,9 +33,12 @@ BY_NAME = {s.name: s for s in SENSORS}
 NAMES = tuple(BY_NAME)
 
 
+IDENTITY = {"gain": 1.0, "offset": 0.0}  # a channel without a sensor figure of that kind
+
+
 def _figure(values: dict, channel: str, kind: str) -> float:
     s = next((s for s in SENSORS if s.channel == channel and s.kind == kind), None)
-    return 1.0 if s is None and kind == "gain" else 0.0 if s is None else float(values.get(s.name, s.absent))
+    return IDENTITY[kind] if s is None else float(values.get(s.name, s.absent))
 
 
 def calibrated(values: dict) -> bool:

@@ -148,8 +148,9 @@ class IdentificationResult:
         if self.adequacy is not None:
             lines.append("  " + self.adequacy.summary().replace("\n", "\n  "))
         lines.append(f"  {PLUS_MINUS}")
-        lines += [f"  {n}" for n in self.interval_notes()]
-        if not self.interval_notes() and not d["white_at_5pct"]:
+        notes = self.interval_notes()
+        lines += [f"  {n}" for n in notes]
+        if not notes and not d["white_at_5pct"]:
             lines.append(f"  {OPTIMISTIC}")
         return "\n".join(lines)
 
