@@ -29,6 +29,8 @@ from .study import SPEED_KEY, get_value
 from .alike import OneVane, spread
 from .screen import geometry_ok, housing_samples
 from .vector import design_maps, mouth_depths
+from .columns import Block, rows, table_columns
+from .store import columns, columns_to_table, max_vanes, rows_to_table
 
 
 def _per_sample(name: str) -> bool:
@@ -250,17 +252,6 @@ def _asked(study, name) -> bool:
     return name in study.outputs or (name.startswith("friction_power_") and "friction_power" in study.outputs)
 
 
-def _status(out):
-    """A design the model evaluated but whose constrained solution is not physical."""
-    msgs = []
-    if out["lift_off"]:
-        msgs.append(f"lift_off: min housing reaction {out['min_normal_force']:.4g} N < 0 (Model 2 holds "
-                    "the vane on the housing; the real vane would lift off)")
-    if out["paradox"]:
-        msgs.append("paradox: no or several consistent slot contact-side sets")
-    return "; ".join(msgs) or "ok"
-
-
 def revolutions(kern, P, theta, omega) -> list[dict]:
     """Per design (rows of P): its kernel outputs over its uniform revolution (theta (D, n) or
     (n,), from `revolution`) at speed omega (D,) -- through one vane where its vanes are alike
@@ -444,17 +435,10 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | No
     out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()}, kern.structure.vanes)
     asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
     fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)
-    rows = [dict(zip(out, vals)) for vals in zip(*(out[o].tolist() for o in out))]
-    found = []
-    for d in range(B):
-        if not good[d]:
-            found.append(None)
-        elif not converged[d * S:(d + 1) * S].all():
-            found.append(("numerical: position problem did not converge", None))
-        else:
-            ws = W or [float(speed[d])]
-            found.append(("ok", [(w, rows[d * S + k] if fin[d * S + k] else None) for k, w in enumerate(ws)]))
-    return found
+    block = Block(out, omega, fin, S)
+    converged = converged.reshape(B, S).all(axis=1)
+    return [None if not good[d] else ("ok", block.design(d)) if converged[d]
+            else ("numerical: position problem did not converge", None) for d in range(B)]
 
 
 def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:
@@ -539,29 +523,19 @@ def _per_design_results(study, X, todo, results: dict, speeds_of: dict) -> None:
                 results[j] = (f"error: {type(e).__name__}: {e}", None)
 
 
-def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict]:
-    """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys):
-    the designs DesignMap covers as parameter vectors, the others each from its own config."""
-    keys = study.keys
+def design_results(study, X: np.ndarray) -> tuple[dict, dict]:
+    """(design row -> (status, per-speed results), design row -> speeds) of the designs X: those
+    DesignMap covers as parameter vectors (per-speed results: a columns.BlockDesign), the others
+    each from its own config ([(speed, outputs or None)])."""
     results, speeds_of = {}, {}
     todo = _mapped_results(study, X, results, speeds_of)
     _per_design_results(study, X, todo, results, speeds_of)
-    rows = []
-    for j, (i, xs) in enumerate(zip(np.asarray(ids).tolist(), np.asarray(X, dtype=float).tolist())):
-        base = {"design": int(i)}
-        keyvals = dict(zip(keys, xs))
-        status, per_speed = results[j]
-        if per_speed is None:
-            for w in speeds_of[j]:
-                rows.append({**base, "speed": float(w), **keyvals, "status": status})
-            continue
-        for w, out in per_speed:
-            if out is None:
-                rows.append({**base, "speed": float(w), **keyvals,
-                             "status": "numerical: non-finite output (check the design's values)"})
-                continue
-            rows.append({**base, "speed": float(w), **keyvals, **out, "status": _status(out)})
-    return rows
+    return results, speeds_of
+
+
+def evaluate_pump_rows(study, X: np.ndarray, ids, n_vanes_max: int) -> list[dict]:
+    """Rows (one per design and speed) for the designs `ids` with key values X (designs, keys)."""
+    return rows(study, X, ids, *design_results(study, X))
 
 
 def evaluate_rows(study, X, ids, n_vanes_max: int) -> list[dict]:
@@ -576,4 +550,11 @@ def evaluate_rows(study, X, ids, n_vanes_max: int) -> list[dict]:
     return evaluate_pump_rows(study, X, ids, n_vanes_max)
 
 
-__all__ = ["evaluate_designs", "kernel_tangents", "evaluate_rows", "revolution", "per_vane_name"]
+def evaluate_table(study, X, ids):
+    """The Arrow table of the designs `ids` (key values X): evaluate_rows' rows, built as columns."""
+    if study.function is not None:
+        return rows_to_table(study, evaluate_rows(study, X, ids, max_vanes(study)))
+    return columns_to_table(study, table_columns(study, X, ids, *design_results(study, X), columns(study)))
+
+
+__all__ = ["evaluate_designs", "kernel_tangents", "evaluate_rows", "evaluate_table", "revolution", "per_vane_name"]

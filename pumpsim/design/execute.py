@@ -32,8 +32,8 @@ from ..locks import study_folder
 from .cluster import connect, quiet_dask, worker_name
 from .vector import covered
 from .sampling import design_matrix
-from .store import (PART, check_out_dir, columns, max_vanes, ordered, read_manifest, read_results,  # noqa: F401 (read_manifest: the CLI)
-                    rows_to_table, write_manifest)
+from .store import (PART, check_out_dir, columns, ordered, read_manifest, read_results,  # noqa: F401 (read_manifest: the CLI)
+                    write_manifest)
 from .summary import coverage, coverage_text
 
 TASK_SECONDS = 0.5  # work per task: Dask's per-task cost (~1-5 ms) stays below 1 %
@@ -154,11 +154,10 @@ def study_designs(study) -> np.ndarray:
 def run_batch(study, ids, X):
     """The task: evaluate designs on whichever process runs it. Returns (first id, Arrow table,
     seconds, (worker, start, stop on its wall clock, CPU seconds of its thread)))."""
-    from .evaluate import evaluate_rows
+    from .evaluate import evaluate_table
 
     w0, t0, c0 = time.time(), time.perf_counter(), time.thread_time()
-    rows = evaluate_rows(study, X, ids, max_vanes(study))
-    table = rows_to_table(study, rows)
+    table = evaluate_table(study, X, ids)
     sec = time.perf_counter() - t0
     return ids[0], table, sec, (worker_name(), w0, w0 + sec, time.thread_time() - c0)
 
@@ -167,9 +166,9 @@ def pilot_time_per_design(study, X, repeats=3) -> tuple[float, float]:
     """(wall, CPU) seconds per design on this process (which also builds any missing variant into
     the cache before the workers look for it): the least of `repeats` timings of PILOT_DESIGNS
     designs, as the machine may be shared and a disturbed timing only ever reads long."""
-    from .evaluate import evaluate_rows
+    from .evaluate import evaluate_table
 
-    evaluate_rows(study, X[:1], np.arange(1), max_vanes(study))  # load kernels, make the maps
+    evaluate_table(study, X[:1], np.arange(1))  # load kernels, make the maps
     n = min(len(X), PILOT_DESIGNS)
     best = _best_time(study, X[:n], repeats)
     if best[0] < 0.05 * TASK_SECONDS and len(X) > n:  # fast designs: a call's own cost would weigh on
@@ -179,12 +178,12 @@ def pilot_time_per_design(study, X, repeats=3) -> tuple[float, float]:
 
 
 def _best_time(study, X, repeats) -> tuple[float, float]:
-    from .evaluate import evaluate_rows
+    from .evaluate import evaluate_table
 
     best = cpu = math.inf
     for _ in range(repeats):
         t0, c0 = time.perf_counter(), time.thread_time()
-        evaluate_rows(study, X, np.arange(len(X)), max_vanes(study))
+        evaluate_table(study, X, np.arange(len(X)))
         best, cpu = min(best, time.perf_counter() - t0), min(cpu, time.thread_time() - c0)
         if best > 2 * TASK_SECONDS:  # slow designs: one timing says enough
             break

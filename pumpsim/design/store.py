@@ -56,17 +56,27 @@ def columns(study) -> list[tuple[str, str]]:
 
 
 def rows_to_table(study, rows):
+    """The Arrow table of row dicts (a key a row lacks: null)."""
+    return columns_to_table(study, {name: [r.get(name) for r in rows] for name, _ in columns(study)})
+
+
+def columns_to_table(study, data: dict):
+    """The Arrow table of {column: values}: floats as sequences (None or NaN: NaN), booleans as
+    sequences of bool/None or float arrays (NaN: null), design as ints, status as strings."""
     import pyarrow as pa
 
     types = {"int": pa.int64(), "float": pa.float64(), "bool": pa.bool_(), "str": pa.string()}
-    data, fields = {}, []
+    arrays, fields = {}, []
     for name, typ in columns(study):
-        vals = [r.get(name) for r in rows]
+        vals = data[name]
         if typ == "float":  # a missing value (None) is NaN
-            vals = np.array(vals, dtype=float) if vals else np.empty(0)
-        data[name] = pa.array(vals, type=types[typ])
+            vals = np.asarray(vals, dtype=float) if len(vals) else np.empty(0)
+        if typ == "bool" and isinstance(vals, np.ndarray) and vals.dtype.kind == "f":
+            arrays[name] = pa.array(vals == 1.0, type=pa.bool_(), mask=np.isnan(vals))
+        else:
+            arrays[name] = pa.array(vals, type=types[typ])
         fields.append(pa.field(name, types[typ]))
-    return pa.table(data, schema=pa.schema(fields))
+    return pa.table(arrays, schema=pa.schema(fields))
 
 
 def check_out_dir(out, study_hash) -> dict | None:
