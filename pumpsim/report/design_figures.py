@@ -106,6 +106,13 @@ def limit_lines(ax, lim, factor, axis="x"):
                     ha="right", va="bottom")
 
 
+def laid_out(fig) -> str:
+    """A figure whose every label is inside its panels' grid (no figure legend above it) as an
+    embedded PNG: tight_layout fits it, so the PNG needs no tight bbox (a second text layout)."""
+    fig.tight_layout()
+    return figure_html(fig, tight=False)
+
+
 def histograms(df, study) -> str:
     """A tolerance study's outputs: histogram with the limits, or 'constant' with its value."""
     outs = numeric_outputs(df, study)[:MAX_PANELS]
@@ -139,8 +146,7 @@ def histograms(df, study) -> str:
         ax.tick_params(labelsize=7)
         ax.xaxis.set_major_locator(MaxNLocator(4))
         plain(ax, "x")
-    fig.tight_layout()
-    return figure_html(fig)
+    return laid_out(fig)
 
 
 def regression_swings(df, keys, output):
@@ -189,8 +195,7 @@ def tornado(df, study) -> str:
         ax.tick_params(axis="x", labelsize=7)
         ax.xaxis.set_major_locator(MaxNLocator(4, symmetric=True))
         plain(ax, "x")
-    fig.tight_layout()
-    return figure_html(fig)
+    return laid_out(fig)
 
 
 def scatter_matrix(df, study) -> str:
@@ -224,8 +229,7 @@ def scatter_matrix(df, study) -> str:
             ax.yaxis.set_major_locator(MaxNLocator(4))
             plain(ax)
             ax.label_outer()
-    fig.tight_layout()
-    return figure_html(fig)
+    return laid_out(fig)
 
 
 def grid_layout(df, study):

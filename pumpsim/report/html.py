@@ -27,10 +27,12 @@ CSS = ("body{font-family:DejaVu Sans,Arial,sans-serif;max-width:1150px;margin:1.
        "tr.chosen td{background:#eef7ee;font-weight:bold}tr.out td{background:#fdecea}ul.warn{margin-top:0;padding:.3em .8em .3em 2.2em}")
 
 
-def figure_html(fig) -> str:
-    """The figure as an embedded PNG; bbox 'tight' so no axis label is clipped."""
+def figure_html(fig, tight: bool = True) -> str:
+    """The figure as an embedded PNG; bbox 'tight' so no axis label is clipped. tight=False for a
+    figure already laid out by tight_layout (which keeps every label inside it): the tight bbox
+    would lay out every text a second time, a third of such a figure's cost."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=96, bbox_inches="tight", pad_inches=0.15)
+    fig.savefig(buf, format="png", dpi=96, **({"bbox_inches": "tight", "pad_inches": 0.15} if tight else {}))
     plt.close(fig)
     return f'<img alt="figure" src="data:image/png;base64,{base64.b64encode(buf.getvalue()).decode()}">'
 
