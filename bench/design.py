@@ -113,7 +113,7 @@ def workers_scaling(n=24_000, repeats=3):
 
 def end_to_end(n=10_000):
     """As a user runs it: sampling, the pilot, a LocalCluster (one worker per core) if the pilot
-    says one would pay for its start (execute.IN_PROCESS_SECONDS) else this process, evaluation,
+    says one would pay for its start (execute.worth_a_cluster) else this process, evaluation,
     Parquet parts, the HTML report. The kernels are built (the cache of a machine that ran a study
     before); nothing else is warm. client_cpu_s: this process's CPU time (all of it when in process)."""
     s = rig(n)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -44,11 +45,17 @@ TAIL_TASK_SECONDS = 0.1  # the last tasks (guided_bounds): shorter, so the worke
 GUIDED_SHARE = 4
 PILOT_DESIGNS = 6
 PILOT_BATCH = 64  # designs timed when PILOT_DESIGNS take little (evaluate.BATCH_DESIGNS per kernel call)
-# A study left to choose its workers runs in this process when all its designs take less CPU
-# time than this: about what a LocalCluster's start costs (each worker process imports the
-# runtime), so no number of workers could finish it sooner. CPU, not wall time: on a shared
-# machine the wall time of a pilot says more about the other processes than about the study.
+# About what a LocalCluster's start costs (each worker process imports the runtime). A study left
+# to choose its workers runs in this process unless its designs' CPU time T pays for that start S
+# on W workers: S + T / W < T, i.e. T > S W / (W - 1) (worth_a_cluster). CPU, not wall time: on a
+# shared machine the wall time of a pilot says more about the other processes than about the study.
 IN_PROCESS_SECONDS = 2.0
+
+
+def worth_a_cluster(cpu_seconds: float, workers: int) -> bool:
+    """Whether W local workers would finish work of `cpu_seconds` sooner than this process,
+    counting their start (IN_PROCESS_SECONDS; a single worker never does)."""
+    return workers > 1 and cpu_seconds > IN_PROCESS_SECONDS * workers / (workers - 1)
 
 
 def structures(study) -> list:
@@ -356,7 +363,7 @@ def _plan(study, X, man, batch_size, starting) -> Plan:
     # cluster's batches balance its workers: the least of three
     quick = starting.local or starting.lazy is not None
     per, cpu = pilot_time_per_design(study, X, 1 if quick else 3) if len(X) > 1 else (TASK_SECONDS, TASK_SECONDS)
-    if starting.lazy is not None and cpu * len(X) < IN_PROCESS_SECONDS:
+    if starting.lazy is not None and not worth_a_cluster(cpu * len(X), starting.lazy[0] or os.cpu_count() or 1):
         starting.stay_local()
     elif starting.lazy is not None and len(X) > 1:
         per, cpu = pilot_time_per_design(study, X)

@@ -66,6 +66,17 @@ def test_a_study_left_to_choose_runs_in_process_when_a_cluster_could_not_pay_for
     serial, _ = design.sweep(s, workers=0)
     df, st = design.sweep(s)  # 40 cheap designs: far below a cluster's start
     assert not started and st.workers == 1 and df.equals(serial)
-    monkeypatch.setattr(execute, "IN_PROCESS_SECONDS", 0.0)  # every study is worth a cluster
+    monkeypatch.setattr(execute, "worth_a_cluster", lambda cpu, workers: True)  # any study: a cluster
     df, st = design.sweep(s)
     assert len(started) == 1 and st.workers == 2 and df.equals(serial)
+
+
+def test_a_cluster_is_worth_its_start_only_when_the_workers_make_up_for_it():
+    from pumpsim.design.execute import IN_PROCESS_SECONDS, worth_a_cluster
+
+    S = IN_PROCESS_SECONDS
+    assert not worth_a_cluster(100 * S, 1)  # one worker process cannot beat this one
+    # on 2 workers: S + T / 2 < T from T > 2 S; on 4: from T > 4 S / 3
+    assert not worth_a_cluster(1.9 * S, 2) and worth_a_cluster(2.1 * S, 2)
+    assert not worth_a_cluster(1.3 * S, 4) and worth_a_cluster(1.4 * S, 4)
+
