@@ -27,7 +27,7 @@ from .outputs import (BOOL_OUTPUTS, KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_cons
                       reduce_revolution)
 from .study import SPEED_KEY, get_value
 from .alike import OneVane, spread
-from .screen import geometry_ok, housing_samples
+from .screen import ellipse_clear, housing_samples, polygon_clear, vanes_ok
 from .vector import design_maps, mouth_depths
 from .columns import Block, rows, table_columns
 from .store import columns, columns_to_table, max_vanes, rows_to_table
@@ -397,14 +397,20 @@ def _evaluate_contact(study, pr, nrev):
     return "ok", per_speed
 
 
-def _housing(kern, dm, P, nrev):
-    """(alpha, points, curvature or None, clearance margin) of B designs' housings: the base
-    ellipse in NumPy where there are no harmonics (screen.py), else the compiled curve."""
-    if kern.structure.harmonics == 0:
-        alpha, pts, margin = housing_samples(P, dm.index, nrev)
-        return alpha, pts, None, margin
-    alpha, pts, curv = housing_batch(kern, P, nrev)
-    return alpha, pts, curv, 0.0
+def _housing_clear(kern, dm, P, nrev) -> np.ndarray:
+    """(B,) bool: the housing holds each design's rotor circle as geometry_verdict asks (screen.py):
+    the base ellipse from its closed form where that decides, else from its samples (NumPy, or
+    the compiled curve with harmonics)."""
+    rr = P[:, dm.index["rotor.radius"]]
+    if kern.structure.harmonics:
+        _, pts, curv = housing_batch(kern, P, nrev)
+        return polygon_clear(rr, pts, curv)
+    clear = ellipse_clear(P, dm.index, rr, nrev)
+    if not clear.all():
+        rest = np.flatnonzero(~clear)
+        _, pts, margin = housing_samples(P[rest], dm.index, nrev)
+        clear[rest] = polygon_clear(rr[rest], pts, None, margin)
+    return clear
 
 
 def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | None:
@@ -419,7 +425,7 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | No
     PS = np.repeat(P, S, axis=0)
     try:
         ev = one.evaluate(PS, theta, omega, KERNEL_OUTPUTS) if one else evaluate_designs(kern, PS, theta, omega)
-        _, pts, curv, margin = _housing(kern, dm, P, nrev)
+        clear = _housing_clear(kern, dm, P, nrev)
     except PumpsimError:
         return None
     col = lambda k: P[:, dm.index[k]]  # noqa: E731
@@ -427,8 +433,7 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | No
     width = get_value(dm.table, "rotor.width")
     const = {"c_visc": col("effects.viscous_tip_friction"), "L": col("vane.length"), "lm": lm,
              "tip_area": width * col("vane.thickness") if width else np.full(B, math.nan)}
-    good = geometry_ok(col("rotor.radius"), col("vane.length"), lm, pts, curv, ev["s"][::S],
-                       ev["position_residual"][::S], margin)
+    good = clear & vanes_ok(col("vane.length"), lm, ev["s"][::S], ev["position_residual"][::S])
     res = ev["position_residual"]
     with np.errstate(invalid="ignore"):
         converged = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))

@@ -37,12 +37,51 @@ def housing_samples(P, index: dict, n: int) -> tuple[np.ndarray, np.ndarray, np.
     return alpha, pts, margin
 
 
+def ellipse_clear(P, index: dict, rr, n: int) -> np.ndarray:
+    """(B,) bool: the base ellipse of each parameter vector, sampled at n polar angles as
+    housing_samples does, surely holds the rotor axis inside its polygon and every sample farther
+    than rr (+ the margin) from it -- decided from the ellipse's closed form, no samples. False:
+    undecided (the caller tests the samples).
+
+    In the ellipse's axes the rotor axis sits at (u, v) with rho^2 = (u/a)^2 + (v/b)^2. The map
+    from the unit circle onto the ellipse stretches no length by less than m = min(a, b), so
+    every point of the curve is at least m (1 - rho) from the axis. The samples at polar angles
+    2 pi / n apart sit at eccentric anomalies at most 2 pi k / n apart (k = max(a, b) / m, the
+    anomaly's largest rate), so their polygon holds the ellipse's copy scaled by cos(pi k / n)
+    about its centre, hence the axis when rho < cos(pi k / n), at least m (cos(pi k / n) - rho)
+    inside its edges."""
+    a, b, cx, cy, psi = (P[:, index[k]] for k in
+                         ("housing.a", "housing.b", "housing.center.0", "housing.center.1", "housing.angle"))
+    cp, sp = np.cos(psi), np.sin(psi)
+    u, v = -(cx * cp + cy * sp), cx * sp - cy * cp
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
+        m = np.minimum(a, b)
+        k = np.maximum(a, b) / m
+        cos_gap = np.cos(np.minimum(math.pi * k / n, math.pi / 2))
+    margin = CLEARANCE_REL * (np.abs(a) + np.abs(b) + np.abs(cx) + np.abs(cy))
+    return (m > 0) & (m * (1.0 - rho) > rr + margin) & (m * (cos_gap - rho) > margin)
+
+
+def vanes_ok(L, lm, s, res) -> np.ndarray:
+    """geometry_verdict's tests of the vane positions over B designs (see geometry_ok)."""
+    with np.errstate(invalid="ignore"):
+        res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
+    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
+    return res_ok & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm)
+
+
 def geometry_ok(rr, L, lm, pts, curv, s, res, margin=0.0) -> np.ndarray:
     """geometry.geometry_verdict is None, over B designs (rotor radius rr, vane length L, mouth
     depth lm (B,); pts (B, 2, n); curv (B, n), or None for a curve known to be convex; s and res
     (B, N, n), N may be one vane standing for alike ones): each of its tests as one array
     comparison, the rotor's clearance by more than `margin`. A design this rejects gets its
     reason from geometry_verdict itself."""
+    return polygon_clear(rr, pts, curv, margin) & vanes_ok(L, lm, s, res)
+
+
+def polygon_clear(rr, pts, curv, margin=0.0) -> np.ndarray:
+    """geometry_verdict's tests of the housing samples over B designs (see geometry_ok)."""
     x, y = pts[:, 0], pts[:, 1]
     above = y > 0.0
     d, i = np.nonzero(above != np.roll(above, 1, axis=1))  # the edges (previous point, point) the x axis cuts
@@ -50,12 +89,8 @@ def geometry_ok(rr, L, lm, pts, curv, s, res, margin=0.0) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = (x0 - x1) * (0.0 - y1) / (y0 - y1) + x1
     inside = np.bincount(d[0.0 < xc], minlength=len(x)) % 2 == 1  # geometry._point_in_polygon's rule
-    with np.errstate(invalid="ignore"):
-        res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
-    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
     convex = True if curv is None else ~np.any(curv <= 0, axis=1)
-    return (convex & inside & (np.hypot(x, y).min(axis=1) > rr + margin) & res_ok
-            & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm))
+    return convex & inside & (np.hypot(x, y).min(axis=1) > rr + margin)
 
 
-__all__ = ["housing_samples", "geometry_ok", "CLEARANCE_REL"]
+__all__ = ["housing_samples", "ellipse_clear", "vanes_ok", "polygon_clear", "geometry_ok", "CLEARANCE_REL"]

@@ -172,3 +172,28 @@ def test_the_batch_screen_finds_the_rotor_axis_inside_as_the_polygon_rule_does()
     ok = screen.geometry_ok(np.full(B, 1e-9), np.full(B, 0.012), np.full(B, 0.011), pts, None, s, res)
     want = [_point_in_polygon(0.0, 0.0, p[0], p[1]) for p in pts]
     assert ok.tolist() == want and 0 < sum(want) < B
+
+
+def test_the_ellipse_closed_form_admits_only_what_the_samples_admit():
+    rng = np.random.default_rng(11)
+    B, n = 4000, 360
+    names = ("housing.a", "housing.b", "housing.center.0", "housing.center.1", "housing.angle")
+    index = {k: i for i, k in enumerate(names)}
+    a = rng.uniform(0.02, 0.03, B)
+    b = a / np.where(np.arange(B) % 2, rng.uniform(1.0, 1.4, B), 1.0)  # half of them round bores
+    off = rng.uniform(0.0, 1.05, B) * b  # some centres put the rotor axis outside
+    off[np.arange(B) % 4 == 1] = 0.0  # and a quarter concentric ellipses
+    phi = rng.uniform(-math.pi, math.pi, B)
+    P = np.column_stack([a, b, off * np.cos(phi), off * np.sin(phi), rng.uniform(-1, 1, B)])
+    _, pts, margin = screen.housing_samples(P, index, n)
+    gap = np.hypot(pts[:, 0], pts[:, 1]).min(axis=1)  # the samples' own clearance
+    rr = gap * rng.choice([0.999, 1 - 1e-9, 1 - 1e-13, 1.0, 1 + 1e-9], B)  # most at the edge
+    exact = screen.polygon_clear(rr, pts, None, margin)
+    fast = screen.ellipse_clear(P, index, rr, n)
+    assert not (fast & ~exact).any()  # never admits a design the samples reject
+    assert exact.any() and not exact.all()
+    # a round bore (the bound is its exact clearance; the samples' chords cut up to 4e-5 of its
+    # radius) or a concentric ellipse is decided 0.1 % from the edge; an eccentric ellipse's bound
+    # is looser (then the samples decide)
+    plain = (a == b) | (off == 0.0)
+    assert fast[plain & (rr <= 0.999 * gap) & (off < 0.8 * b)].all()

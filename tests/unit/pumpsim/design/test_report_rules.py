@@ -55,7 +55,7 @@ def test_in_spec_share_leaves_failed_designs_out_and_a_grid_has_no_cpk():
 
 def _capture(monkeypatch):
     figs = []
-    monkeypatch.setattr(fg, "figure_html", lambda fig: figs.append(fig) or "<img>")
+    monkeypatch.setattr(fg, "figure_html", lambda fig, tight=True: figs.append(fig) or "<img>")
     return figs
 
 
