@@ -94,3 +94,15 @@ def test_what_the_map_does_not_cover_goes_per_design(vary, st):
     X = np.array([[v] for v in next(iter(vary.values()))["values"]])
     maps, rest = vector.design_maps(s, X)
     assert not maps and list(rest) == [0, 1]
+
+
+def test_mouth_depths_are_the_per_design_formula_bit_for_bit():
+    from pumpsim.geometry import mouth_depth
+
+    rng = np.random.default_rng(2)
+    keys = ("rotor.slot_radius", "rotor.slot_tilt", "rotor.radius")
+    P = np.column_stack([rng.uniform(0.005, 0.01, 500), rng.choice([0.0, 0.1, -0.2617993877991494], 500),
+                         rng.uniform(0.018, 0.022, 500)])
+    got = vector.mouth_depths({k: i for i, k in enumerate(keys)}, P)
+    want = [mouth_depth(dict(zip(keys, row))) for row in P.tolist()]
+    assert got.tolist() == want
