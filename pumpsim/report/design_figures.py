@@ -108,8 +108,11 @@ def limit_lines(ax, lim, factor, axis="x"):
 
 def laid_out(fig) -> str:
     """A figure whose every label is inside its panels' grid (no figure legend above it) as an
-    embedded PNG: tight_layout fits it, so the PNG needs no tight bbox (a second text layout)."""
+    embedded PNG: tight_layout fits it once, so the PNG needs no tight bbox, and without the
+    placeholder layout engine tight_layout leaves behind savefig draws it once, not twice
+    (each draw lays out every tick label)."""
     fig.tight_layout()
+    fig.set_layout_engine(None)
     return figure_html(fig, tight=False)
 
 
