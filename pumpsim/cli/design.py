@@ -36,7 +36,6 @@ def _json_safe(obj):
 def cmd_sweep(a) -> int:
     from ..design.execute import check_out_dir, read_manifest, run_study
     from ..design.summary import summary_text
-    from ..report.design import sweep_report
 
     study = _load(a.study)
     if a.samples is not None:
@@ -57,6 +56,7 @@ def cmd_sweep(a) -> int:
         if a.csv:
             df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
         if a.report:
+            from ..report.design import sweep_report  # (matplotlib: only for a report)
 
             sweep_report(df, study, tmp["--report"])
     return 0
@@ -102,7 +102,6 @@ def override_samples(study, n):
 def cmd_sensitivity(a) -> int:
     from ..design.indices import sensitivity
     from ..io import write_text
-    from ..report.design import sensitivity_report
 
     study = _load(a.study)
     outs = outputs(a, [a.study], json=None, report=None)
@@ -113,6 +112,7 @@ def cmd_sensitivity(a) -> int:
         if a.json:
             write_text(tmp["--json"], json.dumps(_json_safe(res), indent=1))
         if a.report:
+            from ..report.design import sensitivity_report  # (matplotlib: only for a report)
 
             sensitivity_report(res, study, tmp["--report"])
     return 0
@@ -148,7 +148,6 @@ def sensitivity_text(res) -> str:
 def cmd_optimize(a) -> int:
     from ..design.optimiser import optimize
     from ..io import write_text
-    from ..report.design import optimize_report
 
     study = _load(a.study)
     outs = outputs(a, [a.study], json=None, report=None)
@@ -158,6 +157,7 @@ def cmd_optimize(a) -> int:
         if a.json:
             write_text(tmp["--json"], json.dumps(res, indent=1))
         if a.report:
+            from ..report.design import optimize_report  # (matplotlib: only for a report)
 
             optimize_report(res, study, tmp["--report"])
     return 0 if res["success"] else 1

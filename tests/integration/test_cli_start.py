@@ -48,3 +48,10 @@ def test_report_module_only_with_report(tmp_path):
     code, out, modules = _imported("identify", cfg, data, "--params", "mu", "--report", tmp_path / "fit.html")
     assert code == 0 and (tmp_path / "fit.html").is_file()
     assert "pumpsim.report" in modules and "matplotlib" in modules
+
+
+def test_a_sweep_loads_the_report_module_only_with_report(tmp_path):
+    study = ROOT / "examples" / "studies" / "test_rig_tolerances.toml"
+    code, out, modules = _imported("sweep", study, "--samples", "16", "--csv", tmp_path / "mc.csv")
+    assert code == 0 and (tmp_path / "mc.csv").is_file()
+    assert "pumpsim.report" not in modules and not [m for m in modules if m.startswith("matplotlib")]
