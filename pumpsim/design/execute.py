@@ -482,12 +482,14 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
 
 
 def _table(study, plan, folder, tables, stats):
-    """The result table: read back from the folder (and the manifest marked complete), or joined
-    from the batches' tables when there is no folder."""
+    """The result table: joined from the batches' tables when they are all the folder holds (or
+    there is no folder), else read back from the folder (resumed parts); with a folder, the
+    manifest is marked complete."""
     import pandas as pd
 
     if folder is not None:
-        df = read_results(folder)
+        only_ours = len(tables) == plan.n_batches == len(list(folder.glob(PART.replace("{:05d}", "*"))))
+        df = _table(study, plan, None, tables, stats) if only_ours else read_results(folder)
         gaps = coverage_text(coverage(df, len(plan.X)))
         _manifest(folder, study, plan, "complete" if gaps is None else "incomplete", stats)
         if gaps:  # parts from elsewhere (another layout, a copied file): the table is not this study
