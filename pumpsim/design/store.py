@@ -3,6 +3,7 @@ file + rename), and manifest.json (the study hash, kernel keys, package versions
 layout) that lets a rerun of the same study resume where it stopped."""
 from __future__ import annotations
 
+import functools
 import importlib.metadata
 import json
 import platform
@@ -21,14 +22,20 @@ MANIFEST = "manifest.json"
 PACKAGES = ("pumpsim", "casadi", "numpy", "scipy", "dask", "distributed", "pyarrow", "SALib", "pymoo")
 
 
-def package_versions() -> dict:
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple:
+    """The installed versions, read once per process (each manifest write asked for them)."""
     out = {"python": platform.python_version()}
     for name in PACKAGES:
         try:
             out[name] = importlib.metadata.version(name)
         except importlib.metadata.PackageNotFoundError:
             out[name] = None
-    return out
+    return tuple(out.items())
+
+
+def package_versions() -> dict:
+    return dict(_versions())
 
 
 def max_vanes(study) -> int:
