@@ -31,12 +31,12 @@ def rig(samples):
 
 
 def kernel_alone(s, repeats=3):
-    """The SIMD kernel's own time for the study's designs (their parameter vectors, the same
-    batches of BATCH_DESIGNS): what a design costs without any Python around it -- every vane
-    through the N-vane library (what a study evaluated before alike vanes went through one), and
-    one vane through the 1-vane library (design.alike, what the study runs). Best of `repeats`,
-    {name: (wall, CPU seconds)}."""
-    from pumpsim.design.evaluate import BATCH_DESIGNS, KERNEL_OUTPUTS, evaluate_designs, one_vane, revolution
+    """The SIMD kernel's own time for the study's designs (their parameter vectors, in the
+    study's batches: evaluate.batch_designs): what a design costs without any Python around it --
+    every vane through the N-vane library (what a study evaluated before alike vanes went through
+    one), and one vane through the 1-vane library (design.alike, what the study runs). Best of
+    `repeats`, {name: (wall, CPU seconds)}."""
+    from pumpsim.design.evaluate import KERNEL_OUTPUTS, batch_designs, evaluate_designs, one_vane, revolution
     from pumpsim.design.execute import study_designs
     from pumpsim.design.vector import design_maps
     from pumpsim.kernels import load_kernels
@@ -46,14 +46,15 @@ def kernel_alone(s, repeats=3):
     P, speed, _ = dm.vectors(X)
     kern, theta = load_kernels(dm.structure), revolution(dm.cfg.angle, s.revolution_samples)
     one = one_vane(dm.structure)
-    runs = {"every_vane": lambda p, w: evaluate_designs(kern, p, theta, w),
-            "one_vane": lambda p, w: one.evaluate(p, theta, w, KERNEL_OUTPUTS)}
+    N = dm.structure.vanes
+    runs = {"every_vane": (lambda p, w: evaluate_designs(kern, p, theta, w), batch_designs(N, False)),
+            "one_vane": (lambda p, w: one.evaluate(p, theta, w, KERNEL_OUTPUTS), batch_designs(N, True))}
     best = {name: (float("inf"), float("inf")) for name in runs}
     for _ in range(repeats):
-        for name, run in runs.items():
+        for name, (run, size) in runs.items():
             t0, c0 = time.perf_counter(), time.thread_time()
-            for lo in range(0, len(P), BATCH_DESIGNS):
-                run(P[lo:lo + BATCH_DESIGNS], speed[lo:lo + BATCH_DESIGNS])
+            for lo in range(0, len(P), size):
+                run(P[lo:lo + size], speed[lo:lo + size])
             best[name] = min(best[name], (time.perf_counter() - t0, time.thread_time() - c0))
     return best
 

@@ -331,6 +331,13 @@ def _evaluate_one(study, kern, pr, nrev, ev=None):
 BATCH_DESIGNS = 64  # designs per kernel call: ~13 MB of outputs at 360 samples, 4 vanes
 
 
+def batch_designs(vanes: int, one_vane: bool) -> int:
+    """Designs per kernel call: BATCH_DESIGNS on every vane; through one vane of N, N times as
+    many -- the same memory, and fewer calls (measured: 256 designs per call through one vane of
+    four took ~6 % less CPU than 64)."""
+    return BATCH_DESIGNS * (vanes if one_vane else 1)
+
+
 def pre_evaluated(study, kern, prepared: dict, members, nrev) -> dict:
     """{design index: kernel outputs at its design_speeds} for the designs `members` of one
     variant, BATCH_DESIGNS per kernel call (a batch that fails is left out: its designs then run
@@ -475,11 +482,11 @@ def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:
 
 
 def _mapped_group(study, dm, kern, P, speed, nrev, theta, one, group, members, results, speeds_of) -> list:
-    """_mapped_batch over the rows `group` of P, BATCH_DESIGNS at a time; returns the design rows
+    """_mapped_batch over the rows `group` of P, batch_designs at a time; returns the design rows
     left to the per-design path."""
-    rest = []
-    for lo in range(0, len(group), BATCH_DESIGNS):
-        idx = group[lo:lo + BATCH_DESIGNS]
+    rest, size = [], batch_designs(dm.structure.vanes, one is not None)
+    for lo in range(0, len(group), size):
+        idx = group[lo:lo + size]
         try:
             got = _mapped_batch(study, dm, kern, P[idx], speed[idx], nrev, theta, one)
         except Exception:  # noqa: BLE001 - then each design runs alone and reports its own failure
