@@ -40,7 +40,8 @@ EVP = EXAMPLES / "evp_booster.toml"
 RIG_DATA = EXAMPLES / "data" / "test_rig_measurement.csv"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 INTERRUPTED = re.compile(r"^pumpsim: interrupted by (SIGINT|SIGTERM)( at simulated t = (\S+) s of (\S+) s"
-                         r"[^;]*| with (\d+) of (\d+) designs done)?; (.+)$")
+                         r"[^;]*| with (\d+) of (\d+) designs done"
+                         r"| while the local Dask cluster started \(no design done\))?; (.+)$")
 
 
 def _env():
