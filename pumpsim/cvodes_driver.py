@@ -74,6 +74,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_free.argtypes = [p]
     dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
     dll.drv_block_solver.argtypes = [p, ctypes.c_int]
+    dll.drv_profile.argtypes = [p, ctypes.c_double, p, ctypes.c_double, ctypes.c_long, p, p]
     return dll
 
 
@@ -280,6 +281,24 @@ class Driver:
         else:
             self.last = (float(touts[-1]), Y[-1].copy())
         return Y
+
+    def profile(self, t0, y0, t_end, max_steps=200_000) -> dict:
+        """What limits the steps from y0 at t0 to t_end, step by step (a restart; the next run
+        restarts too): time, step, order, angle (y[0]), the error-test and Newton failures
+        before each accepted step, and `weighted_error` (steps, n): each component's local error
+        estimate times its error weight (the error test passes when their rms is <= 1)."""
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        rec, k = np.zeros((max_steps, 6 + self.n)), ctypes.c_long()
+        flag = self.lib.drv_profile(self.handle, float(t0), _ptr(y0), float(t_end), int(max_steps), _ptr(rec),
+                                    ctypes.byref(k))
+        self.last = None
+        if flag < 0:
+            msg = self.lib.drv_message(self.handle).decode(errors="replace")
+            raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
+        r = rec[:k.value]
+        return {"time": r[:, 0], "step": r[:, 1], "order": r[:, 2].astype(int), "angle": r[:, 3],
+                "error_test_failures": r[:, 4].astype(int), "newton_failures": r[:, 5].astype(int),
+                "weighted_error": r[:, 6:]}
 
     @property
     def stats(self) -> dict:

@@ -17,7 +17,7 @@ typedef int (*fn_t)(const double **, double **, ci *, double *, int);
 typedef struct { fn_t f; const double **arg; double **res; ci *iw; double *w; int slot; } call_t;
 typedef struct {
   SUNContext ctx; void *cv; N_Vector y, atol; SUNMatrix A; SUNLinearSolver LS; int n;
-  call_t rhs, jac; int nout; const ci *off; ci jnnz; const ci *jpos; const double *jbuf;
+  call_t rhs, jac; int nout; const ci *off; ci jnnz; const ci *jpos; const double *jbuf; double *jsave;
   long nrhs, njac, base[5]; char msg[512];
   /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
      goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
@@ -204,16 +204,24 @@ int drv_sens(drv_t *d, int ns, int np, const double *pdir, const double *ph, con
   return f;
 }
 
-static int jac(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix J, void *u, N_Vector t1,
-               N_Vector t2, N_Vector t3) {
+/* CVODES' Newton matrix M = I - gamma J, built from the Jacobian kernel's nonzeros (kept in jsave
+   while CVODES reuses its Jacobian) in place of its own set-up, which copies and scales a saved
+   dense J on every call: the same products and sums, a third of the set-up's cost */
+static int linsys(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix M, sunbooleantype jok, sunbooleantype *jcur,
+                  sunrealtype gamma, void *u, N_Vector t1, N_Vector t2, N_Vector t3) {
   drv_t *d = (drv_t *)u;
-  drive(d, t);
-  d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
-  d->njac++;
-  if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
-  SUNMatZero(J);
-  double *A = SM_DATA_D(J);  /* column-major, leading dimension n; jpos = col * n + row */
-  for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = d->jbuf[k];
+  *jcur = !jok;
+  if (!jok) {
+    drive(d, t);
+    d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
+    d->njac++;
+    if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
+    memcpy(d->jsave, d->jbuf, d->jnnz * sizeof(double));
+  }
+  SUNMatZero(M);
+  double *A = SM_DATA_D(M);  /* column-major, leading dimension n; jpos = col * n + row */
+  for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = -gamma * d->jsave[k];
+  for (long i = 0; i < d->n; i++) A[i * d->n + i] += 1.0;
   return 0;
 }
 
@@ -236,6 +244,7 @@ drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_s
   if (SUNContext_Create(NULL, &d->ctx)) return NULL;
 #endif
   d->n = n; d->nout = nout; d->off = off; d->jnnz = jnnz; d->jpos = jpos; d->jbuf = jbuf;
+  d->jsave = calloc(jnnz > 0 ? jnnz : 1, sizeof(double));
   d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
   d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
   for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
@@ -246,7 +255,7 @@ drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_s
   CVodeSetErrHandlerFn(d->cv, quiet, d);
 #endif
   d->A = SUNDenseMatrix(n, n, d->ctx); d->LS = SUNLinSol_Dense(d->y, d->A, d->ctx);
-  if (CVodeSetLinearSolver(d->cv, d->LS, d->A) || CVodeSetJacFn(d->cv, jac)) return NULL;
+  if (CVodeSetLinearSolver(d->cv, d->LS, d->A) || CVodeSetLinSysFn(d->cv, linsys)) return NULL;
   CVodeSetMaxOrd(d->cv, max_order); CVodeSetMaxNumSteps(d->cv, max_steps);
   if (max_step > 0) CVodeSetMaxStep(d->cv, max_step);
   return d;
@@ -353,7 +362,7 @@ int drv_block_solver(drv_t *d, int nl) {
   S->content = b; S->ops->gettype = blk_type; S->ops->getid = blk_id; S->ops->initialize = blk_init;
   S->ops->setup = blk_setup; S->ops->solve = blk_solve; S->ops->free = blk_free;
   b->nl = nl; b->B = SUNDenseMatrix(nl, nl, d->ctx); b->piv = malloc(nl * sizeof(sunindextype));
-  if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetJacFn(d->cv, jac)) {
+  if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetLinSysFn(d->cv, linsys)) {
     blk_free(S); return -1;
   }
   SUNLinSolFree(d->LS); d->LS = S;
@@ -370,11 +379,40 @@ int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
   return f;
 }
 
+/* one step at a time from (t0, y0) until tend (the last step may pass it), at most maxrec steps;
+   per step in rec (stride 6 + n): t, h, order, y[0], the error-test and Newton failures since the
+   step before, then the local error estimate times the error weight per component (its rms is
+   the error test's norm, 1 at the tolerance) */
+int drv_profile(drv_t *d, double t0, const double *y0, double tend, long maxrec, double *rec, long *nrec) {
+  int n = d->n, flag;
+  long k = 0, c[5], prev[5];
+  sunrealtype t = t0, h; int q;
+  N_Vector ele = N_VClone(d->y), ewt = N_VClone(d->y);
+  memcpy(N_VGetArrayPointer(d->y), y0, n * sizeof(double));
+  counters(d, c);
+  for (int i = 0; i < 5; i++) d->base[i] += c[i];
+  flag = CVodeReInit(d->cv, t0, d->y);
+  counters(d, prev);
+  while (!flag && t < tend && k < maxrec) {
+    flag = CVode(d->cv, tend, d->y, &t, CV_ONE_STEP);
+    if (flag < 0) break;
+    flag = 0;
+    double *r = rec + k * (6 + n);
+    counters(d, c); CVodeGetLastStep(d->cv, &h); CVodeGetLastOrder(d->cv, &q);
+    CVodeGetEstLocalErrors(d->cv, ele); CVodeGetErrWeights(d->cv, ewt);
+    r[0] = t; r[1] = h; r[2] = q; r[3] = NV_Ith_S(d->y, 0); r[4] = c[2] - prev[2]; r[5] = c[4] - prev[4];
+    for (int i = 0; i < n; i++) r[6 + i] = NV_Ith_S(ele, i) * NV_Ith_S(ewt, i);
+    memcpy(prev, c, sizeof c); k++;
+  }
+  *nrec = k; N_VDestroy(ele); N_VDestroy(ewt);
+  return flag;
+}
+
 void drv_free(drv_t *d) {
   if (!d) return;
   if (d->ns) { N_VDestroyVectorArray(d->yS, d->ns); free(d->sy); free(d->sf0); free(d->sfp); free(d->sjac); }
   if (d->nev) { free(d->yb); free(d->fa); free(d->fb); }
   CVodeFree(&d->cv); SUNLinSolFree(d->LS); SUNMatDestroy(d->A); N_VDestroy(d->y); N_VDestroy(d->atol);
-  SUNContext_Free(&d->ctx); free(d);
+  SUNContext_Free(&d->ctx); free(d->jsave); free(d);
 }
 """

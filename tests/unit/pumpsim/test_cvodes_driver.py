@@ -152,3 +152,26 @@ def test_the_leading_block_solver_gives_the_full_solvers_steps_and_states(oscill
     assert np.array_equal(full, block) and st_full == st_block
     exact = t[1:] / 2 + np.sin(2 * W * t[1:]) / (4 * W)  # integral of cos^2(W t)
     assert np.max(np.abs(block[:, 2] - exact)) <= OSCILLATOR_REL * np.max(exact)
+
+
+def test_the_step_profile_is_the_runs_steps_and_error_test(oscillator):
+    """Driver.profile takes the steps a run takes (same count and failures as a run to the same
+    end), every accepted step's weighted local errors pass the error test (rms <= 1), and the
+    step count stays cumulative across the restart it makes."""
+    x0, t_end = np.array([0.0, 1.0]), 0.5
+    ref, _ = _driver(oscillator)
+    ref.run(0.0, x0, np.array([t_end]))
+    d, _ = _driver(oscillator)
+    pr = d.profile(0.0, x0, t_end)
+    n = len(pr["time"])
+    assert pr["time"][-1] >= t_end > pr["time"][-2]
+    assert n == ref.stats["nsteps"]  # an output time inside the last step ends it by interpolation
+    assert pr["error_test_failures"].sum() == ref.stats["netfails"]
+    assert pr["newton_failures"].sum() == ref.stats["nncfails"]
+    rms = np.sqrt(np.mean(pr["weighted_error"] ** 2, axis=1))
+    assert np.all(rms <= 1.0) and np.median(rms) > 1e-3  # near the tolerance, not zero
+    assert np.allclose(np.diff(pr["time"]), pr["step"][1:])
+    assert set(pr["order"]) <= set(range(1, 6))
+    assert np.max(np.abs(pr["angle"] - np.sin(W * pr["time"]) / W)) <= OSCILLATOR_REL / W  # y[0] per step
+    d.run(0.0, x0, np.array([t_end]))  # restarted after the profile: the counts go on from it
+    assert d.stats["nsteps"] == 2 * n
