@@ -326,6 +326,41 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
    have a zero Jacobian (quadratures riding along as states) is [[M11, 0], [0, I]]; only M11 is
    factored and solved, with the dense solver's own LU, so the results are those of the full LU
    (its extra rows and columns only add zeros) at a fraction of the cost. */
+/* LU with partial pivoting (column-major a, n x n) and its solve: the dense solver's algorithm,
+   operation for operation, on contiguous columns the compiler can vectorise (SUNDIALS' own goes
+   through column pointers: ~3 us a factorisation and ~0.7 us a solve at n = 16) */
+static sunindextype lu_factor(double *a, sunindextype n, sunindextype *p) {
+  for (sunindextype k = 0; k < n; k++) {
+    double *ck = a + k * n;
+    sunindextype l = k;
+    for (sunindextype i = k + 1; i < n; i++) if (fabs(ck[i]) > fabs(ck[l])) l = i;
+    p[k] = l;
+    if (ck[l] == 0.0) return k + 1;
+    if (l != k)
+      for (sunindextype j = 0; j < n; j++) { double t = a[j * n + l]; a[j * n + l] = a[j * n + k]; a[j * n + k] = t; }
+    double mult = 1.0 / ck[k];
+    for (sunindextype i = k + 1; i < n; i++) ck[i] *= mult;
+    for (sunindextype j = k + 1; j < n; j++) {
+      double *cj = a + j * n, akj = cj[k];
+      if (akj != 0.0)
+        for (sunindextype i = k + 1; i < n; i++) cj[i] -= akj * ck[i];
+    }
+  }
+  return 0;
+}
+
+static void lu_solve(const double *a, sunindextype n, const sunindextype *p, double *b) {
+  for (sunindextype k = 0; k < n; k++)
+    if (p[k] != k) { double t = b[k]; b[k] = b[p[k]]; b[p[k]] = t; }
+  for (sunindextype k = 0; k < n - 1; k++)
+    for (sunindextype i = k + 1; i < n; i++) b[i] -= a[k * n + i] * b[k];
+  for (sunindextype k = n - 1; k > 0; k--) {
+    b[k] /= a[k * n + k];
+    for (sunindextype i = 0; i < k; i++) b[i] -= a[k * n + i] * b[k];
+  }
+  b[0] /= a[0];
+}
+
 typedef struct { sunindextype nl; SUNMatrix B; sunindextype *piv; } blk_t;
 static SUNLinearSolver_Type blk_type(SUNLinearSolver S) { return SUNLINEARSOLVER_DIRECT; }
 static SUNLinearSolver_ID blk_id(SUNLinearSolver S) { return SUNLINEARSOLVER_CUSTOM; }
@@ -334,15 +369,15 @@ static int blk_setup(SUNLinearSolver S, SUNMatrix A) {
   blk_t *b = (blk_t *)S->content; sunindextype nl = b->nl, n = SM_ROWS_D(A);
   for (sunindextype j = 0; j < nl; j++) memcpy(SM_COLUMN_D(b->B, j), SM_DATA_D(A) + j * n, nl * sizeof(double));
 #ifdef SUNLS_LUFACT_FAIL
-  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? SUNLS_LUFACT_FAIL : 0;
+  return lu_factor(SM_DATA_D(b->B), nl, b->piv) > 0 ? SUNLS_LUFACT_FAIL : 0;
 #else
-  return SUNDlsMat_denseGETRF(SM_COLS_D(b->B), nl, nl, b->piv) > 0 ? 1 : 0;
+  return lu_factor(SM_DATA_D(b->B), nl, b->piv) > 0 ? 1 : 0;
 #endif
 }
 static int blk_solve(SUNLinearSolver S, SUNMatrix A, N_Vector x, N_Vector r, sunrealtype tol) {
   blk_t *b = (blk_t *)S->content;
   N_VScale(1.0, r, x);
-  SUNDlsMat_denseGETRS(SM_COLS_D(b->B), b->nl, b->piv, N_VGetArrayPointer(x));
+  lu_solve(SM_DATA_D(b->B), b->nl, b->piv, N_VGetArrayPointer(x));
   return 0;
 }
 static int blk_free(SUNLinearSolver S) {
