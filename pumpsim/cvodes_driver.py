@@ -157,7 +157,8 @@ class Driver:
     or None (not wanted); atol: per component; jac_every: steps between Jacobian updates at
     most (CVODES' default 51); lin_size: the Jacobian's rows from lin_size on are zero (states
     that do not feed back, such as quadratures riding along): the Newton systems are then solved
-    on the leading block only, with the same results."""
+    on the leading block only, by the driver's own LU, with the same results as SUNDIALS' dense
+    solver (None) and faster; lin_size = n: the whole system by that LU."""
 
     def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
                  max_step=None, jac_every=None, lin_size=None):
@@ -195,7 +196,7 @@ class Driver:
             self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
         if not self.handle:
             raise OSError("SUNDIALS could not set up CVODES")
-        if lin_size is not None and lin_size < n and self.lib.drv_block_solver(self.handle, int(lin_size)):
+        if lin_size is not None and lin_size <= n and self.lib.drv_block_solver(self.handle, int(lin_size)):
             raise OSError("SUNDIALS could not set up the leading-block linear solver")
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)

@@ -136,20 +136,22 @@ def oscillator_with_quadrature(tmp_path_factory):
 
 
 def test_the_leading_block_solver_gives_the_full_solvers_steps_and_states(oscillator_with_quadrature):
-    """lin_size: the Newton systems solved on the states' block alone are the full dense solver's
-    to the last bit (same steps, states and quadrature), and the quadrature is the integral."""
+    """lin_size: the Newton systems solved on the states' block alone, or on the whole system by
+    the driver's own LU, are SUNDIALS' dense solver's to the last bit (same steps, states and
+    quadrature), and the quadrature is the integral."""
     so, sp_x, sp_q = oscillator_with_quadrature
     t = np.linspace(0.0, 0.5, 51)
     runs = {}
-    for lin_size in (None, 2):
+    for lin_size in (None, 2, 3):
         y, p = np.zeros(3), np.array([W])
         rhs = cvodes_driver.KernelCall(so, "g", [y, p], 0)
         jac = cvodes_driver.KernelCall(so, "g_jac", [y, p], 0)
         d = cvodes_driver.Driver(3, rhs, [0, 2], jac, [(sp_x, 0), (sp_q, 2)], OSCILLATOR_RTOL,
                                  np.full(3, 1e-12), lin_size=lin_size)
         runs[lin_size] = (d.run(0.0, np.array([0.0, 1.0, 0.0]), t[1:]), d.stats)
-    (full, st_full), (block, st_block) = runs[None], runs[2]
+    (full, st_full), (block, st_block), (own, st_own) = runs[None], runs[2], runs[3]
     assert np.array_equal(full, block) and st_full == st_block
+    assert np.array_equal(full, own) and st_full == st_own  # the driver's LU on the whole system
     exact = t[1:] / 2 + np.sin(2 * W * t[1:]) / (4 * W)  # integral of cos^2(W t)
     assert np.max(np.abs(block[:, 2] - exact)) <= OSCILLATOR_REL * np.max(exact)
 
