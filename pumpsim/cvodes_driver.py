@@ -75,6 +75,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
     dll.drv_block_solver.argtypes = [p, ctypes.c_int]
     dll.drv_profile.argtypes = [p, ctypes.c_double, p, ctypes.c_double, ctypes.c_long, p, p]
+    dll.drv_rows.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_long, p, ctypes.c_long, ctypes.c_int, p, p]
     return dll
 
 
@@ -136,6 +137,21 @@ class KernelCall:
 
     def address(self) -> int:
         return ctypes.cast(self.fn, ctypes.c_void_p).value
+
+    def rows(self, X, sizes, wanted=None) -> list:
+        """The kernel at every row of X (n, nx) in one C loop (the driver library's): output k as
+        an (n, sizes[k]) array, None where `wanted` leaves it out; the outputs dense."""
+        X = np.ascontiguousarray(X, dtype=float)
+        outs = [np.empty((X.shape[0], s)) if wanted is None or wanted[k] else None for k, s in enumerate(sizes)]
+        ptrs = np.array([0 if o is None else _ptr(o) for o in outs], dtype=np.uintp)
+        size = np.asarray(sizes, dtype=np.int64)
+        lib = library()
+        if lib is None:
+            raise OSError(available()[1])
+        if lib.drv_rows(self.address(), _ptr(self.arg), _ptr(self.res), _ptr(self.iw), _ptr(self.w), self.slot,
+                        X.shape[0], _ptr(X), X.shape[1], len(sizes), _ptr(ptrs), _ptr(size)):
+            raise SolverError("a compiled kernel failed to evaluate")
+        return outs
 
 
 def kernel_library(kern) -> Path:

@@ -443,6 +443,18 @@ int drv_profile(drv_t *d, double t0, const double *y0, double tend, long maxrec,
   return flag;
 }
 
+/* a kernel over the rows of X (nrow x nx, row-major) in one call: row r at arg[slot], output k
+   written at out[k] + r size[k] (out[k] NULL: not wanted) */
+int drv_rows(fn_t f, const double **arg, double **res, ci *iw, double *w, int slot, long nrow, const double *X,
+             long nx, int nout, double **out, const ci *size) {
+  for (long r = 0; r < nrow; r++) {
+    arg[slot] = X + r * nx;
+    for (int k = 0; k < nout; k++) res[k] = out[k] ? out[k] + r * size[k] : NULL;
+    if (f(arg, res, iw, w, 0)) return 1;
+  }
+  return 0;
+}
+
 void drv_free(drv_t *d) {
   if (!d) return;
   if (d->ns) { N_VDestroyVectorArray(d->yS, d->ns); free(d->sy); free(d->sf0); free(d->sfp); free(d->sjac); }

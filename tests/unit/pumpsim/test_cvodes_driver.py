@@ -177,3 +177,15 @@ def test_the_step_profile_is_the_runs_steps_and_error_test(oscillator):
     assert np.max(np.abs(pr["angle"] - np.sin(W * pr["time"]) / W)) <= OSCILLATOR_REL / W  # y[0] per step
     d.run(0.0, x0, np.array([t_end]))  # restarted after the profile: the counts go on from it
     assert d.stats["nsteps"] == 2 * n
+
+
+def test_rows_evaluates_the_kernel_at_every_row_as_casadi_does(oscillator):
+    """KernelCall.rows: the compiled kernel at each row of X in one C loop, the values of CasADi's
+    map of the same compiled function bit for bit; an output not wanted is not computed into."""
+    so, _ = oscillator
+    X = np.random.default_rng(3).normal(size=(7, 2))
+    call = cvodes_driver.KernelCall(so, "f", [np.zeros(2), np.array([W])], 0)
+    (out,) = call.rows(X, [2])
+    ref = np.asarray(ca.external("f", str(so)).map(7)(X.T, W)).T
+    assert np.array_equal(out, ref) and np.array_equal(out[:, 1], -W**2 * X[:, 0])
+    assert call.rows(X, [2], wanted=[False]) == [None]
