@@ -34,6 +34,8 @@ def main():
     ap.add_argument("--json", default=str(ROOT / "out" / "bench.json"))
     ap.add_argument("--config", default=str(ROOT / "examples" / "evp_booster.toml"))
     ap.add_argument("--span", type=float, default=0.5, help="simulated seconds of the SciPy comparison")
+    ap.add_argument("--profile-span", type=float, default=1.0,
+                    help="simulated seconds of the step profile (what limits the steps; 0: none)")
     a = ap.parse_args()
     cfg = load_config(a.config)
     kernels(cfg)  # build outside the timing
@@ -89,7 +91,8 @@ def main():
            "mean_current": {"full": s["mean_current"], "fast": fast["mean_current"]},
            "peak_current": s["peak_current"], "energy": {"full": s["energy"], "fast": fast["energy"]},
            "driver": st.get("driver"), "casadi_plugin_wall_s": wall_plug, "casadi_plugin_solver": sp,
-           "scipy_span": scipy_span(cfg, a.span)}
+           "scipy_span": scipy_span(cfg, a.span),
+           "step_profile": step_profile(cfg, a.profile_span) if a.profile_span > 0 else None}
     path = Path(a.json)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = json.loads(path.read_text()) if path.exists() else {}
@@ -152,6 +155,48 @@ def scipy_span(cfg, span, repeats=3):
                        f"{repeats}, interleaved", res)
     return {"span": span, "rows": res, "best_scipy": best,
             **report_ratio(res, best, ("error_pressure_rel", "error_energy_rel"), indent="  ")}
+
+
+def step_profile(cfg, span, bins=18):
+    """What limits the full model's steps over its first `span` s (one-step CVODES, the run's
+    tolerances): which state dominates the local error (share of the steps it dominates, share of
+    the summed squared weighted errors), and where in a vane pitch (rotor angle mod 2 pi / N) the
+    steps and the error-test and Newton failures fall."""
+    import numpy as np
+
+    from pumpsim.kernels.pneumatic import parameter_vector
+    from pumpsim.tolerances import PUMPDOWN_ATOL, PUMPDOWN_RTOL
+
+    kern, p = kernels(cfg), parameter_vector(cfg)
+    x0 = run.initial_state(cfg, kern, p)
+    integ = run.PumpIntegrator(kern, p, PUMPDOWN_RTOL, PUMPDOWN_ATOL, run.state_scale(x0, p, kern.structure))
+    if integ.direct is None:
+        return None
+    pr = integ.direct.profile(0.0, np.concatenate([x0, np.zeros(integ.nq)]), span)
+    names = run.state_names(kern.structure.vanes) + list(run.QUAD_NAMES)
+    E2 = pr["weighted_error"] ** 2
+    lead = np.bincount(np.argmax(E2, axis=1), minlength=len(names)) / len(E2)
+    sq = E2.sum(axis=0) / E2.sum()
+    order = np.argsort(-lead)[:6]
+    dominant = {names[i]: {"steps_share": float(lead[i]), "error_share": float(sq[i])} for i in order}
+    pitch = 2 * np.pi / kern.structure.vanes
+    edges = np.linspace(0.0, np.degrees(pitch), bins + 1)
+    angle = np.degrees(np.mod(pr["angle"], pitch))
+    count = lambda w=None: np.histogram(angle, edges, weights=w)[0].astype(int).tolist()  # noqa: E731
+    rms = np.sqrt(E2.mean(axis=1))
+    res = {"span": span, "steps": len(rms), "dominant": dominant, "pitch_deg": float(np.degrees(pitch)),
+           "bin_edges_deg": edges.tolist(), "steps_by_angle": count(),
+           "error_test_failures_by_angle": count(pr["error_test_failures"]),
+           "newton_failures_by_angle": count(pr["newton_failures"]),
+           "error_norm_median": float(np.median(rms))}
+    print(f"  step profile, first {span:g} s: {res['steps']} steps, median error norm {res['error_norm_median']:.2f} "
+          "(1 = at the tolerance); the local error led by " + ", ".join(
+              f"{n} {v['steps_share']:.0%}" for n, v in dominant.items()))
+    print(f"  by rotor angle in the vane pitch ({res['pitch_deg']:.0f} deg): from deg  steps  error-test  Newton")
+    for k in range(bins):
+        print(f"    {edges[k]:5.1f} {res['steps_by_angle'][k]:7d} {res['error_test_failures_by_angle'][k]:7d} "
+              f"{res['newton_failures_by_angle'][k]:7d}")
+    return res
 
 
 def cpu_split(cfg, full, st, cpu):

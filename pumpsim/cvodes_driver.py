@@ -74,6 +74,8 @@ def _build() -> ctypes.CDLL:
     dll.drv_free.argtypes = [p]
     dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
     dll.drv_block_solver.argtypes = [p, ctypes.c_int]
+    dll.drv_profile.argtypes = [p, ctypes.c_double, p, ctypes.c_double, ctypes.c_long, p, p]
+    dll.drv_rows.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_long, p, ctypes.c_long, ctypes.c_int, p, p]
     return dll
 
 
@@ -136,6 +138,21 @@ class KernelCall:
     def address(self) -> int:
         return ctypes.cast(self.fn, ctypes.c_void_p).value
 
+    def rows(self, X, sizes, wanted=None) -> list:
+        """The kernel at every row of X (n, nx) in one C loop (the driver library's): output k as
+        an (n, sizes[k]) array, None where `wanted` leaves it out; the outputs dense."""
+        X = np.ascontiguousarray(X, dtype=float)
+        outs = [np.empty((X.shape[0], s)) if wanted is None or wanted[k] else None for k, s in enumerate(sizes)]
+        ptrs = np.array([0 if o is None else _ptr(o) for o in outs], dtype=np.uintp)
+        size = np.asarray(sizes, dtype=np.int64)
+        lib = library()
+        if lib is None:
+            raise OSError(available()[1])
+        if lib.drv_rows(self.address(), _ptr(self.arg), _ptr(self.res), _ptr(self.iw), _ptr(self.w), self.slot,
+                        X.shape[0], _ptr(X), X.shape[1], len(sizes), _ptr(ptrs), _ptr(size)):
+            raise SolverError("a compiled kernel failed to evaluate")
+        return outs
+
 
 def kernel_library(kern) -> Path:
     """The compiled library of a loaded variant (kern: kernels.*'s loaded kernels)."""
@@ -156,7 +173,8 @@ class Driver:
     or None (not wanted); atol: per component; jac_every: steps between Jacobian updates at
     most (CVODES' default 51); lin_size: the Jacobian's rows from lin_size on are zero (states
     that do not feed back, such as quadratures riding along): the Newton systems are then solved
-    on the leading block only, with the same results."""
+    on the leading block only, by the driver's own LU, with the same results as SUNDIALS' dense
+    solver (None) and faster; lin_size = n: the whole system by that LU."""
 
     def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
                  max_step=None, jac_every=None, lin_size=None):
@@ -194,7 +212,7 @@ class Driver:
             self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
         if not self.handle:
             raise OSError("SUNDIALS could not set up CVODES")
-        if lin_size is not None and lin_size < n and self.lib.drv_block_solver(self.handle, int(lin_size)):
+        if lin_size is not None and lin_size <= n and self.lib.drv_block_solver(self.handle, int(lin_size)):
             raise OSError("SUNDIALS could not set up the leading-block linear solver")
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
@@ -280,6 +298,24 @@ class Driver:
         else:
             self.last = (float(touts[-1]), Y[-1].copy())
         return Y
+
+    def profile(self, t0, y0, t_end, max_steps=200_000) -> dict:
+        """What limits the steps from y0 at t0 to t_end, step by step (a restart; the next run
+        restarts too): time, step, order, angle (y[0]), the error-test and Newton failures
+        before each accepted step, and `weighted_error` (steps, n): each component's local error
+        estimate times its error weight (the error test passes when their rms is <= 1)."""
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        rec, k = np.zeros((max_steps, 6 + self.n)), ctypes.c_long()
+        flag = self.lib.drv_profile(self.handle, float(t0), _ptr(y0), float(t_end), int(max_steps), _ptr(rec),
+                                    ctypes.byref(k))
+        self.last = None
+        if flag < 0:
+            msg = self.lib.drv_message(self.handle).decode(errors="replace")
+            raise SolverError(f"CVODES failed (flag {flag}): {msg or 'no message'}")
+        r = rec[:k.value]
+        return {"time": r[:, 0], "step": r[:, 1], "order": r[:, 2].astype(int), "angle": r[:, 3],
+                "error_test_failures": r[:, 4].astype(int), "newton_failures": r[:, 5].astype(int),
+                "weighted_error": r[:, 6:]}
 
     @property
     def stats(self) -> dict:

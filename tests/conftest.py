@@ -54,7 +54,9 @@ def pytest_unconfigure(config):
         for folder in cache.glob("*-*"):
             if not folder.is_dir() or (ROOT / "generated" / folder.name).exists():
                 continue
-            if (kept / folder.name).exists():  # the fingerprints it now lists
+            if (kept / folder.name).exists():  # the fingerprints it now lists (a driver has no manifest)
+                if not (folder / "manifest.json").exists():
+                    continue
                 shutil.copy2(folder / "manifest.json", kept / folder.name / "manifest.json")
             else:
                 shutil.copytree(folder, kept / folder.name)

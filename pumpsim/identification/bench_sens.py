@@ -66,7 +66,7 @@ class DirectRuns:
         pbuf = rhs.keep[1]  # the one buffer both kernels read (KernelCall keeps contiguous arrays as given)
         fj = self.kern["pump_rhs_jac"]
         d = cvodes_driver.Driver(self.nx, rhs, [0, -1], jac, [(fj.sparsity_out(0), 0), None], self.rtol,
-                                 self.atol * self.S, max_order=MAX_ORDER, max_steps=MAX_STEPS)
+                                 self.atol * self.S, max_order=MAX_ORDER, max_steps=MAX_STEPS, lin_size=self.nx)
         d.set_drive(pbuf, self.iv, self.grid[1] - self.grid[0], self.volt)
         return d, pbuf
 

@@ -255,9 +255,13 @@ def state_scale(x0, p, st):
 
 
 def evaluate_outputs(kern, X, p, names=None):
-    """pump_outputs over the rows of X (n, nx); long runs in blocks of OUTPUT_BLOCK rows (the last
+    """pump_outputs over the rows of X (n, nx): by the direct driver's row loop into NumPy arrays
+    where it is available (the same compiled function, no map to make, no padding, no conversion
+    of CasADi matrices), else CasADi's map, long runs in blocks of OUTPUT_BLOCK rows (the last
     one padded) so that one cached map serves every run (making a map costs ~0.1 s)."""
     f = kern["pump_outputs"]
+    if cvodes_driver.available()[0]:
+        return _outputs_by_rows(kern, f, X, p, names)
     n = X.shape[0]
     P = np.asarray(p).reshape(-1, 1)
     if n <= OUTPUT_BLOCK:
@@ -276,6 +280,16 @@ def evaluate_outputs(kern, X, p, names=None):
             continue
         out[nm] = a.ravel() if a.shape[0] == 1 else a.T  # per cell/vane: (n, N)
     return out
+
+
+def _outputs_by_rows(kern, f, X, p, names):
+    """evaluate_outputs through cvodes_driver's row loop: scalars (n,), vectors (n, size)."""
+    call = cvodes_driver.KernelCall(cvodes_driver.kernel_library(kern), "pump_outputs",
+                                    [np.zeros(f.size1_in(0)), np.asarray(p, float)], 0)
+    sizes = [f.sparsity_out(k).numel() for k in range(f.n_out())]
+    wanted = [names is None or nm in names for nm in f.name_out()]
+    cols = call.rows(np.asarray(X, float).reshape(-1, f.size1_in(0)), sizes, wanted)
+    return {nm: (a[:, 0] if a.shape[1] == 1 else a) for nm, a, w in zip(f.name_out(), cols, wanted) if w}
 
 
 def _reed_switch(kern, p, X, mode):

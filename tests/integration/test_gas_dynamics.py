@@ -144,3 +144,24 @@ def test_ideal_pump_down_law_and_isothermal_ultimate_pressure():
     # next cell, which takes it out -- ~1 % of p_u with this 0.001 rad window, gone as the window
     # shrinks; the closed form assumes isolated cells.)
     assert pb[-1] == pytest.approx(p_u, rel=ULTIMATE_PRESSURE_REL)
+
+
+def test_outputs_by_the_drivers_row_loop_are_casadis_map_bit_for_bit(monkeypatch):
+    """evaluate_outputs through the direct driver's row loop gives every output of CasADi's map
+    (its fall-back) to the last bit, in the same shapes, and a subset when names are given."""
+    from pumpsim import cvodes_driver
+
+    if not cvodes_driver.available()[0]:
+        pytest.skip(f"direct CVODES driver not available: {cvodes_driver.available()[1]}")
+    cfg = speed_config()
+    r = run.integrate(cfg, 0.01, 4000)
+    kern, p = kernels(cfg), parameter_vector(cfg)
+    rows = run.evaluate_outputs(kern, r.states, p)
+    some = run.evaluate_outputs(kern, r.states, p, ["torque", "pressure"])
+    monkeypatch.setenv(cvodes_driver.ENV, "casadi")
+    mapped = run.evaluate_outputs(kern, r.states, p)
+    assert set(rows) == set(mapped) and set(some) == {"torque", "pressure"}
+    for name, a in mapped.items():
+        assert rows[name].shape == a.shape and np.array_equal(rows[name], a), name
+    assert np.array_equal(some["pressure"], mapped["pressure"])
+    assert np.ptp(mapped["torque"]) > 0  # the rows differ: not one state repeated

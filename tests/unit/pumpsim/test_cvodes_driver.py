@@ -136,19 +136,56 @@ def oscillator_with_quadrature(tmp_path_factory):
 
 
 def test_the_leading_block_solver_gives_the_full_solvers_steps_and_states(oscillator_with_quadrature):
-    """lin_size: the Newton systems solved on the states' block alone are the full dense solver's
-    to the last bit (same steps, states and quadrature), and the quadrature is the integral."""
+    """lin_size: the Newton systems solved on the states' block alone, or on the whole system by
+    the driver's own LU, are SUNDIALS' dense solver's to the last bit (same steps, states and
+    quadrature), and the quadrature is the integral."""
     so, sp_x, sp_q = oscillator_with_quadrature
     t = np.linspace(0.0, 0.5, 51)
     runs = {}
-    for lin_size in (None, 2):
+    for lin_size in (None, 2, 3):
         y, p = np.zeros(3), np.array([W])
         rhs = cvodes_driver.KernelCall(so, "g", [y, p], 0)
         jac = cvodes_driver.KernelCall(so, "g_jac", [y, p], 0)
         d = cvodes_driver.Driver(3, rhs, [0, 2], jac, [(sp_x, 0), (sp_q, 2)], OSCILLATOR_RTOL,
                                  np.full(3, 1e-12), lin_size=lin_size)
         runs[lin_size] = (d.run(0.0, np.array([0.0, 1.0, 0.0]), t[1:]), d.stats)
-    (full, st_full), (block, st_block) = runs[None], runs[2]
+    (full, st_full), (block, st_block), (own, st_own) = runs[None], runs[2], runs[3]
     assert np.array_equal(full, block) and st_full == st_block
+    assert np.array_equal(full, own) and st_full == st_own  # the driver's LU on the whole system
     exact = t[1:] / 2 + np.sin(2 * W * t[1:]) / (4 * W)  # integral of cos^2(W t)
     assert np.max(np.abs(block[:, 2] - exact)) <= OSCILLATOR_REL * np.max(exact)
+
+
+def test_the_step_profile_is_the_runs_steps_and_error_test(oscillator):
+    """Driver.profile takes the steps a run takes (same count and failures as a run to the same
+    end), every accepted step's weighted local errors pass the error test (rms <= 1), and the
+    step count stays cumulative across the restart it makes."""
+    x0, t_end = np.array([0.0, 1.0]), 0.5
+    ref, _ = _driver(oscillator)
+    ref.run(0.0, x0, np.array([t_end]))
+    d, _ = _driver(oscillator)
+    pr = d.profile(0.0, x0, t_end)
+    n = len(pr["time"])
+    assert pr["time"][-1] >= t_end > pr["time"][-2]
+    assert n == ref.stats["nsteps"]  # an output time inside the last step ends it by interpolation
+    assert pr["error_test_failures"].sum() == ref.stats["netfails"]
+    assert pr["newton_failures"].sum() == ref.stats["nncfails"]
+    rms = np.sqrt(np.mean(pr["weighted_error"] ** 2, axis=1))
+    assert np.all(rms <= 1.0) and np.median(rms) > 1e-3  # near the tolerance, not zero
+    assert np.allclose(np.diff(pr["time"]), pr["step"][1:])
+    assert set(pr["order"]) <= set(range(1, 6))
+    assert np.max(np.abs(pr["angle"] - np.sin(W * pr["time"]) / W)) <= OSCILLATOR_REL / W  # y[0] per step
+    d.run(0.0, x0, np.array([t_end]))  # restarted after the profile: the counts go on from it
+    assert d.stats["nsteps"] == 2 * n
+
+
+def test_rows_evaluates_the_kernel_at_every_row_as_casadi_does(oscillator):
+    """KernelCall.rows: the compiled kernel at each row of X in one C loop, the values of CasADi's
+    map of the same compiled function bit for bit; an output not wanted is not computed into."""
+    so, _ = oscillator
+    X = np.random.default_rng(3).normal(size=(7, 2))
+    call = cvodes_driver.KernelCall(so, "f", [np.zeros(2), np.array([W])], 0)
+    (out,) = call.rows(X, [2])
+    ref = np.asarray(ca.external("f", str(so)).map(7)(X.T, W)).T
+    assert np.array_equal(out, ref) and np.array_equal(out[:, 1], -W**2 * X[:, 0])
+    assert call.rows(X, [2], wanted=[False]) == [None]
