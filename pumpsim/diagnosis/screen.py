@@ -235,17 +235,18 @@ def _partner(state: State, lin: _Linear, Je_w, opts: DiagnosisOptions) -> str | 
     return state.names[int(np.argmax(c))]
 
 
-def score_test(state: State, cand: Candidate, start=True, opts: DiagnosisOptions = OPTIONS) -> Score:
+def score_test(state: State, cand: Candidate, start=True, opts: DiagnosisOptions = OPTIONS, lin=None) -> Score:
     """LM statistic for adding `cand` at the current fit (prewhitened GLS score test): the
     statistic, p-value, the collinearity with the fitted parameters and (start=True) a start for
     the refit with the nonlinear residual there. `start` may be a column subset of the
     candidate's parameters (one of several the data cannot tell apart): the start is then made
-    with only those moved."""
-    lin = _linearised(state, cand)
+    with only those moved. `lin`: the candidate's linearisation at this state when the caller has
+    it (the tied subsets share one)."""
+    lin = _linearised(state, cand) if lin is None else lin
     quad = lin.pairs is not None
     subsets = _independent_subsets(lin.Me, opts) if not quad else [list(range(lin.Me.shape[1]))]
     if len(subsets) > 1 and start is True:  # tied: the subset whose one-step fit is best, not the pivot's
-        tried = [score_test(state, cand, start=subset, opts=opts) for subset in subsets]
+        tried = [score_test(state, cand, start=subset, opts=opts, lin=lin) for subset in subsets]
         best = min(tried, key=lambda o: o.one_step_rss / max(o.n, 1))
         return dataclasses.replace(best, tied=tuple(o for o in tried if o is not best))  # refitted too
     keep = list(start) if isinstance(start, list) else subsets[0]

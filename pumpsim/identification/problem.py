@@ -21,6 +21,7 @@ from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
 from .interval import smooth_interval_columns, stepped_samples, subpoint_offsets
 from .reversals import reversal_keep
+from .runs import MODEL_RUNS
 from .sampled import drive_motion, pointwise_columns, simd_torque, simd_torque_designs
 from .start import periodic_config_names, phase_and_speed_start
 
@@ -192,7 +193,10 @@ class ConstantSpeedProblem(Problem):
                                   self.ripple_order)
         t = self.tau if lib is np else ca.DM(self.tau)
         thn = th0 + w0 * (t - dl)
-        theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
+        if lib is np and rc == 0 and rs == 0:  # no ripple: ripple_motion's values, without its sines
+            theta, g = thn + 0.0, 1.0
+        else:
+            theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
         if lib is not np:
             return theta, None
         # each column computed only when fitted (at 10^6 samples each is 8 MB)
@@ -223,22 +227,14 @@ class ConstantSpeedProblem(Problem):
         return self._simd_lib
 
     def _torque(self, theta, z, kin):
-        """torque_at, the last few short runs remembered: a fit asks for the same model again (a
-        step's trial point, then its Jacobian; the mask and the model at one x)."""
-        memo = self.__dict__.setdefault("_torque_memo", [])
-        fast = self._simd
-        key = (fast is None, np.asarray(z, dtype=float).tobytes())
-        for k, th, kn, val in memo:
-            if k == key and all(a is b for a, b in zip(kn, kin)) and np.array_equal(th, theta):
-                return val.copy()
-        if fast is None:
-            tq = torque_at(self.kern, theta, z, self.ripple_order, *kin)
-        else:
-            tq = simd_torque(fast, theta, z, self.ripple_order, *kin)
-        if np.size(theta) <= TORQUE_MEMO_SAMPLES:
-            memo.insert(0, (key, np.array(theta), tuple(kin), tq.copy()))
-            del memo[TORQUE_MEMO:]
-        return tq
+        """torque_at, the last few short runs of any problem remembered (runs.MODEL_RUNS): a fit asks
+        for the same model again (a step's trial point, then its Jacobian; the mask and the model
+        at one x), and every candidate of a screen for the current fit's."""
+        fast, z = self._simd, np.asarray(z, dtype=float)
+        lib = self.kern if fast is None else fast
+        run = (lambda: (torque_at(lib, theta, z, self.ripple_order, *kin),)) if fast is None else (
+            lambda: (simd_torque(fast, theta, z, self.ripple_order, *kin),))
+        return MODEL_RUNS.get(("torque", lib, self.ripple_order, z.tobytes()), (theta, *kin), run)[0]
 
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
@@ -322,7 +318,9 @@ class ConstantSpeedProblem(Problem):
         if fast is not None:
             if not cols:
                 return self._torque(theta, z, kin), np.zeros((theta.size, 0))
-            return pointwise_columns(fast, theta, z, self.ripple_order, kin, self._seeds[:, cols])
+            seeds = self._seeds[:, cols]
+            return MODEL_RUNS.get(("columns", fast, self.ripple_order, z.tobytes(), seeds.tobytes(), seeds.shape),
+                                  (theta, *kin), lambda: pointwise_columns(fast, theta, z, self.ripple_order, kin, seeds))
         f = sample_torque(self.kern, max(1, len(cols)), theta.size)
         tq, J = f(theta, kin[0], z, self.ripple_order, kin[1], kin[2], self._seeds[:, cols or [0]])
         return np.asarray(tq).ravel(), np.asarray(J).reshape(theta.size, -1)[:, :len(cols)]
@@ -419,7 +417,6 @@ class ConstantSpeedProblem(Problem):
         return self.z(x)[:self.p0.size]
 
 
-TORQUE_MEMO, TORQUE_MEMO_SAMPLES = 4, 1 << 16  # model runs a problem remembers, up to this length
 INTERVAL_SUBPOINTS = 8  # points per sample interval of the interval-average model
 INTERVAL_STEP = 5e-5  # its difference step, of the housing's larger semi-axis (~1 um on a 22 mm housing)
 
@@ -555,7 +552,10 @@ def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
     the slot COF in the configured slot/housing proportion (ratios[2]); an alias sets its targets
     (housing.radius: both semi-axes); any other name is a
     parameter path; a derived default in `follow` is recomputed from its fitted inputs."""
-    p = [p0[i] for i in range(p0.shape[0])]
+    numeric = isinstance(p0, np.ndarray) and all(isinstance(e, NUMBERS) for e in val.values())
+    # numbers: one float array written in place (the same float operations, ~10x less Python
+    # than a list of ~40 scalars checked one by one); expressions: a list for CasADi's vertcat
+    p = np.array(p0, dtype=float).reshape(-1) if numeric else [p0[i] for i in range(p0.shape[0])]
 
     def setp(name, expr):
         p[index[name]] = expr
@@ -577,6 +577,11 @@ def parameter_map(index, p0, val, mu_slot_fixed, ratios, follow=()):
     for q in follow:
         if any(n in val for n in q.inputs):
             setp(q.name, derive(q.derived, {n: p[index[n]] for n in q.inputs}))
-    if all(isinstance(e, (float, int, np.floating, np.integer)) for e in p):
+    if numeric:
+        return p.reshape(-1, 1)
+    if all(isinstance(e, NUMBERS) for e in p):
         return np.array(p, dtype=float).reshape(-1, 1)  # numbers: CasADi's vertcat costs ~0.5 ms a call
     return ca.vertcat(*p)
+
+
+NUMBERS = (float, int, np.floating, np.integer)

@@ -102,6 +102,9 @@ def drive_tangents(tau, zs, k, g, gd, seeds):
     th0, w0, dl, _, rc, rs = zs
     d0, dw0, ddl, _, drc, drs = (np.asarray(r)[None, :] for r in seeds)
     tau, g, gd = (np.asarray(a, dtype=float)[:, None] for a in (tau, g, gd))
+    if rc == 0 and rs == 0 and not drc.any() and not drs.any():  # no ripple, none fitted: the terms
+        dw_r = np.broadcast_to(dw0, (tau.shape[0], dw0.shape[1]))  # below without their sines (zeros)
+        return dw_r * g, dw_r * gd
     thn = th0 + w0 * (tau - dl)
     c, s = np.cos(k * thn), np.sin(k * thn)
     dthn = d0 + dw0 * (tau - dl) - ddl * w0
