@@ -10,8 +10,13 @@ the values each part of the log asks for differ. A model that describes the log 
 values everywhere, up to the noise. The test is the torque workflow's stationarity test
 (stationarity.homogeneity: per-part linearised estimates at the fit, their spread against their
 covariance, chi-square), on time thirds of the log (a pump-down: falling pressure ranges), and
-the disagreement must be relevant as a named effect must: worth a quarter noise sigma (RMS) of
-model change. It costs no model run: the fit's residual and Jacobian are reused.
+the disagreement must be relevant: worth a quarter noise sigma (RMS) of model change, as a named
+effect must, or a share (NAMED_SHARE) of what the named effects explain. The second measure is the
+named effects': a gap of the model's form confined to one channel and one pressure range (the
+current at high pressure) is diluted by every sample of the log in an RMS, yet a pair of fitted
+parameters trading against each other (the vane COF and the motor friction) can take it up, and be
+named for the part of it their trade can reach. It costs no model run: the fit's residual and
+Jacobian are reused.
 
 When it fires, no library effect is named: the verdict is `model inadequate` with the parameter
 whose parts disagree most, its value on each part, and their times and booster pressures.
@@ -27,6 +32,9 @@ from .options import OPTIONS, DiagnosisOptions
 from .stationarity import homogeneity
 
 GUARD_PARTS = 3  # time thirds: a pump-down's high, middle and low pressures
+# a disagreement worth this share of the residual sum of squares the named effects removed is
+# relevant: the named model leaves a structure of the size of what it claims to have found
+NAMED_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -64,13 +72,15 @@ def part_labels(times: list, parts: int = GUARD_PARTS) -> np.ndarray:
 
 
 def consistency(names, values, residual, jacobian, times, pressure, opts: DiagnosisOptions = OPTIONS,
-                parts: int = GUARD_PARTS) -> dict:
+                parts: int = GUARD_PARTS, explained: float = 0.0) -> dict:
     """The guard's test of a fitted model: `names` its fitted names at `values`, `residual` and
     `jacobian` at the fit in noise sigmas (stacked channels), `times` each channel's sample times,
     `pressure` (times, booster pressures) to say where a part lies. The parts' intervals are the
     noise's (the residual is in noise sigmas): a remainder the model leaves counts against it, as it
-    should -- scaling by the residual's own scatter would excuse the worst models most. JSON-ready:
-    {"fires", "statistic", "dof", "p_value", "alpha", "size", "relevant", "parts", "worst"}."""
+    should -- scaling by the residual's own scatter would excuse the worst models most. `explained`:
+    the residual sum of squares the named effects removed from the baseline fit (noise sigmas
+    squared; 0: none named). JSON-ready: {"fires", "statistic", "dof", "p_value", "alpha", "size",
+    "relevant", "excess", "explained", "parts", "worst"}."""
     r = np.asarray(residual, float)
     J = np.asarray(jacobian, float)
     labels = part_labels(times, parts)
@@ -97,7 +107,9 @@ def consistency(names, values, residual, jacobian, times, pressure, opts: Diagno
     # claimed as an effect is: significant and relevant -- letting the parameters differ between the
     # parts must change the model by at least the naming size (RMS, noise sigmas; the statistic is
     # the residual sum of squares it removes, its expectation under agreement subtracted)
-    size = float(np.sqrt(max(h.statistic - h.dof, 0.0) / max(int(used.sum()), 1)))
-    return {"fires": bool(h.dof and h.p_value < alpha and size >= opts.named_size), "statistic": h.statistic,
+    excess = max(h.statistic - h.dof, 0.0)
+    size = float(np.sqrt(excess / max(int(used.sum()), 1)))
+    relevant = size >= opts.named_size or (explained > 0.0 and excess >= NAMED_SHARE * explained)
+    return {"fires": bool(h.dof and h.p_value < alpha and relevant), "statistic": h.statistic,
             "dof": h.dof, "p_value": h.p_value, "alpha": alpha, "size": size, "relevant": opts.named_size,
-            "parts": len(h.labels), "worst": worst}
+            "excess": float(excess), "explained": float(explained), "parts": len(h.labels), "worst": worst}

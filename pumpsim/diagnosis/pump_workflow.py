@@ -242,7 +242,7 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
         steps.append(step_record)
         history.append(_model_fit(step_record.effect.name, current))
         detection = _detect(current, options)
-    return _result(run, base, current, detection, steps, history, ranking, wall0, _guard(current, options))
+    return _result(run, base, current, detection, steps, history, ranking, wall0, _guard(current, options, base))
 
 
 def _fit(run, names, values, start) -> Fit:
@@ -295,15 +295,17 @@ def _detect(fit: Fit, opts) -> BenchDetection:
                           p.channel_names, len(fit.names), opts)
 
 
-def _guard(fit: Fit, opts) -> dict:
-    """The final model's consistency over the log's time parts (pump_guard): no run."""
+def _guard(fit: Fit, opts, base: Fit) -> dict:
+    """The final model's consistency over the log's time parts (pump_guard), its relevance measured
+    also against what the named effects explain (the baseline `base`'s residual less the fit's): no run."""
     p = fit.prob
     inner = p.drives.get(0.0)
     # the start pressure is a nuisance of the first samples alone: the parts are compared in the rest
     keep = [j for j, n in enumerate(fit.names) if n != START_NAME]
     return consistency([fit.names[j] for j in keep], fit.values, fit.residual, fit.jacobian[:, keep],
                        [inner.bench.times(c) for c in p.channel_names],
-                       (inner.bench.times("booster_pressure"), inner.measured["booster_pressure"]), opts)
+                       (inner.bench.times("booster_pressure"), inner.measured["booster_pressure"]), opts,
+                       explained=max(float(base.residual @ base.residual - fit.residual @ fit.residual), 0.0))
 
 
 def _screen(run, current: Fit, effects) -> list:

@@ -89,21 +89,32 @@ def verdict_html(out) -> str:
             + "".join(f"<li>{x}</li>" for x in items) + "</ul></div>")
 
 
+def _fit_rows(label, params: dict, rms: float) -> list:
+    rows = []
+    for n, v in params.items():
+        unit, est, ci = _param(n, v)
+        rows.append([Cell(label), Cell(n), Cell(unit), Cell(nb(est), True, raw=True), Cell(nb(ci), True, raw=True),
+                     Cell("", True), Cell(f"{rms:.4g}", True)] + [Cell("", True)] * 4)
+    return rows
+
+
 def effects_table(out) -> str:
-    """Baseline and each named effect: its parameter as fitted, the RMS it left, its tests."""
+    """The baseline fit, each named effect (its parameter as the final model holds it), the RMS it
+    left and its tests, and the final model's other figures: a named effect refits the vane COF, so
+    the baseline's is not the pump's."""
     headers = ["step", "parameter", "unit", "estimate ± s.e.", "95 % interval", "RMS before", "RMS after",
                "size", "score p", "LR p", "BIC before → after"]
-    rows = []
-    for n, v in out.baseline["params"].items():
-        unit, est, ci = _param(n, v)
-        rows.append([Cell("baseline"), Cell(n), Cell(unit), Cell(nb(est), True, raw=True), Cell(nb(ci), True, raw=True),
-                     Cell("", True), Cell(f"{out.baseline['rms']:.4g}", True)] + [Cell("", True)] * 4)
+    rows = _fit_rows("baseline", out.baseline["params"], out.baseline["rms"])
+    final = out.final.get("params", {}) if out.steps else {}
     for s in out.steps:
-        unit, est, ci = _param(s.effect.param, s.params.get(s.effect.param, {}))
+        unit, est, ci = _param(s.effect.param, final.get(s.effect.param, s.params.get(s.effect.param, {})))
         rows.append([Cell(s.effect.name), Cell(s.effect.param), Cell(unit), Cell(nb(est), True, raw=True),
                      Cell(nb(ci), True, raw=True), Cell(f"{s.rms_before:.4g}", True), Cell(f"{s.rms_after:.4g}", True),
                      Cell(f"{s.size:.3g}", True), Cell(_p(s.p_value), True), Cell(_p(s.lr_p_value), True),
                      Cell(nb(f"{s.bic_before:.1f} → {s.bic_after:.1f}"), True, raw=True)])
+    named = {s.effect.param for s in out.steps}
+    rows += _fit_rows(f"final (with {', '.join(s.effect.name for s in out.steps)})",
+                      {n: v for n, v in final.items() if n not in named}, out.final.get("rms", float("nan")))
     return (table(headers, rows) + "<p class=note>RMS and size in noise σ (each channel over its own noise "
             "sigma). Size: the RMS of the model change the effect made. Score p: its screen's score test; "
             f"LR p: the likelihood-ratio test of its refit. ± one standard error; 95 % interval: estimate ± {Z95} "

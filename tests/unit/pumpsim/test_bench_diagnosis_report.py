@@ -53,3 +53,19 @@ def test_confounded_pair_names_its_experiment_and_unexplained_says_where(tmp_pat
     assert "in the booster pressure at t 0.2 … 0.5 s (booster pressure 34.74 … 63.27 kPa)" in html
     assert "mean residual +1 kPa" in html and "class=warn" in html
     assert len(re.findall(r"<img ", html)) == 1  # no before/after figure without a named effect
+
+
+def test_effects_table_shows_the_final_models_figures_not_the_baselines(tmp_path):
+    # a named motor friction refits the vane COF: the table must give the final model's, with the
+    # effect's parameter as the final model holds it (a later step may refit it)
+    step = BenchStep(EFFECT["motor_friction"], {"motor.friction": {"value": 0.031, "stderr": 0.001}, "change": 0.021},
+                     3.0, 0.98, 1e-6, 30.0, 1e-9, 400.0, 10.0, 1.6)
+    res = result([step])
+    final = {"mu": {"value": 0.1432, "stderr": 0.0011}, "motor.friction": {"value": 0.0297, "stderr": 0.0009}}
+    res = BenchDiagnosis(**{**res.__dict__, "final": {**res.final, "params": final}})
+    page = tmp_path / "r.html"
+    bench_diagnosis_report(res, page)
+    table = page.read_text().split("<table")[1]  # the effects table comes first
+    assert "final (with motor_friction)" in table
+    assert "0.1432" in table and "0.1700" in table  # the final vane COF beside the baseline's
+    assert "29.7" in table and "31.0" not in table  # mN m: the final friction, not the step's first fit
