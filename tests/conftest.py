@@ -1,6 +1,7 @@
 import math
 import os
 import shutil
+import signal
 import tempfile
 from pathlib import Path
 
@@ -13,6 +14,12 @@ from pumpsim.config import as_array, config_from_dict
 from pumpsim.geometry import check_geometry
 from pumpsim.kernels import load_kernels
 from tests.tolerances import TRUTH_ATOL, TRUTH_RTOL
+
+# A run started in the background of a non-interactive shell inherits SIGINT ignored, and so
+# would every process the interruption tests start (exec keeps an ignored signal ignored): they
+# send it on purpose.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
