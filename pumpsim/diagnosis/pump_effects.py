@@ -57,9 +57,18 @@ class PumpEffect:
     separate: str = ""
     # a change outside the library that reads the same on a pump-down log (said whenever it is named)
     alias: str = ""
+    # the effect exists only as a rise from its absent value: a fit that moves it the other way has
+    # found something else (what the wrong-way value absorbs), not this effect
+    one_way: str = ""
 
     def absent_value(self, cfg) -> float:
         return float(cfg.pneumatic.values[self.param]) if self.absent is None else self.absent
+
+    def wrong_way(self, change: float) -> str:
+        """Why a fitted change from the absent value is not this effect ('' when it may be)."""
+        if self.one_way and change <= 0.0:
+            return f"its fit moves {self.param} by {change:.3g} {self.unit}: {self.one_way}, not this effect"
+        return ""
 
 
 PUMP_EFFECTS = (
@@ -78,10 +87,11 @@ PUMP_EFFECTS = (
                unit="N m", separate="a free-running current with the inlet open at two voltages"),
     PumpEffect("supply_resistance", SUPPLY, 0.05, "a series resistance before the motor terminals "
                "(harness, connector, supply): a voltage drop the log does not show", absent=0.0, unit="ohm",
+               one_way="a negative series resistance",
                separate="the voltage logged at the motor terminals, or a stalled-rotor current at a low voltage "
                         "measured there (the winding resistance alone)"),
     PumpEffect("winding_heating", RISE, 0.05, "the winding resistance rises over the run (the winding warms up)",
-               absent=0.0, unit="ohm over the log",
+               absent=0.0, unit="ohm over the log", one_way="a winding that cools while it carries the pump-down's current",
                separate="the winding resistance measured before and after the run"),
     PumpEffect("winding_resistance", "motor.resistance", 0.05,
                "the winding resistance differs from the config (another batch, a warm motor)", unit="ohm",

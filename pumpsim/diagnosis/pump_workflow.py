@@ -25,7 +25,7 @@ from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import Budgeted, BudgetReached, DataNote, Note, TooSmall
+from .log import Budgeted, BudgetReached, DataNote, Note, Rejected, TooSmall
 from .options import OPTIONS, DiagnosisOptions
 from .pump_guard import Inconsistent, consistency
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
@@ -425,6 +425,10 @@ def _judge(run, current: Fit, group: list, detection) -> dict:
     size = min(float(np.sqrt(np.mean((fit.residual - current.residual) ** 2))),
                math.sqrt(max(float(current.residual @ current.residual - fit.residual @ fit.residual), 0.0) / n))
     passes = lr_p < run.opts.lr_alpha and comp.bic1 < comp.bic0 and bic1 < bic0
+    wrong_way = s.effect.wrong_way(fit.values[s.effect.param] - s.effect.absent_value(current.prob.drives.cfg))
+    if passes and wrong_way:
+        run.log.append(Rejected(s.effect.name, (wrong_way,)))
+        passes = False
     if passes and size < run.opts.named_size * detection.sigma:
         run.log.append(TooSmall(s.effect.name, size, run.opts.named_size, detection.sigma, NOISE_UNIT,
                                 "the logged channels"))

@@ -81,6 +81,25 @@ def test_each_effect_is_named_and_the_gap_shrinks(cfg, fault):
     assert step.params["change"] == pytest.approx(FAULTS[fault], rel=0.5), str(res)
 
 
+def test_one_way_effects_refuse_a_fit_that_moves_them_back():
+    heating, supply, friction = (next(e for e in PUMP_EFFECTS if e.name == n)
+                                 for n in ("winding_heating", "supply_resistance", "motor_friction"))
+    assert heating.wrong_way(0.15) == "" and supply.wrong_way(0.08) == ""
+    assert "cools" in heating.wrong_way(-0.006) and "negative" in supply.wrong_way(-0.01)
+    assert heating.wrong_way(0.0)  # no rise at all is not a heating either
+    assert friction.wrong_way(-0.01) == ""  # a friction below the config's is a finding, not a contradiction
+
+
+@pytest.mark.slow
+def test_a_winding_that_cools_is_not_named_a_heating(cfg):
+    """The same log as a heating's, the resistance falling over the run instead: whatever else
+    is said, winding_heating is not named, and the notes say why."""
+    res = diagnosed(cfg, "winding_heating", -FAULTS["winding_heating"])
+    assert "winding_heating" not in res.effects, str(res)
+    assert not any("winding_heating" in p for p in res.confounded), str(res)
+    assert any("winding_heating rejected" in n and "cools" in n for n in res.notes), str(res)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("fault", ["booster_leak", "tip_clearance"])
 def test_a_leak_and_worn_tips_are_confounded_on_a_short_log_not_guessed(cfg, fault):
