@@ -292,6 +292,7 @@ def test_named_size_measured_against_the_noise_under_the_candidate():
     assert out["effects"] == ["rotor_eccentricity"], str(out["effects"]) + str(out["notes"])
 
 
+@pytest.mark.slow  # ~55-70 s on 2 cores: make test-all (make test was 9 min 50 s quiet)
 def test_smooth_rivals_compared_at_their_optima():
     """A smooth contender's fit is also started from the phase-and-speed scan (its cost is a
     staircase in theta0 and speed, and a fit from the one-step start stays on its step): the reduced
