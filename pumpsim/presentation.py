@@ -287,11 +287,13 @@ def provenance(cfg=None, data=None, kernel_key=None, files=(), command=None) -> 
 
 
 def kernel_key_of(cfg, model: str = "constrained") -> str | None:
-    """Variant and cache key of the compiled kernel the config selects (never builds one)."""
+    """Variant and cache key of the compiled kernel the config selects for `model` (constrained,
+    contact, or pneumatic: the pump-down's gas model) (never builds one)."""
     try:
         from .kernels import load_kernels
+        from .kernels.pneumatic import structure_of
 
-        st = cfg.parameters(model).structure
+        st = structure_of(cfg) if model == "pneumatic" else cfg.parameters(model).structure
         return f"{st.variant}-{load_kernels(st, build=False).key}"
     except Exception:  # provenance must never break a report  # noqa: BLE001
         return None

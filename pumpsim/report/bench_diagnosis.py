@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import html
 
-from ..presentation import describe, engineering_scale, fmt_estimate, fmt_interval, provenance
+from ..presentation import describe, engineering_scale, fmt_estimate, fmt_interval, kernel_key_of, provenance
 from .benchlog import CHANNELS, channel_figure, effects_figure
 from .html import Cell, nb, provenance_html, provenance_line, table, write_page
 
@@ -159,7 +159,8 @@ def bench_diagnosis_report(out, path, title=None, cfg=None, log=None, provenance
     BenchLog diagnosed (for the title and the provenance block); provenance_rows: its rows instead."""
     name = cfg.name if cfg is not None else "bench log"
     title = title or f"pumpsim bench-log diagnosis: {name}"
-    rows_p = provenance_rows if provenance_rows is not None else provenance(cfg, log)
+    rows_p = provenance_rows if provenance_rows is not None else provenance(
+        cfg, log, kernel_key=kernel_key_of(cfg, "pneumatic") if cfg is not None else None)
     parts = [f"<h1>{html.escape(title)}</h1>", provenance_line(rows_p), verdict_html(out),
              "<h2>Effects</h2>", effects_table(out)]
     if out.steps:

@@ -219,6 +219,7 @@ def test_cli_writes_the_html_report_of_a_bench_log_diagnosis(tmp_path, cfg):
     assert "<h2>Effects</h2>" in html and ">mu<" in html
     assert len(re.findall(r"<img [^>]*src=\"data:image/png;base64,", html)) == 1
     assert "<h2>Provenance</h2>" in html and hashlib.sha256(path.read_bytes()).hexdigest() in html
+    assert "pneumatic-n" in html and "constrained-n" not in html  # the gas model's kernel, the one diagnosed
     assert "bench.csv" in html
     bad = subprocess.run([sys.executable, "-m", "pumpsim", "diagnose", str(cfg_path), str(path), "--report",
                           str(tmp_path / "d.txt")], capture_output=True, text=True, cwd=ROOT)
