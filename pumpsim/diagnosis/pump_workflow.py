@@ -374,10 +374,19 @@ def _search_step(run, current: Fit, screened: list, detection):
             break
         run.say(f"refitting {g[0].effect.name}")
         judged.append(_judge(run, current, g, detection))
-    passing = sorted((j for j in judged if j["passes"]), key=lambda j: j["bic1"])
+    fitting = sorted((j for j in judged if j["passes"]), key=lambda j: j["bic1"])
+    passing = [j for j in fitting if not j["wrong_way"]]
     if not passing:
         return None
     best = passing[0]
+    # a one-way effect that fits as well only when moved the impossible way says the log holds
+    # something the library does not describe: nothing is named at this step
+    blocker = next((j for j in fitting if j["wrong_way"] and j["bic1"] - best["bic1"] < opts.bic_decisive), None)
+    if blocker is not None:
+        run.log.append(Rejected(best["group"][0].effect.name, (
+            f"{blocker['group'][0].effect.name} fits the log as well (BIC {blocker['bic1']:.1f} against "
+            f"{best['bic1']:.1f}) only the impossible way: the log holds a change the library does not describe",)))
+        return None
     rival = next((j for j in passing[1:] if j["bic1"] - best["bic1"] < opts.bic_decisive), None)
     if len(best["group"]) > 1 or rival is not None:
         first = best["group"][0].effect
@@ -428,7 +437,6 @@ def _judge(run, current: Fit, group: list, detection) -> dict:
     wrong_way = s.effect.wrong_way(fit.values[s.effect.param] - s.effect.absent_value(current.prob.drives.cfg))
     if passes and wrong_way:
         run.log.append(Rejected(s.effect.name, (wrong_way,)))
-        passes = False
     if passes and size < run.opts.named_size * detection.sigma:
         run.log.append(TooSmall(s.effect.name, size, run.opts.named_size, detection.sigma, NOISE_UNIT,
                                 "the logged channels"))
@@ -436,7 +444,7 @@ def _judge(run, current: Fit, group: list, detection) -> dict:
     run.say(f"{s.effect.name}: RMS {current.rms:.4g} -> {fit.rms:.4g}, BIC {comp.bic0:.1f} -> {comp.bic1:.1f}, "
             f"LR p {lr_p:.2g}, size {size:.3g}, {s.effect.param} = {fit.values[s.effect.param]:.4g}")
     return {"group": group, "fit": fit, "lr_p": lr_p, "bic0": bic0, "bic1": bic1, "size": size,
-            "passes": passes}
+            "passes": passes, "wrong_way": wrong_way}
 
 
 def _step(j: dict, current: Fit) -> BenchStep:
