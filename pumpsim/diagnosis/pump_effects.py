@@ -91,7 +91,8 @@ PUMP_EFFECTS = (
                separate="the voltage logged at the motor terminals, or a stalled-rotor current at a low voltage "
                         "measured there (the winding resistance alone)"),
     PumpEffect("winding_heating", RISE, 0.05, "the winding resistance rises over the run (the winding warms up)",
-               absent=0.0, unit="ohm over the log", one_way="a winding that cools while it carries the pump-down's current",
+               absent=0.0, unit="ohm over the log",
+               one_way="a winding that cools while it carries the pump-down's current",
                separate="the winding resistance measured before and after the run"),
     PumpEffect("winding_resistance", "motor.resistance", 0.05,
                "the winding resistance differs from the config (another batch, a warm motor)", unit="ohm",
