@@ -77,15 +77,15 @@ def as_datasets(data, options: DataOptions | None = None, nominal_speed=None) ->
     return out
 
 
-def bench_log(config: PumpConfig, data):
-    """The bench log `data` is (a BenchLog, or a file with a bench log's columns, read and checked
-    against `config`), or None for torque data."""
+def bench_log(config: PumpConfig, data, options: DataOptions | None = None):
+    """The bench log `data` is (a BenchLog, or a file with a bench log's columns, read with
+    `options` and checked against `config`), or None for torque data."""
     from .benchlog import BenchLog, is_bench_log, read_bench_log
 
     if isinstance(data, BenchLog):
         return data
-    if isinstance(data, (str, Path)) and is_bench_log(data):
-        return read_bench_log(data, config)
+    if isinstance(data, (str, Path)) and is_bench_log(data, options):
+        return read_bench_log(data, config, options)
     return None
 
 
@@ -130,7 +130,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
 
     cfg = as_config(config, force)
     params = [params] if isinstance(params, str) else (None if params is None else list(params))
-    log_data = bench_log(cfg, data)
+    log_data = bench_log(cfg, data, options)
     if log_data is not None:
         from .identification.pumpdown_fit import identify_bench
 
@@ -190,7 +190,7 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
-    log_data = bench_log(cfg, data)
+    log_data = bench_log(cfg, data, options)
     if log_data is not None:
         from .diagnosis.pump_workflow import diagnose_bench
 

@@ -11,13 +11,15 @@ samples lie far below it. Bad rows (NaN, time not increasing, gaps) are named as
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .data import (SPEED_UNITS, TIME_UNITS, match_column, read_csv, read_mat, read_tdms, row_name, time_gaps,
-                   time_resolution, unit_key)
+from .data import (SPEED_UNITS, TIME_UNITS, DataOptions, match_column, read_csv, read_mat, read_tdms, row_name,
+                   time_gaps, time_resolution, unit_key)
+from .data.units import split_header
 from .signals import noise_sigma
 from .errors import DataError
 
@@ -44,6 +46,19 @@ START_SAMPLES = 20  # samples a quadratic is fitted to for the log's start press
 ATMOSPHERE_MARGIN = 0.005
 VOLTAGE_FACTOR = 5.0  # a median voltage this far from motor.voltage is a unit mistake
 MIN_SAMPLES = 10
+# Names loggers give the bench channels, compared in lower case with runs of other characters as
+# '_' ('Motor Current (A)' -> 'motor_current'): tried for a channel left at its default name that no
+# column carries, and taken only when exactly one column answers
+ALIASES = {
+    "time": ("t", "time_s"),
+    "voltage": ("supply_voltage", "motor_voltage", "terminal_voltage", "battery_voltage", "supply", "u_supply",
+                "u_bat", "u_batt", "ubat", "vbat", "v_supply", "u"),
+    "current": ("motor_current", "supply_current", "i_motor", "i_mot", "imot", "i_supply", "i"),
+    "booster_pressure": ("pressure", "booster", "p_booster", "reservoir_pressure", "p_reservoir", "p"),
+    "speed": ("motor_speed", "pump_speed", "rotor_speed"),
+}
+UNIT_OPTION_OF = {"time": "time_unit", "voltage": "voltage_unit", "current": "current_unit",
+                  "booster_pressure": "pressure_unit", "speed": "speed_unit"}
 
 
 @dataclass
@@ -119,30 +134,55 @@ def _reader(p: Path):
     return {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
 
 
+def normalised(name: str) -> str:
+    """A column name compared with the channels' names and aliases: no unit, lower case, runs of
+    other characters as '_'."""
+    return re.sub(r"[^0-9a-z]+", "_", split_header(str(name))[0].lower()).strip("_")
+
+
+def _find(key: str, wanted: str, names: list, alias: bool):
+    hit = match_column(wanted, names)
+    if hit in names:
+        return hit
+    same = [c for c in names if normalised(c) == normalised(wanted)]
+    if len(same) == 1:
+        return same[0]
+    if alias:
+        like = [c for c in names if normalised(c) in ALIASES.get(key, ())]
+        if len(like) == 1:
+            return like[0]
+    return None
+
+
 def _pick(names, columns: dict) -> dict:
-    found = {k: match_column(v, names) for k, v in columns.items() if v}
-    return {k: v for k, v in found.items() if v in names}
+    """{channel: the file's column} for the channels found; `columns`: channel -> (wanted name,
+    whether its aliases may answer)."""
+    names = list(names)
+    found = {k: _find(k, w, names, alias) for k, (w, alias) in columns.items() if w}
+    return {k: v for k, v in found.items() if v is not None}
 
 
-def _columns(time="time", speed="speed") -> dict:
-    return {"time": time, "voltage": "voltage", "current": "current", "booster_pressure": "booster_pressure",
-            "speed": speed, "torque": "torque"}
+def _columns(options: DataOptions) -> dict:
+    default = DataOptions()
+    # DataOptions names each channel's column in the field of the channel's name
+    cols = {k: (getattr(options, k), getattr(options, k) == getattr(default, k)) for k in UNIT_OPTION_OF}
+    cols["torque"] = (options.torque, False)
+    return cols
 
 
-def is_bench_log(path, time="time", speed="speed") -> bool:
+def is_bench_log(path, options: DataOptions | None = None) -> bool:
     """Whether the file is a bench log: two or more of voltage, current, booster_pressure and no
     torque column (a torque measurement may log the supply too). An unreadable file is not one
     (load_data then says why)."""
     p = Path(path)
     if not p.is_file():
         return False
-    cols = _columns(time, speed)
+    cols = _columns(options or DataOptions())
     try:
         src = _reader(p)(p, lambda names: _pick(names, {"time": cols["time"]}))
     except DataError:
         return False
-    names = list(src.names or src.cols)
-    found = _pick(names, cols)
+    found = _pick(src.names or src.cols, cols)
     return "torque" not in found and sum(c in found for c in CHANNELS) >= 2
 
 
@@ -162,39 +202,45 @@ def unit_of(key: str, unit: str | None, where: str) -> tuple[float, str | None]:
     raise DataError(f"{where}: {key} unit must be one of {UNIT_NAMES[key]}, got '{unit}'")
 
 
-def read_bench_log(path, cfg=None, time="time", speed="speed", time_unit=None, speed_unit=None) -> BenchLog:
+def read_bench_log(path, cfg=None, options: DataOptions | None = None) -> BenchLog:
     """Read and validate a bench log (spec §10). cfg (a §8 config in motor mode): its booster start
-    and motor voltage judge the pressure's gauge/absolute reading and the voltage's unit."""
+    and motor voltage judge the pressure's gauge/absolute reading and the voltage's unit. options:
+    the columns' names and units where the file's differ (DataOptions.voltage, .current,
+    .booster_pressure, .time, .speed and their units)."""
     p = Path(path)
     try:
-        return _load(p, cfg, _columns(time, speed), time_unit, speed_unit)
+        return _load(p, cfg, options or DataOptions())
     except DataError as e:
         msg = str(e)
         raise DataError(msg if msg.startswith(f"data '{p}'") else f"data '{p}': {msg}") from None
 
 
-def _load(p: Path, cfg, cols: dict, time_unit, speed_unit) -> BenchLog:
+def _load(p: Path, cfg, options: DataOptions) -> BenchLog:
     if p.is_dir():
         raise DataError("is a folder, not a data file")
     if not p.exists():
         raise DataError("cannot read data: no such file")
+    cols = _columns(options)
     src = _reader(p)(p, lambda names: _pick(names, cols))
     where = src.where
-    name = _pick(list(src.cols), cols)
+    name = _pick(src.cols, cols)
     missing = [c for c in CHANNELS if c not in name]
     if missing:
         raise DataError(f"is not a complete bench log: no {where} {', '.join(repr(m) for m in missing)} "
-                        f"(spec §10: time, voltage, current, booster_pressure[, speed]; found: {src.found()})")
+                        f"(spec §10: time, voltage, current, booster_pressure[, speed]; found: {src.found()}); "
+                        "a column named otherwise is given by name: --voltage-column, --current-column, "
+                        "--pressure-column on the command line, DataOptions(voltage=..., current=..., "
+                        "booster_pressure=...) in Python")
     notes = []
     if "time" in name:
         t = np.asarray(src.cols[name["time"]], dtype=float)
     else:
         iv = src.interval(name["current"])
         if iv is None:
-            raise DataError(f"has no {where} '{cols['time']}' and no sample rate (found: {src.found()})")
+            raise DataError(f"has no {where} '{cols['time'][0]}' and no sample rate (found: {src.found()})")
         dt, t0, origin = iv
         t = t0 + dt * np.arange(src.cols[name["current"]].size)
-        notes.append(f"time from {origin} (no {where} '{cols['time']}')")
+        notes.append(f"time from {origin} (no {where} '{cols['time'][0]}')")
     used = {k: np.asarray(src.cols[name[k]], dtype=float) for k in ("voltage", "current", "booster_pressure", "speed")
             if k in name}
     if "time" in name:
@@ -211,17 +257,44 @@ def _load(p: Path, cfg, cols: dict, time_unit, speed_unit) -> BenchLog:
             raise DataError(f"{row_name(src.rows, bad[0], where, name[key])}: {key} is not a finite number")
     si, factor, kind = {}, {}, None
     for key, arr in used.items():
-        head = src.units.get(name[key])
-        option = {"time": time_unit, "speed": speed_unit}.get(key)
-        factor[key], k = unit_of(key, option if option is not None else head, f"{where} '{name[key]}'")
+        factor[key], k = _unit(key, src.units.get(name[key]), getattr(options, UNIT_OPTION_OF[key]),
+                               f"{where} '{name[key]}'")
         si[key] = arr * factor[key] if factor[key] != 1.0 else arr
         kind = k if key == "booster_pressure" else kind
     if "time" in used:
         t = si["time"]
         _check_time(t, time_resolution(used["time"]) * factor["time"], src.rows, where, name["time"])
     _check_pressure(si["booster_pressure"], kind, cfg, src.rows, where, name["booster_pressure"])
+    _check_signs(si, where, name)
     _check_voltage(si["voltage"], cfg, where, name["voltage"])
     return BenchLog(t, si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
+
+
+def _unit(key, head, option, where):
+    """(factor to SI, absolute/gauge mark) of a used column: the option's unit, else the header's,
+    else SI; an option that contradicts the header is refused."""
+    if option is None:
+        return unit_of(key, head, where)
+    factor, kind = unit_of(key, option, f"{where} (the {UNIT_OPTION_OF[key]} option)")
+    if head is None:
+        return factor, kind
+    head_factor, head_kind = unit_of(key, head, where)
+    if not math.isclose(head_factor, factor) or (kind and head_kind and kind != head_kind):
+        raise DataError(f"{where} is annotated [{head}] but the {UNIT_OPTION_OF[key]} option says '{option}' "
+                        f"(--{UNIT_OPTION_OF[key].replace('_', '-')}): drop one")
+    return factor, kind or head_kind
+
+
+def _check_signs(si, where, name) -> None:
+    """A supply and a motor current that are negative over most of the log are a probe or a clamp
+    the wrong way round: the pump's motor draws current from a positive supply."""
+    for key, unit, why in (("voltage", "V", "the voltage probe's leads swapped"),
+                           ("current", "A", "the current clamp or shunt mounted the wrong way round")):
+        med = float(np.median(si[key]))
+        if med < 0:
+            raise DataError(f"{where} '{name[key]}': the {key} is negative over most of the log (median "
+                            f"{med:.4g} {unit}): {why}? The pump's motor draws positive current from a positive "
+                            f"supply: reverse the channel's sign")
 
 
 def _check_time(t, resolution, rows, where, column) -> None:

@@ -203,6 +203,15 @@ def add_data_options(p):
                         "rate), also across gaps in time, which are refused otherwise")
     g.add_argument("--steady", action="store_true",
                    help="fit only the constant-speed section (needs a speed column)")
+    b = p.add_argument_group("bench log (time, voltage, current, booster_pressure[, speed]; units from the header, "
+                             "e.g. 'booster_pressure [kPa abs]', else SI)")
+    b.add_argument("--voltage-column", default="voltage", help="supply voltage column")
+    b.add_argument("--current-column", default="current", help="motor current column")
+    b.add_argument("--pressure-column", default="booster_pressure", help="booster pressure column (absolute)")
+    b.add_argument("--voltage-unit", help="V or mV (default: the header's unit, else V)")
+    b.add_argument("--current-unit", help="A or mA (default: the header's unit, else A)")
+    b.add_argument("--pressure-unit", help="Pa, hPa, kPa, MPa, mbar, bar, psi or torr, with 'abs' or 'g' "
+                                          "(default: the header's unit, else Pa)")
 
 
 def add_fit_outputs(p):
@@ -246,11 +255,25 @@ def refuse_torque_only(given: dict, verb: str) -> None:
             raise ConfigError(f"{flag} is for torque data; a bench log is {verb} as logged: drop {flag}")
 
 
+def refuse_bench_only(a, path) -> None:
+    """Refuse on torque data the options only a bench log takes: the file did not read as a bench
+    log, most likely because a column is named otherwise than the option says."""
+    from ..errors import ConfigError
+
+    defaults = {"voltage_column": "voltage", "current_column": "current", "pressure_column": "booster_pressure",
+                "voltage_unit": None, "current_unit": None, "pressure_unit": None}
+    given = [option_name(k) for k, d in defaults.items() if getattr(a, k) != d]
+    if given:
+        raise ConfigError(f"{given[0]} is for a bench log, and '{path}' does not read as one (two or more of "
+                          "its voltage, current and booster_pressure columns found, no torque column): check the "
+                          "column names against the file's header")
+
+
 def read_bench(a, path, cfg):
     """A bench log with the command's data options; what the reading did is said on stderr."""
     from ..benchlog import read_bench_log
 
-    log = read_bench_log(path, cfg, a.time_column, a.speed_column, a.time_unit, a.speed_unit)
+    log = read_bench_log(path, cfg, data_options(a))
     for note in log.notes:
         info(f"{log.name}: {note}")
     return log
@@ -261,7 +284,9 @@ def data_options(a):
 
     return DataOptions(time=a.time_column, torque=a.torque_column, speed=a.speed_column,
                        angle=a.angle_column, torque_unit=a.torque_unit, speed_unit=a.speed_unit,
-                       time_unit=a.time_unit, resample=a.resample, steady=a.steady)
+                       time_unit=a.time_unit, resample=a.resample, steady=a.steady, voltage=a.voltage_column,
+                       current=a.current_column, booster_pressure=a.pressure_column, voltage_unit=a.voltage_unit,
+                       current_unit=a.current_unit, pressure_unit=a.pressure_unit)
 
 
 # --- outputs --------------------------------------------------------------------------------

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, live, load_config, outputs, read_bench, read_data, \
-    refuse_torque_only, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, live, load_config, outputs, read_bench, \
+    read_data, refuse_bench_only, refuse_torque_only, write_fit_outputs
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
 
@@ -43,8 +43,9 @@ def run(a) -> int:
 
     outs = outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     cfg = load_config(a)
-    if any(is_bench_log(d, a.time_column, a.speed_column) for d in a.data):
+    if any(is_bench_log(d, data_options(a)) for d in a.data):
         return run_bench(a, cfg, outs)
+    refuse_bench_only(a, a.data[0])
     for flag, given in (("--resistance-known", a.resistance_known), ("--atmosphere-known", a.atmosphere_known)):
         if given:
             raise ConfigError(f"{flag} is for a bench log (columns time, voltage, current, booster_pressure)")

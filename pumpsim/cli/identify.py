@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, fit_log, live, load_config, outputs, positive_int, \
-    read_bench, read_data, refuse_torque_only, warn, write_fit_outputs
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, fit_log, live, load_config, outputs, \
+    positive_int, read_bench, read_data, refuse_bench_only, refuse_torque_only, warn, write_fit_outputs
 
 BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
 
@@ -78,8 +78,9 @@ def run(a) -> int:
 
     outs = outputs(a, [a.config, a.data] + ([a.limits] if a.limits else []), json=None, report=REPORT_SUFFIXES)
     cfg = load_config(a)
-    if is_bench_log(a.data, a.time_column, a.speed_column):
+    if is_bench_log(a.data, data_options(a)):
         return run_bench(a, cfg, outs)
+    refuse_bench_only(a, a.data)
     if a.limits:
         from ..errors import ConfigError
 

@@ -84,7 +84,9 @@ class Dataset:
 @dataclass
 class DataOptions:
     """How to read a data file: column (or channel/variable) names and units. A unit of None takes
-    the unit from the column header (`torque [N*mm]`), else SI."""
+    the unit from the column header (`torque [N*mm]`), else SI. `voltage`, `current`,
+    `booster_pressure` and their units are a bench log's (spec §10); `pressure_unit` may carry the
+    absolute/gauge mark ('kPa abs')."""
 
     time: str = "time"
     torque: str = "torque"
@@ -97,3 +99,9 @@ class DataOptions:
     resample: float | str | None = None  # Hz, or 'auto': the measured sample interval's rate
     steady: bool = False  # keep only the constant-speed section
     steady_tolerance: float = 0.01  # relative speed band of the constant-speed section
+    voltage: str = "voltage"
+    current: str = "current"
+    booster_pressure: str = "booster_pressure"
+    voltage_unit: str | None = None
+    current_unit: str | None = None
+    pressure_unit: str | None = None

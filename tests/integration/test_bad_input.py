@@ -371,3 +371,12 @@ def test_torque_only_options_are_refused_on_a_bench_log(tmp_path, capsys, comman
     extra = {"--steady": ["--steady"], "--transient": ["--transient"], "--resample": ["--resample", "1000"]}[flag]
     code, _, err = run(capsys, command, str(EXAMPLES / "evp_booster.toml"), str(path), *extra)
     assert code == 2 and flag in err and "is for torque data" in err and f"drop {flag}" in err, err
+
+
+@pytest.mark.parametrize("command", ["identify", "diagnose"])
+def test_bench_log_options_on_torque_data_are_refused(capsys, command):
+    """A bench log's column option on a file that does not read as a bench log (torque data, or a
+    bench log whose columns the options miss) is refused before any work, naming the flag."""
+    code, _, err = run(capsys, command, str(EXAMPLES / "test_rig.toml"), str(EXAMPLES / "data" / "test_rig_measurement.csv"),
+                       "--current-column", "I_motor")
+    assert code == 2 and "--current-column is for a bench log" in err and "check the column names" in err, err

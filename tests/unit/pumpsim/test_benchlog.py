@@ -5,6 +5,7 @@ import pytest
 
 from pumpsim.benchlog import fit_percent, is_bench_log, read_bench_log, unit_of
 from pumpsim.config import load_config
+from pumpsim.data import DataOptions
 from pumpsim.errors import DataError
 from tests.conftest import EXAMPLES
 
@@ -114,3 +115,51 @@ def test_a_log_starting_above_the_atmosphere_is_named(tmp_path):
     assert note is not None and "2 % above" in note and "gas.atmosphere" in note and "span" in note
     assert start_above_atmosphere(log(1.002), cfg) is None
     assert start_above_atmosphere(log(0.97), cfg) is None
+
+
+@pytest.mark.parametrize("header,delim", [
+    ("Time (s),Supply Voltage (V),Motor Current (A),Booster Pressure (kPa abs)", ","),
+    ("t [ms];U [V];I [A];p [mbar abs]", ";"),
+    ("TIME [s]\tU_bat [V]\tI_mot [A]\tP_Booster [kPa]", "\t")])
+def test_logger_names_of_the_channels_are_recognised(tmp_path, header, delim):
+    """A logger's own names for the channels (case, spaces, a unit in brackets, the usual short
+    names U, I, p) read as the bench log's columns, each converted by its header's unit."""
+    scale = [1e3 if "ms" in header else 1.0, 1.0, 1.0, 10.0 if "mbar" in header else 1.0]
+    rows = [[v * k for v, k in zip(r, scale)] for r in _rows()]
+    text = "\n".join(delim.join(f"{v:.9g}".replace(".", "," if delim == ";" else ".") for v in r) for r in rows)
+    f = tmp_path / "logger.csv"
+    f.write_text(header + "\n" + text + "\n")
+    assert is_bench_log(f)
+    log = read_bench_log(f, CFG)
+    assert log.step == pytest.approx(1e-3) and log.voltage[0] == pytest.approx(13.5)
+    assert log.current[3] == pytest.approx(10.003) and log.booster_pressure[0] == pytest.approx(101300.0)
+
+
+def test_columns_and_units_named_by_options(tmp_path):
+    """Names no alias covers, or two columns answering one alias, are given by DataOptions; a unit
+    option that contradicts the header is refused naming both."""
+    f = _write(tmp_path / "own.csv", "ts,Ub,Im,Pb", _rows())
+    assert not is_bench_log(f)
+    opts = DataOptions(time="ts", voltage="Ub", current="Im", booster_pressure="Pb", pressure_unit="kPa abs")
+    assert is_bench_log(f, opts)
+    assert read_bench_log(f, CFG, opts).booster_pressure[0] == pytest.approx(101300.0)
+    two = _write(tmp_path / "two.csv", "time,voltage,current,p,pressure",
+                 [(t, v, i, p, p) for t, v, i, p in _rows(unit_scale=1e3)])
+    with pytest.raises(DataError, match=r"no column 'booster_pressure'.*--pressure-column"):
+        read_bench_log(two, CFG)
+    assert read_bench_log(two, CFG, DataOptions(booster_pressure="p")).booster_pressure[0] == pytest.approx(101300.0)
+    marked = _write(tmp_path / "marked.csv", "time,voltage,current,booster_pressure [kPa]", _rows())
+    with pytest.raises(DataError, match=r"annotated \[kPa\] but the pressure_unit option says 'mbar'.*drop one"):
+        read_bench_log(marked, CFG, DataOptions(pressure_unit="mbar"))
+    assert read_bench_log(marked, CFG, DataOptions(pressure_unit="kPa abs")).booster_pressure[0] == 101300.0
+
+
+@pytest.mark.parametrize("channel,sign", [("current", -1.0), ("voltage", -1.0)])
+def test_a_reversed_probe_is_refused(tmp_path, channel, sign):
+    """A clamp or probe the wrong way round (the channel negative over most of the log) is bad input
+    with the fix, not a fit that fails 100 noise sigmas off."""
+    k = {"voltage": 1, "current": 2}[channel]
+    rows = [tuple(sign * v if j == k else v for j, v in enumerate(r)) for r in _rows()]
+    f = _write(tmp_path / "rev.csv", "time,voltage,current,booster_pressure [kPa]", rows)
+    with pytest.raises(DataError, match=rf"'{channel}': the {channel} is negative over most of the log.*reverse"):
+        read_bench_log(f, CFG)
