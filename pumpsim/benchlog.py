@@ -29,6 +29,11 @@ VOLTAGE_UNITS = {"v": 1.0, "mv": 1e-3, "kv": 1e3}
 CURRENT_UNITS = {"a": 1.0, "ma": 1e-3, "ka": 1e3}
 PRESSURE_UNITS = {"pa": 1.0, "hpa": 1e2, "kpa": 1e3, "mpa": 1e6, "mbar": 1e2, "bar": 1e5,
                   "psi": 6894.757293168, "torr": 133.322368, "mmhg": 133.322387}
+# an unmarked pressure column whose start times a unit's factor lies within this share of the config's
+# booster start reads as written in that unit without saying so
+UNIT_MATCH = 0.15
+# the units a bench writes (table key: spelling), in the order they are guessed
+UNIT_GUESSES = {"kpa": "kPa", "mbar": "mbar", "bar": "bar", "psi": "psi", "torr": "torr"}
 UNITS = {"time": TIME_UNITS, "voltage": VOLTAGE_UNITS, "current": CURRENT_UNITS,
          "booster_pressure": PRESSURE_UNITS, "speed": SPEED_UNITS}
 UNIT_NAMES = {"time": "s, ms, us", "voltage": "V, mV", "current": "A, mA",
@@ -231,7 +236,7 @@ def _load(p: Path, cfg, options: DataOptions) -> BenchLog:
                         "a column named otherwise is given by name: --voltage-column, --current-column, "
                         "--pressure-column on the command line, DataOptions(voltage=..., current=..., "
                         "booster_pressure=...) in Python")
-    notes = []
+    notes = list(src.notes)
     if "time" in name:
         t = np.asarray(src.cols[name["time"]], dtype=float)
     else:
@@ -330,6 +335,13 @@ def _check_pressure(pb, kind, cfg, rows, where, column) -> None:
         start = cfg.pneumatic.booster_start
         first = float(np.median(pb[:START_SAMPLES]))
         if start >= 0.9 * atm and first < GAUGE_START_FRACTION * start:
+            unit = next((u for u in UNIT_GUESSES if abs(first * PRESSURE_UNITS[u] / start - 1) < UNIT_MATCH), None)
+            if unit is not None:
+                shown = UNIT_GUESSES[unit]
+                raise DataError(f"{where} '{column}' starts at {pb[0]:.6g} Pa, far below the atmosphere the config's "
+                                f"pump-down starts from (booster.pressure {start:.6g} Pa), as if written in {shown}: "
+                                f"give the unit in the header ('{column} [{shown} abs]') or with the pressure unit "
+                                f"option (--pressure-unit '{shown} abs')")
             raise DataError(f"{where} '{column}' starts at {pb[0]:.6g} Pa, far below the atmosphere the config's "
                             f"pump-down starts from (booster.pressure {start:.6g} Pa): a gauge pressure? {fix}; "
                             "if the log is absolute and starts there, mark it absolute and set booster.pressure")

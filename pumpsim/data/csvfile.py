@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import re
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -107,15 +108,85 @@ def read_csv(p: Path, pick, fast: bool = True) -> Source:
     line, end = found
     text = raw if raw is not None else head
     sep, header = _header(decode_text(text[:end]).splitlines()[-1].strip(), line)
+    notes = []
+    below = _units_row(text, line, end, sep, len(header))
+    if below is not None:
+        line, end, units = below
+        header = [(h, u or below_u) for (h, u), below_u in zip(header, units)]
+        notes.append(f"units from row {line}, under the header")
     names = [h for h, _ in header]
-    keep = [j for j, h in enumerate(names) if h in set(pick(names).values())]
+    picked = pick(names)
+    keep = [j for j, h in enumerate(names) if h in set(picked.values())]
     body = _Body(p, raw, end + 1)
     cols = _arrow_columns(body, sep, names, keep) if fast and keep else None
+    units = {h: u for h, u in header if u is not None}
     if cols is not None:
         rows = RowNumbers(body, line + 1)
     else:
-        cols, rows = _python_columns(decode_file(p) if raw is None else raw.decode("utf-8"), header, keep)
-    return Source("column", cols, {h: u for h, u in header if u is not None}, rows, names=names)
+        clock = _Clock(picked.get("time"))
+        cols, rows = _python_columns(decode_file(p) if raw is None else raw.decode("utf-8"), header, keep,
+                                     2 if below is not None else 1, clock)
+        if clock.first is not None:
+            units[clock.column] = "s"
+            notes.append(f"time from the time stamps of column '{clock.column}', in seconds after the first "
+                         f"({clock.first_text})")
+    return Source("column", cols, units, rows, names=names, notes=notes)
+
+
+def _units_row(text: bytes, line: int, end: int, sep: str, width: int):
+    """(line number, end offset, units) of a line of units right under the header ('s,V,A,kPa'),
+    or None: a line holding no number whose fields are short or bracketed, one per column."""
+    pos = end + 1
+    while pos < len(text):
+        nl = text.find(b"\n", pos)
+        stop = len(text) if nl < 0 else nl
+        line += 1
+        s = decode_text(text[pos:stop]).strip()
+        if s and not s.startswith("#"):
+            fields = [f.strip().strip('"').strip() for f in _fields(s, sep)]
+            if len(fields) == width + 1 and fields[-1] == "":
+                fields = fields[:-1]
+            units = [f.strip("[]()").strip() for f in fields]
+            if (len(fields) != width or any(_is_float(f.replace(",", ".")) for f in fields if f)
+                    or not any(units) or any(len(u) > UNIT_CHARS or _stamp(u) for u in units)):
+                return None
+            return line, stop, [u or None for u in units]
+        if nl < 0:
+            return None
+        pos = stop + 1
+    return None
+
+
+UNIT_CHARS = 16  # a unit row's longest field ('N*mm', 'kPa abs', 'rad/s')
+
+
+def _stamp(text: str):
+    """The datetime of an ISO 8601 time stamp ('2026-11-27 10:00:00.001', 'T' or blank, a zone),
+    or None."""
+    if len(text) < 10 or text[4:5] != "-":
+        return None
+    try:
+        return datetime.fromisoformat(text)
+    except ValueError:
+        return None
+
+
+class _Clock:
+    """Time stamps in the time column, read as seconds after the first (to the microsecond: the
+    difference of two datetimes, not of two epoch seconds)."""
+
+    def __init__(self, column):
+        self.column, self.first, self.first_text = column, None, ""
+
+    def seconds(self, text: str) -> float:
+        stamp = _stamp(text)
+        if stamp is None:
+            raise ValueError(text)
+        if stamp.tzinfo is not None:
+            stamp = stamp.astimezone(timezone.utc).replace(tzinfo=None)
+        if self.first is None:
+            self.first, self.first_text = stamp, text
+        return (stamp - self.first).total_seconds()
 
 
 class RowNumbers:
@@ -205,17 +276,20 @@ def _float_array(array) -> np.ndarray:
     return np.frombuffer(array.buffers()[1], dtype=np.float64, count=len(array), offset=8 * array.offset)
 
 
-def _python_columns(text: str, header, keep):
-    """{name: float array} of the columns `keep`, line by line, and the line number of each row."""
+def _python_columns(text: str, header, keep, head_lines=1, clock=None):
+    """{name: float array} of the columns `keep`, line by line, and the line number of each row;
+    `head_lines`: the header's lines (2 with a line of units); `clock` reads time stamps in the
+    time column."""
     sep, width, values, line_no = None, len(header), [], []
-    header_seen = False
+    seen = 0
+    stamped = next((k for k, j in enumerate(keep) if clock is not None and header[j][0] == clock.column), None)
     for i, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
-        if not header_seen:
-            header_seen = True
-            sep = _header(s, i)[0]
+        if seen < head_lines:
+            seen += 1
+            sep = sep or _header(s, i)[0]
             continue
         parts = [x.strip().strip('"') for x in _fields(s, sep)]
         if len(parts) == width + 1 and parts[-1] == "":
@@ -223,11 +297,13 @@ def _python_columns(text: str, header, keep):
         if len(parts) != width:
             raise DataError(f"row {i}: {len(parts)} values, the header has {width} columns")
         # a comma inside a value is a decimal comma: with ';' or tab separators, or quoted ("0,5")
-        parts = [parts[j].replace(",", ".") for j in keep]
+        parts = [parts[j] for j in keep]
         try:
-            values.append([float(x) for x in parts])
+            values.append([clock.seconds(x) if k == stamped and _stamp(x) else float(x.replace(",", "."))
+                           for k, x in enumerate(parts)])
         except ValueError:
-            bad = next(x for x in parts if not _is_float(x))
+            bad = next(x for k, x in enumerate(parts)
+                       if not _is_float(x.replace(",", ".")) and not (k == stamped and _stamp(x)))
             raise DataError(f"row {i}: '{bad.strip()}' is not a number") from None
         line_no.append(i)
     arr = np.array(values, dtype=float).reshape(len(values), len(keep))

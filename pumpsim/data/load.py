@@ -52,7 +52,7 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
     reader = {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
     src = reader(p, lambda names: _pick(o, names))
     name = _pick(o, list(src.cols))
-    notes = []
+    notes = list(src.notes)
     t = _time(src, name, o, notes)
     used = _signals(src, name, t)
     scale = {key: _unit_of(key, name[key], src.units, getattr(o, f"{key}_unit"), src.where) for key in used}

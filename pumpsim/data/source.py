@@ -25,6 +25,7 @@ class Source:
     scalars: dict = field(default_factory=dict)  # name -> value, for a sample rate
     waveforms: dict = field(default_factory=dict)  # channel -> (dt, t0): TDMS waveform properties
     names: list | None = None  # every column of the file (a CSV reader keeps only those used)
+    notes: list = field(default_factory=list)  # what the reader made of the file, said to the user
 
     def found(self) -> str:
         names = sorted(self.names or self.cols) + [f"{k} ({v})" for k, v in sorted(self.ignored.items())]

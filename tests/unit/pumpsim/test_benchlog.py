@@ -163,3 +163,14 @@ def test_a_reversed_probe_is_refused(tmp_path, channel, sign):
     f = _write(tmp_path / "rev.csv", "time,voltage,current,booster_pressure [kPa]", rows)
     with pytest.raises(DataError, match=rf"'{channel}': the {channel} is negative over most of the log.*reverse"):
         read_bench_log(f, CFG)
+
+
+@pytest.mark.parametrize("scale,unit", [(1e-3, "kPa"), (1e-2, "mbar"), (1e-5, "bar")])
+def test_a_pressure_written_in_another_unit_is_named(tmp_path, scale, unit):
+    """An unmarked pressure column whose start reads as the atmosphere in a bench's usual unit is
+    refused naming that unit and how to say it, not as a gauge pressure."""
+    f = _write(tmp_path / "p.csv", "time,voltage,current,booster_pressure",
+               [(t, v, i, p * 1e3 * scale) for t, v, i, p in _rows()])
+    with pytest.raises(DataError,
+                       match=rf"as if written in {unit}: .*'booster_pressure \[{unit} abs\]'.*--pressure-unit"):
+        read_bench_log(f, CFG)

@@ -203,3 +203,31 @@ def test_third_difference_noise_reads_white_noise_and_not_a_ripple():
     assert abs(noise_sigma(W + noise, order=3) / 1.5 - 1) < MAD_SIGMA_Z * MAD_SIGMA_SE / math.sqrt(n)
     ripple = W * 0.028 * np.cos(3 * W * t)
     assert noise_sigma(W + ripple, order=3) < 1.1 * 0.028 * W * (3 * W / rate) ** 3
+
+
+def test_a_line_of_units_under_the_header(tmp_path):
+    """Loggers often write the units on a line of their own under the names: they are the columns'
+    units (said in the notes), and row numbers in messages still count that line."""
+    rows = [[1e3 * t, 1e3 * tq] for t, tq in good_rows()]
+    ds = load_data(write_csv(tmp_path / "u.csv", "time,torque\nms,[N*mm]", rows), nominal_speed=W)
+    np.testing.assert_allclose(ds.torque, [r[1] for r in good_rows()])
+    assert ds.time[1] == pytest.approx(1e-4) and any("units from row 3" in n for n in ds.notes)
+    rows[4][1] = "x"
+    with pytest.raises(DataError, match="row 8: 'x' is not a number"):
+        load_data(write_csv(tmp_path / "v.csv", "time,torque\nms,N*mm", rows), nominal_speed=W)
+
+
+def test_time_stamps_in_the_time_column(tmp_path):
+    """ISO 8601 time stamps (a blank or 'T', fractions, a zone) are seconds after the first, to the
+    microsecond; a stamp that does not parse is a bad row."""
+    from datetime import datetime, timedelta
+
+    t0 = datetime(2026, 11, 27, 23, 59, 59, 990000)
+    rows = [[(t0 + timedelta(microseconds=round(1e6 * t))).isoformat(sep=" ") + "+01:00", tq]
+            for t, tq in good_rows()]
+    ds = load_data(write_csv(tmp_path / "s.csv", "time,torque", rows), nominal_speed=W)
+    np.testing.assert_allclose(ds.time, GOOD_T, rtol=0, atol=1e-9)
+    assert any("time stamps" in n and "2026-11-27 23:59:59.990000" in n for n in ds.notes)
+    rows[6][0] = "2026-11-28 25:00:00"
+    with pytest.raises(DataError, match="row 9: '2026-11-28 25:00:00' is not a number"):
+        load_data(write_csv(tmp_path / "b.csv", "time,torque", rows), nominal_speed=W)
