@@ -20,7 +20,7 @@ import numpy as np
 from .data import (SPEED_UNITS, TIME_UNITS, DataOptions, match_column, read_csv, read_mat, read_tdms, row_name,
                    time_gaps, time_resolution, unit_key)
 from .data.units import split_header
-from .signals import noise_sigma
+from .signals import isolated_spikes, measured_noise, noise_sigma
 from .errors import DataError
 
 CHANNELS = ("voltage", "current", "booster_pressure")  # required besides time
@@ -51,6 +51,8 @@ START_SAMPLES = 20  # samples a quadratic is fitted to for the log's start press
 ATMOSPHERE_MARGIN = 0.005
 VOLTAGE_FACTOR = 5.0  # a median voltage this far from motor.voltage is a unit mistake
 MIN_SAMPLES = 10
+SPIKE_SIGMAS = 12.0  # a single sample this many noise sigmas off its agreeing neighbours is a glitch
+SPIKES_LISTED = 5
 # Names loggers give the bench channels, compared in lower case with runs of other characters as
 # '_' ('Motor Current (A)' -> 'motor_current'): tried for a channel left at its default name that no
 # column carries, and taken only when exactly one column answers
@@ -99,8 +101,9 @@ class BenchLog:
     def noise(self, channel) -> float:
         """The channel's white-noise sigma: robust sigma of its first differences (a smooth
         pump-down hardly enters them; what the log's sampling aliases of the vane-passing ripple
-        does, and is noise to a model compared sample by sample)."""
-        return noise_sigma(getattr(self, channel), order=1)
+        does, and is noise to a model compared sample by sample) with its grid's rounding
+        (an ADC's counts: measured_noise)."""
+        return measured_noise(getattr(self, channel))
 
     def start_pressure(self) -> float:
         """The booster pressure at the first sample: a quadratic in time fitted to the first
@@ -272,6 +275,9 @@ def _load(p: Path, cfg, options: DataOptions) -> BenchLog:
     _check_pressure(si["booster_pressure"], kind, cfg, src.rows, where, name["booster_pressure"])
     _check_signs(si, where, name)
     _check_voltage(si["voltage"], cfg, where, name["voltage"])
+    for key in ("voltage", "current", "booster_pressure", "speed"):
+        if key in si:
+            si[key] = _despiked(si[key], key, src.rows, where, name[key], notes)
     return BenchLog(t, si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
 
 
@@ -288,6 +294,23 @@ def _unit(key, head, option, where):
         raise DataError(f"{where} is annotated [{head}] but the {UNIT_OPTION_OF[key]} option says '{option}' "
                         f"(--{UNIT_OPTION_OF[key].replace('_', '-')}): drop one")
     return factor, kind or head_kind
+
+
+def _despiked(x, key, rows, where, column, notes):
+    """x with its isolated spikes (a logger's glitches: isolated_spikes) replaced by their
+    neighbours' mean, said in `notes` with their rows: one such sample in a least-squares fit
+    reads as a model that cannot describe the log."""
+    idx = isolated_spikes(x, SPIKE_SIGMAS)
+    if idx.size == 0:
+        return x
+    y = x.copy()
+    y[idx] = 0.5 * (x[idx - 1] + x[idx + 1])
+    size = float(np.max(np.abs(x[idx] - y[idx])) / measured_noise(x))
+    shown = ", ".join(row_name(rows, int(i), where, column) for i in idx[:SPIKES_LISTED])
+    more = f" and {idx.size - SPIKES_LISTED} more" if idx.size > SPIKES_LISTED else ""
+    notes.append(f"{key}: {idx.size} isolated spike(s) replaced by their neighbours' mean ({shown}{more}; "
+                 f"up to {size:.3g} noise sigmas off)")
+    return y
 
 
 def _check_signs(si, where, name) -> None:

@@ -401,6 +401,50 @@ def noise_sigma(residual, order: int = 1) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(math.comb(2 * order, order)))
 
 
+def quantization_step(x) -> float:
+    """The grid step the samples lie on (an ADC's counts, a logger's rounding), or 0.0: the
+    smallest change between samples, when 99 % of the changes are whole multiples of it."""
+    d = np.abs(np.diff(np.asarray(x, dtype=float)))
+    d = d[d > 0]
+    if d.size < QUANTIZATION_MIN_STEPS:
+        return 0.0
+    q = float(d.min())
+    k = d / q
+    on_grid = np.abs(k - np.round(k)) <= QUANTIZATION_TOL
+    return q if on_grid.mean() >= QUANTIZATION_SHARE else 0.0
+
+
+QUANTIZATION_MIN_STEPS = 10
+QUANTIZATION_TOL = 1e-3  # of a step: the file's decimal rounding of the multiples
+QUANTIZATION_SHARE = 0.99
+
+
+def measured_noise(x) -> float:
+    """The white-noise sigma a measured channel carries: the robust first-difference sigma
+    (noise_sigma) and the rounding of its grid (q^2 / 12), which the differences miss when the
+    channel changes by less than a step between samples (most differences then 0)."""
+    return math.hypot(noise_sigma(x, order=1), quantization_step(x) / math.sqrt(12.0))
+
+
+def isolated_spikes(x, sigmas: float) -> np.ndarray:
+    """Indices of single samples more than `sigmas` noise sigmas (measured_noise, which holds what
+    the sampling aliases of a ripple) off their neighbours' mean while the two neighbours agree
+    (their difference under a quarter of the departure): a logger's glitch, not a transient (a
+    step or an inrush moves a neighbour too). Empty when more than SPIKE_SHARE of the samples
+    answer: then the signal itself has such features."""
+    x = np.asarray(x, dtype=float)
+    sigma = measured_noise(x)
+    if x.size < 3 or sigma == 0.0:
+        return np.zeros(0, dtype=int)
+    dev = x[1:-1] - 0.5 * (x[:-2] + x[2:])
+    hit = (np.abs(dev) > sigmas * sigma) & (np.abs(x[2:] - x[:-2]) < 0.25 * np.abs(dev))
+    idx = np.nonzero(hit)[0] + 1
+    return idx if idx.size <= SPIKE_SHARE * x.size else np.zeros(0, dtype=int)
+
+
+SPIKE_SHARE = 0.05
+
+
 def speed_column_disagreement(column, time, theta, speed, order, ripple, ripple_cov) -> dict | None:
     """Does a measured speed column agree with a hypothesised shaft-speed ripple? The ripple
     (rc, rs) makes omega = speed (1 + rc cos(k theta) - rs sin(k theta)) (theta the nominal angle
