@@ -74,11 +74,43 @@ class FastInverseDynamics:
             for fn in self._jac:
                 fn.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _c_long, _ptr, _ptr, _c_long]
                 fn.restype = ctypes.c_int
+        self._reduce = None
+        if "reductions" in manifest:  # a design study's per-design numbers (codegen/simd_reduce.py)
+            self._reduce = lib.pumpsim_simd_reduce_blocks
+            self._reduce.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _c_long, _ptr, _ptr, _ptr, _c_long]
+            self._reduce.restype = ctypes.c_int
         self._lib = lib
 
     @property
     def has_jacobian(self) -> bool:
         return self._jac is not None
+
+    @property
+    def has_reductions(self) -> bool:
+        return self._reduce is not None
+
+    def reduce_blocks(self, theta, omega, p, block: int, consts, tolerances, alike: int = 1) -> np.ndarray:
+        """A design study's numbers per design (one row of p per block of `block` samples, at
+        omegadot 0), each block's outputs reduced in cache (codegen/simd_reduce.py): returns
+        (designs, columns + vanes x alike) in manifest["reductions"]["columns"]'s order, then the
+        per-vane friction powers. consts (designs, 4): c_visc, L, l_m, bearing torque; tolerances:
+        (position, paradox); alike > 1 (1-vane library): the vane stands for that many."""
+        if self._reduce is None:
+            raise CodegenError(f"the SIMD library of {self.structure.variant} has no reduction entry")
+        theta, omega, omegadot, p, n = self._arguments(theta, omega, 0.0, p)
+        _, _, p, block, _ = self._layout(np.atleast_2d(p), n, block)
+        consts = np.ascontiguousarray(consts, dtype=float)
+        tol = np.ascontiguousarray(tolerances, dtype=float)
+        if consts.shape != (p.shape[0], 4) or tol.shape != (2,):
+            raise ConfigError(f"consts must be ({p.shape[0]}, 4) and tolerances 2 numbers, got shapes "
+                              f"{consts.shape} and {tol.shape}")
+        res = np.empty((p.shape[0], len(self.manifest["reductions"]["columns"]) + self.vanes * alike))
+        code = self._reduce(n, *(_address(x) for x in (theta, omega, omegadot, p)), block, alike,
+                            _address(consts), _address(tol), _address(res), res.shape[1])
+        if code:
+            raise CodegenError(f"the SIMD reduction of {self.structure.variant} refused its arguments"
+                               + (" (out of memory)" if code == 2 else ""))
+        return res
 
     def jacobian(self, theta, omega, omegadot, p, seeds, block: int | None = None, out=None,
                  threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -249,6 +281,7 @@ class ScalarInverseDynamics(FastInverseDynamics):
         self.outputs = ("torque", *VANE_OUTPUTS)
         self._set_layouts(SUBSETS)
         self._jac = None  # derivatives: the CasADi map's (identification's fallback path)
+        self._reduce = None
 
     def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1, outputs=None):
         theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
