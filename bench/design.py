@@ -50,13 +50,13 @@ def kernel_alone(s, repeats=3):
     P, speed, _ = dm.vectors(X)
     kern, theta = load_kernels(dm.structure), revolution(dm.cfg.angle, s.revolution_samples)
     one = one_vane(dm.structure)
-    N, n = dm.structure.vanes, theta.size
+    N = dm.structure.vanes
     zeros = np.zeros((len(P), 4))
     runs = {"every_vane": (lambda p, w: evaluate_designs(kern, p, theta, w), batch_designs(N, False)),
             "one_vane": (lambda p, w: one.evaluate(p, theta, w, KERNEL_OUTPUTS), batch_designs(N, True))}
     if one.fast.has_reductions:  # the call the study makes: the kernel and the reductions in C
-        runs["fused"] = (lambda p, w: one.fast.reduce_blocks(np.tile(theta, len(p)), np.repeat(w, n),
-                                                             p[:, one.columns], n, zeros[:len(p)], (1e-10, 1e-6), N),
+        runs["fused"] = (lambda p, w: one.fast.reduce_designs(theta, w, p[:, one.columns], zeros[:len(p)],
+                                                              (1e-10, 1e-6), N),
                          batch_designs(N, True))
     best = {name: (float("inf"), float("inf")) for name in runs}
     for _ in range(repeats):

@@ -2,9 +2,9 @@
 evaluated into a scratch block that stays in cache and reduced there to the few numbers a design
 study keeps (pumpsim.design.outputs.reduce_batch), so no samples x outputs array comes back.
 
-  pumpsim_simd_reduce_blocks(n, theta, omega, omegadot, p, block, alike, consts, tol, res, nres):
-      the arguments of pumpsim_simd_blocks (one parameter vector per block of `block` samples, one
-      design each) and per design consts (c_visc, L, l_m, bearing torque), tol (position, paradox
+  pumpsim_simd_reduce_designs(designs, n, theta, omega, p, alike, consts, tol, res, nres): each
+      design (a row of p, its speed omega, omegadot 0) over the n rotor angles theta it shares with
+      the others; per design consts (c_visc, L, l_m, bearing torque), tol (position, paradox
       tolerances); res (designs, nres) gets REDUCTIONS then one friction power per vane.
       alike > 1 (a 1-vane library only): the vane stands for `alike` vanes spaced n / alike samples
       apart (pumpsim.design.alike): the rotor torque is the bearing torque plus its shifted shares.
@@ -128,20 +128,19 @@ static void reduce_design(long n, const double *rows, long ld, long alike, const
 }
 #pragma GCC pop_options
 
-int pumpsim_simd_reduce_blocks(long n, const double *theta, const double *omega, const double *omegadot,
-                               const double *p, long block, long alike, const double *consts, const double *tol,
-                               double *res, long nres) {
-  if (n < 0 || block < 1 || alike < 1 || (alike > 1 && (NV != 1 || block % alike)) || nres < NRED + NV * alike)
+int pumpsim_simd_reduce_designs(long designs, long n, const double *theta, const double *omega, const double *p,
+                                long alike, const double *consts, const double *tol, double *res, long nres) {
+  if (designs < 0 || n < 1 || alike < 1 || (alike > 1 && (NV != 1 || n % alike)) || nres < NRED + NV * alike)
     return 1;
-  long rows = 1 + (long)NO * NV, wn = block > NV * alike ? block : NV * alike;
-  double *buf = malloc(sizeof(double) * (rows * block + block + wn));
+  long rows = 1 + (long)NO * NV, wn = n > NV * alike ? n : NV * alike;
+  double *buf = malloc(sizeof(double) * (rows * n + 3 * n + wn));
   if (!buf) return 2;
-  for (long b = 0; b * block < n; ++b) {
-    long lo = b * block, m = n - lo < block ? n - lo : block;
-    if (alike > 1 && m % alike) { free(buf); return 1; }
-    one_design(m, theta + lo, omega + lo, omegadot + lo, p + b * NP, buf, block);
-    reduce_design(m, buf, block, alike, consts + 4 * b, tol, buf + rows * block, buf + rows * block + block,
-                  res + b * nres);
+  double *tq = buf + rows * n, *om = tq + n, *od = om + n, *w = od + n;
+  for (long j = 0; j < n; ++j) od[j] = 0.0;
+  for (long d = 0; d < designs; ++d) {
+    for (long j = 0; j < n; ++j) om[j] = omega[d];
+    one_design(n, theta, om, od, p + d * NP, buf, n);
+    reduce_design(n, buf, n, alike, consts + 4 * d, tol, tq, w, res + d * nres);
   }
   free(buf);
   return 0;

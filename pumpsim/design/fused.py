@@ -19,11 +19,10 @@ def fused_outputs(fast, P, theta, omega, const: dict, alike: int = 1) -> tuple[d
     bearing torque, read when alike > 1: one vane standing for `alike`). out: reduce_batch's
     outputs (D,) in its order; res_ok: every position residual finite and within POSITION_TOL;
     s_min, s_max: the vane extension's extremes (screen.vanes_ok's tests)."""
-    D, n = len(P), theta.shape[-1]
-    th = np.ascontiguousarray(np.broadcast_to(theta, (D, n))).reshape(-1)
+    D = len(P)
     consts = np.column_stack([np.broadcast_to(np.asarray(const[k], dtype=float), (D,))
                               for k in ("c_visc", "L", "lm", "bearing")])
-    R = fast.reduce_blocks(th, np.repeat(omega, n), P, n, consts, (POSITION_TOL, PARADOX_TOL), alike)
+    R = fast.reduce_designs(theta, omega, P, consts, (POSITION_TOL, PARADOX_TOL), alike)
     names = fast.manifest["reductions"]["columns"]
     c = {nm: R[:, i] for i, nm in enumerate(names)}
     out = {nm: c[nm] for nm in _SCALARS}

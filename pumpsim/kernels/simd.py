@@ -76,8 +76,8 @@ class FastInverseDynamics:
                 fn.restype = ctypes.c_int
         self._reduce = None
         if "reductions" in manifest:  # a design study's per-design numbers (codegen/simd_reduce.py)
-            self._reduce = lib.pumpsim_simd_reduce_blocks
-            self._reduce.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _c_long, _ptr, _ptr, _ptr, _c_long]
+            self._reduce = lib.pumpsim_simd_reduce_designs
+            self._reduce.argtypes = [_c_long, _c_long, _ptr, _ptr, _ptr, _c_long, _ptr, _ptr, _ptr, _c_long]
             self._reduce.restype = ctypes.c_int
         self._lib = lib
 
@@ -89,51 +89,31 @@ class FastInverseDynamics:
     def has_reductions(self) -> bool:
         return self._reduce is not None
 
-    def reduce_blocks(self, theta, omega, p, block: int, consts, tolerances, alike: int = 1) -> np.ndarray:
-        """A design study's numbers per design (one row of p per block of `block` samples, at
-        omegadot 0), each block's outputs reduced in cache (codegen/simd_reduce.py): returns
-        (designs, columns + vanes x alike) in manifest["reductions"]["columns"]'s order, then the
-        per-vane friction powers. consts (designs, 4): c_visc, L, l_m, bearing torque; tolerances:
-        (position, paradox); alike > 1 (1-vane library): the vane stands for that many."""
+    def reduce_designs(self, theta, omega, p, consts, tolerances, alike: int = 1) -> np.ndarray:
+        """A design study's numbers per design, each design's outputs reduced in cache
+        (codegen/simd_reduce.py): p (designs, n_p), omega (designs,) their speeds (omegadot 0), theta
+        (n,) the rotor angles they share. Returns (designs, columns + vanes x alike) in
+        manifest["reductions"]["columns"]'s order, then the per-vane friction powers. consts
+        (designs, 4): c_visc, L, l_m, bearing torque; tolerances: (position, paradox); alike > 1
+        (1-vane library): the vane stands for that many."""
         if self._reduce is None:
             raise CodegenError(f"the SIMD library of {self.structure.variant} has no reduction entry")
-        theta, omega, omegadot, p, n = self._arguments(theta, omega, 0.0, p)
-        _, _, p, block, _ = self._layout(np.atleast_2d(p), n, block)
-        consts = np.ascontiguousarray(consts, dtype=float)
-        tol = np.ascontiguousarray(tolerances, dtype=float)
-        if consts.shape != (p.shape[0], 4) or tol.shape != (2,):
-            raise ConfigError(f"consts must be ({p.shape[0]}, 4) and tolerances 2 numbers, got shapes "
-                              f"{consts.shape} and {tol.shape}")
-        res = np.empty((p.shape[0], len(self.manifest["reductions"]["columns"]) + self.vanes * alike))
-        code = self._reduce(n, *(_address(x) for x in (theta, omega, omegadot, p)), block, alike,
-                            _address(consts), _address(tol), _address(res), res.shape[1])
+        theta, p, omega, consts, tol = (np.ascontiguousarray(x, dtype=float)
+                                        for x in (theta, np.atleast_2d(p), np.atleast_1d(omega), consts, tolerances))
+        D = p.shape[0]
+        if omega.shape == (1,):
+            omega = np.full(D, omega[0])
+        got = [x.shape for x in (theta, p, omega, consts, tol)]
+        if got[1:] != [(D, self.n_params), (D,), (D, 4), (2,)] or theta.ndim != 1 or not theta.size:
+            raise ConfigError(f"theta must be (n,), p (designs, {self.n_params}), omega (designs,), consts "
+                              f"(designs, 4) and tolerances (2,), got shapes {', '.join(map(str, got))}")
+        res = np.empty((D, len(self.manifest["reductions"]["columns"]) + self.vanes * alike))
+        code = self._reduce(D, theta.size, *(_address(x) for x in (theta, omega, p)), alike,
+                            *(_address(x) for x in (consts, tol, res)), res.shape[1])
         if code:
             raise CodegenError(f"the SIMD reduction of {self.structure.variant} refused its arguments"
                                + (" (out of memory)" if code == 2 else ""))
         return res
-
-    def jacobian(self, theta, omega, omegadot, p, seeds, block: int | None = None, out=None,
-                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """The torque and its derivatives along directions: seeds (nd, 3 + n_p), each row a direction
-        in (theta, omega, omegadot, p), the same for every sample; p as for a call. Exact (CasADi's
-        reverse-mode gradient of the same expressions, contracted with the seeds in the library).
-        Returns (torque (n,), derivatives (nd, n)), views into `out` (1 + nd, n): see jacobian_array."""
-        if self._jac is None:
-            raise CodegenError(f"the SIMD library of {self.structure.variant} has no Jacobian entries")
-        theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
-        seeds = np.ascontiguousarray(np.atleast_2d(np.asarray(seeds, dtype=float)))
-        if seeds.ndim != 2 or seeds.shape[1] != 3 + self.n_params:
-            raise ConfigError(f"seeds must have 3 + {self.n_params} entries per direction (theta, omega, "
-                              f"omegadot, p), got shape {seeds.shape}")
-        nd = seeds.shape[0]
-        out = self._checked_out(out, 1 + nd, n, "jacobian_array(n, directions)")
-        self._run(self._jac, n, theta, omega, omegadot, p, block, out, threads, (nd, _address(seeds)))
-        return out[0], out[1:]
-
-    @staticmethod
-    def jacobian_array(n: int, directions: int) -> np.ndarray:
-        """An output buffer for `jacobian` (n samples, that many directions), to reuse across calls."""
-        return np.empty((1 + directions, n))
 
     def _set_layouts(self, subsets: dict):
         """The vane outputs of each entry point: None the full one, then the reduced SUBSETS."""

@@ -13,7 +13,7 @@ from pumpsim.design.fused import fused_outputs
 from pumpsim.design.outputs import KERNEL_OUTPUTS, reduce_batch
 from pumpsim.design.screen import position_checks
 from pumpsim.design.study import study_from_dict
-from pumpsim.errors import ConfigError
+from pumpsim.errors import CodegenError, ConfigError
 from pumpsim.kernels.simd import FastInverseDynamics
 from pumpsim.model_spec.parameters import layout_names
 from tests.conftest import EXAMPLES, apply_changes, example_dict, kernel_and_p, make_config, toml_text
@@ -96,11 +96,15 @@ def test_every_vane_reductions_are_reduce_batchs_bit_for_bit(designs, n):
 def test_the_library_names_its_reductions_and_checks_its_arguments(designs):
     kern, P, omega, one, fast = designs
     assert fast.manifest["reductions"]["columns"] == list(REDUCTIONS)
-    theta = np.tile(revolution(0.0, 360), len(P))
+    theta, tol = revolution(0.0, 360), (1e-10, 1e-6)
     with pytest.raises(ConfigError, match="consts"):
-        fast.reduce_blocks(theta, np.repeat(omega, 360), P, 360, np.zeros((len(P), 3)), (1e-10, 1e-6))
-    with pytest.raises(Exception, match="refused"):  # alike vanes need a 1-vane library
-        fast.reduce_blocks(theta, np.repeat(omega, 360), P, 360, np.zeros((len(P), 4)), (1e-10, 1e-6), alike=4)
+        fast.reduce_designs(theta, omega, P, np.zeros((len(P), 3)), tol)
+    with pytest.raises(ConfigError, match="omega"):
+        fast.reduce_designs(theta, omega[:2], P, np.zeros((len(P), 4)), tol)
+    with pytest.raises(CodegenError, match="refused"):  # alike vanes need a 1-vane library
+        fast.reduce_designs(theta, omega, P, np.zeros((len(P), 4)), tol, alike=4)
+    with pytest.raises(CodegenError, match="refused"):  # nor a revolution they do not divide
+        one.fast.reduce_designs(revolution(0.0, 362), omega, P[:, one.columns], np.zeros((len(P), 4)), tol, alike=4)
 
 
 UNLIKE = "unlike"  # the test rig with one vane rubbing less and one more: every vane is evaluated
@@ -127,10 +131,16 @@ def test_a_studys_table_is_the_same_with_and_without_the_reduction_entry(designs
     d = STUDIES[name]
     st = study_from_dict({**d, "study": {**d["study"], "config": str(unlike) if d["study"]["config"] == UNLIKE
                                          else d["study"]["config"]}})
-    calls, real = [], evaluate.fused_outputs
-    monkeypatch.setattr(evaluate, "fused_outputs", lambda *a: calls.append(len(a[1])) or real(*a))
+    done, real = [], evaluate.fused_outputs
+
+    def counted(*a):  # designs the reduction entry returned (a failure would send them to the per-design path)
+        r = real(*a)
+        done.append(len(a[1]))
+        return r
+
+    monkeypatch.setattr(evaluate, "fused_outputs", counted)
     fused = run_study(st, workers=0, progress=False)[0]
-    assert sum(calls) >= len(fused) // 2  # the study went through the reduction entry
+    assert sum(done) >= len(fused) // 2
     monkeypatch.setattr(FastInverseDynamics, "has_reductions", property(lambda self: False))
     plain = run_study(st, workers=0, progress=False)[0]
     assert list(fused.columns) == list(plain.columns) and len(fused) == len(plain)
