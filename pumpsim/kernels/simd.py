@@ -85,6 +85,29 @@ class FastInverseDynamics:
     def has_jacobian(self) -> bool:
         return self._jac is not None
 
+    def jacobian(self, theta, omega, omegadot, p, seeds, block: int | None = None, out=None,
+                 threads: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """The torque and its derivatives along directions: seeds (nd, 3 + n_p), each row a direction
+        in (theta, omega, omegadot, p), the same for every sample; p as for a call. Exact (CasADi's
+        reverse-mode gradient of the same expressions, contracted with the seeds in the library).
+        Returns (torque (n,), derivatives (nd, n)), views into `out` (1 + nd, n): see jacobian_array."""
+        if self._jac is None:
+            raise CodegenError(f"the SIMD library of {self.structure.variant} has no Jacobian entries")
+        theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
+        seeds = np.ascontiguousarray(np.atleast_2d(np.asarray(seeds, dtype=float)))
+        if seeds.ndim != 2 or seeds.shape[1] != 3 + self.n_params:
+            raise ConfigError(f"seeds must have 3 + {self.n_params} entries per direction (theta, omega, "
+                              f"omegadot, p), got shape {seeds.shape}")
+        nd = seeds.shape[0]
+        out = self._checked_out(out, 1 + nd, n, "jacobian_array(n, directions)")
+        self._run(self._jac, n, theta, omega, omegadot, p, block, out, threads, (nd, _address(seeds)))
+        return out[0], out[1:]
+
+    @staticmethod
+    def jacobian_array(n: int, directions: int) -> np.ndarray:
+        """An output buffer for `jacobian` (n samples, that many directions), to reuse across calls."""
+        return np.empty((1 + directions, n))
+
     @property
     def has_reductions(self) -> bool:
         return self._reduce is not None
