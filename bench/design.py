@@ -157,11 +157,11 @@ def main():
     print(f"  one core, in process: {r['designs_per_s']:.0f} designs/s of wall time, {r['designs_per_cpu_s']:.0f} "
           f"per CPU second (target >= 5,000 per core; {r['designs']} designs, best of {r['repeats']}); the "
           f"SIMD kernel alone on the same designs, every vane: {r['kernel_designs_per_cpu_s']:.0f} per CPU "
-          f"second ({r['ratio_to_kernel']:.2f}x); one vane standing for the alike four (what the study runs): "
+          f"second ({r['ratio_to_kernel']:.2f}x); one vane standing for the alike four, every output stored: "
           f"{r['one_vane_kernel_designs_per_cpu_s']:.0f} per CPU second, so {100 * r['outside_kernel_share_cpu']:.0f} % "
           "of the study's CPU time is outside the kernel (housing, geometry, reductions, table, pilot); "
           f"{100 * r['outside_fused_call_share_cpu']:.0f} % outside the library call the study makes (the kernel "
-          "with the reductions in C): the Python per design")
+          "with the reductions in C): the study's Python, per design and per study")
     r = workers_scaling()
     res["workers"] = r
     print(f"  LocalCluster 1 -> 2 workers: {r['wall_1_s']:.2f} s -> {r['wall_2_s']:.2f} s, speed-up "
