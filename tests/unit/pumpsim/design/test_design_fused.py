@@ -94,7 +94,7 @@ def test_every_vane_reductions_are_reduce_batchs_bit_for_bit(designs, n):
 
 
 def test_the_library_names_its_reductions_and_checks_its_arguments(designs):
-    kern, P, omega, one, fast = designs
+    _, P, omega, one, fast = designs
     assert fast.manifest["reductions"]["columns"] == list(REDUCTIONS)
     theta, tol = revolution(0.0, 360), (1e-10, 1e-6)
     with pytest.raises(ConfigError, match="consts"):
