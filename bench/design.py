@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -34,8 +37,9 @@ def kernel_alone(s, repeats=3):
     """The SIMD kernel's own time for the study's designs (their parameter vectors, in the
     study's batches: evaluate.batch_designs): what a design costs without any Python around it --
     every vane through the N-vane library (what a study evaluated before alike vanes went through
-    one), and one vane through the 1-vane library (design.alike, what the study runs). Best of
-    `repeats`, {name: (wall, CPU seconds)}."""
+    one), one vane through the 1-vane library (design.alike) with every output stored, and
+    "fused": the call the study makes, one vane with the reductions in C (codegen/simd_reduce.py).
+    Best of `repeats`, {name: (wall, CPU seconds)}."""
     from pumpsim.design.evaluate import KERNEL_OUTPUTS, batch_designs, evaluate_designs, one_vane, revolution
     from pumpsim.design.execute import study_designs
     from pumpsim.design.vector import design_maps
@@ -47,8 +51,13 @@ def kernel_alone(s, repeats=3):
     kern, theta = load_kernels(dm.structure), revolution(dm.cfg.angle, s.revolution_samples)
     one = one_vane(dm.structure)
     N = dm.structure.vanes
+    zeros = np.zeros((len(P), 4))
     runs = {"every_vane": (lambda p, w: evaluate_designs(kern, p, theta, w), batch_designs(N, False)),
             "one_vane": (lambda p, w: one.evaluate(p, theta, w, KERNEL_OUTPUTS), batch_designs(N, True))}
+    if one.fast.has_reductions:  # the call the study makes: the kernel and the reductions in C
+        runs["fused"] = (lambda p, w: one.fast.reduce_designs(theta, w, p[:, one.columns], zeros[:len(p)],
+                                                              (1e-10, 1e-6), N),
+                         batch_designs(N, True))
     best = {name: (float("inf"), float("inf")) for name in runs}
     for _ in range(repeats):
         for name, (run, size) in runs.items():
@@ -71,10 +80,12 @@ def one_core(n=2000, repeats=3):
         wall, cpu = min(wall, time.perf_counter() - t0), min(cpu, time.process_time() - c0)
     k = kernel_alone(s)
     k_cpu, one_cpu = k["every_vane"][1], k["one_vane"][1]
+    fused_cpu = k.get("fused", (math.nan, math.nan))[1]
     return {"designs": n, "wall_s": wall, "cpu_s": cpu, "designs_per_s": n / wall, "designs_per_cpu_s": n / cpu,
             "kernel_wall_s": k["every_vane"][0], "kernel_cpu_s": k_cpu, "kernel_designs_per_cpu_s": n / k_cpu,
             "one_vane_kernel_cpu_s": one_cpu, "one_vane_kernel_designs_per_cpu_s": n / one_cpu,
-            "ratio_to_kernel": k_cpu / cpu, "outside_kernel_share_cpu": 1 - one_cpu / cpu, "repeats": repeats}
+            "ratio_to_kernel": k_cpu / cpu, "outside_kernel_share_cpu": 1 - one_cpu / cpu,
+            "fused_call_cpu_s": fused_cpu, "outside_fused_call_share_cpu": 1 - fused_cpu / cpu, "repeats": repeats}
 
 
 def workers_scaling(n=24_000, repeats=3):
@@ -146,9 +157,11 @@ def main():
     print(f"  one core, in process: {r['designs_per_s']:.0f} designs/s of wall time, {r['designs_per_cpu_s']:.0f} "
           f"per CPU second (target >= 5,000 per core; {r['designs']} designs, best of {r['repeats']}); the "
           f"SIMD kernel alone on the same designs, every vane: {r['kernel_designs_per_cpu_s']:.0f} per CPU "
-          f"second ({r['ratio_to_kernel']:.2f}x); one vane standing for the alike four (what the study runs): "
+          f"second ({r['ratio_to_kernel']:.2f}x); one vane standing for the alike four, every output stored: "
           f"{r['one_vane_kernel_designs_per_cpu_s']:.0f} per CPU second, so {100 * r['outside_kernel_share_cpu']:.0f} % "
-          "of the study's CPU time is outside the kernel (housing, geometry, reductions, table, pilot)")
+          "of the study's CPU time is outside the kernel (housing, geometry, reductions, table, pilot); "
+          f"{100 * r['outside_fused_call_share_cpu']:.0f} % outside the library call the study makes (the kernel "
+          "with the reductions in C): the study's Python, per design and per study")
     r = workers_scaling()
     res["workers"] = r
     print(f"  LocalCluster 1 -> 2 workers: {r['wall_1_s']:.2f} s -> {r['wall_2_s']:.2f} s, speed-up "

@@ -33,6 +33,8 @@ output for vanes 0..N-1; `ld` lets callers write a column range of a larger arra
       vane instructions, and stores one row).
   pumpsim_simd_jac_blocks / _samples: the torque and its derivatives along directions in (theta,
       omega, omegadot, p): codegen/simd_jacobian.py.
+  pumpsim_simd_reduce_blocks: a design study's per-design numbers, reduced in cache from each
+      block's outputs: codegen/simd_reduce.py.
 """
 from __future__ import annotations
 
@@ -54,6 +56,7 @@ from .builder import Builder
 from .install import CC, install_library
 from .simd_emit import HELPERS, emit_loop
 from .simd_jacobian import jacobian_source
+from .simd_reduce import reduction_source
 
 CHUNK = 512  # samples per pass over the vanes: the vanes' torque shares stay in L1/L2 for the sum
 VECTOR_FUNCTIONS = ("sin", "cos", "atan2")  # the model's transcendentals with a libmvec variant
@@ -199,13 +202,14 @@ def generate_source(structure) -> tuple[str, dict]:
                   emit_loop(sub, f"loop_vane_{name}_samples", set(range(sub.n_in()))),
                   _driver(f"_{name}", list(stored), sub)]
     jac_src, jac_info = jacobian_source(fns)
-    src = "\n".join(parts + [jac_src])
+    red_src, red_info = reduction_source(fns["outputs"][1:])
+    src = "\n".join(parts + [jac_src, red_src])
     lines = src.splitlines()
     starts = {m.group(1): i + 1 for i, ln in enumerate(lines) for m in [re.match(r"static void (loop_\w+)\(", ln)] if m}
     ends = {name: next(i + 1 for i in range(a, len(lines)) if lines[i] == "}") for name, a in starts.items()}
     info = {"vanes": N, "n_params": NP, "outputs": list(fns["outputs"]), "chunk": CHUNK,
             "subsets": {name: list(stored) for name, stored in SUBSETS.items()},
-            "vane_instructions": vane.n_instructions(), "jacobian": jac_info,
+            "vane_instructions": vane.n_instructions(), "jacobian": jac_info, "reductions": red_info,
             "loop_lines": {name: [starts[name], ends[name]] for name in starts}}
     return src, info
 

@@ -27,7 +27,8 @@ from .outputs import (BOOL_OUTPUTS, KERNEL_OUTPUTS, TANGENT_OUTPUTS, design_cons
                       reduce_revolution)
 from .study import SPEED_KEY, get_value
 from .alike import OneVane, spread
-from .screen import ellipse_clear, housing_samples, polygon_clear, vanes_ok
+from .fused import fused_outputs
+from .screen import ellipse_clear, extension_ok, housing_samples, polygon_clear, position_checks
 from .vector import design_maps, mouth_depths
 from .columns import Block, rows, table_columns
 from .store import columns, columns_to_table, max_vanes, rows_to_table
@@ -430,27 +431,38 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | No
     S, B = (len(W) if W else 1), len(P)
     omega = np.tile(np.asarray(W, dtype=float), B) if W else speed
     PS = np.repeat(P, S, axis=0)
-    try:
-        ev = one.evaluate(PS, theta, omega, KERNEL_OUTPUTS) if one else evaluate_designs(kern, PS, theta, omega)
-        clear = _housing_clear(kern, dm, P, nrev)
-    except PumpsimError:
-        return None
     col = lambda k: P[:, dm.index[k]]  # noqa: E731
     lm = np.asarray(mouth_depths(dm.index, P))
     width = get_value(dm.table, "rotor.width")
     const = {"c_visc": col("effects.viscous_tip_friction"), "L": col("vane.length"), "lm": lm,
              "tip_area": width * col("vane.thickness") if width else np.full(B, math.nan)}
-    good = clear & vanes_ok(col("vane.length"), lm, ev["s"][::S], ev["position_residual"][::S])
-    res = ev["position_residual"]
-    with np.errstate(invalid="ignore"):
-        converged = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
-    out, _ = reduce_batch(ev, {k: np.repeat(v, S) for k, v in const.items()}, kern.structure.vanes)
+    try:
+        out, converged, s_min, s_max = _batch_outputs(kern, one, PS, theta, omega,
+                                                      {k: np.repeat(v, S) for k, v in const.items()})
+        clear = _housing_clear(kern, dm, P, nrev)
+    except PumpsimError:
+        return None
+    good = clear & extension_ok(col("vane.length"), lm, converged[::S], s_min[::S], s_max[::S])
     asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
     fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)
     block = Block(out, omega, fin, S)
     converged = converged.reshape(B, S).all(axis=1)
     return [None if not good[d] else ("ok", block.design(d)) if converged[d]
             else ("numerical: position problem did not converge", None) for d in range(B)]
+
+
+def _batch_outputs(kern, one, PS, theta, omega, const) -> tuple:
+    """fused.fused_outputs of designs PS (rows of the variant's parameter vectors; `one`: through
+    alike.OneVane) through the SIMD library's reduction entry where it has one, else from the
+    kernel's outputs by reduce_batch (the same numbers)."""
+    fast = one.fast if one is not None else fast_kernel(kern.structure)
+    if fast is not None and fast.has_reductions:
+        if one is not None:
+            return fused_outputs(fast, PS[:, one.columns], theta, omega, {**const, "bearing": PS[:, one.bearing]},
+                                 one.vanes)
+        return fused_outputs(fast, PS, theta, omega, {**const, "bearing": 0.0})
+    ev = one.evaluate(PS, theta, omega, KERNEL_OUTPUTS) if one else evaluate_designs(kern, PS, theta, omega)
+    return (reduce_batch(ev, const, kern.structure.vanes)[0], *position_checks(ev["s"], ev["position_residual"]))
 
 
 def _mapped_results(study, X, results: dict, speeds_of: dict) -> list:

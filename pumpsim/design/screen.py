@@ -65,9 +65,19 @@ def ellipse_clear(P, index: dict, rr, n: int) -> np.ndarray:
 
 def vanes_ok(L, lm, s, res) -> np.ndarray:
     """geometry_verdict's tests of the vane positions over B designs (see geometry_ok)."""
+    return extension_ok(L, lm, *position_checks(s, res))
+
+
+def position_checks(s, res) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(res_ok, s_min, s_max) of B designs' vane extensions s and position residuals res (B, N, n):
+    every residual finite and within POSITION_TOL; the extension's extremes."""
     with np.errstate(invalid="ignore"):
         res_ok = np.all(np.isfinite(res), axis=(1, 2)) & ~np.any(res > POSITION_TOL, axis=(1, 2))
-    s_min, s_max = s.min(axis=(1, 2)), s.max(axis=(1, 2))
+    return res_ok, s.min(axis=(1, 2)), s.max(axis=(1, 2))
+
+
+def extension_ok(L, lm, res_ok, s_min, s_max) -> np.ndarray:
+    """vanes_ok from each design's positions verdict res_ok and its extension's extremes."""
     return res_ok & (s_min >= -POSITION_TOL) & (s_max < lm) & (s_min + L > lm)
 
 
@@ -93,4 +103,4 @@ def polygon_clear(rr, pts, curv, margin=0.0) -> np.ndarray:
     return convex & inside & (np.hypot(x, y).min(axis=1) > rr + margin)
 
 
-__all__ = ["housing_samples", "ellipse_clear", "vanes_ok", "polygon_clear", "geometry_ok", "CLEARANCE_REL"]
+__all__ = ["housing_samples", "ellipse_clear", "vanes_ok", "extension_ok", "position_checks", "polygon_clear", "geometry_ok", "CLEARANCE_REL"]

@@ -74,6 +74,11 @@ class FastInverseDynamics:
             for fn in self._jac:
                 fn.argtypes = [_c_long, _ptr, _ptr, _ptr, _ptr, _c_long, _c_long, _ptr, _ptr, _c_long]
                 fn.restype = ctypes.c_int
+        self._reduce = None
+        if "reductions" in manifest:  # a design study's per-design numbers (codegen/simd_reduce.py)
+            self._reduce = lib.pumpsim_simd_reduce_designs
+            self._reduce.argtypes = [_c_long, _c_long, _ptr, _ptr, _ptr, _c_long, _ptr, _ptr, _ptr, _c_long]
+            self._reduce.restype = ctypes.c_int
         self._lib = lib
 
     @property
@@ -102,6 +107,36 @@ class FastInverseDynamics:
     def jacobian_array(n: int, directions: int) -> np.ndarray:
         """An output buffer for `jacobian` (n samples, that many directions), to reuse across calls."""
         return np.empty((1 + directions, n))
+
+    @property
+    def has_reductions(self) -> bool:
+        return self._reduce is not None
+
+    def reduce_designs(self, theta, omega, p, consts, tolerances, alike: int = 1) -> np.ndarray:
+        """A design study's numbers per design, each design's outputs reduced in cache
+        (codegen/simd_reduce.py): p (designs, n_p), omega (designs,) their speeds (omegadot 0), theta
+        (n,) the rotor angles they share. Returns (designs, columns + vanes x alike) in
+        manifest["reductions"]["columns"]'s order, then the per-vane friction powers. consts
+        (designs, 4): c_visc, L, l_m, bearing torque; tolerances: (position, paradox); alike > 1
+        (1-vane library): the vane stands for that many."""
+        if self._reduce is None:
+            raise CodegenError(f"the SIMD library of {self.structure.variant} has no reduction entry")
+        theta, p, omega, consts, tol = (np.ascontiguousarray(x, dtype=float)
+                                        for x in (theta, np.atleast_2d(p), np.atleast_1d(omega), consts, tolerances))
+        D = p.shape[0]
+        if omega.shape == (1,):
+            omega = np.full(D, omega[0])
+        got = [x.shape for x in (theta, p, omega, consts, tol)]
+        if got[1:] != [(D, self.n_params), (D,), (D, 4), (2,)] or theta.ndim != 1 or not theta.size:
+            raise ConfigError(f"theta must be (n,), p (designs, {self.n_params}), omega (designs,), consts "
+                              f"(designs, 4) and tolerances (2,), got shapes {', '.join(map(str, got))}")
+        res = np.empty((D, len(self.manifest["reductions"]["columns"]) + self.vanes * alike))
+        code = self._reduce(D, theta.size, *(_address(x) for x in (theta, omega, p)), alike,
+                            *(_address(x) for x in (consts, tol, res)), res.shape[1])
+        if code:
+            raise CodegenError(f"the SIMD reduction of {self.structure.variant} refused its arguments"
+                               + (" (out of memory)" if code == 2 else ""))
+        return res
 
     def _set_layouts(self, subsets: dict):
         """The vane outputs of each entry point: None the full one, then the reduced SUBSETS."""
@@ -249,6 +284,7 @@ class ScalarInverseDynamics(FastInverseDynamics):
         self.outputs = ("torque", *VANE_OUTPUTS)
         self._set_layouts(SUBSETS)
         self._jac = None  # derivatives: the CasADi map's (identification's fallback path)
+        self._reduce = None
 
     def __call__(self, theta, omega, omegadot, p, block=None, out=None, threads=1, outputs=None):
         theta, omega, omegadot, p, n = self._arguments(theta, omega, omegadot, p)
