@@ -24,6 +24,7 @@ with the check that separates them.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +33,7 @@ from ..benchlog import BenchLog
 from ..identification import bench_sensors
 from ..identification.bench_model import START_NAME
 from ..identification.pumpdown_fit import BenchLogProblem
-from ..signals import noise_sigma
+from ..signals import noise_sigma, quantization_step
 
 SUPPLY = "supply.resistance"  # ohm in series before the motor terminals
 RISE = "motor.resistance_rise"  # ohm the winding resistance rises over the log
@@ -152,6 +153,22 @@ class Drives:
         # voltage's noise too (its integral drives it), which the current's own sigma does not count
         self.weight = None
 
+    @staticmethod
+    def _rounding(base) -> dict:
+        """Per channel the sigma of its rounding (q^2 / 12 of the grid its values lie on; 0 off a
+        grid) in the channel's noise sigmas."""
+        return {c: quantization_step(base.measured[c]) / math.sqrt(12.0) / base.sigma[c] for c in base.channel_names}
+
+    def rounding_floors(self) -> dict:
+        """_rounding in the units of the weighted residual (set_weights)."""
+        base = self.get(0.0)
+        floor = self._rounding(base)
+        if self.weight is None:
+            return floor
+        sizes = [base.measured[c].size for c in base.channel_names]
+        parts = np.split(self.weight, np.cumsum(sizes)[:-1])
+        return {c: floor[c] / float(np.median(w)) for c, w in zip(base.channel_names, parts)}
+
     def set_weights(self, residual):
         """Each channel's weight: the robust white-noise level of `residual` (a fit's, in channel
         sigmas) on that channel's values: every channel's residual noise then has unit variance."""
@@ -159,7 +176,10 @@ class Drives:
         sizes = [base.measured[c].size for c in base.channel_names]
         r = np.asarray(residual, float) if self.weight is None else unweighted(residual, self.weight)
         parts = np.split(r, np.cumsum(sizes)[:-1])
-        w = {c: np.full(r.size, max(noise_sigma(r), 1e-12)) for c, r in zip(base.channel_names, parts)}
+        # a channel rounded to a grid (an ADC's counts) carries at least its rounding, which the
+        # residual's first differences miss where the channel moves less than a step per sample
+        floor = self._rounding(base)
+        w = {c: np.full(r.size, max(noise_sigma(r), floor[c], 1e-12)) for c, r in zip(base.channel_names, parts)}
         # the first current block holds the switch-on inrush (rising over L/R, a fraction of a
         # millisecond): the log's trapezoidal mean of samples milliseconds apart does not measure
         # it (a clean twin's first block misses by ~19 sigmas), so it is left out

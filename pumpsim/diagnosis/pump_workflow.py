@@ -23,7 +23,7 @@ from ..identification.bench_model import START_NAME
 from ..identification.optimiser import scaled_svd
 from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
-from ..signals import high_frequency_noise, ljung_box, runs_test
+from ..signals import high_frequency_noise, ljung_box, quantization_step, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 from .log import Budgeted, BudgetReached, DataNote, Note, Rejected, TooSmall
 from .options import OPTIONS, DiagnosisOptions
@@ -142,11 +142,17 @@ class BenchDetection:
     detectors and channels.
     Reads as the torque Detection for the verdict (p["family"], systematic, sigma, consistent)."""
 
-    def __init__(self, residual, sizes, names, fitted, opts: DiagnosisOptions = OPTIONS):
+    def __init__(self, residual, sizes, names, fitted, opts: DiagnosisOptions = OPTIONS, floors=None):
         self.opts = opts
         self.pieces = dict(zip(names, np.split(residual, np.cumsum(sizes)[:-1])))
         self.per = {c: {"runs_test": runs_test(r), "ljung_box": ljung_box(r, fitted=fitted),
                         "noise_level": high_frequency_noise(r)} for c, r in self.pieces.items()}
+        # a channel rounded coarser than its noise (floors: its rounding's sigma, in noise sigmas): its
+        # residual is the rounding's staircase, neither white nor a model error -- not tested
+        self.rounded = [c for c in names if (floors or {}).get(c, 0.0) > self.per[c]["noise_level"]["sigma"]]
+        for c in self.rounded:
+            self.per[c] = {d: {"p_value": 1.0} for d in ("runs_test", "ljung_box")}
+            self.per[c]["noise_level"] = {"p_value": 1.0, "sigma": floors[c]}
         for c, r in self.pieces.items():
             self.per[c]["mean_level"] = mean_level(r, self.per[c]["noise_level"]["sigma"], opts.relevant)
         k = len(DETECTORS) * len(self.per)
@@ -170,7 +176,8 @@ class BenchDetection:
         return {"combined_p": self.p, "per_channel": {c: {d: m[d]["p_value"] for d in DETECTORS}
                                                        for c, m in self.per.items()},
                 "systematic_rms": self.systematic, "noise_sigma": self.sigma,
-                "relevance_floor": self.opts.relevant * self.sigma, "unit": NOISE_UNIT}
+                "relevance_floor": self.opts.relevant * self.sigma, "unit": NOISE_UNIT,
+                "rounded_channels": list(self.rounded)}
 
 
 @dataclass(frozen=True)
@@ -223,6 +230,7 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
               **{e.param: e.absent_value(cfg) for e in effects}}
     run = Run(Drives(cfg, log, values, rtol, atol, start_known=atmosphere_known), options, progress or (lambda msg: None), None if budget is None else wall0 + budget,
               budget={"seconds": budget, "bound": False, "cut": []})
+    run.log += [DataNote(f"the log: {n}") for n in log.notes]
     above = start_above_atmosphere(log, cfg)
     if above:
         run.log.append(DataNote(above))
@@ -291,8 +299,9 @@ def _weighted(run, fit: Fit) -> Fit:
 
 def _detect(fit: Fit, opts) -> BenchDetection:
     p = fit.prob
-    return BenchDetection(fit.residual, [p.drives.get(0.0).measured[c].size for c in p.channel_names],
-                          p.channel_names, len(fit.names), opts)
+    base = p.drives.get(0.0)
+    return BenchDetection(fit.residual, [base.measured[c].size for c in p.channel_names],
+                          p.channel_names, len(fit.names), opts, p.drives.rounding_floors())
 
 
 def _guard(fit: Fit, opts, base: Fit) -> dict:
@@ -509,12 +518,17 @@ def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wa
                                     guard["dof"], guard["p_value"], guard["alpha"], guard["worst"]))
     if run.confounded:
         text += "; confounded: " + ", ".join(" ~ ".join(p) for p in run.confounded)
+    inner = current.prob.drives.get(0.0)
+    for c in detection.rounded:
+        step = quantization_step(inner.measured[c])
+        run.log.append(DataNote(f"{c} is rounded to steps of {step:.4g} {UNITS[c]}, coarser than its noise: "
+                                "its residual (the rounding's staircase) counts as noise of step/sqrt(12) and is not "
+                                "tested for whiteness"))
     run.log += [n for n in verdict_notes(detection, {"p_value": 1.0, "excess_rms": 0.0, "mad_sigma": 1.0},
                                          verdict.consistent, opts, NOISE_UNIT)]
     if run.budget.get("bound"):
         run.log.append(BudgetReached(run.budget["seconds"], tuple(run.budget["cut"])))
     p = detection.p
-    inner = current.prob.drives.get(0.0)
     level = opts.score_alpha / max(len(ranking), 1)
     return BenchDiagnosis(
         baseline={"rms": base.rms, "params": history[0].params}, steps=tuple(steps),

@@ -54,7 +54,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..benchlog import BenchLog, fit_percent, start_above_atmosphere
-from ..signals import noise_sigma
+from ..signals import measured_noise
 from ..errors import ConfigError
 from ..model_spec.parameters import COF_ALIASES, GAS_ENCODED, GAS_PARAMETERS, fit_bounds, pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
@@ -160,7 +160,7 @@ class BenchLogProblem(Problem):
         self.bench = BenchModel(cfg, log.time, log.voltage, log.start_pressure(), omega0, rtol, atol, self.kern)
         self.measured = self.bench.compared(log.channels())
         # robust sigma of first differences of what is compared (block means: their own), floored
-        self.sigma = {c: max(noise_sigma(y), CHANNEL_FLOOR * float(np.max(np.abs(y)))) for c, y in self.measured.items()}
+        self.sigma = {c: max(measured_noise(y), CHANNEL_FLOOR * float(np.max(np.abs(y)))) for c, y in self.measured.items()}
         self.y = self.scaled(self.measured)
         self.n_eval = 0
         self.last = None  # the channels of the last simulation (unscaled)
