@@ -182,7 +182,7 @@ class FastProblem:
 
 
 FAST_ITERATIONS, FAST_TOL = 10, 1e-4  # the fast fit is a start: a few standard errors off is fine
-FULL_STEPS = 3  # full-model steps with its own forward-difference Jacobian, at most
+FULL_STEPS = 5  # full-model steps with its Jacobian, at most (the common case takes 2)
 STEP_SE = 0.2  # converged: every parameter's step below this many of its standard errors
 # a full-model step updates the Jacobian (Broyden) when its largest parameter change is at least this
 # share of the difference step: the secant of two tight runs is then as accurate as a loose column
