@@ -223,8 +223,8 @@ def fast_then_full(prob, fast, x0, max_iter=30, log=None, loose=None):
     """The fit from the maps' start: Gauss-Newton on the fast model from x0; there the full
     model's forward-difference Jacobian (its run at the fast fit and the steps' runs at once on the
     cores); then its Gauss-Newton steps until one is below STEP_SE standard errors or no longer
-    lowers the residual, a step as long as a difference step correcting the Jacobian along itself
-    (Broyden, SECANT_SHARE). The covariance comes from that Jacobian.
+    lowers the residual, a step of at least SECANT_SHARE of a difference step correcting the
+    Jacobian along itself (Broyden). The covariance comes from that Jacobian.
     loose: the same problem at a looser tolerance (tolerance continuation): the Jacobian's steps
     are its runs (a run at 1e-5 costs ~0.6 of one at 1e-6), the base, the steps, their residuals
     and the convergence test the tight problem's. Returns (FitOutcome, x of the fast fit)."""

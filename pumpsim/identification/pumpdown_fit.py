@@ -250,9 +250,8 @@ class BenchLogProblem(Problem):
 
     def model_and_loose_jacobian(self, x, loose: "BenchLogProblem", cols=None):
         """(this problem's model at x, the forward-difference Jacobian in the columns cols (all:
-        None) whose steps are `loose`'s --
-        the same log and parameters at a looser tolerance -- from this model at x), the run at x and
-        the steps' runs at once on the cores, the longest first, each run single-threaded: no more
+        None) whose steps are `loose`'s -- the same log and parameters at a looser tolerance --
+        from this model at x), the run at x and the steps' runs at once on the cores, the longest first, each run single-threaded: no more
         threads than default_threads(). The difference's base is the tight run, not a loose one of
         its own: a run less, and the columns as close to the tight ones (docs, bench-log fit). Only
         the direct driver's runs share the cores (each on its own solver memory); CasADi's plugin
