@@ -344,8 +344,9 @@ def bench_diagnose_scale(samples=(1000, 5000, 20000, 80000)):
 def bench_benchlog(duration=5.0, rate=1000.0):
     """Identify mu, booster.leak, motor.resistance from a 5 s bench log at 1 kHz (the EVP example,
     a twin log with 0.5 % noise on every channel, the truth 10 % off the config) from the fast
-    model's start (cycle-averaged maps; the Broyden steps and the Jacobian at rtol 1e-5, the last
-    steps at 1e-6: tolerance continuation); target <= 30 s waited. Both times are reported with the
+    model's start (cycle-averaged maps; there the run at rtol 1e-6 and the Jacobian's difference
+    steps at 1e-5 at once on the cores, the steps at 1e-6: tolerance continuation); target <= 30 s
+    waited. Both times are reported with the
     load average: the wall time is what a user waits (the Jacobian's runs use both cores), the CPU
     time the figure that holds on a shared machine, where the wall time is the others' load."""
     from pumpsim.identification.pumpdown_fit import identify_bench, twin_log

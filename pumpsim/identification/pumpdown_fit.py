@@ -42,8 +42,9 @@ Its Jacobian (`jacobian`):
   Jacobian at a tight tolerance (standard errors; the booster leak's column at any tolerance).
 The first attempt at sensitivities kept them in the error test: 6x the steps, 33x a run's cost.
 From the maps' start with differences, the fit continues in the tolerance (CONTINUATION_RTOL): the
-Broyden steps and the Jacobian run at rtol 1e-5 with a 3 % step, the last Gauss-Newton steps, their
-residuals and the convergence test at the fit's rtol, the run there beside the Jacobian's.
+Jacobian at the fast fit takes its difference steps at rtol 1e-5 with a 3 % step from the run at
+the fit's rtol there (the runs at once on the cores), the start pressure's column from the fast
+model; the Gauss-Newton steps, their residuals and the convergence test at the fit's rtol.
 """
 from __future__ import annotations
 
@@ -64,12 +65,12 @@ from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
 DIFFERENCE_STEP = 1e-2  # forward-difference step, of the parameter's scale (see scale_of)
-# tolerance continuation (identify_bench, bench_fast.fast_then_full): the Broyden steps and the
-# Jacobian at this rtol (atol in proportion), a run there costing ~0.6 of one at 1e-6, with a wider
+# tolerance continuation (identify_bench, bench_fast.fast_then_full): the Jacobian's difference
+# steps at this rtol (atol in proportion), a run there costing ~0.6 of one at 1e-6, with a wider
 # difference step (each run's own integration error over the step). The Jacobian's noise moves
-# where the last steps settle: measured on a 5 s twin log, the Gauss-Newton fixed point moved by
-# up to 0.12 standard errors from the 1e-6 Jacobian's over atol changes of 1e-12 (rtol 1e-4: up to
-# 0.47), the standard errors within 3 % (docs, bench-log fit)
+# where the steps settle: measured on a 5 s twin log, the Gauss-Newton fixed point moved by up to
+# 0.12 standard errors from the 1e-6 Jacobian's over atol changes of 1e-12 (rtol 3e-5: 0.25, 1e-4:
+# up to 0.47), the standard errors within 3 % (docs, bench-log fit)
 CONTINUATION_RTOL, CONTINUATION_STEP = 1e-5, 3e-2
 # a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
 TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
@@ -247,24 +248,26 @@ class BenchLogProblem(Problem):
         """The noise-scaled model at x by one run of its own, touching no cache (for runs in threads)."""
         return self.scaled(self.bench.channels(self.parameter_vector(x)))
 
-    def model_and_loose_jacobian(self, x, loose: "BenchLogProblem"):
-        """(this problem's model at x, the forward-difference Jacobian of `loose` -- the same log and
-        parameters at a looser tolerance -- at x), the run at x and the Jacobian's runs at once on
-        the cores, the longest first, each run single-threaded: no more threads than
-        default_threads(). Only the direct driver's runs share the cores (each on its own solver
-        memory); CasADi's plugin and the reed valve's event-locating runs go one after another."""
+    def model_and_loose_jacobian(self, x, loose: "BenchLogProblem", cols=None):
+        """(this problem's model at x, the forward-difference Jacobian in the columns cols (all:
+        None) whose steps are `loose`'s -- the same log and parameters at a looser tolerance --
+        from this model at x), the run at x and the steps' runs at once on the cores, the longest first, each run single-threaded: no more
+        threads than default_threads(). The difference's base is the tight run, not a loose one of
+        its own: a run less, and the columns as close to the tight ones (docs, bench-log fit). Only
+        the direct driver's runs share the cores (each on its own solver memory); CasADi's plugin
+        and the reed valve's event-locating runs go one after another."""
         from concurrent.futures import ThreadPoolExecutor
 
         from ..kernels.scalar import default_threads
 
         x = np.asarray(x, dtype=float)
-        xs, hs = loose.difference_points(x, range(len(loose.names)))
+        xs, hs = loose.difference_points(x, range(len(loose.names)) if cols is None else cols)
         loose.n_eval += len(xs)
-        jobs = [lambda: self.model(x), lambda: loose.model(x)] + [lambda xj=xj: loose.evaluate(xj) for xj in xs]
+        jobs = [lambda: self.model(x)] + [lambda xj=xj: loose.evaluate(xj) for xj in xs]
         direct = all(pr.bench.has_sensitivities(pr.parameter_vector(x)) for pr in (self, loose))
         with ThreadPoolExecutor(max_workers=min(len(jobs), default_threads()) if direct else 1) as pool:
             done = list(pool.map(lambda job: job(), jobs))
-        return done[0], differences(done[1], done[2:], hs)
+        return done[0], differences(done[0], done[1:], hs)
 
     def _sensitivity_jacobian(self, x, p, cols):
         from .bench_sens import parameter_directions
@@ -463,9 +466,11 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
     the model started there biases the leak and the resistance by several standard errors (docs:
     bench-log fit); False keeps the estimate (and its bias). With jacobian "sensitivities" the
     start's column is an initial-condition sensitivity of the same run. continuation (the maps'
-    start, forward differences, rtol below CONTINUATION_RTOL): the Broyden steps and the Jacobian
-    (the covariance's) at CONTINUATION_RTOL, the last steps and the convergence test at rtol
-    (bench_fast.fast_then_full); the sensitivities do not survive the loose tolerance (docs)."""
+    start, forward differences, rtol below CONTINUATION_RTOL): the Jacobian's (the covariance's)
+    difference steps at CONTINUATION_RTOL from the base run at rtol, the steps and the convergence
+    test at rtol (bench_fast.fast_then_full); the sensitivities do not survive the loose tolerance
+    (docs)."""
+    from .bench_fast import maps_jacobian_text
     from .fit import fit_identifiable
     from .identifiability import to_fix
     from .optimiser import Optimiser
@@ -488,9 +493,7 @@ def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resi
         if not any(to_fix(prob.names, out.jacobian, out.x, prob.y - out.residual)):
             res = _result(prob, prob, out, [], [], loose_runs, log, cfg, wall0, method)
             fit = _bench_fit(prob, res, out.x, how)
-            if loose is not None:
-                fit.jacobian = (f"{loose.jacobian_text(out.x)} at rtol {loose.rtol:g} (a {100 * loose.step:g} % step), "
-                                f"the residuals at {rtol:g}")
+            fit.jacobian = maps_jacobian_text(prob, loose, out.x)
             return _checked(_with_ripple(fit, cfg, log, prob, prob, out.x) if ripple else fit, cfg, log)
 
     def reduced(active, fixed, unident):
@@ -514,8 +517,8 @@ def _from_maps(prob, loose, max_iter, progress):
                           prob.scale_of)
     out, x_fast = fast_then_full(prob, fast, prob.x0, max_iter, progress, loose)
     how = (f"the fast model's fit (cycle-averaged maps, {len(fast.slopes) + 1} sets), then "
-           f"{len(out.history) - 1} full-model steps" + ("" if loose is None else
-           f" (the Broyden steps and the Jacobian at rtol {loose.rtol:g}: {loose.n_eval} runs)"))
+           f"{len(out.history) - 1} full-model steps from there" + ("" if loose is None else
+           f" (the Jacobian's difference steps at rtol {loose.rtol:g}: {loose.n_eval} runs)"))
     return out, x_fast, how
 
 
