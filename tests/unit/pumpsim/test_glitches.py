@@ -51,3 +51,24 @@ def test_a_bench_log_reads_with_its_spikes_replaced_and_said(tmp_path):
     assert any("current: 2 isolated spike(s)" in n and "row 102, row 335" in n for n in log.notes), log.notes
     # the file holds 6 decimals
     assert abs(log.current[100] - 0.5 * (i[99] + i[101])) < 2e-6 and abs(log.current[99] - i[99]) < 1e-6
+
+
+def test_a_rounded_channel_is_noise_of_its_rounding_not_a_model_error():
+    """The bench-log detectors on a residual that is a pressure's rounding staircase (the channel
+    moves less than a step per sample): with the rounding's sigma as the channel's floor they read
+    it as noise and name the channel rounded; without it the same residual is far from white."""
+    from pumpsim.diagnosis.pump_workflow import BenchDetection
+
+    step, sigma = 250.0, 5.0  # Pa: rounding step, the sensor's noise
+    rng = np.random.default_rng(4)
+    true = 100_000 - 27.0 * np.arange(600) + sigma * rng.standard_normal(600)
+    rounded = np.round(true / step) * step
+    residual = (rounded - (100_000 - 27.0 * np.arange(600))) / measured_noise(rounded)
+    current = rng.standard_normal(300)
+    floor = quantization_step(rounded) / math.sqrt(12) / measured_noise(rounded)
+    sizes, names = [600, 300], ["booster_pressure", "current"]
+    with_floor = BenchDetection(np.concatenate([residual, current]), sizes, names, 2,
+                                floors={"booster_pressure": floor, "current": 0.0})
+    assert with_floor.rounded == ["booster_pressure"] and with_floor.consistent()
+    without = BenchDetection(np.concatenate([residual, current]), sizes, names, 2)
+    assert without.rounded == [] and not without.consistent()
