@@ -25,6 +25,7 @@ from pumpsim.model_spec.parameters import pneumatic_layout
 
 from . import gas
 from .cells import CellGeometry
+from .housing import TWO_PI
 from .builder import Builder, BuiltModel
 
 MOTOR_FRICTION_SPEED = 0.5  # rad/s: motor friction torque = friction * tanh(omega / this)
@@ -169,39 +170,18 @@ def exposed_flank(o, side):
 def build_pneumatic_model(structure) -> BuiltModel:
     b = GasBuilder(structure)
     N = structure.vanes
-    dyn_map = b.vane_dynamics().map(N)
     p, P = parameter_symbols(b)
-    phis, facs = b.slot_angles(p), b.factors(p)
+    phis = b.slot_angles(p)
     geometry = cell_geometry(b, p, phis)
-    nx = len(state_names(N))
-    x = ca.MX.sym("x", nx)
-    theta, omega, cur = x[0], x[1], x[2]
-    m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
-    m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
-    geo = geometry(theta)
-    gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
-    fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
-    # mechanics: required shaft torque at omegadot, gas loads included
-    p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
-    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
-
-    def required(wd):
-        o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
-                    gs["p_slot"], p)
-        od = dict(zip(VANE_DYN_OUTPUTS, o))
-        return Ir * wd + tb + ca.sum2(od["torque_share"]), od
-
-    drive = motor_drive(P, omega, cur, required, Ir, P("motor.inertia"))
-    od = drive["outputs"]
-    xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
-                      energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
-                      fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
-    W = gs["W"]
-    slot_rate = P("vane.thickness") * W * ca.sum2(od["sdot"])
-    gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
-    fric_power = ca.sum2(od["friction_power"]) + tb * omega
-    qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power)
-    rhs, jac, wd = implicit_rates(x, xdot, qdot, drive, p)
+    rates = pump_rates(b, p, P)
+    x = ca.MX.sym("x", len(state_names(N)))
+    geo = geometry(x[0])
+    r = rates(x, geo)
+    gs, fl, drive, od, W = r["gs"], r["fl"], r["drive"], r["od"], r["gs"]["W"]
+    cur, omega, m = x[2], x[1], x[3:3 + N]
+    m_in, m_ex, m_b = (x[3 + 2 * N + k] for k in range(3))
+    rhs, jac, wd = implicit_rates(x, r["xdot"], r["qdot"], drive, p)
+    fric_power, gas_power = r["friction_power"], r["gas_power"]
     outs = dict(
         torque=drive["torque"], omegadot=drive["omegadot_used"], current=cur, pressure=gs["pc"],
         volume=geo["V"], temperature=gs["Tc"], dvolume=geo["dV"], inlet_pressure=gs["p_in"],
@@ -220,7 +200,7 @@ def build_pneumatic_model(structure) -> BuiltModel:
     out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p], list(outs.values()))
     out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs)))
     fns = {f.name(): f for f in (cell_geometry_function(geometry, p), orifice_function(P, p), rhs,
-                                 jac, out_fn)}
+                                 jac, out_fn, *tabulated_kernels(geometry, rates, x, p, phis))}
     return BuiltModel(structure, b.params, fns)
 
 
@@ -230,6 +210,92 @@ def parameter_symbols(b):
     names = [q.name for q in b.params]
     p = ca.MX.sym("p", len(names))
     return p, lambda name: p[names.index(name)]
+
+
+def pump_rates(b, p, P):
+    """(x, geo) -> the rates of the state (xdot, as functions of the omegadot symbol) and of the
+    quadratures, with the gas state, flows, motor drive and vane outputs they come from; geo: the
+    cell geometry at x[0] (cell_geometry's, or the same quantities from a table)."""
+    N = b.st.vanes
+    dyn_map = b.vane_dynamics().map(N)
+    phis, facs = b.slot_angles(p), b.factors(p)
+    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
+
+    def rates(x, geo):
+        theta, omega, cur = x[0], x[1], x[2]
+        m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
+        m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
+        gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
+        fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
+        # mechanics: required shaft torque at omegadot, gas loads included
+        p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
+
+        def required(wd):
+            o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
+                        gs["p_slot"], p)
+            od = dict(zip(VANE_DYN_OUTPUTS, o))
+            return Ir * wd + tb + ca.sum2(od["torque_share"]), od
+
+        drive = motor_drive(P, omega, cur, required, Ir, P("motor.inertia"))
+        od = drive["outputs"]
+        xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
+                          energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
+                          fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
+        slot_rate = P("vane.thickness") * gs["W"] * ca.sum2(od["sdot"])
+        gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
+        fric_power = ca.sum2(od["friction_power"]) + tb * omega
+        qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power)
+        return dict(gs=gs, fl=fl, drive=drive, od=od, xdot=xdot, qdot=qdot, gas_power=gas_power,
+                    friction_power=fric_power)
+
+    return rates
+
+
+# the geometry the right-hand side reads, in the order of a geometry table's columns; alpha as
+# its offset from the vane's slot direction theta + phi wrapped to (-pi, pi] (periodic in theta
+# like the others, and smooth: the offset stays far from pi); the right-hand side reads alpha
+# only through 2 pi-periodic functions
+TABLE_FIELDS = ("s", "alpha", "V", "dV", "lin", "lex", "wall", "exposed")
+
+
+def geometry_vector(geo, theta, phis):
+    """The table's columns (TABLE_FIELDS, N each) from cell_geometry's dict at theta."""
+    def column(k):
+        if k != "alpha":
+            return ca.vec(geo[k])
+        d = ca.vec(geo[k] - theta - phis)
+        return d - TWO_PI * ca.floor(d / TWO_PI + 0.5)
+
+    return ca.vertcat(*[column(k) for k in TABLE_FIELDS])
+
+
+def geometry_from_vector(g, theta, phis, N):
+    """cell_geometry's dict (the fields the rates read) from a table row g at theta."""
+    geo = {k: g[i * N:(i + 1) * N] for i, k in enumerate(TABLE_FIELDS)}
+    geo["s"], geo["alpha"] = geo["s"].T, geo["alpha"].T + theta + phis
+    return geo
+
+
+def tabulated_kernels(geometry, rates, x, p, phis):
+    """The right-hand side with the angle-only cell geometry as an input, for a table of it over
+    one revolution (the direct CVODES driver's): geometry_table(theta, p) -> (g, dg/dtheta),
+    pump_rhs_tab(x, g, p) -> (xdot, qdot) and pump_rhs_tab_jac(x, g, dg, p): the Jacobian in x
+    with g's theta-dependence through dg (the chain rule: column theta gets J_g dg)."""
+    N = (x.size1() - 8) // 2
+    th = ca.MX.sym("theta")
+    g_th = geometry_vector(geometry(th), th, phis)
+    table = flat(ca.Function("geometry_table", [th, p], [g_th, ca.jacobian(g_th, th)], ["theta", "p"],
+                             ["geometry", "dgeometry"]))
+    g, dg, th_ref = ca.MX.sym("g", g_th.size1()), ca.MX.sym("dg", g_th.size1()), ca.MX.sym("theta_ref")
+    r = rates(x, geometry_from_vector(g, x[0], phis, N))
+    rhs, _, _ = implicit_rates(x, r["xdot"], r["qdot"], r["drive"], p, extra=[g], name="pump_rhs_tab")
+    # g follows theta to first order about theta_ref; evaluated at theta_ref = x[0] it is g itself
+    r = rates(x, geometry_from_vector(g + dg * (x[0] - th_ref), x[0], phis, N))
+    _, jac, _ = implicit_rates(x, r["xdot"], r["qdot"], r["drive"], p, extra=[th_ref, g, dg],
+                               name="pump_rhs_tab")
+    jac = flat(ca.Function("pump_rhs_tab_jac", [x, g, dg, p], jac(x, x[0], g, dg, p), ["x", "g", "dg", "p"],
+                           jac.name_out()))
+    return table, rhs, jac
 
 
 def cell_geometry(b, p, phis):
@@ -385,22 +451,24 @@ def budget_rates(P, cur, omega, drive, fl, gas_power, fric_power, *extra):
                       fl["valve_damping"], fl["f_bleak"] - fl["f_valve"], *extra)
 
 
-def implicit_rates(x, xdot, qdot, drive, p):
-    """pump_rhs and pump_rhs_jac from the rates as functions of (x, omegadot symbol). omegadot:
-    Newton on the piecewise-affine residual (each vane returns its slope); its derivative by the
-    implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from one reverse sweep, so the
-    Jacobian never differentiates through the iterations. Returns (rhs, jac, omegadot)."""
+def implicit_rates(x, xdot, qdot, drive, p, extra=(), name="pump_rhs"):
+    """`name` and `name`_jac from the rates as functions of (x, omegadot symbol), their inputs
+    (x, *extra, p). omegadot: Newton on the piecewise-affine residual (each vane returns its
+    slope); its derivative by the implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from
+    one reverse sweep, so the Jacobian never differentiates through the iterations. Returns
+    (rhs, jac, omegadot)."""
     wd_s, wd, r_s = drive["omegadot_symbol"], drive["omegadot"], drive["residual"]
     J = (ca.jacobian(xdot, x)
          - ca.mtimes(ca.jacobian(xdot, wd_s), ca.gradient(r_s, x).T) / drive["slope"])
-    rates = ca.Function("rates", [x, wd_s, p], [xdot, qdot])
-    xdot_v, qdot_v = rates(x, wd, p)
-    J_v = ca.Function("rates_jac", [x, wd_s, p], [J])(x, wd, p)
-    rhs = ca.Function("pump_rhs", [x, p], [xdot_v, qdot_v], ["x", "p"], ["xdot", "qdot"])
+    ins, names = [x, *extra, p], ["x", *[e.name() for e in extra], "p"]
+    rates = ca.Function("rates", [x, wd_s, *extra, p], [xdot, qdot])
+    xdot_v, qdot_v = rates(x, wd, *extra, p)
+    J_v = ca.Function("rates_jac", [x, wd_s, *extra, p], [J])(x, wd, *extra, p)
+    rhs = ca.Function(name, ins, [xdot_v, qdot_v], names, ["xdot", "qdot"])
     # the quadratures do not feed back: their Jacobian rows are left to CVODES' Newton iteration
     # (which then converges on them in one extra step at most) -- zero rows here
-    jac = ca.Function("pump_rhs_jac", [x, p], [J_v, ca.MX(qdot.size1(), x.size1())],
-                      ["x", "p"], ["jac_xdot_x", "jac_qdot_x"])
+    jac = ca.Function(name + "_jac", ins, [J_v, ca.MX(qdot.size1(), x.size1())],
+                      names, ["jac_xdot_x", "jac_qdot_x"])
     return flat(rhs), flat(jac), wd
 
 

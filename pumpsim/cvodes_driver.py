@@ -66,6 +66,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
     dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p]
     dll.drv_switches.argtypes = [p, ctypes.c_int, p, p, ctypes.c_double]
+    dll.drv_table.argtypes = [p, ctypes.c_int, p, p, p, ctypes.c_int, p, p]
     dll.drv_sens.argtypes = [p, ctypes.c_int, ctypes.c_int, p, p, p, ctypes.c_int, ctypes.c_double, p, p]
     dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
                               ctypes.c_double]
@@ -225,6 +226,17 @@ class Driver:
         array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ..."""
         self._drive = (pbuf, np.ascontiguousarray(values, dtype=float))
         self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]))
+
+    def set_table(self, nodes, values, slopes, gbuf, dgbuf):
+        """Kernel inputs that depend on y[0] (an angle) only, from a table over one turn: nodes
+        (0 .. 2 pi, increasing), values and slopes (d/dangle) per node (nodes, m); before every
+        right-hand side the periodic cubic Hermite interpolant at y[0] mod 2 pi goes into gbuf,
+        before every Jacobian also its derivative into dgbuf (both the kernels' own input arrays)."""
+        self._table = tuple(np.ascontiguousarray(a, dtype=float) for a in (nodes, values, slopes))
+        t, v, dv = self._table
+        if v.shape != dv.shape or v.shape[0] != t.size or gbuf.size != v.shape[1] or dgbuf.size != v.shape[1]:
+            raise ValueError("set_table: nodes, values, slopes and buffers disagree in size")
+        self.lib.drv_table(self.handle, t.size, _ptr(t), _ptr(v), _ptr(dv), v.shape[1], _ptr(gbuf), _ptr(dgbuf))
 
     def set_sensitivities(self, directions, steps, scales, error_control=False):
         """Forward sensitivities of y along parameter directions (rows of `directions`, in the
