@@ -7,6 +7,7 @@ SOURCE = r"""
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
+#include <time.h>
 #include <cvodes/cvodes.h>
 #include <nvector/nvector_serial.h>
 #include <sunmatrix/sunmatrix_dense.h>
@@ -35,7 +36,20 @@ typedef struct {
      values tv and theta-derivatives td per node; periodic cubic Hermite into tgb (and tdg) before
      every kernel call; tk: the last interval */
   int tn, tg; const double *tt, *tv, *td; double *tgb, *tdg; long tk;
+  /* timing (drv_timing): wall seconds inside the right-hand side, the Jacobian (each with the
+     table's interpolation) and drv_run */
+  int timing; double wrhs, wjac, wrun;
 } drv_t;
+
+static double wall_now(void) {
+  struct timespec ts; clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* timing on or off; times[3]: the seconds so far (rhs, Jacobian, drv_run) */
+void drv_timing(drv_t *d, int on, double *times) {
+  d->timing = on; times[0] = d->wrhs; times[1] = d->wjac; times[2] = d->wrun;
+}
 
 static const double TWO_PI = 6.283185307179586;
 
@@ -135,7 +149,11 @@ static int feval(drv_t *d, double t, double *Y, double *D) {
 static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
   drv_t *d = (drv_t *)u;
   d->nrhs++;
-  return feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  if (!d->timing) return feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  double w0 = wall_now();
+  int f = feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  d->wrhs += wall_now() - w0;
+  return f;
 }
 
 /* s_i' = J s_i + df/dp pdir_i: J from the Jacobian kernel, df/dp pdir_i a forward difference of
@@ -241,11 +259,13 @@ static int linsys(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix M, sunboolea
   drv_t *d = (drv_t *)u;
   *jcur = !jok;
   if (!jok) {
+    double w0 = d->timing ? wall_now() : 0.0;
     drive(d, t);
     table(d, NV_Ith_S(y, 0), 1);
     d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
     d->njac++;
     if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
+    if (d->timing) d->wjac += wall_now() - w0;
     memcpy(d->jsave, d->jbuf, d->jnnz * sizeof(double));
   }
   SUNMatZero(M);
@@ -310,6 +330,7 @@ static void stats_of(drv_t *d, long *st) {
 int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
             long *st, int *done, double *troot, double *yroot, int *found, const double *yS0, double *SY) {
   int flag = 0; sunrealtype tr;
+  double w0 = d->timing ? wall_now() : 0.0;
   d->msg[0] = 0; *done = 0;
   if (!resume) {
     long c[5]; counters(d, c);
@@ -349,6 +370,7 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
     else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
   }
   stats_of(d, st);
+  if (d->timing) d->wrun += wall_now() - w0;
   return flag;
 }
 

@@ -68,6 +68,8 @@ class PumpdownRun:
 class PumpIntegrator:
     """x(t) of the pneumatic kernel with CVODES; `valve mode` is the one integrator parameter."""
 
+    driver_geometry = "exact"  # "table": the direct driver reads the cell geometry from a table
+
     def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000, drive=None,
                  geometry_table=None):
         """drive: the supply voltage as a CasADi function of time (a bench log's measured voltage)
@@ -76,7 +78,6 @@ class PumpIntegrator:
         (pneumatics.geometry_table; None: unless PUMPSIM_GEOMETRY=exact), else computes it."""
         self.kern, self.p, self.drive = kern, np.asarray(p, dtype=float), drive
         self.geometry_table = geometry_tables.enabled() if geometry_table is None else bool(geometry_table)
-        self.driver_geometry = "exact"
         nx = kern["pump_rhs"].size1_in(0)
         self.nx = nx
         self.scale = np.ones(nx) if scale is None else np.asarray(scale, float)
@@ -169,6 +170,8 @@ class PumpIntegrator:
             y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)])
         Y = d.run(start, y0, touts)
         self.stats.update(d.stats)
+        if d.timed:
+            self.stats.update(d.times())
         return Y[:, :self.nx].T, (Y[:, self.nx:] - y0[self.nx:]).T
 
     def p_at(self, t):
@@ -411,7 +414,7 @@ def _grid(integ, x, mode, dt, m, t, p_booster):
 def _finished(integ, kern, p, trace, events, t_target, wall0) -> PumpdownRun:
     X = np.array(trace.xs)
     stats = dict(integ.stats)
-    stats.update(integrator_calls=integ.calls, events=len(events), driver=integ.driver,
+    stats.update(integrator_calls=integ.calls, events=len(events), driver=integ.driver, geometry=integ.driver_geometry,
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall,
                  integrator_cpu=integ.integrator_cpu)
     outs = evaluate_outputs(kern, X, p)
