@@ -137,8 +137,18 @@ def scipy_span(cfg, span, repeats=3):
     """The first `span` s of the pump-down: the runtime's CVODES (direct driver, CasADi plugin) and
     SciPy's stiff methods on the same compiled rhs and Jacobian, interleaved, median of `repeats`;
     errors of the booster pressure (largest over the grid) and the electrical energy (at the end)
-    against an rtol 1e-8 run."""
+    against an rtol 1e-8 run. The geometry computed at every call here (PUMPSIM_GEOMETRY=exact):
+    the integrators on the very same right-hand side (the table's gain is exact_geometry's row)."""
     import numpy as np
+
+    os.environ[geometry_table.ENV] = "exact"
+    try:
+        return _scipy_span(cfg, span, repeats, np)
+    finally:
+        del os.environ[geometry_table.ENV]
+
+
+def _scipy_span(cfg, span, repeats, np):
 
     from scipy_compare import (METHODS, casadi_plugin, compiled_ode, interleaved, print_table, report_ratio,
                                 scipy_run)

@@ -25,6 +25,7 @@ TABLE_TOL = 1e-9  # relative to each quantity's largest size over the turn
 START_NODES = 1024
 MIN_INTERVAL = 1e-9  # rad: a kink is resolved to this
 MAX_ROUNDS = 40
+CACHED = 8  # tables kept (per kernel and parameters; ~1 MB each): a fit's nearby parameters rebuild
 _CACHE: dict = {}
 
 
@@ -101,6 +102,8 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         at = k[bad] + np.arange(bad.sum())  # the split intervals' first halves, in the new t
         check[at], check[at + 1] = True, True
     table = GeometryTable(t, g, dg, scale, err)
+    while len(_CACHE) >= CACHED:
+        del _CACHE[next(iter(_CACHE))]
     _CACHE[key] = table
     return table
 
