@@ -44,6 +44,9 @@ def state_names(N):
 QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "copper_loss",
               "motor_friction_work", "valve_damping_work", "atmosphere_mass")
 
+# vane_geometry's rows: housing point and normal (rotor frame), ds/dtheta, d2s/dtheta2, and the
+# coefficients of (p_lead, p_trail, p_slot) in the gas loads (slide, lateral, tilt, rotor)
+VANE_GEOMETRY = ("Cx", "Cy", "nx", "ny", "ds", "d2s", *(f"load_{k}" for k in range(12)))
 VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", "n_consistent",
                     "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip")
 
@@ -86,40 +89,53 @@ class GasBuilder(Builder):
         gf_rotor += Ob[0] * F_b[1] - Ob[1] * F_b[0]
         return gf_slide, gf_lat, gf_tilt, gf_rotor
 
-    def vane_dynamics(self):
+    def vane_geometry(self, theta, phi, s, alpha):
+        """What the vane dynamics needs of the angle alone (VANE_GEOMETRY, rotor frame): the
+        housing point and normal at the tip contact, ds/dtheta and d2s/dtheta2 (sdot = ds omega,
+        sddot = ds omegadot + d2s omega^2: the constraint's velocity terms are quadratic in omega),
+        and the gas loads' coefficients of p_lead, p_trail, p_slot (the loads are linear in them)."""
+        k = self.kinematics_at(theta, 1.0, 0.0, phi, s, alpha)
+        hs = self.housing(alpha)
+        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
+        pr = ca.SX.sym("pressures", 3)
+        loads = ca.vertcat(*self.gas_loads(theta, phi, s, alpha, pr[0], pr[1], pr[2]))
+        coef = ca.substitute(ca.jacobian(loads, pr), pr, ca.DM.zeros(3))
+        return ca.vertcat(C, n, k["sdot"], k["sddot"], ca.vec(coef))
+
+    def vane_dynamics(self, given=False):
         """Model 2 vane at a solved position with gas loads: p_lead acts on the +w side (cell i),
-        p_trail on the -w side (cell i-1), p_slot under the vane."""
+        p_trail on the -w side (cell i-1), p_slot under the vane. given: the angle-only part
+        (vane_geometry) is an input "vane" instead."""
         names = ("theta", "omega", "omegadot", "phi", "factor", "s", "alpha", "p_lead", "p_trail",
                  "p_slot")
         theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot = (
             ca.SX.sym(n) for n in names)
         P = self.P
-        k = self.kinematics_at(theta, omega, omegadot, phi, s, alpha)
-        hs = self.housing(alpha)
-        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
+        vg = ca.SX.sym("vane", len(VANE_GEOMETRY)) if given else self.vane_geometry(theta, phi, s, alpha)
+        sdot, sddot = vg[4] * omega, vg[4] * omegadot + vg[5] * omega * omega
         g = self.geometry()
         common = dict(theta=theta, omega=omega, omegadot=omegadot, phi=phi, s=s,
-                      sdot=k["sdot"], sddot=k["sddot"], Cx=C[0], Cy=C[1], nx=n[0], ny=n[1],
+                      sdot=sdot, sddot=sddot, Cx=vg[0], Cy=vg[1], nx=vg[2], ny=vg[3],
                       c_visc=P["effects.viscous_tip_friction"], **g)
         v_t = self.mech(**common)["tip_slip"]
         mu_h = factor * self.friction(v_t, "housing")
-        mu_r = factor * self.friction(k["sdot"], "slot")  # a vane's material/finish: tip and slot
+        mu_r = factor * self.friction(sdot, "slot")  # a vane's material/finish: tip and slot
         common.update(mu_h=mu_h, mu_r=mu_r)
-        gf_slide, gf_lat, gf_tilt, gf_rotor = self.gas_loads(theta, phi, s, alpha, p_lead, p_trail,
-                                                             p_slot)
+        gf_slide, gf_lat, gf_tilt, gf_rotor = (
+            ca.mtimes(ca.reshape(vg[6:18], 4, 3), ca.vertcat(p_lead, p_trail, p_slot))[i] for i in range(4))
         best, n_cons, _, final = self.solve_contact_sides(("N", "F1", "F2"), common,
                                                           extra=(gf_slide, gf_lat, gf_tilt))
         share = final["torque_share"] - gf_rotor
         fric = (best[0] * mu_h * v_t + P["effects.viscous_tip_friction"] * v_t * v_t
-                + mu_r * k["sdot"] * (ca.fabs(best[1]) + ca.fabs(best[2])))
+                + mu_r * sdot * (ca.fabs(best[1]) + ca.fabs(best[2])))
         outs = dict(torque_share=share, torque_slope=ca.jacobian(share, omegadot), normal=best[0],
                     slot1=best[1], slot2=best[2], n_consistent=n_cons, friction_power=fric,
-                    load_power=omega * gf_rotor + k["sdot"] * gf_slide, sdot=k["sdot"],
+                    load_power=omega * gf_rotor + sdot * gf_slide, sdot=sdot,
                     kinetic_energy=final["kinetic_energy"], tip_slip=v_t)
-        return ca.Function("vane_dynamics", [theta, omega, omegadot, phi, factor, s, alpha, p_lead,
-                                             p_trail, p_slot, self.p],
-                           [outs[nm] for nm in VANE_DYN_OUTPUTS], [*names, "p"],
-                           list(VANE_DYN_OUTPUTS), {"cse": True})
+        ins = [theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot]
+        return ca.Function("vane_dynamics", ins + ([vg] if given else []) + [self.p],
+                           [outs[nm] for nm in VANE_DYN_OUTPUTS],
+                           [*names, *(["vane"] if given else []), "p"], list(VANE_DYN_OUTPUTS), {"cse": True})
 
     def cell_function(self, rates=False):
         """Cell volumes and d/dtheta, port overlaps, wall areas, from (theta, s, alpha, s', alpha')
@@ -200,7 +216,7 @@ def build_pneumatic_model(structure) -> BuiltModel:
     out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p], list(outs.values()))
     out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs)))
     fns = {f.name(): f for f in (cell_geometry_function(geometry, p), orifice_function(P, p), rhs,
-                                 jac, out_fn, *tabulated_kernels(geometry, rates, x, p, phis))}
+                                 jac, out_fn, *tabulated_kernels(b, geometry, x, p, P, phis))}
     return BuiltModel(structure, b.params, fns)
 
 
@@ -212,12 +228,13 @@ def parameter_symbols(b):
     return p, lambda name: p[names.index(name)]
 
 
-def pump_rates(b, p, P):
+def pump_rates(b, p, P, given=False):
     """(x, geo) -> the rates of the state (xdot, as functions of the omegadot symbol) and of the
     quadratures, with the gas state, flows, motor drive and vane outputs they come from; geo: the
-    cell geometry at x[0] (cell_geometry's, or the same quantities from a table)."""
+    cell geometry at x[0] (cell_geometry's, or the same quantities from a table; given: with the
+    vanes' angle-only part, geo["vane"], from it too)."""
     N = b.st.vanes
-    dyn_map = b.vane_dynamics().map(N)
+    dyn_map = b.vane_dynamics(given).map(N)
     phis, facs = b.slot_angles(p), b.factors(p)
     Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
 
@@ -232,7 +249,7 @@ def pump_rates(b, p, P):
 
         def required(wd):
             o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
-                        gs["p_slot"], p)
+                        gs["p_slot"], *([geo["vane"]] if given else []), p)
             od = dict(zip(VANE_DYN_OUTPUTS, o))
             return Ir * wd + tb + ca.sum2(od["torque_share"]), od
 
@@ -255,7 +272,7 @@ def pump_rates(b, p, P):
 # its offset from the vane's slot direction theta + phi wrapped to (-pi, pi] (periodic in theta
 # like the others, and smooth: the offset stays far from pi); the right-hand side reads alpha
 # only through 2 pi-periodic functions
-TABLE_FIELDS = ("s", "alpha", "V", "dV", "lin", "lex", "wall", "exposed")
+TABLE_FIELDS = ("s", "alpha", "V", "dV", "lin", "lex", "wall", "exposed", "vane")
 
 
 def geometry_vector(geo, theta, phis):
@@ -270,22 +287,31 @@ def geometry_vector(geo, theta, phis):
 
 
 def geometry_from_vector(g, theta, phis, N):
-    """cell_geometry's dict (the fields the rates read) from a table row g at theta."""
-    geo = {k: g[i * N:(i + 1) * N] for i, k in enumerate(TABLE_FIELDS)}
+    """cell_geometry's dict (the fields the rates read) from a table row g at theta; "vane":
+    VANE_GEOMETRY x N."""
+    geo = {k: g[i * N:(i + 1) * N] for i, k in enumerate(TABLE_FIELDS[:-1])}
     geo["s"], geo["alpha"] = geo["s"].T, geo["alpha"].T + theta + phis
+    geo["vane"] = ca.reshape(g[(len(TABLE_FIELDS) - 1) * N:], len(VANE_GEOMETRY), N)
     return geo
 
 
-def tabulated_kernels(geometry, rates, x, p, phis):
-    """The right-hand side with the angle-only cell geometry as an input, for a table of it over
-    one revolution (the direct CVODES driver's): geometry_table(theta, p) -> (g, dg/dtheta),
+def tabulated_kernels(b, geometry, x, p, P, phis):
+    """The right-hand side with the angle-only geometry as an input (the cells', and the vanes'
+    vane_geometry), for a table of it over one revolution (the direct CVODES driver's):
+    geometry_table(theta, p) -> (g, dg/dtheta),
     pump_rhs_tab(x, g, p) -> (xdot, qdot) and pump_rhs_tab_jac(x, g, dg, p): the Jacobian in x
     with g's theta-dependence through dg (the chain rule: column theta gets J_g dg)."""
-    N = (x.size1() - 8) // 2
+    N = b.st.vanes
+    rates = pump_rates(b, p, P, given=True)
+    th, s_, a_, ph_ = (ca.SX.sym(n) for n in ("theta", "s", "alpha", "phi"))
+    vane = ca.Function("vane_geometry", [th, ph_, s_, a_, b.p], [b.vane_geometry(th, ph_, s_, a_)]).map(N)
     th = ca.MX.sym("theta")
-    g_th = geometry_vector(geometry(th), th, phis)
-    table = flat(ca.Function("geometry_table", [th, p], [g_th, ca.jacobian(g_th, th)], ["theta", "p"],
-                             ["geometry", "dgeometry"]))
+    geo = geometry(th)
+    geo["vane"] = vane(th, phis, geo["s"], geo["alpha"], p)
+    g_th = geometry_vector(geo, th, phis)
+    # dense: the table's rows are read as plain arrays (a structural zero would shift the columns)
+    table = flat(ca.Function("geometry_table", [th, p], [ca.densify(g_th), ca.densify(ca.jacobian(g_th, th))],
+                             ["theta", "p"], ["geometry", "dgeometry"]))
     g, dg, th_ref = ca.MX.sym("g", g_th.size1()), ca.MX.sym("dg", g_th.size1()), ca.MX.sym("theta_ref")
     r = rates(x, geometry_from_vector(g, x[0], phis, N))
     rhs, _, _ = implicit_rates(x, r["xdot"], r["qdot"], r["drive"], p, extra=[g], name="pump_rhs_tab")

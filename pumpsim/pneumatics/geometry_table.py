@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import cvodes_driver
+from ..errors import CodegenError, SolverError
 
 TWO_PI = 2 * np.pi
 ENV = "PUMPSIM_GEOMETRY"  # "exact": the right-hand side computes the geometry at every call
@@ -25,6 +26,8 @@ TABLE_TOL = 1e-9  # relative to each quantity's largest size over the turn
 START_NODES = 1024
 MIN_INTERVAL = 1e-9  # rad: a kink is resolved to this
 MAX_ROUNDS = 40
+MAX_NODES = 100_000
+NOISE = 1e-12
 CACHED = 8  # tables kept (per kernel and parameters; ~1 MB each): a fit's nearby parameters rebuild
 _CACHE: dict = {}
 
@@ -68,7 +71,10 @@ def exact(kern, p, theta):
     """The compiled geometry and its theta-derivative at the angles theta -> (n, m) each."""
     call = cvodes_driver.KernelCall(cvodes_driver.kernel_library(kern), "geometry_table",
                                     [np.zeros(1), p], 0)
-    m = kern["geometry_table"].size1_out(0)
+    f = kern["geometry_table"]
+    m = f.size1_out(0)
+    if f.nnz_out(0) != m or f.nnz_out(1) != m:
+        raise CodegenError(f"kernel {kern.key}: geometry_table's outputs are not dense; rebuild the kernel")
     g, dg = call.rows(np.asarray(theta, float).reshape(-1, 1), [m, m])
     return g, dg
 
@@ -81,7 +87,10 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         return _CACHE[key]
     t = np.linspace(0.0, TWO_PI, START_NODES + 1)
     g, dg = exact(kern, p, t)
-    scale = np.maximum(np.abs(g).max(axis=0), 1e-300)
+    # a quantity that is zero up to rounding (a load coefficient of a vane the slot gas cannot
+    # tilt) is held to the largest quantity's 1e-12 instead: relative to its own size it is noise
+    size = np.abs(g).max(axis=0)
+    scale = np.maximum(size, NOISE * size.max())
     err = 0.0
     check = np.ones(t.size - 1, dtype=bool)  # intervals whose midpoint is not yet checked
     for _ in range(MAX_ROUNDS):
@@ -94,6 +103,9 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         e = np.max(np.abs(gi - gm) / scale, axis=1)
         err = float(e.max())
         bad = e > tol
+        if t.size + bad.sum() > MAX_NODES:
+            raise SolverError(f"the geometry table does not converge ({t.size} nodes; largest midpoint error "
+                              f"{err:.1e}): set {ENV}=exact")
         # the failing intervals are split at their midpoints; the halves are checked next round
         t = np.insert(t, k[bad] + 1, mid[bad])
         g = np.insert(g, k[bad] + 1, gm[bad], axis=0)
