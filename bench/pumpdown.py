@@ -2,8 +2,9 @@
 101.3 -> 30 kPa at 13.5 V by the full model (all cells, valves, motor; CVODES with the compiled
 Jacobian) and by the fast path (cycle-averaged maps); wall times against simulated time, their
 ratio, step counts and solver statistics, and where the full path's CPU time goes: compiled
-right-hand side and Jacobian evaluations (calls x the cost of one call, timed on the run's own
-states), the rest of CVODES (linear algebra, step control), and Python around the integrator.
+right-hand side and Jacobian evaluations (the driver's own timing of its kernel calls), the rest
+of CVODES (linear algebra, step control), and Python around the integrator. The same run with the
+cell and vane geometry computed at every call instead of read from the table (PUMPSIM_GEOMETRY).
 The full model also through CasADi's CVODES plugin (the fallback where the direct driver cannot be
 built), and over the first `--span` seconds against SciPy LSODA, BDF and Radau on the same
 compiled right-hand side and Jacobian, interleaved, median of 3, each with its error against an
