@@ -2,8 +2,9 @@
 101.3 -> 30 kPa at 13.5 V by the full model (all cells, valves, motor; CVODES with the compiled
 Jacobian) and by the fast path (cycle-averaged maps); wall times against simulated time, their
 ratio, step counts and solver statistics, and where the full path's CPU time goes: compiled
-right-hand side and Jacobian evaluations (calls x the cost of one call, timed on the run's own
-states), the rest of CVODES (linear algebra, step control), and Python around the integrator.
+right-hand side and Jacobian evaluations (the driver's own timing of its kernel calls), the rest
+of CVODES (linear algebra, step control), and Python around the integrator. The same run with the
+cell and vane geometry computed at every call instead of read from the table (PUMPSIM_GEOMETRY).
 The full model also through CasADi's CVODES plugin (the fallback where the direct driver cannot be
 built), and over the first `--span` seconds against SciPy LSODA, BDF and Radau on the same
 compiled right-hand side and Jacobian, interleaved, median of 3, each with its error against an
@@ -21,11 +22,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from pumpsim import cvodes_driver  # noqa: E402
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.pneumatics import pumpdown as pdm  # noqa: E402
 from pumpsim.cli.pumpdown import map_pressures  # noqa: E402
 from pumpsim.kernels.pneumatic import kernels  # noqa: E402
-from pumpsim.pneumatics import run  # noqa: E402
+from pumpsim.pneumatics import geometry_table, run  # noqa: E402
 from scipy_compare import casadi_plugin  # noqa: E402
 
 
@@ -41,9 +43,11 @@ def main():
     kernels(cfg)  # build outside the timing
     print(f"pump-down: {cfg.name}, {cfg.pneumatic.booster_start / 1e3:.1f} -> "
           f"{cfg.pneumatic.booster_target / 1e3:.1f} kPa, {cfg.pneumatic.values['motor.voltage']:g} V")
+    os.environ[cvodes_driver.TIMING_ENV] = "1"  # the driver times its kernel calls (cpu_split)
     t0, c0 = time.perf_counter(), time.process_time()
     full = pdm.pumpdown(cfg)
     wall_full, cpu_full = time.perf_counter() - t0, time.process_time() - c0
+    del os.environ[cvodes_driver.TIMING_ENV]
     s, st = full.summary, full.summary["solver"]
     revs = (full.columns["angle"][-1] - full.columns["angle"][0]) / (2 * 3.141592653589793)
     sim = s["duration"]
@@ -53,6 +57,7 @@ def main():
           f"({st['nsteps'] / revs:.0f}/rev, {wall_full / st['nsteps'] * 1e6:.1f} us/step), "
           f"{st['nfevals']} rhs, {st['njevals']} Jacobians, {st['netfails']} error-test and "
           f"{st['nncfails']} Newton failures; rtol {st['rtol']:g}, atol {st['atol']:g}")
+    exact = exact_geometry(cfg, full, cpu_full)
     with casadi_plugin():
         t0 = time.perf_counter()
         plug = pdm.pumpdown(cfg)
@@ -61,8 +66,8 @@ def main():
     print(f"  full model through CasADi's CVODES plugin: {wall_plug:.2f} s wall ({wall_full / wall_plug:.2f} of it "
           f"with the direct driver); {sp['nsteps']} steps, {sp['njevals']} Jacobians, {sp['netfails']} error-test "
           f"and {sp['nncfails']} Newton failures; time to target {plug.summary['time_to_target']:.4f} s")
-    split = cpu_split(cfg, full, st, cpu_full)
-    print(f"  where the CPU time goes: rhs {split['rhs_call_us']:.1f} us x {st['nfevals']} = "
+    split = cpu_split(st, cpu_full)
+    print(f"  where the CPU time goes ({st.get('geometry', 'exact')} geometry): rhs {split['rhs_call_us']:.1f} us x {st['nfevals']} = "
           f"{split['rhs_s']:.2f} s, Jacobian {split['jac_call_us']:.1f} us x {st['njevals']} = "
           f"{split['jac_s']:.2f} s, rest of CVODES (linear solves, step control) {split['cvodes_rest_s']:.2f} s, "
           f"Python {split['python_s']:.2f} s ({split['python_share']:.0%})")
@@ -90,7 +95,7 @@ def main():
            "time_to_target": {"full": s["time_to_target"], "fast": fast["time_to_target"]},
            "mean_current": {"full": s["mean_current"], "fast": fast["mean_current"]},
            "peak_current": s["peak_current"], "energy": {"full": s["energy"], "fast": fast["energy"]},
-           "driver": st.get("driver"), "casadi_plugin_wall_s": wall_plug, "casadi_plugin_solver": sp,
+           "driver": st.get("driver"), "exact_geometry": exact, "casadi_plugin_wall_s": wall_plug, "casadi_plugin_solver": sp,
            "scipy_span": scipy_span(cfg, a.span),
            "step_profile": step_profile(cfg, a.profile_span) if a.profile_span > 0 else None}
     path = Path(a.json)
@@ -103,12 +108,48 @@ def main():
     print(f"wrote {path} (pumpdown)")
 
 
+def exact_geometry(cfg, full, cpu_table):
+    """The same pump-down with the cell geometry computed at every call (PUMPSIM_GEOMETRY=exact):
+    its CPU time against the tabulated run's, and the figures' relative differences (the
+    integration's own error at the run's tolerances: the step sequences differ)."""
+    if full.summary["solver"].get("geometry") != "table":
+        return None
+    old = os.environ.get(geometry_table.ENV)
+    os.environ[geometry_table.ENV] = "exact"
+    try:
+        c0 = time.process_time()
+        ex = pdm.pumpdown(cfg)
+        cpu = time.process_time() - c0
+    finally:
+        if old is None:
+            del os.environ[geometry_table.ENV]
+        else:
+            os.environ[geometry_table.ENV] = old
+    names = ("time_to_target", "energy", "mean_current", "peak_current")
+    diff = {n: abs(full.summary[n] - ex.summary[n]) / abs(ex.summary[n]) for n in names}
+    print(f"  full model, exact geometry at every call: {cpu:.2f} CPU s = {cpu / ex.summary['duration']:.2f} x "
+          f"real time ({cpu / cpu_table:.2f}x the tabulated run's CPU); figures' relative differences "
+          + ", ".join(f"{n} {v:.1e}" for n, v in diff.items()))
+    return {"cpu_s": cpu, "ratio_to_table": cpu / cpu_table, "relative_differences": diff,
+            "solver": ex.summary["solver"]}
+
+
 def scipy_span(cfg, span, repeats=3):
     """The first `span` s of the pump-down: the runtime's CVODES (direct driver, CasADi plugin) and
     SciPy's stiff methods on the same compiled rhs and Jacobian, interleaved, median of `repeats`;
     errors of the booster pressure (largest over the grid) and the electrical energy (at the end)
-    against an rtol 1e-8 run."""
+    against an rtol 1e-8 run. The geometry computed at every call here (PUMPSIM_GEOMETRY=exact):
+    the integrators on the very same right-hand side (the table's gain is exact_geometry's row)."""
     import numpy as np
+
+    os.environ[geometry_table.ENV] = "exact"
+    try:
+        return _scipy_span(cfg, span, repeats, np)
+    finally:
+        del os.environ[geometry_table.ENV]
+
+
+def _scipy_span(cfg, span, repeats, np):
 
     from scipy_compare import (METHODS, casadi_plugin, compiled_ode, interleaved, print_table, report_ratio,
                                 scipy_run)
@@ -199,27 +240,22 @@ def step_profile(cfg, span, bins=18):
     return res
 
 
-def cpu_split(cfg, full, st, cpu):
-    """The full run's CPU time by part (CPU, not wall: meaningful on a loaded machine): one call of
-    the compiled rhs and Jacobian timed on 200 of the run's states (a mapped call, so no Python
-    per state; CasADi's map adds ~1 us a call), times the calls CVODES made."""
-    import numpy as np
-
-    kern = kernels(cfg)
-    X = full.run.states[:: max(1, len(full.run.states) // 200)].T
-    p = np.asarray(full.run.p).reshape(-1, 1)
-    cost = {}
-    for name in ("pump_rhs", "pump_rhs_jac"):
-        f = kern.mapped(name, X.shape[1])
-        f(X, p)
-        c0 = time.process_time()
-        for _ in range(5):
-            f(X, p)
-        cost[name] = (time.process_time() - c0) / (5 * X.shape[1])
-    rhs, jac = cost["pump_rhs"] * st["nfevals"], cost["pump_rhs_jac"] * st["njevals"]
-    inside = st.get("integrator_cpu", cpu)
-    return {"rhs_call_us": cost["pump_rhs"] * 1e6, "jac_call_us": cost["pump_rhs_jac"] * 1e6,
-            "rhs_s": rhs, "jac_s": jac, "cvodes_rest_s": max(inside - rhs - jac, 0.0),
+def cpu_split(st, cpu):
+    """The full run's CPU time by part (CPU, not wall: meaningful on a loaded machine). The driver
+    timed its own kernel calls (PUMPSIM_CVODES_TIMING: the monotonic clock around each call, the
+    table's interpolation included): their shares of the integrator's wall, times the
+    integrator's CPU, are the right-hand side's and the Jacobian's CPU; the rest of the
+    integrator's CPU is CVODES' own work, the rest of the run's the Python around it. Timing each
+    kernel apart in a loop (as before) came out 1.5-3x off: a kernel called back to back keeps
+    its code and work arrays in cache, which it does not between CVODES' steps."""
+    inside, wall = st.get("integrator_cpu", cpu), st.get("integrator_wall", 0.0)
+    if not st.get("rhs_wall") or wall <= 0:
+        nan = float("nan")
+        return {"rhs_call_us": nan, "jac_call_us": nan, "rhs_s": nan, "jac_s": nan, "cvodes_rest_s": nan,
+                "python_s": cpu - inside, "python_share": (cpu - inside) / cpu}
+    rhs, jac = inside * st["rhs_wall"] / wall, inside * st["jac_wall"] / wall
+    return {"rhs_call_us": rhs / st["nfevals"] * 1e6, "jac_call_us": jac / st["njevals"] * 1e6,
+            "rhs_s": rhs, "jac_s": jac, "cvodes_rest_s": inside - rhs - jac,
             "python_s": cpu - inside, "python_share": (cpu - inside) / cpu}
 
 

@@ -25,6 +25,7 @@ from pumpsim.model_spec.parameters import pneumatic_layout
 
 from . import gas
 from .cells import CellGeometry
+from .housing import TWO_PI
 from .builder import Builder, BuiltModel
 
 MOTOR_FRICTION_SPEED = 0.5  # rad/s: motor friction torque = friction * tanh(omega / this)
@@ -43,6 +44,9 @@ def state_names(N):
 QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "copper_loss",
               "motor_friction_work", "valve_damping_work", "atmosphere_mass")
 
+# vane_geometry's rows: housing point and normal (rotor frame), ds/dtheta, d2s/dtheta2, and the
+# coefficients of (p_lead, p_trail, p_slot) in the gas loads (slide, lateral, tilt, rotor)
+VANE_GEOMETRY = ("Cx", "Cy", "nx", "ny", "ds", "d2s", *(f"load_{k}" for k in range(12)))
 VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", "n_consistent",
                     "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip")
 
@@ -85,40 +89,53 @@ class GasBuilder(Builder):
         gf_rotor += Ob[0] * F_b[1] - Ob[1] * F_b[0]
         return gf_slide, gf_lat, gf_tilt, gf_rotor
 
-    def vane_dynamics(self):
+    def vane_geometry(self, theta, phi, s, alpha):
+        """What the vane dynamics needs of the angle alone (VANE_GEOMETRY, rotor frame): the
+        housing point and normal at the tip contact, ds/dtheta and d2s/dtheta2 (sdot = ds omega,
+        sddot = ds omegadot + d2s omega^2: the constraint's velocity terms are quadratic in omega),
+        and the gas loads' coefficients of p_lead, p_trail, p_slot (the loads are linear in them)."""
+        k = self.kinematics_at(theta, 1.0, 0.0, phi, s, alpha)
+        hs = self.housing(alpha)
+        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
+        pr = ca.SX.sym("pressures", 3)
+        loads = ca.vertcat(*self.gas_loads(theta, phi, s, alpha, pr[0], pr[1], pr[2]))
+        coef = ca.substitute(ca.jacobian(loads, pr), pr, ca.DM.zeros(3))
+        return ca.vertcat(C, n, k["sdot"], k["sddot"], ca.vec(coef))
+
+    def vane_dynamics(self, given=False):
         """Model 2 vane at a solved position with gas loads: p_lead acts on the +w side (cell i),
-        p_trail on the -w side (cell i-1), p_slot under the vane."""
+        p_trail on the -w side (cell i-1), p_slot under the vane. given: the angle-only part
+        (vane_geometry) is an input "vane" instead."""
         names = ("theta", "omega", "omegadot", "phi", "factor", "s", "alpha", "p_lead", "p_trail",
                  "p_slot")
         theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot = (
             ca.SX.sym(n) for n in names)
         P = self.P
-        k = self.kinematics_at(theta, omega, omegadot, phi, s, alpha)
-        hs = self.housing(alpha)
-        C, n = self.to_rotor(theta, hs["C"]), self.to_rotor(theta, hs["n"])
+        vg = ca.SX.sym("vane", len(VANE_GEOMETRY)) if given else self.vane_geometry(theta, phi, s, alpha)
+        sdot, sddot = vg[4] * omega, vg[4] * omegadot + vg[5] * omega * omega
         g = self.geometry()
         common = dict(theta=theta, omega=omega, omegadot=omegadot, phi=phi, s=s,
-                      sdot=k["sdot"], sddot=k["sddot"], Cx=C[0], Cy=C[1], nx=n[0], ny=n[1],
+                      sdot=sdot, sddot=sddot, Cx=vg[0], Cy=vg[1], nx=vg[2], ny=vg[3],
                       c_visc=P["effects.viscous_tip_friction"], **g)
         v_t = self.mech(**common)["tip_slip"]
         mu_h = factor * self.friction(v_t, "housing")
-        mu_r = factor * self.friction(k["sdot"], "slot")  # a vane's material/finish: tip and slot
+        mu_r = factor * self.friction(sdot, "slot")  # a vane's material/finish: tip and slot
         common.update(mu_h=mu_h, mu_r=mu_r)
-        gf_slide, gf_lat, gf_tilt, gf_rotor = self.gas_loads(theta, phi, s, alpha, p_lead, p_trail,
-                                                             p_slot)
+        gf_slide, gf_lat, gf_tilt, gf_rotor = (
+            ca.mtimes(ca.reshape(vg[6:18], 4, 3), ca.vertcat(p_lead, p_trail, p_slot))[i] for i in range(4))
         best, n_cons, _, final = self.solve_contact_sides(("N", "F1", "F2"), common,
                                                           extra=(gf_slide, gf_lat, gf_tilt))
         share = final["torque_share"] - gf_rotor
         fric = (best[0] * mu_h * v_t + P["effects.viscous_tip_friction"] * v_t * v_t
-                + mu_r * k["sdot"] * (ca.fabs(best[1]) + ca.fabs(best[2])))
+                + mu_r * sdot * (ca.fabs(best[1]) + ca.fabs(best[2])))
         outs = dict(torque_share=share, torque_slope=ca.jacobian(share, omegadot), normal=best[0],
                     slot1=best[1], slot2=best[2], n_consistent=n_cons, friction_power=fric,
-                    load_power=omega * gf_rotor + k["sdot"] * gf_slide, sdot=k["sdot"],
+                    load_power=omega * gf_rotor + sdot * gf_slide, sdot=sdot,
                     kinetic_energy=final["kinetic_energy"], tip_slip=v_t)
-        return ca.Function("vane_dynamics", [theta, omega, omegadot, phi, factor, s, alpha, p_lead,
-                                             p_trail, p_slot, self.p],
-                           [outs[nm] for nm in VANE_DYN_OUTPUTS], [*names, "p"],
-                           list(VANE_DYN_OUTPUTS), {"cse": True})
+        ins = [theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot]
+        return ca.Function("vane_dynamics", ins + ([vg] if given else []) + [self.p],
+                           [outs[nm] for nm in VANE_DYN_OUTPUTS],
+                           [*names, *(["vane"] if given else []), "p"], list(VANE_DYN_OUTPUTS), {"cse": True})
 
     def cell_function(self, rates=False):
         """Cell volumes and d/dtheta, port overlaps, wall areas, from (theta, s, alpha, s', alpha')
@@ -169,39 +186,18 @@ def exposed_flank(o, side):
 def build_pneumatic_model(structure) -> BuiltModel:
     b = GasBuilder(structure)
     N = structure.vanes
-    dyn_map = b.vane_dynamics().map(N)
     p, P = parameter_symbols(b)
-    phis, facs = b.slot_angles(p), b.factors(p)
+    phis = b.slot_angles(p)
     geometry = cell_geometry(b, p, phis)
-    nx = len(state_names(N))
-    x = ca.MX.sym("x", nx)
-    theta, omega, cur = x[0], x[1], x[2]
-    m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
-    m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
-    geo = geometry(theta)
-    gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
-    fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
-    # mechanics: required shaft torque at omegadot, gas loads included
-    p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
-    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
-
-    def required(wd):
-        o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
-                    gs["p_slot"], p)
-        od = dict(zip(VANE_DYN_OUTPUTS, o))
-        return Ir * wd + tb + ca.sum2(od["torque_share"]), od
-
-    drive = motor_drive(P, omega, cur, required, Ir, P("motor.inertia"))
-    od = drive["outputs"]
-    xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
-                      energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
-                      fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
-    W = gs["W"]
-    slot_rate = P("vane.thickness") * W * ca.sum2(od["sdot"])
-    gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
-    fric_power = ca.sum2(od["friction_power"]) + tb * omega
-    qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power)
-    rhs, jac, wd = implicit_rates(x, xdot, qdot, drive, p)
+    rates = pump_rates(b, p, P)
+    x = ca.MX.sym("x", len(state_names(N)))
+    geo = geometry(x[0])
+    r = rates(x, geo)
+    gs, fl, drive, od, W = r["gs"], r["fl"], r["drive"], r["od"], r["gs"]["W"]
+    cur, omega, m = x[2], x[1], x[3:3 + N]
+    m_in, m_ex, m_b = (x[3 + 2 * N + k] for k in range(3))
+    rhs, jac, wd = implicit_rates(x, r["xdot"], r["qdot"], drive, p)
+    fric_power, gas_power = r["friction_power"], r["gas_power"]
     outs = dict(
         torque=drive["torque"], omegadot=drive["omegadot_used"], current=cur, pressure=gs["pc"],
         volume=geo["V"], temperature=gs["Tc"], dvolume=geo["dV"], inlet_pressure=gs["p_in"],
@@ -220,7 +216,7 @@ def build_pneumatic_model(structure) -> BuiltModel:
     out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p], list(outs.values()))
     out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs)))
     fns = {f.name(): f for f in (cell_geometry_function(geometry, p), orifice_function(P, p), rhs,
-                                 jac, out_fn)}
+                                 jac, out_fn, *tabulated_kernels(b, geometry, x, p, P, phis))}
     return BuiltModel(structure, b.params, fns)
 
 
@@ -230,6 +226,102 @@ def parameter_symbols(b):
     names = [q.name for q in b.params]
     p = ca.MX.sym("p", len(names))
     return p, lambda name: p[names.index(name)]
+
+
+def pump_rates(b, p, P, given=False):
+    """(x, geo) -> the rates of the state (xdot, as functions of the omegadot symbol) and of the
+    quadratures, with the gas state, flows, motor drive and vane outputs they come from; geo: the
+    cell geometry at x[0] (cell_geometry's, or the same quantities from a table; given: with the
+    vanes' angle-only part, geo["vane"], from it too)."""
+    N = b.st.vanes
+    dyn_map = b.vane_dynamics(given).map(N)
+    phis, facs = b.slot_angles(p), b.factors(p)
+    Ir, tb = P("rotor.inertia"), P("operation.bearing_torque")
+
+    def rates(x, geo):
+        theta, omega, cur = x[0], x[1], x[2]
+        m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
+        m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
+        gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
+        fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
+        # mechanics: required shaft torque at omegadot, gas loads included
+        p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
+
+        def required(wd):
+            o = dyn_map(theta, omega, wd, phis, facs, geo["s"], geo["alpha"], gs["pc"].T, p_trail.T,
+                        gs["p_slot"], *([geo["vane"]] if given else []), p)
+            od = dict(zip(VANE_DYN_OUTPUTS, o))
+            return Ir * wd + tb + ca.sum2(od["torque_share"]), od
+
+        drive = motor_drive(P, omega, cur, required, Ir, P("motor.inertia"))
+        od = drive["outputs"]
+        xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
+                          energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
+                          fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
+        slot_rate = P("vane.thickness") * gs["W"] * ca.sum2(od["sdot"])
+        gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
+        fric_power = ca.sum2(od["friction_power"]) + tb * omega
+        qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power)
+        return dict(gs=gs, fl=fl, drive=drive, od=od, xdot=xdot, qdot=qdot, gas_power=gas_power,
+                    friction_power=fric_power)
+
+    return rates
+
+
+# the geometry the right-hand side reads, in the order of a geometry table's columns; alpha as
+# its offset from the vane's slot direction theta + phi wrapped to (-pi, pi] (periodic in theta
+# like the others, and smooth: the offset stays far from pi); the right-hand side reads alpha
+# only through 2 pi-periodic functions
+TABLE_FIELDS = ("s", "alpha", "V", "dV", "lin", "lex", "wall", "exposed", "vane")
+
+
+def geometry_vector(geo, theta, phis):
+    """The table's columns (TABLE_FIELDS, N each) from cell_geometry's dict at theta."""
+    def column(k):
+        if k != "alpha":
+            return ca.vec(geo[k])
+        d = ca.vec(geo[k] - theta - phis)
+        return d - TWO_PI * ca.floor(d / TWO_PI + 0.5)
+
+    return ca.vertcat(*[column(k) for k in TABLE_FIELDS])
+
+
+def geometry_from_vector(g, theta, phis, N):
+    """cell_geometry's dict (the fields the rates read) from a table row g at theta; "vane":
+    VANE_GEOMETRY x N."""
+    geo = {k: g[i * N:(i + 1) * N] for i, k in enumerate(TABLE_FIELDS[:-1])}
+    geo["s"], geo["alpha"] = geo["s"].T, geo["alpha"].T + theta + phis
+    geo["vane"] = ca.reshape(g[(len(TABLE_FIELDS) - 1) * N:], len(VANE_GEOMETRY), N)
+    return geo
+
+
+def tabulated_kernels(b, geometry, x, p, P, phis):
+    """The right-hand side with the angle-only geometry as an input (the cells', and the vanes'
+    vane_geometry), for a table of it over one revolution (the direct CVODES driver's):
+    geometry_table(theta, p) -> (g, dg/dtheta),
+    pump_rhs_tab(x, g, p) -> (xdot, qdot) and pump_rhs_tab_jac(x, g, dg, p): the Jacobian in x
+    with g's theta-dependence through dg (the chain rule: column theta gets J_g dg)."""
+    N = b.st.vanes
+    rates = pump_rates(b, p, P, given=True)
+    th, s_, a_, ph_ = (ca.SX.sym(n) for n in ("theta", "s", "alpha", "phi"))
+    vane = ca.Function("vane_geometry", [th, ph_, s_, a_, b.p], [b.vane_geometry(th, ph_, s_, a_)]).map(N)
+    th = ca.MX.sym("theta")
+    geo = geometry(th)
+    geo["vane"] = vane(th, phis, geo["s"], geo["alpha"], p)
+    g_th = geometry_vector(geo, th, phis)
+    # dense: the table's rows are read as plain arrays (a structural zero would shift the columns)
+    table = flat(ca.Function("geometry_table", [th, p], [ca.densify(g_th), ca.densify(ca.jacobian(g_th, th))],
+                             ["theta", "p"], ["geometry", "dgeometry"]))
+    g, dg, th_ref = ca.MX.sym("g", g_th.size1()), ca.MX.sym("dg", g_th.size1()), ca.MX.sym("theta_ref")
+    r = rates(x, geometry_from_vector(g, x[0], phis, N))
+    rhs, _, _ = implicit_rates(x, r["xdot"], r["qdot"], r["drive"], p, extra=[g], name="pump_rhs_tab")
+    # g follows theta to first order about theta_ref; evaluated at theta_ref = x[0] it is g itself
+    r = rates(x, geometry_from_vector(g + dg * (x[0] - th_ref), x[0], phis, N))
+    _, jac, _ = implicit_rates(x, r["xdot"], r["qdot"], r["drive"], p, extra=[th_ref, g, dg],
+                               name="pump_rhs_tab")
+    jac = flat(ca.Function("pump_rhs_tab_jac", [x, g, dg, p], jac(x, x[0], g, dg, p), ["x", "g", "dg", "p"],
+                           jac.name_out()))
+    return table, rhs, jac
 
 
 def cell_geometry(b, p, phis):
@@ -385,22 +477,24 @@ def budget_rates(P, cur, omega, drive, fl, gas_power, fric_power, *extra):
                       fl["valve_damping"], fl["f_bleak"] - fl["f_valve"], *extra)
 
 
-def implicit_rates(x, xdot, qdot, drive, p):
-    """pump_rhs and pump_rhs_jac from the rates as functions of (x, omegadot symbol). omegadot:
-    Newton on the piecewise-affine residual (each vane returns its slope); its derivative by the
-    implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from one reverse sweep, so the
-    Jacobian never differentiates through the iterations. Returns (rhs, jac, omegadot)."""
+def implicit_rates(x, xdot, qdot, drive, p, extra=(), name="pump_rhs"):
+    """`name` and `name`_jac from the rates as functions of (x, omegadot symbol), their inputs
+    (x, *extra, p). omegadot: Newton on the piecewise-affine residual (each vane returns its
+    slope); its derivative by the implicit function theorem, d wd/dx = -(dr/dx) / (dr/dwd), from
+    one reverse sweep, so the Jacobian never differentiates through the iterations. Returns
+    (rhs, jac, omegadot)."""
     wd_s, wd, r_s = drive["omegadot_symbol"], drive["omegadot"], drive["residual"]
     J = (ca.jacobian(xdot, x)
          - ca.mtimes(ca.jacobian(xdot, wd_s), ca.gradient(r_s, x).T) / drive["slope"])
-    rates = ca.Function("rates", [x, wd_s, p], [xdot, qdot])
-    xdot_v, qdot_v = rates(x, wd, p)
-    J_v = ca.Function("rates_jac", [x, wd_s, p], [J])(x, wd, p)
-    rhs = ca.Function("pump_rhs", [x, p], [xdot_v, qdot_v], ["x", "p"], ["xdot", "qdot"])
+    ins, names = [x, *extra, p], ["x", *[e.name() for e in extra], "p"]
+    rates = ca.Function("rates", [x, wd_s, *extra, p], [xdot, qdot])
+    xdot_v, qdot_v = rates(x, wd, *extra, p)
+    J_v = ca.Function("rates_jac", [x, wd_s, *extra, p], [J])(x, wd, *extra, p)
+    rhs = ca.Function(name, ins, [xdot_v, qdot_v], names, ["xdot", "qdot"])
     # the quadratures do not feed back: their Jacobian rows are left to CVODES' Newton iteration
     # (which then converges on them in one extra step at most) -- zero rows here
-    jac = ca.Function("pump_rhs_jac", [x, p], [J_v, ca.MX(qdot.size1(), x.size1())],
-                      ["x", "p"], ["jac_xdot_x", "jac_qdot_x"])
+    jac = ca.Function(name + "_jac", ins, [J_v, ca.MX(qdot.size1(), x.size1())],
+                      names, ["jac_xdot_x", "jac_qdot_x"])
     return flat(rhs), flat(jac), wd
 
 

@@ -29,6 +29,7 @@ from .cvodes_source import SOURCE
 from .errors import SolverError
 
 ENV = "PUMPSIM_CVODES"
+TIMING_ENV = "PUMPSIM_CVODES_TIMING"  # "1": the driver times its kernel calls (Driver.times)
 LIBS = ["-lsundials_cvodes", "-lsundials_nvecserial", "-lsundials_sunmatrixdense",
         "-lsundials_sunlinsoldense", "-lm"]
 STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails", "nsens_fevals", "njumps")
@@ -66,6 +67,8 @@ def _build() -> ctypes.CDLL:
     dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
     dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p]
     dll.drv_switches.argtypes = [p, ctypes.c_int, p, p, ctypes.c_double]
+    dll.drv_timing.argtypes = [p, ctypes.c_int, p]
+    dll.drv_table.argtypes = [p, ctypes.c_int, p, p, p, ctypes.c_int, p, p]
     dll.drv_sens.argtypes = [p, ctypes.c_int, ctypes.c_int, p, p, p, ctypes.c_int, ctypes.c_double, p, p]
     dll.drv_roots.argtypes = [p, p, p, p, p, p, ctypes.c_int, p, p, ctypes.c_int, p, ctypes.c_int, p,
                               ctypes.c_double]
@@ -216,6 +219,9 @@ class Driver:
             raise OSError("SUNDIALS could not set up the leading-block linear solver")
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
+        self._times = np.zeros(3)
+        self.timed = os.environ.get(TIMING_ENV, "") == "1"
+        self.lib.drv_timing(self.handle, int(self.timed), _ptr(self._times))
         self.last = None  # (t, y) where the solver memory stands
         self.n_roots, self.root = 0, None
         self.n_sens, self.sensitivities = 0, None
@@ -225,6 +231,17 @@ class Driver:
         array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ..."""
         self._drive = (pbuf, np.ascontiguousarray(values, dtype=float))
         self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]))
+
+    def set_table(self, nodes, values, slopes, gbuf, dgbuf):
+        """Kernel inputs that depend on y[0] (an angle) only, from a table over one turn: nodes
+        (0 .. 2 pi, increasing), values and slopes (d/dangle) per node (nodes, m); before every
+        right-hand side the periodic cubic Hermite interpolant at y[0] mod 2 pi goes into gbuf,
+        before every Jacobian also its derivative into dgbuf (both the kernels' own input arrays)."""
+        self._table = tuple(np.ascontiguousarray(a, dtype=float) for a in (nodes, values, slopes))
+        t, v, dv = self._table
+        if v.shape != dv.shape or v.shape[0] != t.size or gbuf.size != v.shape[1] or dgbuf.size != v.shape[1]:
+            raise ValueError("set_table: nodes, values, slopes and buffers disagree in size")
+        self.lib.drv_table(self.handle, t.size, _ptr(t), _ptr(v), _ptr(dv), v.shape[1], _ptr(gbuf), _ptr(dgbuf))
 
     def set_sensitivities(self, directions, steps, scales, error_control=False):
         """Forward sensitivities of y along parameter directions (rows of `directions`, in the
@@ -316,6 +333,13 @@ class Driver:
         return {"time": r[:, 0], "step": r[:, 1], "order": r[:, 2].astype(int), "angle": r[:, 3],
                 "error_test_failures": r[:, 4].astype(int), "newton_failures": r[:, 5].astype(int),
                 "weighted_error": r[:, 6:]}
+
+    def times(self) -> dict:
+        """Wall seconds inside the right-hand side, the Jacobian and the runs so far (timed: with
+        PUMPSIM_CVODES_TIMING=1 when the driver was made; zeros otherwise): the monotonic clock
+        around each call (~25 ns), so their shares of the run's wall are shares of its CPU too."""
+        self.lib.drv_timing(self.handle, int(self.timed), _ptr(self._times))
+        return dict(zip(("rhs_wall", "jac_wall", "run_wall"), self._times.tolist()))
 
     @property
     def stats(self) -> dict:

@@ -7,6 +7,7 @@ SOURCE = r"""
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
+#include <time.h>
 #include <cvodes/cvodes.h>
 #include <nvector/nvector_serial.h>
 #include <sunmatrix/sunmatrix_dense.h>
@@ -31,7 +32,24 @@ typedef struct {
      angles evt in [0, 2 pi), their band half-widths evw / |y[1]| (at most wmax); kpos: the
      next one above the angle */
   int nev; const double *evt, *evw; double wmax, *yb, *fa, *fb; long kpos, njumps;
+  /* a table of the kernels' angle-only inputs over one turn of y[0]: tn nodes tt (0 .. 2 pi), tg
+     values tv and theta-derivatives td per node; periodic cubic Hermite into tgb (and tdg) before
+     every kernel call; tk: the last interval */
+  int tn, tg; const double *tt, *tv, *td; double *tgb, *tdg; long tk;
+  /* timing (drv_timing): wall seconds inside the right-hand side, the Jacobian (each with the
+     table's interpolation) and drv_run */
+  int timing; double wrhs, wjac, wrun;
 } drv_t;
+
+static double wall_now(void) {
+  struct timespec ts; clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* timing on or off; times[3]: the seconds so far (rhs, Jacobian, drv_run) */
+void drv_timing(drv_t *d, int on, double *times) {
+  d->timing = on; times[0] = d->wrhs; times[1] = d->wjac; times[2] = d->wrun;
+}
 
 static const double TWO_PI = 6.283185307179586;
 
@@ -97,8 +115,32 @@ int drv_roots(drv_t *d, fn_t f, const double **arg, double **res, ci *iw, double
   return CVodeRootInit(d->cv, n1 + ns, groot);
 }
 
+/* the table at angle th into tgb, and d/dth into tdg when slope */
+static void table(drv_t *d, double th, int slope) {
+  if (!d->tn) return;
+  double a = th - TWO_PI * floor(th / TWO_PI);
+  long k = d->tk, lo = 0, hi = d->tn - 1;
+  if (!(d->tt[k] <= a && a < d->tt[k + 1])) {  /* steps move little: the last interval or a search */
+    while (hi - lo > 1) { long mid = (lo + hi) / 2; if (d->tt[mid] <= a) lo = mid; else hi = mid; }
+    k = d->tk = lo;
+  }
+  double h = d->tt[k + 1] - d->tt[k], u = (a - d->tt[k]) / h, v = 1 - u;
+  double h00 = (1 + 2 * u) * v * v, h10 = u * v * v * h, h01 = u * u * (3 - 2 * u), h11 = -u * u * v * h;
+  const double *y0 = d->tv + k * d->tg, *y1 = y0 + d->tg, *m0 = d->td + k * d->tg, *m1 = m0 + d->tg;
+  for (int i = 0; i < d->tg; i++) d->tgb[i] = h00 * y0[i] + h10 * m0[i] + h01 * y1[i] + h11 * m1[i];
+  if (!slope) return;
+  double e0 = 6 * u * (u - 1) / h, e1 = v * (1 - 3 * u), e2 = u * (3 * u - 2);
+  for (int i = 0; i < d->tg; i++) d->tdg[i] = e0 * (y0[i] - y1[i]) + e1 * m0[i] + e2 * m1[i];
+}
+
+void drv_table(drv_t *d, int n, const double *t, const double *v, const double *dv, int ng, double *gbuf,
+               double *dgbuf) {
+  d->tn = n; d->tt = t; d->tv = v; d->td = dv; d->tg = ng; d->tgb = gbuf; d->tdg = dgbuf; d->tk = 0;
+}
+
 static int feval(drv_t *d, double t, double *Y, double *D) {
   drive(d, t);
+  table(d, Y[0], 0);
   d->rhs.arg[d->rhs.slot] = Y;
   for (int k = 0; k < d->nout; k++) d->rhs.res[k] = d->off[k] < 0 ? NULL : D + d->off[k];
   return d->rhs.f(d->rhs.arg, d->rhs.res, d->rhs.iw, d->rhs.w, 0) ? 1 : 0;
@@ -107,7 +149,11 @@ static int feval(drv_t *d, double t, double *Y, double *D) {
 static int rhs(sunrealtype t, N_Vector y, N_Vector yd, void *u) {
   drv_t *d = (drv_t *)u;
   d->nrhs++;
-  return feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  if (!d->timing) return feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  double w0 = wall_now();
+  int f = feval(d, t, N_VGetArrayPointer(y), N_VGetArrayPointer(yd));
+  d->wrhs += wall_now() - w0;
+  return f;
 }
 
 /* s_i' = J s_i + df/dp pdir_i: J from the Jacobian kernel, df/dp pdir_i a forward difference of
@@ -120,6 +166,7 @@ static int sensrhs(int Ns, sunrealtype t, N_Vector y, N_Vector fy, N_Vector *yS,
     memcpy(d->sy, Y, n * sizeof(double));
     Y = (double *)band_edge(d, Y);
     drive(d, t);
+    table(d, Y[0], 1);
     d->jac.arg[d->jac.slot] = Y;
     if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
     memcpy(d->sjac, d->jbuf, d->jnnz * sizeof(double));
@@ -212,10 +259,13 @@ static int linsys(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix M, sunboolea
   drv_t *d = (drv_t *)u;
   *jcur = !jok;
   if (!jok) {
+    double w0 = d->timing ? wall_now() : 0.0;
     drive(d, t);
+    table(d, NV_Ith_S(y, 0), 1);
     d->jac.arg[d->jac.slot] = N_VGetArrayPointer(y);
     d->njac++;
     if (d->jac.f(d->jac.arg, d->jac.res, d->jac.iw, d->jac.w, 0)) return 1;
+    if (d->timing) d->wjac += wall_now() - w0;
     memcpy(d->jsave, d->jbuf, d->jnnz * sizeof(double));
   }
   SUNMatZero(M);
@@ -280,6 +330,7 @@ static void stats_of(drv_t *d, long *st) {
 int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const double *tout, double *Y,
             long *st, int *done, double *troot, double *yroot, int *found, const double *yS0, double *SY) {
   int flag = 0; sunrealtype tr;
+  double w0 = d->timing ? wall_now() : 0.0;
   d->msg[0] = 0; *done = 0;
   if (!resume) {
     long c[5]; counters(d, c);
@@ -319,6 +370,7 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
     else { double h; CVodeGetCurrentTime(d->cv, &h); snprintf(d->msg + strlen(d->msg), 64, " (t = %.9g)", h); }
   }
   stats_of(d, st);
+  if (d->timing) d->wrun += wall_now() - w0;
   return flag;
 }
 

@@ -452,3 +452,19 @@ QUASI_STATIC_GRID = 4000
 # (1 L booster): measured 3e-4 (h = 2e4), 6e-4 (2e5), 5e-4 (2e6) in time to target; 1e-3 is the
 # issue's bound for the whole range.
 PUMPDOWN_RANGE_REL = 1e-3
+# Geometry table (pneumatics.geometry_table) against the compiled geometry: its slope (only the
+# Jacobian's) at random angles, measured 1.5e-8 of each quantity's largest slope on the EVP
+# circle; 1e-6 leaves room for other housings and is still far below what moves a Newton
+# iteration.
+TABLE_SLOPE_REL = 1e-6
+# The tabulated right-hand side and Jacobian with the exact geometry put in: the same operations
+# as the exact kernels in another order (measured 2e-13 relative).
+TABLE_KERNEL_REL = 1e-10
+# Pump-down figures (time to target 95 kPa, energy, mean and peak current) and reed-valve states
+# with the table against the exact kernel, both at rtol 1e-8: the table's own error (~1e-11) is
+# far below; what remains is the integration's error, which falls with rtol (measured 8e-8 on the
+# circle, 2e-8 on the ellipse; up to 5e-6 at rtol 1e-7, ~1e-4 at the default 1e-4).
+TABLE_FIGURE_REL = 1e-6
+# Reed events (seat, stop, opening) located with the table against the exact kernel at rtol 1e-8
+# (s): the location tolerance is 1e-10 s, the integration's error on the crossing ~1e-8 s.
+TABLE_EVENT_ABS = 1e-7

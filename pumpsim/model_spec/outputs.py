@@ -99,6 +99,8 @@ OUTPUTS = _declare(
     ("volume_rate", "m^3/s", "cell", "d volume / dt (Model 1 with gas: the vanes move on their own)"),
     ("qdot", "-", "other", "rates of the energy and mass budgets"),
     ("jac_qdot_x", "-", "other", "d qdot / d x"),
+    ("geometry", "-", "other", "the cell geometry the right-hand side reads at theta (a table row)"),
+    ("dgeometry", "-", "other", "d geometry / d theta"),
 )
 
 # one vane's outputs, in the order the vane functions return them
@@ -161,6 +163,13 @@ _PNEUMATIC = {
     "pump_rhs_jac": Signature(("x", "p"), ("jac_xdot_x", "jac_qdot_x")),
     "pump_outputs": Signature(("x", "p"), PUMP_OUTPUTS),
 }
+# the right-hand side over a table of the angle-only cell geometry (Model 2 only: with Model 1
+# the geometry follows the vanes' own states)
+_PNEUMATIC_TABLE = {
+    "geometry_table": Signature(("theta", "p"), ("geometry", "dgeometry")),
+    "pump_rhs_tab": Signature(("x", "g", "p"), ("xdot", "qdot")),
+    "pump_rhs_tab_jac": Signature(("x", "g", "dg", "p"), ("jac_xdot_x", "jac_qdot_x")),
+}
 
 
 # Model 1 with gas (spec §2 and §8): the vanes' own states, contacts and lift-off
@@ -179,7 +188,7 @@ def signatures(model: str) -> dict:
     """Exported function name -> Signature for one model ("constrained" | "contact" | "pneumatic"
     | "pneumatic-contact")."""
     if model == "pneumatic":
-        return dict(_PNEUMATIC)
+        return {**_PNEUMATIC, **_PNEUMATIC_TABLE}
     if model == "pneumatic-contact":
         return dict(_PNEUMATIC_CONTACT)
     return {**(_CONTACT if model == "contact" else _CONSTRAINED), **_BOTH}

@@ -20,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 from .. import cvodes_driver, interrupt
+from . import geometry_table as geometry_tables
 from ..errors import SolverError
 from ..integrate import illinois
 from ..tolerances import GAS_ATOL, GAS_RTOL
@@ -67,10 +68,16 @@ class PumpdownRun:
 class PumpIntegrator:
     """x(t) of the pneumatic kernel with CVODES; `valve mode` is the one integrator parameter."""
 
-    def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000, drive=None):
+    driver_geometry = "exact"  # "table": the direct driver reads the cell geometry from a table
+
+    def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000, drive=None,
+                 geometry_table=None):
         """drive: the supply voltage as a CasADi function of time (a bench log's measured voltage)
-        in place of motor.voltage; the integrations then take their start time t0."""
+        in place of motor.voltage; the integrations then take their start time t0.
+        geometry_table: the direct driver reads the cell geometry from a table over one turn
+        (pneumatics.geometry_table; None: unless PUMPSIM_GEOMETRY=exact), else computes it."""
         self.kern, self.p, self.drive = kern, np.asarray(p, dtype=float), drive
+        self.geometry_table = geometry_tables.enabled() if geometry_table is None else bool(geometry_table)
         nx = kern["pump_rhs"].size1_in(0)
         self.nx = nx
         self.scale = np.ones(nx) if scale is None else np.asarray(scale, float)
@@ -130,15 +137,24 @@ class PumpIntegrator:
         if not cvodes_driver.available()[0]:
             return None
         self._pbuf = self.p.copy()
-        rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [np.zeros(self.nx), self._pbuf])
-        fj = self.kern["pump_rhs_jac"]
+        table = self.geometry_table and geometry_tables.available(self.kern)
+        if table:  # the angle-only geometry from a table over one turn (geometry_table)
+            rhs, jac, tab, gbuf, dgbuf = geometry_tables.kernel_calls(self.kern, self.p, self._pbuf, self.nx)
+            fj = self.kern["pump_rhs_tab_jac"]
+        else:
+            rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [np.zeros(self.nx), self._pbuf])
+            fj = self.kern["pump_rhs_jac"]
         blocks = [(fj.sparsity_out(0), 0), (fj.sparsity_out(1), self.nx)]
         # the quadratures do not feed back: with their Jacobian rows zero, CVODES' Newton systems
         # are solved on the states' block alone (16 x 16 instead of 24 x 24 on the EVP example)
         quads_free = fj.sparsity_out(1).nnz() == 0
-        return cvodes_driver.Driver(self.nx + self.nq, rhs, [0, self.nx], jac, blocks, rtol, atol * self.S,
-                                    max_order=MAX_ORDER, max_steps=max_steps, jac_every=JAC_EVERY,
-                                    lin_size=self.nx if quads_free else None)
+        d = cvodes_driver.Driver(self.nx + self.nq, rhs, [0, self.nx], jac, blocks, rtol, atol * self.S,
+                                 max_order=MAX_ORDER, max_steps=max_steps, jac_every=JAC_EVERY,
+                                 lin_size=self.nx if quads_free else None)
+        if table:
+            d.set_table(tab.nodes, tab.values, tab.slopes, gbuf, dgbuf)
+            self.driver_geometry = "table"
+        return d
 
     def _run_direct(self, touts, x, mode, start):
         """(states, quadratures since `start`) at touts by the direct driver, carrying on without
@@ -154,6 +170,8 @@ class PumpIntegrator:
             y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)])
         Y = d.run(start, y0, touts)
         self.stats.update(d.stats)
+        if d.timed:
+            self.stats.update(d.times())
         return Y[:, :self.nx].T, (Y[:, self.nx:] - y0[self.nx:]).T
 
     def p_at(self, t):
@@ -396,7 +414,7 @@ def _grid(integ, x, mode, dt, m, t, p_booster):
 def _finished(integ, kern, p, trace, events, t_target, wall0) -> PumpdownRun:
     X = np.array(trace.xs)
     stats = dict(integ.stats)
-    stats.update(integrator_calls=integ.calls, events=len(events), driver=integ.driver,
+    stats.update(integrator_calls=integ.calls, events=len(events), driver=integ.driver, geometry=integ.driver_geometry,
                  wall_time=_time.perf_counter() - wall0, integrator_wall=integ.integrator_wall,
                  integrator_cpu=integ.integrator_cpu)
     outs = evaluate_outputs(kern, X, p)

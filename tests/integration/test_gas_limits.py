@@ -72,7 +72,10 @@ def test_ultimate_pressure_follows_the_quasi_static_cycle_not_isolated_cells():
     p_u, V_d, V_max = quasi_static_ultimate(cfg)
     isolated = cfg.pneumatic.values["gas.atmosphere"] * V_d / V_max
     assert p_u < 0.8 * isolated  # the departure the docs state, computed
-    r = run.integrate(cfg, 6.0, 20, rtol=1e-6, atol=1e-8)
+    # rtol 1e-7: at 1e-6 the booster pressure's integration error (~1e-4 here, moved by rounding-
+    # level changes of the kernel) is as large as the settling bound; at 1e-7 it is ~3e-6, and the
+    # run takes no more steps
+    r = run.integrate(cfg, 6.0, 20, rtol=1e-7, atol=1e-9)
     pb = r.outputs["booster_pressure"]
     assert abs(pb[-1] - pb[-20]) < 1e-4 * pb[-1]  # settled over the last second
     assert pb[-1] == pytest.approx(p_u, rel=ULTIMATE_PRESSURE_REL)
