@@ -526,9 +526,7 @@ def _checked(bench: BenchFit, cfg, log) -> BenchFit:
     """bench with what the log's own checks say about the figures (a start above the atmosphere)
     and what reading it did (spikes replaced, time from stamps)."""
     above = start_above_atmosphere(log, cfg)
-    if above:
-        bench.notes.insert(0, above)
-    bench.notes[:0] = [f"the log: {n}" for n in log.notes]
+    bench.notes[:0] = ([above] if above else []) + [f"the log: {n}" for n in log.notes]
     return bench
 
 
