@@ -47,9 +47,9 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
         if out and run.out_of_time(f"the refit of {c.label}"):
             continue
         run.say(f"refitting with {c.label}")
-        lead = min((f.bic_screen for f in out), default=math.inf)
-        st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,
-                        needed=lambda st_, res_, lead=lead: screen_bic(st_, res_) - lead < _search_margin(scr, run.opts))
+        bar = min((f.bic_screen for f in out), default=math.inf) + _search_margin(scr, run.opts)
+        st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,  # nothing to trail yet: every start
+                        needed=None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar)
         if not c.symmetric:
             st, res = rephased(st, res)
         out.append(Contender(c, s, st, res, screen_bic(st, res)))
