@@ -191,10 +191,10 @@ def _finalists(starts, scout_fit, opts: DiagnosisOptions = OPTIONS) -> list:
     """The opts.refit_finalists starts (in their order) whose opts.refit_quick_steps interval-column
     steps on the scout window, without the exact polish, reach the lowest cost: only they are
     scouted in full (opts.refit_scout_steps steps and a polish each), which costs ~4x a quick
-    look. Scouting all 17 starts in full was half of a 5,000-sample diagnosis; on 9 geometric
-    refits of the reduced grid the winner of all 17 was among the three best quick looks in 7, the
-    three reached a cost 1e-6 lower in one, and 2 % higher (the mirror image) in one
-    (docs/explanation/discrepancy-workflow.md)."""
+    look. Scouting all 17 starts in full was half of a 5,000-sample diagnosis; on 11 geometric
+    refits of the reduced grid the winner of all 17 was among the three best quick looks in 8, the
+    three reached a cost 1e-6 lower in one, and 2.0 and 4.5 % higher RMS in two, both named
+    effects: hence `needed` (docs/explanation/discrepancy-workflow.md)."""
     if len(starts) <= opts.refit_finalists:
         return list(range(len(starts)))
     quick = [scout_fit(init, max_iter=opts.refit_quick_steps, polish=False).rms for init in starts]
