@@ -48,11 +48,12 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
              ripple_order=1, extra=None, transient=False, reversals=None,
-             interval=False, speed_in_band=False, adequacy=True, at=None) -> IdentificationResult:
+             interval=False, speed_in_band=False, adequacy=True, at=None, polish=True) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
     engine behind `pumpsim.identify`, which also takes paths and arrays; see there. `at`: (x,
-    model, Jacobian) the caller already has, used if x is this fit's start."""
+    model, Jacobian) the caller already has, used if x is this fit's start. `polish=False`: an
+    interval fit without its exact polish (a scout that only chooses a start)."""
     optimiser = Optimiser(method, relaxation, max_iter, log)
     datasets = data if isinstance(data, (list, tuple)) else [data]
     if method == "ipopt" and len(datasets) > 1:
@@ -83,7 +84,7 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
     res = _result(prob, fit, multistart, adequacy)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
-    if interval and fit.outcome is not None and any(interval_geometric(n) for n in prob.names):
+    if polish and interval and fit.outcome is not None and any(interval_geometric(n) for n in prob.names):
         # the interval columns lead into the valley; the exact ones polish inside it (their
         # difference quotients resolve a reversal's motion to 1/8 interval only: noisy near the
         # minimum), the better of the two kept

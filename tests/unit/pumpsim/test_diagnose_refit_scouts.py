@@ -1,0 +1,72 @@
+"""A geometric refit's scouting of its polar starts: every start scouted in full unless the caller
+says which fits could still matter; then only the finalists by a quick look first, the rest only
+where the finalists' fit could still matter, and then the same winner as scouting all."""
+from dataclasses import dataclass
+
+from pumpsim.diagnosis import refit
+from pumpsim.diagnosis.options import OPTIONS
+
+
+@dataclass
+class Fit:
+    rms: float
+    start: int
+    steps: int
+    polished: bool
+
+
+class Scouts:
+    """scout_fit over starts 0..n-1: a quick look's cost `quick[i]`, a full scout's `full[i]`;
+    records every call."""
+
+    def __init__(self, quick, full):
+        self.quick, self.full, self.calls = quick, full, []
+
+    def __call__(self, init, max_iter, polish=True):
+        self.calls.append((init, max_iter, polish))
+        cost = self.full[init] if polish else self.quick[init]
+        return Fit(cost, init, max_iter, polish)
+
+
+def finish(r):
+    return Fit(r.rms, r.start, -1, True)  # "fitted to convergence" from that scout
+
+
+# the best full scout (start 5) is not among the three best quick looks (0, 1, 2)
+QUICK = [1.0, 1.1, 1.2, 5.0, 6.0, 7.0, 8.0]
+FULL = [0.9, 0.95, 0.97, 4.0, 3.0, 0.5, 2.0]
+
+
+def test_without_needed_every_start_is_scouted_in_full_the_first_best_wins():
+    sc = Scouts(QUICK, FULL + [0.5])  # a tie: the first best start wins, as min() over the starts
+    res = refit._scouted(list(range(8)), sc, finish, OPTIONS)
+    assert (res.start, res.rms) == (5, 0.5)
+    assert [c[0] for c in sc.calls] == list(range(8))
+    assert all(c[1] == OPTIONS.refit_scout_steps and c[2] for c in sc.calls)
+
+
+def test_a_fit_that_cannot_matter_is_scouted_from_the_finalists_only():
+    sc = Scouts(QUICK, FULL)
+    res = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: False)
+    quick = [c for c in sc.calls if not c[2]]
+    full = [c[0] for c in sc.calls if c[2]]
+    assert len(quick) == 7 and all(c[1] == OPTIONS.refit_quick_steps for c in quick)
+    assert full == [0, 1, 2]  # the three lowest quick looks, in their order
+    assert (res.start, res.rms) == (0, 0.9)
+
+
+def test_a_fit_that_could_matter_gets_every_start_and_the_same_winner_as_all():
+    sc = Scouts(QUICK, FULL)
+    seen = []
+    res = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: seen.append(r.start) or True)
+    assert seen == [0]  # asked once, about the finalists' fit
+    assert sorted(c[0] for c in sc.calls if c[2]) == list(range(7))  # each start scouted in full once
+    assert (res.start, res.rms) == (5, 0.5)
+    ref = refit._scouted(list(range(7)), Scouts(QUICK, FULL), finish, OPTIONS)
+    assert (ref.start, ref.rms) == (res.start, res.rms)
+
+
+def test_few_starts_are_all_finalists_without_a_quick_look():
+    sc = Scouts(QUICK[:2], FULL[:2])
+    res = refit._scouted([0, 1], sc, finish, OPTIONS, needed=lambda r: True)
+    assert all(c[2] for c in sc.calls) and (res.start, res.rms) == (0, 0.9)
