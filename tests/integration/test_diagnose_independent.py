@@ -23,6 +23,7 @@ def _diagnosed(case, tmp_path):
     return rec, diagnose(cfg, pumpsim.load_data(data, nominal_speed=cfg.speed))
 
 
+@pytest.mark.slow  # ~60 s (one grid case; ar1_noise is in the independent quick grid, make bench-diagnose-independent)
 def test_coloured_noise_names_no_pump_effect(tmp_path):
     """F17: AR(1) sensor noise (phi 0.85) on a no-effect 3-vane ellipse. The high-frequency noise
     level is 0.4 x the noise's scatter, so a 55 nm k=6 lobe fitted to the noise's slow wander passed

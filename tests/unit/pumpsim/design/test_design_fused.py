@@ -6,7 +6,7 @@ and without the entry."""
 import numpy as np
 import pytest
 
-from codegen.simd_reduce import REDUCTIONS
+from pumpsim.codegen.simd_reduce import REDUCTIONS
 from pumpsim.design import evaluate
 from pumpsim.design.evaluate import evaluate_designs, revolution
 from pumpsim.design.fused import fused_outputs
