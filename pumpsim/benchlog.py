@@ -142,7 +142,7 @@ def _reader(p: Path):
     return {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
 
 
-def normalised(name: str) -> str:
+def _normalised(name: str) -> str:
     """A column name compared with the channels' names and aliases: no unit, lower case, runs of
     other characters as '_'."""
     return re.sub(r"[^0-9a-z]+", "_", split_header(str(name))[0].lower()).strip("_")
@@ -152,11 +152,11 @@ def _find(key: str, wanted: str, names: list, alias: bool):
     hit = match_column(wanted, names)
     if hit in names:
         return hit
-    same = [c for c in names if normalised(c) == normalised(wanted)]
+    same = [c for c in names if _normalised(c) == _normalised(wanted)]
     if len(same) == 1:
         return same[0]
     if alias:
-        like = [c for c in names if normalised(c) in ALIASES.get(key, ())]
+        like = [c for c in names if _normalised(c) in ALIASES.get(key, ())]
         if len(like) == 1:
             return like[0]
     return None

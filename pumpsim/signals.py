@@ -419,11 +419,16 @@ QUANTIZATION_TOL = 1e-3  # of a step: the file's decimal rounding of the multipl
 QUANTIZATION_SHARE = 0.99
 
 
+def rounding_sigma(x) -> float:
+    """The sigma of a channel's rounding to its grid (quantization_step^2 / 12); 0.0 off a grid."""
+    return quantization_step(x) / math.sqrt(12.0)
+
+
 def measured_noise(x) -> float:
     """The white-noise sigma a measured channel carries: the robust first-difference sigma
     (noise_sigma) and the rounding of its grid (q^2 / 12), which the differences miss when the
     channel changes by less than a step between samples (most differences then 0)."""
-    return math.hypot(noise_sigma(x, order=1), quantization_step(x) / math.sqrt(12.0))
+    return math.hypot(noise_sigma(x, order=1), rounding_sigma(x))
 
 
 def isolated_spikes(x, sigmas: float) -> np.ndarray:

@@ -24,7 +24,6 @@ with the check that separates them.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +32,7 @@ from ..benchlog import BenchLog
 from ..identification import bench_sensors
 from ..identification.bench_model import START_NAME
 from ..identification.pumpdown_fit import BenchLogProblem
-from ..signals import noise_sigma, quantization_step
+from ..signals import noise_sigma, rounding_sigma
 
 SUPPLY = "supply.resistance"  # ohm in series before the motor terminals
 RISE = "motor.resistance_rise"  # ohm the winding resistance rises over the log
@@ -157,7 +156,7 @@ class Drives:
     def _rounding(base) -> dict:
         """Per channel the sigma of its rounding (q^2 / 12 of the grid its values lie on; 0 off a
         grid) in the channel's noise sigmas."""
-        return {c: quantization_step(base.measured[c]) / math.sqrt(12.0) / base.sigma[c] for c in base.channel_names}
+        return {c: rounding_sigma(base.measured[c]) / base.sigma[c] for c in base.channel_names}
 
     def rounding_floors(self) -> dict:
         """_rounding in the units of the weighted residual (set_weights)."""
