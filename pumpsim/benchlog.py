@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import (SPEED_UNITS, TIME_UNITS, DataOptions, match_column, read_csv, read_mat, read_tdms, row_name,
+from .data import (SPEED_UNITS, TIME_UNITS, DataOptions, match_column, read_csv, reader_for, row_name,
                    time_gaps, time_resolution, unit_key)
 from .data.units import split_header
 from .signals import isolated_spikes, measured_noise, noise_sigma
@@ -139,7 +139,7 @@ def start_above_atmosphere(log: BenchLog, cfg) -> str | None:
 
 
 def _reader(p: Path):
-    return {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
+    return reader_for(p, read_csv)
 
 
 def _normalised(name: str) -> str:

@@ -34,6 +34,25 @@ def mouth_depth(values) -> float:
     return -rb * math.cos(beta) + math.sqrt(Rr**2 - rb**2 * math.sin(beta) ** 2)
 
 
+def slot_room(R, vanes: int):
+    """The widest slot a rotor of radius R holds: neighbouring slots' mouths on its surface are
+    2 R sin(pi/N) apart (the rotor's diameter for one vane); scalars or arrays."""
+    return 2 * R * np.sin(np.pi / vanes) if vanes > 1 else 2 * R
+
+
+def slots_verdict(v, vanes: int) -> str | None:
+    """Why the slots do not fit the rotor (None if they do): slots vane.thickness wide whose mouths
+    overlap leave no rotor between them."""
+    h, R = v["vane.thickness"], v["rotor.radius"]
+    room = float(slot_room(R, vanes))
+    if h >= room:
+        where = (f"the mouths of the {vanes} slots on the rotor's surface are {room:.4g} m apart"
+                 if vanes > 1 else f"the rotor is {room:.4g} m across")
+        return (f"vane.thickness {h:g} m does not fit: {where}, so slots that wide leave no rotor "
+                "between them (check vane.thickness and rotor.radius)")
+    return None
+
+
 def check_geometry(cfg: PumpConfig) -> None:
     pv = cfg.parameters("constrained")
     kern = load_kernels(pv.structure)
@@ -49,6 +68,9 @@ def check_geometry(cfg: PumpConfig) -> None:
 def geometry_verdict(v, alpha, pts, curv, theta, s, res) -> str | None:
     """Why the geometry is not admissible (None if it is), from housing samples (polar angles
     alpha, points pts (2, n), curvature) and the vane positions s, residuals res (N, len(theta))."""
+    slots = slots_verdict(v, s.shape[0])
+    if slots:
+        return slots
     if np.any(curv <= 0):
         i = int(np.argmin(curv))
         return (f"housing is not convex at housing polar angle {alpha[i]:.3f} rad "

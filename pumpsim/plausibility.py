@@ -23,12 +23,19 @@ MAX_LENGTH = 1.0  # m: no rotor, housing or vane dimension of a vane pump reache
 MAX_DENSITY = 20000.0  # kg/m^3: above tungsten (19,300)
 MAX_AXIAL_LENGTH = 1.0  # m: bounds a vane's width / the rotor's length for the mass checks
 MIN_SAMPLES_PER_REV = 8  # fewer cannot resolve even the first shaft orders
-TORQUE_MARGIN = 10.0  # a torque level 10x outside the model's COF range [0, 2] is implausible
+TORQUE_MARGIN = 10.0  # a torque level 10x outside the model's COF range [MIN_COF, 2] is implausible
+# No vane slides on a housing with a COF below 0.01 (lubricated contacts are at 0.02-0.1); with the
+# margin a torque level below the model's at COF 0.001 is a unit mistake (N*m read as N*mm)
+MIN_COF = 0.01
 # Gas tables (spec §8): a vessel of a cubic metre is 250 brake boosters (2-8 L): 4 for 4 L gives
 # 4 m^3 and a pump-down that "never reaches" its target; an atmosphere below 10 kPa (the air at
 # 16 km) is a pressure in kPa or bar, not Pa
 MAX_VESSEL_VOLUME = 1.0  # m^3
 MIN_ATMOSPHERE = 1.0e4  # Pa
+# A booster start or target below 1 kPa is below any vane pump's ultimate pressure (~5-10 kPa): a
+# value in kPa. A gas or wall temperature below 150 K is a temperature in degrees Celsius.
+MIN_BOOSTER_PRESSURE = 1.0e3  # Pa
+MIN_TEMPERATURE = 150.0  # K
 
 TORQUE_FACTORS = {"N*mm (set the torque unit N*mm, or a 'torque [N*mm]' header)": 1e3,
                   "N*cm (set the torque unit N*cm)": 1e2,
@@ -97,6 +104,15 @@ def gas_problems(cfg) -> list[str]:
     if v["gas.atmosphere"] < MIN_ATMOSPHERE:
         out.append(f"gas.atmosphere = {v['gas.atmosphere']:g} Pa is below {MIN_ATMOSPHERE:g} Pa: pressures "
                    f"are absolute in Pa (SI); {v['gas.atmosphere']:g} kPa is {v['gas.atmosphere'] * 1000:g}")
+    for key, p in (("booster.pressure", cfg.pneumatic.booster_start),
+                   ("booster.target", cfg.pneumatic.booster_target)):
+        if p is not None and p < MIN_BOOSTER_PRESSURE:
+            out.append(f"{key} = {p:g} Pa is below any vane pump's ultimate pressure (limit "
+                       f"{MIN_BOOSTER_PRESSURE:g} Pa): pressures are absolute in Pa (SI); {p:g} kPa is {p * 1000:g}")
+    for key in ("gas.temperature", "gas.wall_temperature"):
+        if v[key] < MIN_TEMPERATURE:
+            out.append(f"{key} = {v[key]:g} K is below {MIN_TEMPERATURE:g} K: temperatures are in kelvin (SI); "
+                       f"{v[key]:g} degC is {v[key] + 273.15:g}")
     return out
 
 
@@ -126,6 +142,10 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
     speed = None
     if ds.speed is not None:
         speed = float(np.mean(ds.speed))
+        if speed < -0.5 * float(np.sqrt(np.mean(ds.speed**2))):
+            warnings += _refuse(f"data '{name}': the speed column is negative (mean {speed:.5g} rad/s): the "
+                                "model's rotor turns in the positive sense, so the speed sensor's sign is "
+                                "reversed; negate the speed column", force, DataError)
         tip = abs(speed) * radius
         if cfg.mode == "speed" and cfg.speed:
             unit = _match(speed / cfg.speed, SPEED_FACTORS)
@@ -153,8 +173,14 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
 
 
 def model_torque_range(cfg, speed):
-    """RMS of the model torque over one revolution at `speed` for COF 0 and COF 2 (housing and slot,
-    statics scaled by the configured ratios): the range a fit of mu can reach."""
+    """RMS of the model torque over one revolution at `speed` for COF MIN_COF and COF 2 (housing
+    and slot, statics scaled by the configured ratios): the range a fit of mu can reach."""
+    levels = _model_torques(cfg, speed)
+    return levels[0][0], levels[1][0]
+
+
+def _model_torques(cfg, speed):
+    """[(RMS, mean)] of the model torque over one revolution at COFs MIN_COF and 2."""
     from .config import as_array
     from .kernels import load_kernels, sampled_inverse_dynamics
 
@@ -162,7 +188,7 @@ def model_torque_range(cfg, speed):
     kern = load_kernels(pv.structure)
     grid = np.linspace(0, 2 * math.pi, 360, endpoint=False)
     out = []
-    for mu in (0.0, 2.0):
+    for mu in (MIN_COF, 2.0):
         vals = dict(pv.values)
         for side in ("housing", "slot"):
             ratio = vals[f"friction.{side}.static"] / max(vals[f"friction.{side}.dynamic"], 1e-300)
@@ -171,17 +197,23 @@ def model_torque_range(cfg, speed):
         pv2 = pv.copy()
         pv2.values.update(vals)
         tq = sampled_inverse_dynamics(kern, as_array(pv2), grid, speed, 0.0, ("torque",))["torque"]
-        out.append(float(np.sqrt(np.mean(tq**2))))
-    return min(out), max(out)
+        out.append((float(np.sqrt(np.mean(tq**2))), float(np.mean(tq))))
+    return out
 
 
 def _check_torque_level(cfg, ds, speed, force):
-    lo, hi = model_torque_range(cfg, speed)
-    level = float(np.sqrt(np.mean(ds.torque**2)))
+    (lo, low_mean), (hi, high_mean) = _model_torques(cfg, speed)
+    level, mean = float(np.sqrt(np.mean(ds.torque**2))), float(np.mean(ds.torque))
+    if mean < -0.5 * level and min(low_mean, high_mean) > 0:
+        return _refuse(f"data '{ds.name}': the torque column's mean is negative ({mean:.4g} N m) where the "
+                       f"model's is positive for every COF ({low_mean:.3g} .. {high_mean:.3g} N m at "
+                       f"{speed:.5g} rad/s): the torque sensor's sign is reversed; negate the torque column",
+                       force, DataError)
     if not level > 0 or hi <= 0 or lo / TORQUE_MARGIN <= level <= hi * TORQUE_MARGIN:
         return []
     fits = [u for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi]
     why = f": the torque looks like {fits[0]}" if fits else \
         ": check the torque unit and the configuration (lengths m, masses kg)"
     return _refuse(f"data '{ds.name}': torque RMS {level:.4g} N m is outside what the model gives at "
-                   f"{speed:.5g} rad/s for any COF in [0, 2] ({lo:.3g} .. {hi:.3g} N m){why}", force, DataError)
+                   f"{speed:.5g} rad/s for any COF in [{MIN_COF:g}, 2] ({lo:.3g} .. {hi:.3g} N m){why}",
+                   force, DataError)

@@ -67,11 +67,28 @@ def tolerance(text):
     return v
 
 
+def in_range(low: float, high: float, low_open: bool = True):
+    """An argparse type: a number in (low, high] (low_open) or [low, high]."""
+    def checked(text):
+        v = _converted(text, float, "a number")
+        if not ((low < v if low_open else low <= v) and v <= high):
+            raise argparse.ArgumentTypeError(f"must be in {'(' if low_open else '['}{low:g}, {high:g}], got {text}")
+        return v
+    return checked
+
+
 def positive_int(text):
-    v = _converted(text, int, "an integer")
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {text}")
-    return v
+    return at_least(1)(text)
+
+
+def at_least(low: int):
+    """An argparse type: an integer >= low."""
+    def checked(text):
+        v = _converted(text, int, "an integer")
+        if v < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {text}")
+        return v
+    return checked
 
 
 def rate_or_auto(text):

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from .common import live, outputs, staged, warn
+from .common import at_least, live, outputs, positive_int, staged, warn
 
 
 def _idle_text(stats) -> str:
@@ -29,6 +29,11 @@ def _load(path):
     return study
 
 
+def _inputs(a, study) -> list:
+    """The files a study run reads: the study file and the base config it names."""
+    return [a.study] + ([study.config_path] if study.config_path else [])
+
+
 def _json_safe(obj):
     return {k: v for k, v in obj.items() if not k.startswith("_")}
 
@@ -42,7 +47,7 @@ def cmd_sweep(a) -> int:
         override_samples(study, a.samples)
     if a.summary:
         return _summary(a, study)
-    outs = outputs(a, [a.study], csv=None, report=None)
+    outs = outputs(a, _inputs(a, study), csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
                           batch_size=a.batch_size, progress=None if live() else False)
@@ -104,7 +109,7 @@ def cmd_sensitivity(a) -> int:
     from ..io import write_text
 
     study = _load(a.study)
-    outs = outputs(a, [a.study], json=None, report=None)
+    outs = outputs(a, _inputs(a, study), json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
                       workers=_workers(a.workers), progress=None if live() else False)
     print(sensitivity_text(res))
@@ -150,7 +155,7 @@ def cmd_optimize(a) -> int:
     from ..io import write_text
 
     study = _load(a.study)
-    outs = outputs(a, [a.study], json=None, report=None)
+    outs = outputs(a, _inputs(a, study), json=None, report=None)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))
     with staged(outs) as tmp:
@@ -198,7 +203,7 @@ def register(sub) -> None:
         g = p.add_argument_group("execution (dask.distributed)")
         g.add_argument("--scheduler", metavar="ADDRESS",
                        help="existing Dask scheduler, e.g. tcp://host:8786 (default: a local cluster)")
-        g.add_argument("--workers", type=int, help="local workers (default: one per core; a study too small to pay for a cluster's start runs in this process)")
+        g.add_argument("--workers", type=positive_int, help="local workers (default: one per core; a study too small to pay for a cluster's start runs in this process)")
 
     sw = sub.add_parser("sweep", help="evaluate a study's designs (grid, Monte Carlo)")
     sw.add_argument("study", help="study file (TOML)")
@@ -206,8 +211,8 @@ def register(sub) -> None:
     sw.add_argument("--csv", help="the result table as CSV")
     sw.add_argument("--report", help="self-contained HTML report")
     sw.add_argument("--summary", action="store_true", help="print the summary of --out DIR, run nothing")
-    sw.add_argument("--samples", type=int, help="sample count instead of study.samples (not for a grid)")
-    sw.add_argument("--batch-size", type=int, dest="batch_size",
+    sw.add_argument("--samples", type=positive_int, help="sample count instead of study.samples (not for a grid)")
+    sw.add_argument("--batch-size", type=positive_int, dest="batch_size",
                     help="designs per task (default: >= 0.5 s of work from a pilot run)")
     cluster(sw)
     sw.set_defaults(func=cmd_sweep)
@@ -221,11 +226,11 @@ def register(sub) -> None:
 
     se = analysis("sensitivity", "Sobol' indices or Morris screening of a study (SALib)")
     se.add_argument("--method", choices=["sobol", "morris"])
-    se.add_argument("--samples", type=int, help="base sample count N (Sobol: N (D + 2) designs)")
+    se.add_argument("--samples", type=at_least(2), help="base sample count N (Sobol: N (D + 2) designs)")
     cluster(se)
     se.set_defaults(func=cmd_sensitivity)
     op = analysis("optimize", "minimise an output subject to constraints")
     op.add_argument("--method", choices=["slsqp", "trust-constr", "nsga2"])
-    op.add_argument("--max-iter", type=int, dest="max_iter")
+    op.add_argument("--max-iter", type=positive_int, dest="max_iter")
     op.set_defaults(func=cmd_optimize)
 

@@ -3,8 +3,9 @@ effect library)."""
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, live, load_config, outputs, read_bench, \
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, in_range, live, load_config, outputs, read_bench, \
     read_data, refuse_bench_only, refuse_torque_only, write_fit_outputs
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
@@ -17,7 +18,7 @@ def register(sub):
     dg.add_argument("config", help="TOML configuration (SI units)")
     dg.add_argument("data", nargs="+", help="one or more measurements (several speeds separate "
                     "offset, viscous friction and COF)")
-    dg.add_argument("--speed-tolerance", type=float, dest="speed_tolerance",
+    dg.add_argument("--speed-tolerance", type=in_range(0.0, 0.5, low_open=False), dest="speed_tolerance",
                     help="relative band about the configured speed inside which a measurement without a "
                          "speed column may refine it (default: operation.speed_tolerance, 0.02)")
     dg.add_argument("--budget", type=float, default=None, metavar="SECONDS",
@@ -34,6 +35,25 @@ def register(sub):
     dg.set_defaults(func=run)
 
 
+def _refuse_repeated(paths) -> None:
+    """Several files are several measurements: one file given twice would count its samples twice
+    (intervals too narrow by sqrt 2)."""
+    import hashlib
+
+    from ..errors import ConfigError
+
+    seen = {}
+    for p in paths:
+        try:
+            key = hashlib.sha256(Path(p).read_bytes()).hexdigest()
+        except OSError:
+            continue  # the reader names a missing or unreadable file
+        if key in seen:
+            raise ConfigError(f"'{p}' holds the same measurement as '{seen[key]}' (identical content): "
+                              "give each record once")
+        seen[key] = p
+
+
 def run(a) -> int:
     from ..api import diagnose
     from ..diagnosis import tty_progress
@@ -42,6 +62,7 @@ def run(a) -> int:
     from ..benchlog import is_bench_log
 
     outs = outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
+    _refuse_repeated(a.data)
     cfg = load_config(a)
     if any(is_bench_log(d, data_options(a)) for d in a.data):
         return run_bench(a, cfg, outs)

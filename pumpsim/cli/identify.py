@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, fit_log, live, load_config, outputs, \
+from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, fit_log, in_range, live, load_config, outputs, \
     positive_int, read_bench, read_data, refuse_bench_only, refuse_torque_only, warn, write_fit_outputs
 
 BENCH_DEFAULT_PARAMS = ("mu", "booster.leak", "motor.resistance")
@@ -23,7 +23,7 @@ def register(sub):
                          f"{','.join(BENCH_DEFAULT_PARAMS)}")
     ip.add_argument("--method", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt", "ipopt"],
                     help="least-squares solver")
-    ip.add_argument("--relaxation", type=float, default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
+    ip.add_argument("--relaxation", type=in_range(0.0, 1.0), default=1.0, help="Gauss-Newton relaxation factor f in (0, 1]")
     ip.add_argument("--start", action="append", metavar="NAME=VALUE", help="initial value of a fitted parameter")
     ip.add_argument("--max-iter", type=positive_int, default=50, dest="max_iter", help="iteration limit")
     ip.add_argument("--transient", action="store_true",
@@ -46,7 +46,8 @@ def parse_params(text):
     return names
 
 
-def parse_initial(items):
+def parse_initial(items, params=None):
+    """--start NAME=VALUE items as {name: value}; every name one of params (the fitted ones)."""
     from ..errors import ConfigError
 
     out = {}
@@ -61,6 +62,9 @@ def parse_initial(items):
             raise ConfigError(f"--start takes NAME=VALUE, got '{item}'")
         if value != value or abs(value) == float("inf"):
             raise ConfigError(f"--start {name} must be a finite number, got '{val}'")
+        if params is not None and name not in params:
+            raise ConfigError(f"--start {name}: not a fitted parameter (fitted: {', '.join(params)}); "
+                              "start only what --params fits")
         out[name] = value
     return out
 
@@ -86,7 +90,7 @@ def run(a) -> int:
 
         raise ConfigError("--limits checks the figures identified from a bench log; drop --limits for torque data")
     params = parse_params(a.params or "mu,theta0")
-    initial = parse_initial(a.start)
+    initial = parse_initial(a.start, params)
     data = read_data(a, a.data, None if ("speed" in params or a.transient) else
                      (cfg.speed if cfg.mode == "speed" else None))
     if a.transient:
@@ -121,7 +125,7 @@ def run_bench(a, cfg, outs) -> int:
     from ..limits import read_limits
 
     params = parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS))
-    initial = parse_initial(a.start)
+    initial = parse_initial(a.start, params)
     refuse_torque_only({"--transient": a.transient, "--steady": a.steady, "--resample": a.resample}, "fitted")
     limits = read_limits(a.limits, params) if a.limits else {}
     log = read_bench(a, a.data, cfg)

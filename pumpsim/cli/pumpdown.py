@@ -7,14 +7,14 @@ import sys
 
 from ..errors import ConfigError
 from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
-from .common import REPORT_SUFFIXES, add_force, live, load_config, outputs, staged, warn
+from .common import REPORT_SUFFIXES, add_force, live, load_config, outputs, positive_float, staged, tolerance, warn
 
 
 def register(sub) -> None:
     pd = sub.add_parser("pumpdown", help="evacuate the booster: pressure, current, energy")
     pd.add_argument("config")
-    pd.add_argument("--until", type=float, help="target booster pressure [Pa] (default booster.target)")
-    pd.add_argument("--duration", type=float, help="longest simulated time [s] (default 120)")
+    pd.add_argument("--until", type=positive_float, help="target booster pressure [Pa] (default booster.target)")
+    pd.add_argument("--duration", type=positive_float, help="longest simulated time [s] (default 120)")
     pd.add_argument("--out", help="CSV file: time, angle, speed, torque, booster_pressure, current and per cell pressure, volume, temperature")
     pd.add_argument("--plot", help="PNG file for the pump-down figures")
     pd.add_argument("--json", help="JSON file for the summary and the solver statistics")
@@ -25,11 +25,11 @@ def register(sub) -> None:
     pd.add_argument("--model", choices=["constrained", "contact"], default="constrained",
                     help="constrained: Model 2 (tips on the housing); contact: Model 1 (vanes free in "
                          "their slots, penalty contacts, lift-off reported; needs [contact.housing])")
-    pd.add_argument("--rate", type=float, default=2000.0, help="output sample rate [Hz]")
-    pd.add_argument("--rtol", type=float, default=None,
+    pd.add_argument("--rate", type=positive_float, default=2000.0, help="output sample rate [Hz]")
+    pd.add_argument("--rtol", type=tolerance, default=None,
                     help=f"relative tolerance (default {PUMPDOWN_RTOL:g}; {CONTACT_PUMPDOWN_RTOL:g} "
                          "with --model contact)")
-    pd.add_argument("--atol", type=float, default=None,
+    pd.add_argument("--atol", type=tolerance, default=None,
                     help=f"absolute tolerance relative to each state's starting size (default "
                          f"{PUMPDOWN_ATOL:g}; {CONTACT_PUMPDOWN_ATOL:g} with --model contact)")
     add_force(pd)
@@ -51,6 +51,10 @@ def run(a) -> int:
     cfg = load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
     if cfg.pneumatic is None:
         raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster]")
+    start = cfg.pneumatic.booster_start
+    if a.until is not None and not a.until < start:
+        raise ConfigError(f"--until must be in (0, booster.pressure ({start:g} Pa)), got {a.until:g}: the "
+                          "target is a booster pressure below the start, in Pa")
     progress = _progress if live() else None
     res = pdm.pumpdown(cfg, until=a.until, duration=a.duration, rate=a.rate, rtol=a.rtol, atol=a.atol,
                        progress=progress, model=a.model)
@@ -67,10 +71,10 @@ def run(a) -> int:
     if fast:
         t_f = fast["time_to_target"]
         made = f"({fast['wall_time'] * 1e3:.1f} ms from maps made in {maps.wall_time:.1f} s)"
-        print(f"  fast path: time to target {t_f:.3f} s, mean current {fast['mean_current']:.2f} A {made}"
-              if t_f is not None else
+        current = f", mean current {fast['mean_current']:.2f} A" if fast["mean_current"] is not None else ""
+        print(f"  fast path: time to target {t_f:.3f} s{current} {made}" if t_f is not None else
               f"  fast path: target not reached; booster {fast['final_pressure'] / 1e3:.2f} kPa at "
-              f"{fast['time'][-1]:.3f} s, mean current {fast['mean_current']:.2f} A {made}")
+              f"{fast['time'][-1]:.3f} s{current} {made}")
     warn(res.warnings)
     with staged(outs) as tmp:
         if a.out:

@@ -4,6 +4,9 @@ from __future__ import annotations
 from .common import Help, add_force, load_config, outputs, positive_float, staged
 
 
+MIN_REVOLUTIONS = 2.0
+
+
 def register(sub):
     st = sub.add_parser("study", help="contact-model solver study: tolerances, contact stiffness, integrators",
                         formatter_class=Help)
@@ -19,6 +22,9 @@ def run(a) -> int:
     from ..errors import ConfigError
     from ..solver_study import HEADER, solver_study, write_json
 
+    if a.revolutions < MIN_REVOLUTIONS:
+        raise ConfigError(f"--revolutions must be >= {MIN_REVOLUTIONS:g}, got {a.revolutions:g}: the deviations are "
+                          "taken over the last revolution, which must lie after the in-contact start")
     outs = outputs(a, [a.config], json=None)
     cfg = load_config(a)
     if not cfg.contact_given:

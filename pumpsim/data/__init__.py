@@ -9,7 +9,7 @@ Modules: `load` (load_data), `dataset` (Dataset, DataOptions), the readers `csvf
 (.mat, .tdms) over `source`, `text` (decoding) and `units`; `sampling` (gaps, resampling, the
 steady section) and `trend` (the speed column's slow trend).
 """
-from .binary import MAT73, read_mat, read_tdms
+from .binary import MAT73, read_mat, read_parquet, read_tdms, reader_for
 from .csvfile import RowNumbers, read_csv
 from .dataset import DataOptions, Dataset
 from .load import load_data, match_column
@@ -23,7 +23,7 @@ from .units import ANGLE_UNITS, SI_UNIT, SPEED_UNITS, TIME_UNITS, TORQUE_UNITS, 
 
 __all__ = [
     "load_data", "Dataset", "DataOptions", "SpeedTrend", "speed_trend", "TimeGaps", "time_gaps", "resample",
-    "steady_section", "time_resolution", "check_rate", "read_csv", "read_mat", "read_tdms", "RowNumbers",
+    "steady_section", "time_resolution", "check_rate", "read_csv", "read_mat", "read_tdms", "read_parquet", "reader_for", "RowNumbers",
     "Source", "row_name", "match_column", "decode_text", "decode_file", "split_header", "unit_factor",
     "unit_key", "UNITS", "UNIT_NAMES", "SI_UNIT", "TIME_UNITS", "TORQUE_UNITS", "SPEED_UNITS", "ANGLE_UNITS",
     "GAP_STEPS", "REGULAR_STEPS", "JITTER_NOTE", "TREND_ALPHA", "TREND_MAX_DEGREE",

@@ -1,4 +1,5 @@
-"""Binary records: MATLAB .mat (v4-v7) and NI .tdms files."""
+"""Binary records: MATLAB .mat (v4-v7), NI .tdms and Apache Parquet files; `reader_for` picks a
+file's reader by its suffix (text otherwise)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -91,3 +92,41 @@ def read_tdms(p: Path, pick=None) -> Source:
                 if f"{g}/{base}" in d:
                     d[base] = d[f"{g}/{base}"]
     return src
+
+
+def read_parquet(p: Path, pick=None) -> Source:
+    """An Apache Parquet table (pyarrow, already a dependency for study results): numeric columns
+    are signals (a unit in the name as in CSV headers, 'torque [N*mm]'); a time-stamp column
+    becomes seconds since its first sample; text columns are left aside."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(str(p))
+    except Exception as e:  # pyarrow raises several types for corrupt files
+        raise DataError(f"cannot read Parquet file '{p.name}': {e}") from None
+    src = Source("column", {}, names=list(table.column_names))
+    for name, column in zip(table.column_names, table.columns):
+        base, unit = split_header(name)
+        if pa.types.is_timestamp(column.type):
+            ns = column.cast(pa.timestamp("ns")).cast(pa.int64()).to_numpy(zero_copy_only=False)
+            data = (ns - ns[0]) * 1e-9 if ns.size else ns.astype(float)
+            unit = "s"
+            src.notes.append(f"column '{name}' holds time stamps: read as seconds since the first")
+        elif pa.types.is_integer(column.type) or pa.types.is_floating(column.type):
+            data = column.to_numpy(zero_copy_only=False).astype(float)
+        else:
+            src.ignored[name] = "text"
+            continue
+        src.cols[base] = data
+        if unit:
+            src.units[base] = unit
+    return src
+
+
+READERS = {".mat": read_mat, ".tdms": read_tdms, ".parquet": read_parquet, ".pq": read_parquet}
+
+
+def reader_for(p: Path, text_reader):
+    """The reader of a file by its suffix; text_reader (CSV) for any other."""
+    return READERS.get(Path(p).suffix.lower(), text_reader)

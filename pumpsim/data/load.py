@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from .binary import read_mat, read_tdms
+from .binary import reader_for
 from .csvfile import read_csv
 from .dataset import DataOptions, Dataset
 from .sampling import check_rate, resample, steady_section, time_gaps, time_resolution
@@ -49,7 +49,7 @@ def _load(p: Path, o: DataOptions, min_revolutions, nominal_speed) -> Dataset:
         raise DataError("is a folder, not a data file")
     if not p.exists():
         raise DataError("cannot read data: no such file")
-    reader = {".mat": read_mat, ".tdms": read_tdms}.get(p.suffix.lower(), read_csv)
+    reader = reader_for(p, read_csv)
     src = reader(p, lambda names: _pick(o, names))
     name = _pick(o, list(src.cols))
     notes = list(src.notes)

@@ -29,6 +29,8 @@ _UTF8_MULTIBYTE = re.compile(rb"[\xc2-\xdf][\x80-\xbf]|[\xe0-\xef][\x80-\xbf]{2}
 def refuse_binary(raw: bytes, error) -> None:
     if raw.startswith(b"PK\x03\x04"):
         raise error("is a ZIP archive (an Excel .xlsx workbook?), not text; save it as CSV")
+    if raw.startswith(b"PAR1"):
+        raise error("is an Apache Parquet file; name it .parquet to be read as one")
     if b"\x00" in raw[:4096]:
         raise error("is a binary file, not text (UTF-8 or UTF-16 with BOM)")
 

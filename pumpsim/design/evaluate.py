@@ -18,7 +18,7 @@ import numpy as np
 from .. import interrupt
 from ..config import as_array, config_from_dict
 from ..errors import ConfigError, PumpsimError
-from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth
+from ..geometry import POSITION_TOL, geometry_verdict, mouth_depth, slot_room
 from ..kernels import load_kernels
 from ..model_spec import outputs as kernel_outputs
 from ..tolerances import CONTACT_PERIODIC_REL
@@ -443,6 +443,7 @@ def _mapped_batch(study, dm, kern, P, speed, nrev, theta, one=None) -> list | No
     except PumpsimError:
         return None
     good = clear & extension_ok(col("vane.length"), lm, converged[::S], s_min[::S], s_max[::S])
+    good &= col("vane.thickness") < slot_room(col("rotor.radius"), kern.structure.vanes)
     asked = [o for o in out if o not in BOOL_OUTPUTS and _asked(study, o)]
     fin = np.all([np.isfinite(out[o]) for o in asked], axis=0) if asked else np.ones(B * S, bool)
     block = Block(out, omega, fin, S)

@@ -18,13 +18,14 @@ import time
 
 import numpy as np
 
+from ..config import config_from_dict
 from ..errors import ConfigError, SolverError
 from ..geometry import mouth_depth
 from ..kernels import load_kernels
 from .evaluate import (design_speeds, evaluate_rows, kernel_tangents, prepare, revolution)
 from .outputs import reduce_revolution
 from .pneumatic import GAS_OUTPUTS
-from .study import SPEED_KEY
+from .study import SPEED_KEY, apply_values
 
 METHODS = ("slsqp", "trust-constr", "nsga2")
 REL_STEP = 1e-6  # central difference of the (polynomial) config -> p map
@@ -112,6 +113,20 @@ def _check(study):
                               "that implies them) for optimisation")
         if v.key == "rotor.vanes":
             raise ConfigError("rotor.vanes is an integer (structural) key: sweep it with a grid instead")
+        _bounds_admissible(study, v)
+
+
+def _bounds_admissible(study, v) -> None:
+    """Each end of a variable's bounds a config the model takes (the others at their base values):
+    an optimiser must not be sent where no design exists."""
+    if v.key == SPEED_KEY:
+        return
+    for end in v.bounds:
+        try:
+            config_from_dict(apply_values(study.base, {v.key: end}))
+        except ConfigError as e:
+            raise ConfigError(f"vary.\"{v.key}\".bounds end {end:g} is no admissible design ({e}); "
+                              "narrow the bounds") from None
 
 
 def optimize(study, method=None, max_iter=None, tol=None, progress=None) -> dict:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from .. import interrupt
 from ..config import PumpConfig
 from ..data import Dataset
 from ..errors import DataError
@@ -63,11 +64,13 @@ class TransientProblem(Problem):
 
     def model(self, x):
         self.n_eval += 1
-        return np.asarray(self._f(x)).ravel()
+        with interrupt.deferred():  # CVODES' callbacks must not see a signal's exception
+            return np.asarray(self._f(x)).ravel()
 
     def model_and_jacobian(self, x, cols=None):
         self.n_eval += 1
-        m, J = self._fj(x)
+        with interrupt.deferred():
+            m, J = self._fj(x)
         J = np.asarray(J)
         return np.asarray(m).ravel(), J if cols is None else J[:, list(cols)]
 

@@ -17,6 +17,9 @@ TABLES = ("gas", "ports", "valve", "leak", "booster", "motor")
 
 
 _GAS = {q.name: q for q in GAS_PARAMETERS}
+# A booster or target pressure below this is no vane pump's (their ultimate pressure is ~5-10 kPa):
+# a start of 101.3 is a pressure in kPa
+MIN_PRESSURE = 1000.0  # Pa
 
 
 def _num(default=None, required=False):
@@ -138,6 +141,7 @@ def _parse_ports(pt: dict, W: float, v: dict) -> None:
         if width is None:
             raise ConfigError(f"missing required key 'ports.{name}_width' (or ports.width)")
         v.update({f"ports.{name}.start": a, f"ports.{name}.end": b, f"ports.{name}.width": width})
+    _windows_apart(v)
     _pos("ports.hose_diameter", pt["hose_diameter"])  # the registry holds the area
     v.update({f"ports.{k}": pt[k] for k in ("discharge_coefficient", "inlet_volume", "exhaust_volume",
                                             "check_cracking", "check_full_open")})
@@ -145,6 +149,17 @@ def _parse_ports(pt: dict, W: float, v: dict) -> None:
     for k in ("hose_discharge_coefficient", "check_discharge_coefficient"):
         v[f"ports.{k}"] = _or_derived(f"ports.{k}", pt[k], v)
     _check(v, "ports.")
+
+
+def _windows_apart(v: dict) -> None:
+    """The inlet and exhaust windows may not share a housing angle: a cell open to both short-circuits
+    the pump (the exhaust would blow straight back into the inlet)."""
+    arcs = [(v[f"ports.{n}.start"], v[f"ports.{n}.end"]) for n in ("inlet", "exhaust")]
+    (a1, b1), (a2, b2) = arcs
+    two_pi = 2 * math.pi
+    if (a2 - a1) % two_pi < b1 - a1 or (a1 - a2) % two_pi < b2 - a2:
+        raise ConfigError(f"ports.inlet [{a1:.4g}, {b1:.4g}] and ports.exhaust [{a2:.4g}, {b2:.4g}] rad "
+                          "overlap: a cell open to both connects the exhaust to the inlet; move one window")
 
 
 def _parse_valve(vl: dict, v: dict) -> str:
@@ -210,7 +225,9 @@ def _parse_booster(bo: dict, atmosphere: float, v: dict) -> tuple:
         raise ConfigError(f"booster.pressure must be <= gas.atmosphere ({atmosphere:g} Pa), got {start:g}")
     target = bo["target"]
     if target is not None and not 0 < target < start:
-        raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}")
+        hint = (f"; booster.pressure = {start:g} Pa looks like kPa: pressures are absolute in Pa, "
+                f"{start:g} kPa is {start * 1000:g}") if start < MIN_PRESSURE else ""
+        raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}{hint}")
     return start, target
 
 

@@ -58,8 +58,9 @@ class PumpdownResult:
                  f"{s['final_pressure'] / 1e3:.2f} kPa"
                  + (f", target {s['target_pressure'] / 1e3:.1f} kPa reached at {t:.3f} s" if t is not None
                     else " (target not reached)"),
-                 f"  current: peak {s['peak_current']:.1f} A, mean {s['mean_current']:.2f} A; "
-                 f"energy {s['energy']:.1f} J; mean speed {s['mean_speed_rpm']:.0f} rpm",
+                 (f"  current: peak {s['peak_current']:.1f} A, mean {s['mean_current']:.2f} A; "
+                  f"energy {s['energy']:.1f} J; mean speed {s['mean_speed_rpm']:.0f} rpm" if s["energy"] is not None
+                  else f"  no motor (the shaft turns at the set speed): mean speed {s['mean_speed_rpm']:.0f} rpm"),
                  f"  shaft work {s['shaft_work']:.1f} J = "
                  + " + ".join(f"{name} {v:.4g} J" for name, v in work_split(s))]
         lines += [f"  {line}" for line in s.get("lift_off_text", [])]
@@ -68,6 +69,10 @@ class PumpdownResult:
                      f"{st['netfails']} error-test failures, {st.get('events', 0)} valve events, "
                      f"{st['wall_time']:.2f} s wall")
         return "\n".join(lines)
+
+
+# the summary's figures of the motor and its supply: null (JSON) without a motor
+MOTOR_FIGURES = ("energy", "peak_current", "mean_current", "copper_loss", "motor_friction_work")
 
 
 def work_split(s) -> list[tuple[str, float]]:
@@ -154,6 +159,8 @@ def _result(cfg, r, target) -> PumpdownResult:
         "valve_damping_work": q["valve_damping_work"],
         "solver": {k: (float(v) if isinstance(v, float) else v) for k, v in r.stats.items()},
     }
+    if not cfg.pneumatic.motor:  # the shaft is driven at its speed: no supply, no current
+        summary.update(dict.fromkeys(MOTOR_FIGURES))
     warnings = []
     if getattr(r, "lift_off", None) is not None:  # Model 1: the vanes' columns and their lift-off
         _contact_result(cfg, r, cols, summary)
@@ -316,11 +323,14 @@ def fast_pumpdown(cfg, maps: PumpMaps, until=None, duration=120.0) -> dict:
     t_end = float(sol.t[-1])
     volt = v["motor.voltage"] if cfg.pneumatic.motor else 0.0
     charge = float(sol.y[1, -1])
-    return {"time_to_target": t_end if (target is not None and sol.status == 1) else None,
-            "final_pressure": float(sol.y[0, -1]), "mean_current": charge / t_end,
-            "energy": volt * charge, "peak_current": max(float(np.max(maps.current)), ru["peak_current"]),
-            "wall_time": _time.perf_counter() - t0, "rhs_evaluations": int(sol.nfev),
-            "time": [float(x) for x in sol.t], "booster_pressure": [float(x) for x in sol.y[0]]}
+    out = {"time_to_target": t_end if (target is not None and sol.status == 1) else None,
+           "final_pressure": float(sol.y[0, -1]), "mean_current": charge / t_end,
+           "energy": volt * charge, "peak_current": max(float(np.max(maps.current)), ru["peak_current"]),
+           "wall_time": _time.perf_counter() - t0, "rhs_evaluations": int(sol.nfev),
+           "time": [float(x) for x in sol.t], "booster_pressure": [float(x) for x in sol.y[0]]}
+    if not cfg.pneumatic.motor:
+        out.update({k: None for k in MOTOR_FIGURES if k in out})
+    return out
 
 
 def leak_flow(v, p_booster) -> float:

@@ -56,6 +56,11 @@ def _pressure_panel(a, res):
 def _current_panel(a, res):
     """Current (left axis) and speed (right axis), one legend for both."""
     s, t, c = res.summary, res.time, res.columns
+    if s["peak_current"] is None:  # no motor: the speed alone
+        h = a.plot(t, c["speed"] * RPM, "C2", lw=1.0, label=f"rotor speed (set; mean {s['mean_speed_rpm']:.0f} rpm)")
+        a.set(xlabel="time [s]", ylabel="rotor speed [rpm]", title="Speed (no motor)", ylim=(0, None))
+        _legend(a, h, ncol=1)
+        return
     h1 = a.plot(t, c["current"], "C1", lw=0.8,
                 label=f"motor current (peak {s['peak_current']:.1f} A, mean {s['mean_current']:.2f} A)")
     a.set(xlabel="time [s]", ylabel="motor current [A]", title="Current and speed")
@@ -69,13 +74,15 @@ def _current_panel(a, res):
 
 def _energy_panel(a, res):
     s = res.summary
-    q = np.array([s["gas_work"], s["friction_work"], s["copper_loss"], s["motor_friction_work"]])
-    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"]
-    a.barh(names, q, color=["C0", "C3", "C1", "C4"])
+    motor = s["energy"] is not None
+    q = np.array([s["gas_work"], s["friction_work"]] + ([s["copper_loss"], s["motor_friction_work"]] if motor else []))
+    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"][:q.size]
+    a.barh(names, q, color=["C0", "C3", "C1", "C4"][:q.size])
     for y, v in enumerate(q):
         a.text(v, y, f" {v:.0f} J", va="center", fontsize=8)
     a.set_xlim(0, 1.2 * max(q.max(), 1e-300))
-    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J from the supply go")
+    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J from the supply go" if motor
+          else f"Where the {s['shaft_work']:.0f} J of shaft work go (no motor)")
 
 
 def _indicator_panel(a, maps, cfg, picks):
@@ -187,14 +194,16 @@ def result_rows(res) -> list[tuple[str, str]]:
     s = res.summary
     rows = [("time to target", _fmt(s["time_to_target"], "s")),
             ("final booster pressure", f"{s['final_pressure'] / 1e3:.2f} kPa"),
-            ("peak / mean current", f"{s['peak_current']:.1f} A / {s['mean_current']:.2f} A"),
-            ("energy from the supply", f"{s['energy']:.1f} J"),
+            ("peak / mean current", f"{s['peak_current']:.1f} A / {s['mean_current']:.2f} A"
+             if s["peak_current"] is not None else "no motor"),
+            ("energy from the supply", f"{s['energy']:.1f} J" if s["energy"] is not None else "no motor"),
             work_row(s),
             ("mean speed", f"{s['mean_speed_rpm']:.0f} rpm")]
     fp = s.get("fast_path")
     if fp:
         rows.append(("fast path: time to target / mean current",
-                     f"{_fmt(fp['time_to_target'], 's')} / {fp['mean_current']:.2f} A"))
+                     f"{_fmt(fp['time_to_target'], 's')} / "
+                     + (f"{fp['mean_current']:.2f} A" if fp["mean_current"] is not None else "no motor")))
     st = s["solver"]
     rows.append(("CVODES", f"{st['nsteps']} steps, {st['njevals']} Jacobians, {st['wall_time']:.1f} s wall"))
     return rows

@@ -174,3 +174,17 @@ def test_a_pressure_written_in_another_unit_is_named(tmp_path, scale, unit):
     with pytest.raises(DataError,
                        match=rf"as if written in {unit}: .*'booster_pressure \[{unit} abs\]'.*--pressure-unit"):
         read_bench_log(f, CFG)
+
+
+def test_a_parquet_bench_log_reads_as_its_csv(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rows = np.array([(1e3 * t, v, 1e3 * i, 10 * p) for t, v, i, p in _rows()])
+    names = ["time [ms]", "voltage [V]", "current [mA]", "booster_pressure [mbar abs]"]
+    csv = _write(tmp_path / "log.csv", ",".join(names), rows)
+    pq.write_table(pa.table({n: rows[:, k] for k, n in enumerate(names)}), tmp_path / "log.parquet")
+    assert is_bench_log(tmp_path / "log.parquet")
+    a, b = read_bench_log(csv, CFG), read_bench_log(tmp_path / "log.parquet", CFG)
+    for channel in ("time", "voltage", "current", "booster_pressure"):
+        np.testing.assert_allclose(getattr(b, channel), getattr(a, channel), rtol=1e-8)

@@ -231,3 +231,22 @@ def test_time_stamps_in_the_time_column(tmp_path):
     rows[6][0] = "2026-11-28 25:00:00"
     with pytest.raises(DataError, match="row 9: '2026-11-28 25:00:00' is not a number"):
         load_data(write_csv(tmp_path / "b.csv", "time,torque", rows), nominal_speed=W)
+
+
+def test_parquet_files(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = GOOD_T
+    tq = np.array([r[1] for r in good_rows()])
+    pq.write_table(pa.table({"time": t, "torque [N*mm]": 1000 * tq, "comment": ["x"] * t.size}),
+                   tmp_path / "d.parquet")
+    ds = load_data(tmp_path / "d.parquet", nominal_speed=W)
+    np.testing.assert_allclose(ds.torque, tq)
+    stamps = (np.datetime64("2026-11-28T10:00:00", "ns") + (t * 1e9).astype("timedelta64[ns]"))
+    pq.write_table(pa.table({"timestamp": pa.array(stamps), "torque": tq}), tmp_path / "s.parquet")
+    ds = load_data(tmp_path / "s.parquet", DataOptions(time="timestamp"), nominal_speed=W)
+    np.testing.assert_allclose(ds.time - ds.time[0], t - t[0], atol=1e-9)
+    (tmp_path / "p.csv").write_bytes((tmp_path / "d.parquet").read_bytes())
+    with pytest.raises(DataError, match="Apache Parquet file; name it .parquet"):
+        load_data(tmp_path / "p.csv", nominal_speed=W)
