@@ -71,6 +71,9 @@ class PumpdownResult:
         return "\n".join(lines)
 
 
+ROUNDING_REL = 1e-9  # of the largest housing reaction: below it a negative reaction is rounding
+LOW_SPEED_RPM = 500.0  # below it a lift-off is the run-up's, before the vanes are pressed out
+
 # the summary's figures of the motor and its supply: null (JSON) without a motor
 MOTOR_FIGURES = ("energy", "peak_current", "mean_current", "copper_loss", "motor_friction_work")
 
@@ -164,11 +167,15 @@ def _result(cfg, r, target) -> PumpdownResult:
     warnings = []
     if getattr(r, "lift_off", None) is not None:  # Model 1: the vanes' columns and their lift-off
         _contact_result(cfg, r, cols, summary)
-    neg = o["normal"] < 0
+    normal = o["normal"]
+    neg = normal < -ROUNDING_REL * np.max(np.abs(normal))  # a reaction of -1e-15 N at rest is rounding
     if neg.any():
         k = int(np.argmax(neg.any(axis=1)))
+        rpm = float(np.max(np.abs(X[neg.any(axis=1), 1]))) * 30 / math.pi
         warnings.append(f"a vane would lift off (housing reaction < 0) at t = {t[k]:.4g} s "
-                        f"({int(neg.sum())} vane-samples); Model 2 assumes contact")
+                        f"({int(neg.sum())} vane-samples, the rotor at up to {rpm:.0f} rpm then); Model 2 "
+                        "assumes contact" + (" (at start-up from rest the vanes are not yet pressed out)"
+                                             if rpm < LOW_SPEED_RPM else ""))
     if np.max(np.abs(o["motor_residual"])) > 1e-6:
         warnings.append(f"motor torque balance not closed to 1e-6 N m "
                         f"(max {np.max(np.abs(o['motor_residual'])):.2g})")

@@ -174,3 +174,11 @@ def test_optimisation_bounds_outside_the_admissible_designs_are_refused(tmp_path
                      '[objective]\nminimize = "mean_torque"\n')
     code, _, err = run(capsys, "optimize", study)
     assert code == 2 and 'vary."vane.mass".bounds end -0.001' in err and "vane.mass must be > 0" in err, err
+
+
+def test_the_run_up_lift_off_is_named_as_such_and_rounding_is_not_a_lift_off():
+    from tests.pneumatic_helpers import evp_config
+
+    res = pdm.pumpdown(evp_config(), duration=0.01)
+    lift = [w for w in res.warnings if "lift off" in w]
+    assert len(lift) == 1 and "start-up from rest" in lift[0] and "t = 0 s" not in lift[0], lift
