@@ -81,7 +81,7 @@ def geometry_verdict(v, alpha, pts, curv, theta, s, res) -> str | None:
     inside = _point_in_polygon(0.0, 0.0, pts[0], pts[1])
     if not inside or dist[i] <= v["rotor.radius"]:
         return (f"rotor circle (rotor.radius {v['rotor.radius']:.4f} m) must lie strictly "
-                f"inside the housing; the housing comes to {dist[i]:.4f} m from the rotor axis "
+                f"inside the housing; the housing comes to {dist[i]:.4g} m from the rotor axis "
                 f"at housing polar angle {alpha[i]:.3f} rad (check housing.center)")
     lm, L = mouth_depth(v), v["vane.length"]
     if np.any(~np.isfinite(res)) or np.nanmax(res) > POSITION_TOL:

@@ -10,6 +10,9 @@ import numpy as np
 from .errors import ConfigError
 
 
+MAX_SAMPLES = 5_000_000  # output samples of one run (~40 bytes each per output column)
+
+
 def sample_times(duration, rate):
     """The output times [s]: every 1/rate from 0 to duration."""
     if duration is None or not 0 < duration < math.inf:
@@ -18,9 +21,11 @@ def sample_times(duration, rate):
         raise ConfigError(f"rate must be > 0 and finite, got {rate}")
     n = int(math.floor(duration * rate + 1e-9)) + 1
     if n < 2:
-        raise ConfigError(f"duration {duration:g} s at rate {rate:g} Hz gives fewer than 2 samples")
-    if n > 5_000_000:
-        raise ConfigError(f"duration x rate gives {n} samples; the limit is 5,000,000")
+        raise ConfigError(f"duration {duration:g} s at rate {rate:g} Hz gives fewer than 2 samples; "
+                          "lengthen the duration or raise the rate")
+    if n > MAX_SAMPLES:
+        raise ConfigError(f"duration x rate gives {n} samples; the limit is {MAX_SAMPLES:,}: shorten the "
+                          "duration or lower the rate")
     return np.arange(n) / rate
 
 

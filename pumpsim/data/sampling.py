@@ -98,7 +98,7 @@ def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
     check_rate(rate)
     if (ds.time[-1] - ds.time[0]) * rate > 5_000_000:
         raise DataError(f"resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
-                        "5,000,000 samples")
+                        "5,000,000 samples; resample at a lower rate or cut the record")
     t = np.arange(ds.time[0], ds.time[-1] + 0.5 / rate, 1.0 / rate)
     t = t[t <= ds.time[-1] + 1e-6 / rate]  # the last sample also when rounding puts it a hair beyond
     f = lambda a: None if a is None else np.interp(t, ds.time, a)  # noqa: E731

@@ -75,6 +75,9 @@ def parse_variable(key: str, spec, default, sampler) -> Variable:
             raise ConfigError(f"{where}.range must be [low, high, count], got {r!r}")
         if not r[0] <= r[1]:
             raise ConfigError(f"{where}.range low ({r[0]:g}) must be <= high ({r[1]:g})")
+        if r[2] == 1 and r[0] != r[1]:
+            raise ConfigError(f"{where}.range [{r[0]:g}, {r[1]:g}, 1] has one value but two ends: give a "
+                              "count >= 2 to span them, or values = [...] for one value")
         var.values = [float(x) for x in np.linspace(r[0], r[1], int(r[2]))]
     elif "distribution" in spec:
         _parse_distribution(var, spec, where, key, default)

@@ -182,3 +182,14 @@ def test_the_run_up_lift_off_is_named_as_such_and_rounding_is_not_a_lift_off():
     res = pdm.pumpdown(evp_config(), duration=0.01)
     lift = [w for w in res.warnings if "lift off" in w]
     assert len(lift) == 1 and "start-up from rest" in lift[0] and "t = 0 s" not in lift[0], lift
+
+
+def test_a_range_of_one_value_between_two_ends_is_refused():
+    from pumpsim.design.study import study_from_dict
+
+    with pytest.raises(ConfigError, match=r'range \[0.001, 0.0014, 1\] has one value but two ends'):
+        study_from_dict({"study": {"config": str(RIG), "sampler": "grid"},
+                         "vary": {"vane.mass": {"range": [0.001, 0.0014, 1]}}})
+    one = study_from_dict({"study": {"config": str(RIG), "sampler": "grid"},
+                           "vary": {"vane.mass": {"range": [0.001, 0.001, 1]}}})
+    assert one.variables[0].values == [0.001]
