@@ -5,7 +5,7 @@ worth against forward differences).
 A run is one CVODES call over the log's grid on the right-hand side and its compiled Jacobian,
 with the cell geometry from a table over one turn (pneumatics.geometry_table: the tabulated
 kernels, half the cost of pump_rhs's) and the logged voltage interpolated in C before every kernel
-call, the steps ending on its samples (pneumatics.drive: the same voltage as the CasADi path's).
+call, the steps ending on the samples where it steps (pneumatics.drive: the same voltage as the CasADi path's).
 With sensitivities, CVODES integrates s_j = dx/dtheta_j beside the states:
 s_j' = J s_j + df/dp d_j, J the Jacobian kernel's and df/dp d_j a forward difference of the
 right-hand side in the runtime parameter vector along d_j (the fitted parameter's direction there;
