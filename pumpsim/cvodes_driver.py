@@ -65,7 +65,8 @@ def _build() -> ctypes.CDLL:
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
                             ctypes.c_longlong, p, p]
     dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
-    dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p]
+    dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p, ctypes.c_int, p]
+    dll.drv_drive_offset.argtypes = [p, ctypes.c_double]
     dll.drv_switches.argtypes = [p, ctypes.c_int, p, p, ctypes.c_double]
     dll.drv_timing.argtypes = [p, ctypes.c_int, p]
     dll.drv_table.argtypes = [p, ctypes.c_int, p, p, p, ctypes.c_int, p, p]
@@ -223,14 +224,29 @@ class Driver:
         self.timed = os.environ.get(TIMING_ENV, "") == "1"
         self.lib.drv_timing(self.handle, int(self.timed), _ptr(self._times))
         self.last = None  # (t, y) where the solver memory stands
+        self.drive_offset = 0.0  # set_drive, shift_drive
         self.n_roots, self.root = 0, None
         self.n_sens, self.sensitivities = 0, None
 
-    def set_drive(self, pbuf, slot, step, values):
+    def set_drive(self, pbuf, slot, step, values, stops=()):
         """A time-dependent input: before every kernel call pbuf[slot] (pbuf: the kernels' parameter
-        array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ..."""
-        self._drive = (pbuf, np.ascontiguousarray(values, dtype=float))
-        self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]))
+        array) becomes the linear interpolation at t of `values` on the grid 0, step, 2 step, ...
+        (linear beyond its ends); stops: grid indices where the solver's steps end instead of
+        stepping across them (where the input's slope jumps)."""
+        self._drive = (pbuf, np.ascontiguousarray(values, dtype=float), np.unique(np.asarray(stops, dtype=float)))
+        if self._drive[1].size < 2:
+            raise ValueError("set_drive: at least 2 values")
+        k = self._drive[2]
+        self.lib.drv_drive(self.handle, _ptr(pbuf), int(slot), float(step), self._drive[1].size, _ptr(self._drive[1]),
+                           k.size, _ptr(k) if k.size else None)
+        self.drive_offset = 0.0
+
+    def shift_drive(self, offset):
+        """The drive's time is the solver's t + offset from now on (runs on a clock of their own)."""
+        if offset != self.drive_offset:
+            self.lib.drv_drive_offset(self.handle, float(offset))
+            self.drive_offset = float(offset)
+            self.last = None
 
     def set_table(self, nodes, values, slopes, gbuf, dgbuf):
         """Kernel inputs that depend on y[0] (an angle) only, from a table over one turn: nodes

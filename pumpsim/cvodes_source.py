@@ -23,8 +23,9 @@ typedef struct {
   /* switching functions: a kernel's output `gout` (state pieces at arg slots gslot[i] from y +
      goff[i]), then states y[gidx[j]]; |g| < gtouch counts as 0 */
   call_t g; int gn1, gns, gnslot; const ci *gslot, *goff, *gidx; double *gbuf, gtouch;
-  /* a drive: p[dslot] linear in t on the uniform grid k * dstep of dn values dv */
-  double *pbuf, dstep; const double *dv; int dslot, dn;
+  /* a drive: p[dslot] linear in t + doff on the uniform grid k * dstep of dn values dv (beyond its
+     ends the end intervals' lines); dnk grid indices dk (increasing) are stops of the solver */
+  double *pbuf, dstep, doff; const double *dv, *dk; int dslot, dn, dnk;
   /* forward sensitivities along parameter directions pdir (ns x np, dense) */
   int ns, np; const double *pdir, *ph; N_Vector *yS; double *sy, *sfp, *sjac, *sf0, st; int sfresh; long nsrhs;
   const ci *srow, *scol;
@@ -86,15 +87,38 @@ static int sroot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
 
 static void drive(drv_t *d, double t) {
   if (!d->dv) return;
-  int i = (int)floor(t / d->dstep);
+  double s = (t + d->doff) / d->dstep;
+  int i = (int)floor(s);
   if (i > d->dn - 2) i = d->dn - 2;
   if (i < 0) i = 0;
-  double f = t / d->dstep - i;
+  double f = s - i;
   d->pbuf[d->dslot] = d->dv[i] * (1 - f) + d->dv[i + 1] * f;
 }
 
-void drv_drive(drv_t *d, double *pbuf, int slot, double step, int n, const double *v) {
-  d->pbuf = pbuf; d->dslot = slot; d->dstep = step; d->dn = n; d->dv = v;
+void drv_drive(drv_t *d, double *pbuf, int slot, double step, int n, const double *v, int nk, const double *k) {
+  d->pbuf = pbuf; d->dslot = slot; d->dstep = step; d->dn = n; d->dv = v; d->dnk = nk; d->dk = k; d->doff = 0.0;
+}
+
+/* the solver's time t is the drive's t + off (a run on a clock of its own) */
+void drv_drive_offset(drv_t *d, double off) { d->doff = off; }
+
+/* CVode to tout (CV_NORMAL). With stops in the drive, the steps end on the next one rather than
+   stepping across it (the input's slope jumps there). A stop is always set once there are any
+   (one left behind the solver's time makes SUNDIALS 6 refuse the next call): past the last, far
+   away. */
+static int advance(drv_t *d, double tout, sunrealtype *tr) {
+  if (!d->dv || !d->dnk) return CVode(d->cv, tout, d->y, tr, CV_NORMAL);
+  for (;;) {
+    sunrealtype tc; CVodeGetCurrentTime(d->cv, &tc);
+    double s = (tc + d->doff) / d->dstep + 1e-9;
+    int lo = 0, hi = d->dnk;  /* the first stop past tc */
+    while (lo < hi) { int mid = (lo + hi) / 2; if (d->dk[mid] <= s) lo = mid + 1; else hi = mid; }
+    double b = lo < d->dnk ? d->dk[lo] * d->dstep - d->doff : 1e300;
+    if (CVodeSetStopTime(d->cv, b)) return -98;
+    int flag = CVode(d->cv, tout, d->y, tr, CV_NORMAL);
+    if (flag != CV_TSTOP_RETURN) return flag;
+    if (*tr >= tout) return CV_SUCCESS;
+  }
 }
 
 static int groot(sunrealtype t, N_Vector y, sunrealtype *g, void *u) {
@@ -349,7 +373,7 @@ int drv_run(drv_t *d, double t0, const double *y0, int resume, int m, const doub
     }
   }
   for (int k = 0; k < m && flag >= 0; k++) {
-    flag = CVode(d->cv, tout[k], d->y, &tr, CV_NORMAL);
+    flag = advance(d, tout[k], &tr);
     if (flag == CV_ROOT_RETURN && d->nev) {
       if (sjump(d, tr)) { flag = -99; snprintf(d->msg, sizeof d->msg, "a sensitivity jump failed"); break; }
       k--;
@@ -479,6 +503,7 @@ int drv_profile(drv_t *d, double t0, const double *y0, double tend, long maxrec,
   counters(d, c);
   for (int i = 0; i < 5; i++) d->base[i] += c[i];
   flag = CVodeReInit(d->cv, t0, d->y);
+  if (!flag && d->dv && d->dnk) flag = CVodeSetStopTime(d->cv, 1e300);  /* no drive stops here */
   counters(d, prev);
   while (!flag && t < tend && k < maxrec) {
     flag = CVode(d->cv, tend, d->y, &t, CV_ONE_STEP);

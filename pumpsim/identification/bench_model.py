@@ -15,6 +15,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
+from ..pneumatics.drive import VoltageDrive
 from ..model_spec.parameters import pneumatic_layout
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
 from . import bench_sens
@@ -61,7 +62,8 @@ def runup_blocks(v, edge_times) -> int:
 class GridRuns:
     """States on a uniform grid from x0 for runtime parameter vectors p, one CVODES call per run
     (the compiled right-hand side and its exact Jacobian in x, states scaled by `scale`); the
-    voltage slot of p is replaced by drive(t). `runs(x0s, ps)` integrates several at once."""
+    voltage slot of p is replaced by the drive's (drive.VoltageDrive). `runs(x0s, ps)` integrates
+    several at once."""
 
     def __init__(self, kern, grid, drive, scale, rtol, atol):
         from ..kernels.pneumatic import parameter_index
@@ -74,7 +76,7 @@ class GridRuns:
         S = ca.DM(self.S)
         iv = parameter_index(kern.structure, "motor.voltage")
         y, t, P = ca.MX.sym("y", nx), ca.MX.sym("t"), ca.MX.sym("p", n_p)
-        pv = ca.vertcat(P[:iv], drive(t), P[iv + 1:])
+        pv = ca.vertcat(P[:iv], drive.function(t), P[iv + 1:])
         xs = y * S
         js = ca.mtimes(ca.diag(1 / S), ca.mtimes(fj(xs, pv)[0], ca.diag(S)))
         jac = ca.Function("jac_ydot", [y, t, P, ca.MX.sym("out", nx)], [js, ca.MX(nx, 1), ca.MX(nx, n_p)],
@@ -118,6 +120,13 @@ class GridRuns:
         return [np.vstack([Y0[:, j], out[:, j * m:(j + 1) * m].T]) * self.S for j in range(k)]
 
 
+def grid_runs(kern, grid, drive, scale, rtol, atol, direct=None):
+    """The runs of the model driven by `drive` on a uniform grid: by the direct driver where it is
+    available (direct None) or asked for (bench_sens.DirectRuns), else by CasADi's plugin (GridRuns)."""
+    runs = bench_sens.DirectRuns if (bench_sens.usable() if direct is None else direct) else GridRuns
+    return runs(kern, grid, drive, scale, rtol, atol)
+
+
 class BenchModel:
     """The pump-down model driven by a logged voltage, sampled as a bench log is (module doc):
     `channels(p)` -> {booster_pressure, current, speed} at the log's times for the runtime
@@ -137,8 +146,7 @@ class BenchModel:
         self.step = float(self.t[-1] / max(self.n - 1, 1))
         self.grid = self.step * np.arange(self.n)  # the model's uniform grid, the log's times without jitter
         self.volt = volt = np.interp(self.grid, self.t, voltage)
-        # the drive: the logged voltage, linear between samples
-        self.drive = ca.interpolant("bench_voltage", "linear", [self.grid.tolist()], volt.tolist())
+        self.drive = VoltageDrive(self.step, volt)  # the logged voltage, linear between samples
         # integral of the voltage from the start to each sample
         self.volt_integral = np.concatenate([[0.0], np.cumsum(0.5 * (volt[1:] + volt[:-1]) * self.step)])
         self.jittered = bool(np.ptp(np.diff(self.t)) > 0)
@@ -210,8 +218,7 @@ class BenchModel:
             from ..pneumatics import run
 
             scale = run.state_scale(x0, p, self.kern.structure)
-            self._grid_runs = (bench_sens.DirectRuns(self.kern, self.grid, self.volt, scale, self.rtol, self.atol)
-                               if self.direct else GridRuns(self.kern, self.grid, self.drive, scale, self.rtol, self.atol))
+            self._grid_runs = grid_runs(self.kern, self.grid, self.drive, scale, self.rtol, self.atol, self.direct)
         return self._grid_runs
 
     def has_sensitivities(self, p) -> bool:

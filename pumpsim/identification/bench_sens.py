@@ -2,9 +2,11 @@
 sensitivities along the fitted parameters' directions (pumpdown_fit's module doc: what they are
 worth against forward differences).
 
-A run is one CVODES call over the log's grid on pump_rhs and its compiled Jacobian, the logged
-voltage interpolated in C before every kernel call (the same linear interpolation as bench_model's
-CasADi drive). With sensitivities, CVODES integrates s_j = dx/dtheta_j beside the states:
+A run is one CVODES call over the log's grid on the right-hand side and its compiled Jacobian,
+with the cell geometry from a table over one turn (pneumatics.geometry_table: the tabulated
+kernels, half the cost of pump_rhs's) and the logged voltage interpolated in C before every kernel
+call, the steps ending on the samples where it steps (pneumatics.drive: the same voltage as the CasADi path's).
+With sensitivities, CVODES integrates s_j = dx/dtheta_j beside the states:
 s_j' = J s_j + df/dp d_j, J the Jacobian kernel's and df/dp d_j a forward difference of the
 right-hand side in the runtime parameter vector along d_j (the fitted parameter's direction there;
 the kernel has no derivative in p). The sensitivities are left out of the error test (staggered
@@ -44,37 +46,45 @@ def usable() -> bool:
 
 
 class DirectRuns:
-    """Runs of the pump-down model on a uniform grid (the drive's voltages at the grid's points)
-    by the direct driver: `runs(x0s, ps)` -> [states (n, nx)]; `run(x0, p, directions, steps,
+    """Runs of the pump-down model driven by `drive` (pneumatics.drive.VoltageDrive) on a uniform
+    grid by the direct driver: `runs(x0s, ps)` -> [states (n, nx)]; `run(x0, p, directions, steps,
     scales, s0)` -> (states, sensitivities (n, k, nx))."""
 
-    def __init__(self, kern, grid, volt, scale, rtol, atol):
+    def __init__(self, kern, grid, drive, scale, rtol, atol):
         from ..kernels.pneumatic import parameter_index
+        from ..pneumatics import geometry_table
 
-        self.kern, self.grid, self.volt = kern, np.asarray(grid, float), np.asarray(volt, float)
+        self.kern, self.grid, self.drive = kern, np.asarray(grid, float), drive
         self.S, self.rtol, self.atol = np.asarray(scale, float), rtol, atol
+        self.table = geometry_table.enabled()  # the tabulated geometry (PUMPSIM_GEOMETRY=exact: not)
+        self.geometry = None  # "table" or "exact": the last run's
         self.iv = parameter_index(kern.structure, "motor.voltage")
         self.nx = kern["pump_rhs"].size1_in(0)
         self.stats = {"runs": 0, "nsteps": 0, "nfevals": 0, "njevals": 0, "netfails": 0, "nsens_fevals": 0, "njumps": 0}
         self._lock = threading.Lock()
         self.switches = None  # reversal_switches, at the first sensitivity run (geometry: no fitted parameter moves it)
 
-    def _driver(self, p):
-        x = np.zeros(self.nx)
-        pbuf = np.array(p, dtype=float)
-        rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [x, pbuf])
-        pbuf = rhs.keep[1]  # the one buffer both kernels read (KernelCall keeps contiguous arrays as given)
-        fj = self.kern["pump_rhs_jac"]
+    def _driver(self, p, table=True):
+        from ..pneumatics import geometry_table
+
+        pbuf = np.array(p, dtype=float)  # the one buffer both kernels read
+        rhs, jac, fj, attach = geometry_table.driver_calls(self.kern, pbuf, pbuf, self.nx, table and self.table)
         d = cvodes_driver.Driver(self.nx, rhs, [0, -1], jac, [(fj.sparsity_out(0), 0), None], self.rtol,
                                  self.atol * self.S, max_order=MAX_ORDER, max_steps=MAX_STEPS, lin_size=self.nx)
-        d.set_drive(pbuf, self.iv, self.grid[1] - self.grid[0], self.volt)
-        return d, pbuf
+        self.geometry = attach(d)
+        d.set_drive(pbuf, self.iv, self.drive.step, self.drive.values, self.drive.stops)
+        return d
 
     def run(self, x0, p, directions, steps, scales, s0):
         """(states, sensitivities) of one run with sensitivities along the runtime parameter
         directions (k, n_p), the right-hand side's difference steps, the parameters' scales (the
-        sensitivities' absolute tolerances atol / scale) and their start s0 (k, nx)."""
-        d, _ = self._driver(p)
+        sensitivities' absolute tolerances atol / scale) and their start s0 (k, nx). The table
+        serves unless a direction moves the geometry (the right-hand side's difference along it
+        would miss the geometry's change)."""
+        from ..pneumatics import geometry_table
+
+        changes = np.asarray(directions, float) * np.asarray(steps, float)[:, None]
+        d = self._driver(p, not geometry_table.moves_geometry(self.kern, p, changes))
         d.set_sensitivities(directions, steps, scales, error_control=False)
         if self.switches is None:
             self.switches = reversal_switches(self.kern, p)
@@ -90,9 +100,9 @@ class DirectRuns:
         from ..kernels.scalar import default_threads
 
         if len(ps) == 1:
-            return [self._one(self._driver(ps[0])[0], x0s[0])]
+            return [self._one(self._driver(ps[0]), x0s[0])]
         with ThreadPoolExecutor(max_workers=min(len(ps), default_threads())) as pool:
-            return list(pool.map(lambda a: self._one(self._driver(a[1])[0], a[0]), zip(x0s, ps)))
+            return list(pool.map(lambda a: self._one(self._driver(a[1]), a[0]), zip(x0s, ps)))
 
     def _one(self, d, x0, s0=None):
         try:

@@ -241,7 +241,7 @@ def model_runs(cfg, log, ps, t_end, rate, kern, rtol=BENCH_FIT_RTOL, atol=BENCH_
     voltage up to t_end on a uniform grid at `rate`, one per parameter vector (batched)."""
     from ..kernels.pneumatic import parameter_index
     from ..pneumatics import run
-    from .bench_model import BenchModel, GridRuns
+    from .bench_model import BenchModel, grid_runs
 
     bm = BenchModel(cfg, log.time, log.voltage, log.start_pressure(),
                     float(log.speed[0]) if log.speed is not None else 0.0, rtol, atol, kern)
@@ -251,7 +251,7 @@ def model_runs(cfg, log, ps, t_end, rate, kern, rtol=BENCH_FIT_RTOL, atol=BENCH_
     if any(p[parameter_index(kern.structure, "valve.reed")] > 0.5 for p in ps):  # valve events
         return [(grid, run.integrate(cfg, grid[-1] * (1 + 1e-12), rate, p=p, x0=x0, rtol=rtol, atol=atol,
                                      kern=kern, drive=bm.drive).states[:n]) for p, x0 in zip(ps, x0s)]
-    runs = GridRuns(kern, grid, bm.drive, run.state_scale(x0s[0], ps[0], kern.structure), rtol, atol)
+    runs = grid_runs(kern, grid, bm.drive, run.state_scale(x0s[0], ps[0], kern.structure), rtol, atol)
     return [(grid, X) for X in runs.runs(x0s, ps)]
 
 

@@ -13,6 +13,7 @@ rotor near top dead centre) are resolved by that refinement down to MIN_INTERVAL
 from __future__ import annotations
 
 import os
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,9 @@ MAX_ROUNDS = 40
 MAX_NODES = 100_000
 NOISE = 1e-12
 CACHED = 8  # tables kept (per kernel and parameters; ~1 MB each): a fit's nearby parameters rebuild
+PROBE_ANGLES = 64  # angles over a turn at which moves_geometry compares the geometry
 _CACHE: dict = {}
+_CACHE_LOCK = threading.Lock()
 
 
 @dataclass
@@ -83,8 +86,9 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
     """The table of kernel `kern`'s geometry at parameters p (cached per kernel and p)."""
     p = np.ascontiguousarray(p, dtype=float)
     key = (kern.key, p.tobytes(), tol)
-    if key in _CACHE:
-        return _CACHE[key]
+    with _CACHE_LOCK:
+        if key in _CACHE:
+            return _CACHE[key]
     t = np.linspace(0.0, TWO_PI, START_NODES + 1)
     g, dg = exact(kern, p, t)
     # a quantity that is zero up to rounding (a load coefficient of a vane the slot gas cannot
@@ -114,9 +118,10 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         at = k[bad] + np.arange(bad.sum())  # the split intervals' first halves, in the new t
         check[at], check[at + 1] = True, True
     table = GeometryTable(t, g, dg, scale, err)
-    while len(_CACHE) >= CACHED:
-        del _CACHE[next(iter(_CACHE))]
-    _CACHE[key] = table
+    with _CACHE_LOCK:  # runs in threads build their tables side by side
+        while len(_CACHE) >= CACHED:
+            del _CACHE[next(iter(_CACHE))]
+        _CACHE[key] = table
     return table
 
 
@@ -130,3 +135,30 @@ def kernel_calls(kern, p, pbuf, nx):
     rhs = cvodes_driver.KernelCall(so, "pump_rhs_tab", [np.zeros(nx), gbuf, pbuf], 0)
     jac = cvodes_driver.KernelCall(so, "pump_rhs_tab_jac", [np.zeros(nx), gbuf, dgbuf, pbuf], 0)
     return rhs, jac, table, gbuf, dgbuf
+
+
+def driver_calls(kern, p, pbuf, nx, use_table=True):
+    """The direct driver's kernel calls reading the parameter buffer pbuf: (rhs, jac, the Jacobian's
+    Function, attach). The tabulated kernels with the table at p where use_table and the variant
+    has them, else pump_rhs and pump_rhs_jac; attach(driver) hands a driver the table and returns
+    the geometry's name ("table" or "exact")."""
+    if use_table and available(kern):
+        rhs, jac, table, gbuf, dgbuf = kernel_calls(kern, p, pbuf, nx)
+
+        def attach(d):
+            d.set_table(table.nodes, table.values, table.slopes, gbuf, dgbuf)
+            return "table"
+
+        return rhs, jac, kern["pump_rhs_tab_jac"], attach
+    rhs, jac = cvodes_driver.rhs_and_jacobian(kern, "pump_rhs", [np.zeros(nx), pbuf])
+    return rhs, jac, kern["pump_rhs_jac"], lambda d: "exact"
+
+
+def moves_geometry(kern, p, changes) -> bool:
+    """Whether any change of p (rows of `changes`) changes the geometry at PROBE_ANGLES angles over
+    a turn: a table at p does not follow such a change (a parameter the geometry does not read
+    leaves it bit for bit)."""
+    theta = (np.arange(PROBE_ANGLES) + 0.37) * (TWO_PI / PROBE_ANGLES)
+    p = np.asarray(p, float)
+    g0, _ = exact(kern, p, theta)
+    return any(not np.array_equal(exact(kern, p + dp, theta)[0], g0) for dp in np.atleast_2d(changes))

@@ -72,8 +72,8 @@ class PumpIntegrator:
 
     def __init__(self, kern, p, rtol=GAS_RTOL, atol=GAS_ATOL, scale=None, max_steps=2_000_000, drive=None,
                  geometry_table=None):
-        """drive: the supply voltage as a CasADi function of time (a bench log's measured voltage)
-        in place of motor.voltage; the integrations then take their start time t0.
+        """drive: the supply voltage (drive.VoltageDrive, a bench log's measured voltage) in place of
+        motor.voltage; the integrations then take their start time t0.
         geometry_table: the direct driver reads the cell geometry from a table over one turn
         (pneumatics.geometry_table; None: unless PUMPSIM_GEOMETRY=exact), else computes it."""
         self.kern, self.p, self.drive = kern, np.asarray(p, dtype=float), drive
@@ -114,7 +114,7 @@ class PumpIntegrator:
         self.S = np.asarray(S).ravel()
         tt, t0, t = ca.MX.sym("T"), ca.MX.sym("t0"), ca.MX.sym("t")  # T: duration (normalised time)
         pp = ca.vertcat(mode, tt, t0)
-        arg = (lambda s: [y, mode, drive(t0 + s)]) if drive is not None else (lambda s: [y, mode])
+        arg = (lambda s: [y, mode, drive.function(t0 + s)]) if drive is not None else (lambda s: [y, mode])
         self._dae = {"x": y, "t": t, "p": pp, "ode": ydot(*arg(t))}
         self._dae_T = {"x": y, "t": t, "p": pp, "ode": tt * ydot(*arg(tt * t))}
         # BDF order capped at 3: the right-hand side is only piecewise smooth (port edges, valve
@@ -128,7 +128,7 @@ class PumpIntegrator:
         self.calls = 0
         self.integrator_wall = 0.0  # s inside CVODES calls (the rest of a run's wall is Python)
         self.integrator_cpu = 0.0  # CPU s of this process inside them
-        self.direct = None if drive is not None else self._direct(rtol, atol, max_steps)
+        self.direct = self._direct(rtol, atol, max_steps)
         self.driver = "cvodes (direct)" if self.direct else "cvodes (casadi)"
 
     def _direct(self, rtol, atol, max_steps):
@@ -137,13 +137,7 @@ class PumpIntegrator:
         if not cvodes_driver.available()[0]:
             return None
         self._pbuf = self.p.copy()
-        table = self.geometry_table and geometry_tables.available(self.kern)
-        if table:  # the angle-only geometry from a table over one turn (geometry_table)
-            rhs, jac, tab, gbuf, dgbuf = geometry_tables.kernel_calls(self.kern, self.p, self._pbuf, self.nx)
-            fj = self.kern["pump_rhs_tab_jac"]
-        else:
-            rhs, jac = cvodes_driver.rhs_and_jacobian(self.kern, "pump_rhs", [np.zeros(self.nx), self._pbuf])
-            fj = self.kern["pump_rhs_jac"]
+        rhs, jac, fj, attach = geometry_tables.driver_calls(self.kern, self.p, self._pbuf, self.nx, self.geometry_table)
         blocks = [(fj.sparsity_out(0), 0), (fj.sparsity_out(1), self.nx)]
         # the quadratures do not feed back: with their Jacobian rows zero, CVODES' Newton systems
         # are solved on the states' block alone (16 x 16 instead of 24 x 24 on the EVP example)
@@ -151,15 +145,18 @@ class PumpIntegrator:
         d = cvodes_driver.Driver(self.nx + self.nq, rhs, [0, self.nx], jac, blocks, rtol, atol * self.S,
                                  max_order=MAX_ORDER, max_steps=max_steps, jac_every=JAC_EVERY,
                                  lin_size=self.nx if quads_free else None)
-        if table:
-            d.set_table(tab.nodes, tab.values, tab.slopes, gbuf, dgbuf)
-            self.driver_geometry = "table"
+        self.driver_geometry = attach(d)
+        if self.drive is not None:  # the voltage interpolated in C before every kernel call
+            d.set_drive(self._pbuf, parameter_index(self.kern.structure, "motor.voltage"), self.drive.step,
+                        self.drive.values, self.drive.stops)
         return d
 
-    def _run_direct(self, touts, x, mode, start):
+    def _run_direct(self, touts, x, mode, start, clock):
         """(states, quadratures since `start`) at touts by the direct driver, carrying on without
-        a restart when (start, x, mode) is where its last call ended."""
+        a restart when (start, x, mode) is where its last call ended; the drive's time is the
+        solver's plus `clock`."""
         d = self.direct
+        d.shift_drive(clock)
         if self._pbuf[self.mode_index] != mode:
             self._pbuf[self.mode_index] = mode
             d.last = None
@@ -193,11 +190,11 @@ class PumpIntegrator:
             self.integrator_wall += _time.perf_counter() - t0
             self.integrator_cpu += _time.process_time() - c0
 
-    def _run(self, integ, x, mode, T=0.0, start=0.0, touts=None):
+    def _run(self, integ, x, mode, T=0.0, start=0.0, touts=None, clock=0.0):
         self.calls += 1
         if self.direct is not None:
             with self._timed(), interrupt.deferred():
-                return self._run_direct(touts, x, mode, start)
+                return self._run_direct(touts, x, mode, start, clock)
         y0 = np.concatenate([np.asarray(x, float), np.zeros(self.nq)]) / self.S
         try:
             with self._timed(), interrupt.deferred():
@@ -224,10 +221,11 @@ class PumpIntegrator:
 
     def step(self, x, mode, d, start=0.0):
         """State and quadratures at start + d (the direct driver integrates on a local clock
-        from 0: no time-dependent drive, and a d of 1e-12 s is not 'too close' to a start at 5 s)."""
+        from 0, its drive shifted by `start`: a d of 1e-12 s is not 'too close' to a start at 5 s)."""
         if d <= 0:
             return np.asarray(x, float).copy(), np.zeros(self.nq)
-        X, Q = self._run(self._step, x, mode, d, start if self.direct is None else 0.0, touts=np.array([d]))
+        X, Q = self._run(self._step, x, mode, d, start if self.direct is None else 0.0, touts=np.array([d]),
+                         clock=start)
         return X[:, 0], Q[:, 0]
 
 
@@ -350,7 +348,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
     """Integrate from x0 over `duration` on a uniform output grid at `rate`; stop early when the
     booster pressure falls to `until` (located to EVENT_TIME_TOL). kern, scale: another variant
     (Model 1 with gas) and its state scale; its p and x0 are then given. drive: the supply voltage
-    as a CasADi function of time in place of motor.voltage (PumpIntegrator)."""
+    (drive.VoltageDrive) in place of motor.voltage (PumpIntegrator)."""
     kern = kernels(cfg) if kern is None else kern
     p = parameter_vector(cfg) if p is None else np.asarray(p, float)
     st = kern.structure

@@ -189,3 +189,52 @@ def test_rows_evaluates_the_kernel_at_every_row_as_casadi_does(oscillator):
     ref = np.asarray(ca.external("f", str(so)).map(7)(X.T, W)).T
     assert np.array_equal(out, ref) and np.array_equal(out[:, 1], -W**2 * X[:, 0])
     assert call.rows(X, [2], wanted=[False]) == [None]
+
+
+@pytest.fixture(scope="module")
+def driven(tmp_path_factory):
+    """x0' = v, x1' = v - a x1 with v = p[0] the drive and a = p[1]: x0 is the drive's integral."""
+    if not cvodes_driver.available()[0]:
+        pytest.skip(f"direct CVODES driver not available: {cvodes_driver.available()[1]}")
+    x, p = ca.SX.sym("x", 2), ca.SX.sym("p", 2)
+    xdot = ca.vertcat(p[0], p[0] - p[1] * x[1])
+    f, fj = ca.Function("g", [x, p], [xdot]), ca.Function("g_jac", [x, p], [ca.jacobian(xdot, x)])
+    return _compiled(tmp_path_factory.mktemp("drv"), "drv", f, fj), fj.sparsity_out(0)
+
+
+RAMP_STEP = 0.01
+RAMP = np.r_[np.zeros(40), np.ones(61)]  # 0, then up to 1 between samples 39 and 40: kinks there
+
+
+def _ramp_integral(t):
+    s = np.clip(t - 0.39, 0.0, RAMP_STEP)
+    return 0.5 * s ** 2 / RAMP_STEP + np.maximum(t - 0.40, 0.0)
+
+
+def _driven_run(driven, stops, t, offset=0.0):
+    so, sp = driven
+    pbuf = np.array([0.0, 50.0])
+    rhs = cvodes_driver.KernelCall(so, "g", [np.zeros(2), pbuf], 0)
+    jac = cvodes_driver.KernelCall(so, "g_jac", [np.zeros(2), pbuf], 0)
+    d = cvodes_driver.Driver(2, rhs, [0], jac, [(sp, 0)], 1e-8, np.full(2, 1e-12))
+    d.set_drive(rhs.keep[1], 0, RAMP_STEP, RAMP, stops)
+    d.shift_drive(offset)
+    return d, d.run(0.0, np.zeros(2), t - offset)
+
+
+def test_a_drive_is_the_linear_interpolation_and_its_stops_end_the_steps(driven):
+    """The drive's integral at rtol 1e-8 to ~1e-10 either way; with the kinks as stops the steps no
+    longer straddle them: fewer rejected steps (measured 15 against 47)."""
+    t = np.array([0.2, 0.395, 0.45, 0.7, 1.0, 1.2])  # 1.2: past the grid, the last line on
+    free, X = _driven_run(driven, (), t)
+    stopped, Xs = _driven_run(driven, (39, 40), t)
+    for Y in (X, Xs):
+        assert np.max(np.abs(Y[:, 0] - _ramp_integral(t))) < 1e-9
+    assert stopped.stats["netfails"] < free.stats["netfails"]
+
+
+def test_a_shifted_drive_runs_on_its_own_clock(driven):
+    """shift_drive(0.3): the solver's t = 0 is the drive's 0.3."""
+    t = np.array([0.35, 0.395, 0.45, 0.7])
+    _, X = _driven_run(driven, (39, 40), t, offset=0.3)
+    assert np.max(np.abs(X[:, 0] - (_ramp_integral(t) - _ramp_integral(0.3)))) < 1e-9
