@@ -12,6 +12,7 @@ rotor near top dead centre) are resolved by that refinement down to MIN_INTERVAL
 """
 from __future__ import annotations
 
+import logging
 import os
 import threading
 from dataclasses import dataclass
@@ -88,6 +89,8 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
     key = (kern.key, p.tobytes(), tol)
     with _CACHE_LOCK:
         if key in _CACHE:
+            if isinstance(_CACHE[key], SolverError):  # tried before: it does not converge
+                raise _CACHE[key]
             return _CACHE[key]
     t = np.linspace(0.0, TWO_PI, START_NODES + 1)
     g, dg = exact(kern, p, t)
@@ -108,8 +111,9 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         err = float(e.max())
         bad = e > tol
         if t.size + bad.sum() > MAX_NODES:
-            raise SolverError(f"the geometry table does not converge ({t.size} nodes; largest midpoint error "
-                              f"{err:.1e}): set {ENV}=exact")
+            _keep(key, SolverError(f"the geometry table does not converge ({t.size} nodes; largest midpoint "
+                                   f"error {err:.1e}): set {ENV}=exact"))
+            raise _CACHE[key]
         # the failing intervals are split at their midpoints; the halves are checked next round
         t = np.insert(t, k[bad] + 1, mid[bad])
         g = np.insert(g, k[bad] + 1, gm[bad], axis=0)
@@ -118,11 +122,16 @@ def build(kern, p, tol=TABLE_TOL) -> GeometryTable:
         at = k[bad] + np.arange(bad.sum())  # the split intervals' first halves, in the new t
         check[at], check[at + 1] = True, True
     table = GeometryTable(t, g, dg, scale, err)
+    _keep(key, table)
+    return table
+
+
+def _keep(key, value) -> None:
+    """Cache a table (or the error of one that does not converge) under key."""
     with _CACHE_LOCK:  # runs in threads build their tables side by side
         while len(_CACHE) >= CACHED:
             del _CACHE[next(iter(_CACHE))]
-        _CACHE[key] = table
-    return table
+        _CACHE[key] = value
 
 
 def kernel_calls(kern, p, pbuf, nx):
@@ -143,13 +152,16 @@ def driver_calls(kern, p, pbuf, nx, use_table=True):
     has them, else pump_rhs and pump_rhs_jac; attach(driver) hands a driver the table and returns
     the geometry's name ("table" or "exact")."""
     if use_table and available(kern):
-        rhs, jac, table, gbuf, dgbuf = kernel_calls(kern, p, pbuf, nx)
+        try:
+            rhs, jac, table, gbuf, dgbuf = kernel_calls(kern, p, pbuf, nx)
+        except SolverError as e:  # a geometry the table cannot resolve: the exact one, as fast as before
+            logging.getLogger("pumpsim").debug("geometry table: %s; the exact geometry at every call instead", e)
+        else:
+            def attach(d):
+                d.set_table(table.nodes, table.values, table.slopes, gbuf, dgbuf)
+                return "table"
 
-        def attach(d):
-            d.set_table(table.nodes, table.values, table.slopes, gbuf, dgbuf)
-            return "table"
-
-        return rhs, jac, kern["pump_rhs_tab_jac"], attach
+            return rhs, jac, kern["pump_rhs_tab_jac"], attach
     rhs, jac = cvodes_driver.rhs_and_jacobian(kern, "pump_rhs", [np.zeros(nx), pbuf])
     return rhs, jac, kern["pump_rhs_jac"], lambda d: "exact"
 

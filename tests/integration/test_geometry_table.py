@@ -100,3 +100,20 @@ def test_exact_geometry_stays_available(monkeypatch):
     integ = run.PumpIntegrator(kern, p)
     assert integ.driver_geometry == ("table" if integ.direct is not None else "exact")
     assert run.PumpIntegrator(kern, p, geometry_table=False).driver_geometry == "exact"
+
+
+def test_a_geometry_the_table_cannot_resolve_runs_on_the_exact_one(monkeypatch):
+    # a flat vane tip (vane.tip_radius = 0): the housing contact jumps from one tip corner to the
+    # other, which no Hermite table follows; the run takes the exact geometry instead of failing
+    cfg = evp_config(**{"vane.tip_radius": 0.0})
+    kern, p = kernels(cfg), parameter_vector(cfg)
+    with pytest.raises(gt.SolverError, match="does not converge"):
+        gt.build(kern, p)
+    with pytest.raises(gt.SolverError, match="does not converge"):  # remembered, not rebuilt
+        gt.build(kern, p)
+    assert run.PumpIntegrator(kern, p).driver_geometry == "exact"
+    monkeypatch.setenv(gt.ENV, "exact")
+    exact = pdm.pumpdown(cfg, duration=0.05).summary
+    monkeypatch.delenv(gt.ENV)
+    fallback = pdm.pumpdown(cfg, duration=0.05).summary
+    assert fallback["final_pressure"] == exact["final_pressure"] and fallback["energy"] == exact["energy"]
