@@ -51,27 +51,16 @@ CONTACT_GAS_RTOL, CONTACT_GAS_ATOL = 1e-7, 1e-6
 # Solver study (pumpsim.solver_study): a row that names no tolerance runs at the report's Table 13 setting
 # (BDF at rtol 1e-6), against a reference at the runtime defaults RTOL/ATOL above.
 SOLVER_STUDY_RTOL, SOLVER_STUDY_ATOL = 1e-6, 1e-10
-# Gas model (pumpsim.pneumatics): the integrator's states are scaled to their starting size (atol is
-# relative to it). GAS_RTOL/ATOL: single runs and periodic steady states, tight enough that the
-# mass and energy budgets close far below the tests' bounds. PUMPDOWN_RTOL/ATOL: a pump-down over
-# thousands of revolutions. Measured on the EVP example against an rtol = atol = 1e-7 reference
-# (659,931 steps; README, Performance): the time to target moves by 2.6 ms of 5.12 s (5e-4) and
-# the booster curve by < 18 Pa, with 143,062 steps; rtol = atol = 1e-5 moved it by 0.6 ms with
-# 192,458 steps. atol matters more than rtol (it governs the small charges: the cell at the dead
-# volume, the exhaust port): 1e-5/1e-4 (rtol/atol) moved it by 6.9 ms, 1e-4/1e-4 by 10.7 ms.
+# Gas model (pumpsim.pneumatics): states scaled to their starting size (atol relative to it).
+# GAS_*: single runs and periodic steady states (the mass and energy budgets close far below the
+# tests' bounds); PUMPDOWN_*: thousands of revolutions, converged to ~5e-4 in the time to target
+# (docs/explanation/gas-model.md, Tolerances; atol governs the small charges and matters most).
 GAS_RTOL, GAS_ATOL = 1e-7, 1e-9
 PUMPDOWN_RTOL, PUMPDOWN_ATOL = 1e-4, 1e-5
 # Model 1 with gas (`pumpdown --model contact`) keeps 1e-5: rtol sets the error on the vane
 # positions s_i (~5e-3 m), and 1e-4 would allow ~5e-7 m against ~1 um penetrations.
 CONTACT_PUMPDOWN_RTOL, CONTACT_PUMPDOWN_ATOL = 1e-5, 1e-5
-# Bench-log fits (pumpsim.identification.pumpdown_fit): the default Jacobian is a forward difference
-# of two simulations, and each simulation's own error (a different step sequence per run, ~rtol of
-# each channel) enters it over the step. On the EVP example at 1e-4/1e-5 the pressure column's
-# derivative by mu changed by 280 % between a 1e-3 and a 5e-4 relative step, at 1e-5/1e-6 by 35 %,
-# at 1e-6/1e-7 by 2.5 % (1.3x the wall time of 1e-4). Against central differences at 1e-9 (0.5 s
-# log) the fit's 1e-2 steps are 2-4 % off at 1e-6, 4-7 % at 1e-5, 7-27 % at 1e-4. The forward
-# sensitivities (jacobian="sensitivities": no run-to-run noise, but the vane reversals' friction
-# switch crossed by the steps) are 2-3.5 % off at 1e-6 and 12-17 % at 1e-5 for mu and the
-# resistance: they do not allow a looser tolerance either. The 5 s fit's estimates against an
-# rtol 1e-7 fit (direct driver): within 0.85 standard errors at 1e-6, 0.42 at 1e-5, 1.46 at 1e-4.
+# Bench-log fits (pumpsim.identification.pumpdown_fit): the Jacobian is a difference of two runs,
+# each with its own integration error; 1e-6 is the loosest rtol whose differences and estimates stay
+# within a fraction of a standard error of a tight fit (docs/explanation/bench-log.md, Tolerances).
 BENCH_FIT_RTOL, BENCH_FIT_ATOL = 1e-6, 1e-7
