@@ -54,7 +54,7 @@ class Optimiser:
     def fit(self, prob, x0, start=None) -> FitOutcome:
         """Fit prob from x0; `start` = (model, Jacobian) at x0 when the caller has them already."""
         if self.method == "ipopt":
-            return ipopt_fit(prob, x0, self.log)
+            return ipopt_fit(prob, x0, self.log, self.max_iter)
         return gauss_newton(prob, x0, relaxation=self.relaxation, max_iter=self.max_iter,
                             lm=self.method == "levenberg-marquardt", log=self.log, start=start)
 
@@ -144,7 +144,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0)
 
 
-def ipopt_fit(prob, x0, log=None) -> FitOutcome:
+def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:
     """IPOPT (limited-memory Hessian) on 0.5 |y - model|^2 with the fit's bounds; the problem gives
     its model as a CasADi expression (`symbolic_model`)."""
     phi = ca.MX.sym("phi", len(prob.names))
@@ -152,7 +152,7 @@ def ipopt_fit(prob, x0, log=None) -> FitOutcome:
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                                           "ipopt.hessian_approximation": "limited-memory",
-                                          "ipopt.tol": 1e-12, "ipopt.max_iter": 200})
+                                          "ipopt.tol": 1e-12, "ipopt.max_iter": int(max_iter)})
     with interrupt.deferred():  # IPOPT would report a signal in its callbacks as a failed solve
         res = sol(x0=x0, lbx=np.where(np.isfinite(prob.lower), prob.lower, -1e20),
                   ubx=np.where(np.isfinite(prob.upper), prob.upper, 1e20))

@@ -193,3 +193,8 @@ def test_a_range_of_one_value_between_two_ends_is_refused():
     one = study_from_dict({"study": {"config": str(RIG), "sampler": "grid"},
                            "vary": {"vane.mass": {"range": [0.001, 0.001, 1]}}})
     assert one.variables[0].values == [0.001]
+
+
+def test_ipopt_keeps_the_iteration_limit(capsys):
+    code, out, err = run(capsys, "identify", RIG, RIG_DATA, "--method", "ipopt", "--max-iter", "2")
+    assert code == 1 and "NOT converged after 2 iterations" in out and "Maximum_Iterations_Exceeded" in err, out + err
