@@ -77,8 +77,10 @@ def _summary(a, study) -> int:
         raise ConfigError("--summary reads the results folder given by --out DIR")
     if not Path(a.out).is_dir():
         raise ConfigError(f"--out '{a.out}' is not a results folder (it does not exist)")
-    check_out_dir(a.out, study.study_hash())
     man = read_manifest(a.out)
+    if a.samples is None and study.sampler != "grid" and man.get("samples") not in (None, study.samples):
+        override_samples(study, int(man["samples"]))  # the run's own --samples, as the folder records it
+    check_out_dir(a.out, study.study_hash())
     df = read_results(a.out)
     running = holder_of(a.out)
     if running:

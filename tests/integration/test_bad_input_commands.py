@@ -198,3 +198,14 @@ def test_a_range_of_one_value_between_two_ends_is_refused():
 def test_ipopt_keeps_the_iteration_limit(capsys):
     code, out, err = run(capsys, "identify", RIG, RIG_DATA, "--method", "ipopt", "--max-iter", "2")
     assert code == 1 and "NOT converged after 2 iterations" in out and "Maximum_Iterations_Exceeded" in err, out + err
+
+
+def test_the_summary_of_a_run_with_its_own_sample_count_reads_it_back(tmp_path, capsys):
+    st = tmp_path / "s.toml"
+    st.write_text(f'[study]\nconfig = "{RIG.as_posix()}"\nsampler = "lhs"\nsamples = 64\nseed = 1\n'
+                  '[vary."vane.mass"]\ndistribution = "normal"\nsd = 0.05\nrelative = true\n')
+    out = tmp_path / "res"
+    code, text, err = run(capsys, "sweep", st, "--out", out, "--samples", "6", "--workers", "1")
+    assert code == 0 and "6 designs" in text, err
+    code, text, err = run(capsys, "sweep", st, "--out", out, "--summary")
+    assert code == 0 and "6 designs" in text and "status complete" in text, text + err
