@@ -72,6 +72,13 @@ def run(a) -> int:
                 e.notes.append(f"the {part.time.size} samples computed before it are in {kept}")
             else:
                 info(f"the samples computed before the failure are in {kept}")
+        elif a.keep_partial and (a.out or a.plot):
+            n = part.time.size if isinstance(part, SimulationResult) else 0
+            note = f"--keep-partial: {n} output sample(s) computed before it stopped, fewer than 2: nothing kept"
+            if isinstance(e, Interrupted):
+                e.notes.append(note)
+            else:
+                info(note)
         raise
     _write(outs, a, res, cfg)
     print(res.summary())

@@ -44,6 +44,9 @@ def test_integrator_failure_exits_1_names_time_state_contacts_and_keeps_samples(
     assert r.returncode == 1 and "computed before the failure are in" in r.stderr
     rows = out.read_text().splitlines()
     assert 2 <= len(rows) < 502  # the samples before the failure, not the whole run
+    out.unlink()
+    r = _cli(*args[:-4], "--max-steps", "2", "--out", str(out), "--keep-partial")  # fails before a sample
+    assert r.returncode == 1 and "fewer than 2: nothing kept" in r.stderr and not out.exists(), r.stderr
 
 
 def test_solver_study_prints_table_and_writes_json(tmp_path):
