@@ -9,7 +9,7 @@ import numpy as np
 
 from .io import atomic_path
 from .model_spec.simd import SUBSETS
-from .tolerances import PARADOX_TOL
+from .tolerances import LIFT_OFF_ROUNDING_REL, PARADOX_TOL
 
 PER_VANE_COLUMNS = ("s", "sdot", "normal", "slot1", "slot2")
 # what every simulation evaluates up front: the spec columns and what the warnings read (the
@@ -24,8 +24,8 @@ def contact_warnings(out, time, warnings, events=None, lift_off=False) -> None:
     and (when `events` is a list) events."""
     n_vanes = out["normal"].shape[0]
     kinds = []
-    if lift_off:
-        kinds.append(("lift_off", out["normal"] < 0))
+    if lift_off:  # a reaction of -1e-15 N at rest is rounding, not a lift-off
+        kinds.append(("lift_off", out["normal"] < -LIFT_OFF_ROUNDING_REL * np.max(np.abs(out["normal"]))))
     paradox = out["n_consistent"] < 0.5
     if "ambiguity" in out:  # the gas Model 2 kernel exports the consistent-set count only
         paradox = paradox | (out["ambiguity"] > PARADOX_TOL)
@@ -187,9 +187,10 @@ class Solution:
 
         plot_simulation(self, path, name=name, x=x)
 
-    def summary(self) -> str:
+    def summary(self, warnings: bool = True) -> str:
         """A few lines for a terminal: model, drive, samples, torque and normal-force ranges [N m, N],
-        solver statistics and warnings.
+        solver statistics and (unless warnings=False: the command line prints them on stderr) the
+        warnings.
 
         Example::
 
@@ -207,8 +208,7 @@ class Solution:
         if self.stats:
             lines.append("solver: " + ", ".join(f"{k} {v:g}" if isinstance(v, (int, float)) else f"{k} {v}"
                                                   for k, v in self.stats.items()))
-        for w in self.warnings:
-            lines.append(f"warning: {w}")
+        lines += [f"warning: {w}" for w in self.warnings] if warnings else []
         return "\n".join(lines)
 
 

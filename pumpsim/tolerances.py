@@ -64,3 +64,6 @@ CONTACT_PUMPDOWN_RTOL, CONTACT_PUMPDOWN_ATOL = 1e-5, 1e-5
 # each with its own integration error; 1e-6 is the loosest rtol whose differences and estimates stay
 # within a fraction of a standard error of a tight fit (docs/explanation/bench-log.md, Tolerances).
 BENCH_FIT_RTOL, BENCH_FIT_ATOL = 1e-6, 1e-7
+# A negative housing reaction within this share of the largest is rounding (a vane at rest has
+# ~1e-15 N), not a lift-off
+LIFT_OFF_ROUNDING_REL = 1e-9

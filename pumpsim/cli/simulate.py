@@ -81,6 +81,6 @@ def run(a) -> int:
                 info(note)
         raise
     _write(outs, a, res, cfg)
-    print(res.summary())
+    print(res.summary(warnings=False))
     warn(res.warnings)
     return 0

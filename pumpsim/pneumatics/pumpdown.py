@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from ..tolerances import CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, PUMPDOWN_ATOL, PUMPDOWN_RTOL
+from ..tolerances import (CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, LIFT_OFF_ROUNDING_REL, PUMPDOWN_ATOL,
+                          PUMPDOWN_RTOL)
 from . import run
 from ..kernels.pneumatic import kernels, parameter_index, parameter_vector, structure_of
 
@@ -71,7 +72,6 @@ class PumpdownResult:
         return "\n".join(lines)
 
 
-ROUNDING_REL = 1e-9  # of the largest housing reaction: below it a negative reaction is rounding
 LOW_SPEED_RPM = 500.0  # below it a lift-off is the run-up's, before the vanes are pressed out
 
 # the summary's figures of the motor and its supply: null (JSON) without a motor
@@ -168,7 +168,7 @@ def _result(cfg, r, target) -> PumpdownResult:
     if getattr(r, "lift_off", None) is not None:  # Model 1: the vanes' columns and their lift-off
         _contact_result(cfg, r, cols, summary)
     normal = o["normal"]
-    neg = normal < -ROUNDING_REL * np.max(np.abs(normal))  # a reaction of -1e-15 N at rest is rounding
+    neg = normal < -LIFT_OFF_ROUNDING_REL * np.max(np.abs(normal))
     if neg.any():
         k = int(np.argmax(neg.any(axis=1)))
         rpm = float(np.max(np.abs(X[neg.any(axis=1), 1]))) * 30 / math.pi

@@ -58,8 +58,8 @@ class GasSolution(Solution):
         """Lines after the work line (Model 1: the lift-off per vane)."""
         return []
 
-    def summary(self) -> str:
-        lines = super().summary().split("\n")
+    def summary(self, warnings: bool = True) -> str:
+        lines = super().summary(warnings).split("\n")
         work = [self.work_line()] if self.budgets else []
         return "\n".join(lines[:4] + work + self.summary_extra() + lines[4:])
 
