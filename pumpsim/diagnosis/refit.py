@@ -40,6 +40,7 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
     def polar(r):  # the lowest order of an out-of-round, an eccentricity
         return any(r is r_ for r_ in lowest) or (r.cand.symmetric and not r.cand.kind.harmonic_pair)
     screen_bic = _screen_bic(scr, state, rho)
+    margin = _search_margin(scr, run.opts)
     out = []
     # the polar searches last: their starts are all scouted only where the fit could still matter
     for r in sorted(contenders, key=polar):
@@ -47,14 +48,29 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
         if out and run.out_of_time(f"the refit of {c.label}"):
             continue
         run.say(f"refitting with {c.label}")
-        bar = min((f.bic_screen for f in out), default=math.inf) + _search_margin(scr, run.opts)
+        bar = min((f.bic_screen for f in out), default=math.inf) + margin
         st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,  # nothing to trail yet: every start
                         needed=None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar)
-        if not c.symmetric:
-            st, res = rephased(st, res)
         out.append(Contender(c, s, st, res, screen_bic(st, res)))
+    out = [_rephased_where_needed(f, out, margin, screen_bic) for f in out]
     out.sort(key=lambda f: f.bic_screen)
     return out
+
+
+def _rephased_where_needed(f: Contender, fits, margin, screen_bic) -> Contender:
+    """A smooth contender's fit, also from the phase-and-speed start (rephased) where it could
+    still matter: its screen BIC within `margin` (the decisive margin plus what another start can
+    gain, _search_margin) of the best other contender's, all compared before any is rephased (a
+    rephased fit only lowers its own BIC). One far behind (a smooth contender beside the oval the
+    record holds) keeps its fit from the one-step start: its rephasing cost a fifth of a
+    5,000-sample diagnosis."""
+    if f.cand.symmetric:
+        return f
+    best = min((g.bic_screen for g in fits if g is not f), default=math.inf)
+    if not f.bic_screen < best + margin:
+        return f
+    st, res = rephased(f.screen_state, f.screen_res)
+    return Contender(f.cand, f.score, st, res, screen_bic(st, res))
 
 
 def _screen_bic(scr, state, rho):

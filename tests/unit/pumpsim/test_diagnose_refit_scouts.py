@@ -71,3 +71,33 @@ def test_few_starts_are_all_finalists_without_a_quick_look():
     sc = Scouts(QUICK[:2], FULL[:2])
     res = refit._scouted([0, 1], sc, finish, OPTIONS, needed=lambda r: True)
     assert all(c[2] for c in sc.calls) and (res.start, res.rms) == (0, 0.9)
+
+
+@dataclass
+class Cand:
+    label: str
+    symmetric: bool = False
+
+
+def _contender(label, bic, symmetric=False):
+    return refit.Contender(Cand(label, symmetric), None, f"state {label}", Fit(1.0, 0, 0, True), bic)
+
+
+def test_a_smooth_contender_is_rephased_only_where_it_could_still_matter(monkeypatch):
+    """The phase-and-speed refit of a smooth contender: within the margin of the best other
+    contender (before any is rephased) it is done and its BIC taken from the new fit; far behind,
+    or for a geometric (symmetric) contender, the fit stays as it is."""
+    done = []
+
+    def rephased(st, res):
+        done.append(st)
+        return st + " rephased", Fit(0.5, 0, 0, True)
+    monkeypatch.setattr(refit, "rephased", rephased)
+    fits = [_contender("offset", 100.0), _contender("viscous", 105.0), _contender("ripple", 200.0),
+            _contender("oval", 90.0, symmetric=True)]
+    out = [refit._rephased_where_needed(f, fits, 20.0, lambda st, res: -1.0) for f in fits]
+    assert done == ["state offset", "state viscous"]  # 100, 105 < 90 + 20; 200 is not
+    assert [f.bic_screen for f in out] == [-1.0, -1.0, 200.0, 90.0]
+    assert out[2] is fits[2] and out[3] is fits[3]
+    alone = _contender("offset", 100.0)
+    assert refit._rephased_where_needed(alone, [alone], 20.0, lambda st, res: -1.0).bic_screen == -1.0
