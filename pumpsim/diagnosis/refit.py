@@ -51,23 +51,19 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
         bar = min((f.bic_screen for f in out), default=math.inf) + margin
         st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,  # nothing to trail yet: every start
                         needed=None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar)
-        out.append(Contender(c, s, st, res, screen_bic(st, res)))
-    out = [_rephased_where_needed(f, out, margin, screen_bic) for f in out]
+        out.append(_rephased_where_needed(Contender(c, s, st, res, screen_bic(st, res)), bar, screen_bic))
     out.sort(key=lambda f: f.bic_screen)
     return out
 
 
-def _rephased_where_needed(f: Contender, fits, margin, screen_bic) -> Contender:
-    """A smooth contender's fit, also from the phase-and-speed start (rephased) where it could
-    still matter: its screen BIC within `margin` (the decisive margin plus what another start can
-    gain, _search_margin) of the best other contender's, all compared before any is rephased (a
-    rephased fit only lowers its own BIC). One far behind (a smooth contender beside the oval the
-    record holds) keeps its fit from the one-step start: its rephasing cost a fifth of a
-    5,000-sample diagnosis."""
-    if f.cand.symmetric:
-        return f
-    best = min((g.bic_screen for g in fits if g is not f), default=math.inf)
-    if not f.bic_screen < best + margin:
+def _rephased_where_needed(f: Contender, bar: float, screen_bic) -> Contender:
+    """A smooth contender also fitted from the phase-and-speed start (rephased), its BIC from the
+    better fit, where that fit could still matter: its BIC below `bar`, the best BIC of the
+    contenders refitted before it plus the search margin (the first: always). One behind by more
+    (a smooth contender beside the oval the record holds) keeps its fit from the one-step start;
+    it is not the best so far either way, so the later polar searches trail the same bar as with
+    it rephased. A geometric (symmetric) contender as it is: its polar starts are its search."""
+    if f.cand.symmetric or not f.bic_screen < bar:
         return f
     st, res = rephased(f.screen_state, f.screen_res)
     return Contender(f.cand, f.score, st, res, screen_bic(st, res))

@@ -1,6 +1,7 @@
 """A geometric refit's scouting of its polar starts: every start scouted in full unless the caller
 says which fits could still matter; then only the finalists by a quick look first, the rest only
 where the finalists' fit could still matter, and then the same winner as scouting all."""
+import math
 from dataclasses import dataclass
 
 from pumpsim.diagnosis import refit
@@ -84,20 +85,21 @@ def _contender(label, bic, symmetric=False):
 
 
 def test_a_smooth_contender_is_rephased_only_where_it_could_still_matter(monkeypatch):
-    """The phase-and-speed refit of a smooth contender: within the margin of the best other
-    contender (before any is rephased) it is done and its BIC taken from the new fit; far behind,
-    or for a geometric (symmetric) contender, the fit stays as it is."""
+    """The phase-and-speed refit of a smooth contender: below the bar (the best BIC refitted before
+    it plus the search margin; infinite for the first) it is done and the BIC taken from the new
+    fit; at or above the bar, or for a geometric (symmetric) contender, the fit stays as it is."""
     done = []
 
     def rephased(st, res):
         done.append(st)
         return st + " rephased", Fit(0.5, 0, 0, True)
     monkeypatch.setattr(refit, "rephased", rephased)
-    fits = [_contender("offset", 100.0), _contender("viscous", 105.0), _contender("ripple", 200.0),
-            _contender("oval", 90.0, symmetric=True)]
-    out = [refit._rephased_where_needed(f, fits, 20.0, lambda st, res: -1.0) for f in fits]
-    assert done == ["state offset", "state viscous"]  # 100, 105 < 90 + 20; 200 is not
-    assert [f.bic_screen for f in out] == [-1.0, -1.0, 200.0, 90.0]
-    assert out[2] is fits[2] and out[3] is fits[3]
-    alone = _contender("offset", 100.0)
-    assert refit._rephased_where_needed(alone, [alone], 20.0, lambda st, res: -1.0).bic_screen == -1.0
+    new_bic = lambda st, res: -1.0  # noqa: E731
+    first = refit._rephased_where_needed(_contender("offset", 100.0), math.inf, new_bic)
+    assert (first.screen_state, first.bic_screen, first.screen_res.rms) == ("state offset rephased", -1.0, 0.5)
+    near = refit._rephased_where_needed(_contender("viscous", 105.0), 110.0, new_bic)
+    assert near.bic_screen == -1.0
+    for f, bar in ((_contender("ripple", 200.0), 110.0), (_contender("edge", 110.0), 110.0),
+                   (_contender("oval", 90.0, symmetric=True), math.inf)):
+        assert refit._rephased_where_needed(f, bar, new_bic) is f
+    assert done == ["state offset", "state viscous"]
