@@ -40,7 +40,6 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
     def polar(r):  # the lowest order of an out-of-round, an eccentricity
         return any(r is r_ for r_ in lowest) or (r.cand.symmetric and not r.cand.kind.harmonic_pair)
     screen_bic = _screen_bic(scr, state, rho)
-    margin = _search_margin(scr, run.opts)
     out = []
     # the polar searches last: their starts are all scouted only where the fit could still matter
     for r in sorted(contenders, key=polar):
@@ -48,25 +47,14 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
         if out and run.out_of_time(f"the refit of {c.label}"):
             continue
         run.say(f"refitting with {c.label}")
-        bar = min((f.bic_screen for f in out), default=math.inf) + margin
+        bar = min((f.bic_screen for f in out), default=math.inf) + _search_margin(scr, run.opts)
         st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,  # nothing to trail yet: every start
                         needed=None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar)
-        out.append(_rephased_where_needed(Contender(c, s, st, res, screen_bic(st, res)), bar, screen_bic))
+        if not c.symmetric:
+            st, res = rephased(st, res)
+        out.append(Contender(c, s, st, res, screen_bic(st, res)))
     out.sort(key=lambda f: f.bic_screen)
     return out
-
-
-def _rephased_where_needed(f: Contender, bar: float, screen_bic) -> Contender:
-    """A smooth contender also fitted from the phase-and-speed start (rephased), its BIC from the
-    better fit, where that fit could still matter: its BIC below `bar`, the best BIC of the
-    contenders refitted before it plus the search margin (the first: always). One behind by more
-    (a smooth contender beside the oval the record holds) keeps its fit from the one-step start;
-    it is not the best so far either way, so the later polar searches trail the same bar as with
-    it rephased. A geometric (symmetric) contender as it is: its polar starts are its search."""
-    if f.cand.symmetric or not f.bic_screen < bar:
-        return f
-    st, res = rephased(f.screen_state, f.screen_res)
-    return Contender(f.cand, f.score, st, res, screen_bic(st, res))
 
 
 def _screen_bic(scr, state, rho):

@@ -1,7 +1,6 @@
 """A geometric refit's scouting of its polar starts: every start scouted in full unless the caller
 says which fits could still matter; then only the finalists by a quick look first, the rest only
 where the finalists' fit could still matter, and then the same winner as scouting all."""
-import math
 from dataclasses import dataclass
 
 from pumpsim.diagnosis import refit
@@ -72,34 +71,3 @@ def test_few_starts_are_all_finalists_without_a_quick_look():
     sc = Scouts(QUICK[:2], FULL[:2])
     res = refit._scouted([0, 1], sc, finish, OPTIONS, needed=lambda r: True)
     assert all(c[2] for c in sc.calls) and (res.start, res.rms) == (0, 0.9)
-
-
-@dataclass
-class Cand:
-    label: str
-    symmetric: bool = False
-
-
-def _contender(label, bic, symmetric=False):
-    return refit.Contender(Cand(label, symmetric), None, f"state {label}", Fit(1.0, 0, 0, True), bic)
-
-
-def test_a_smooth_contender_is_rephased_only_where_it_could_still_matter(monkeypatch):
-    """The phase-and-speed refit of a smooth contender: below the bar (the best BIC refitted before
-    it plus the search margin; infinite for the first) it is done and the BIC taken from the new
-    fit; at or above the bar, or for a geometric (symmetric) contender, the fit stays as it is."""
-    done = []
-
-    def rephased(st, res):
-        done.append(st)
-        return st + " rephased", Fit(0.5, 0, 0, True)
-    monkeypatch.setattr(refit, "rephased", rephased)
-    new_bic = lambda st, res: -1.0  # noqa: E731
-    first = refit._rephased_where_needed(_contender("offset", 100.0), math.inf, new_bic)
-    assert (first.screen_state, first.bic_screen, first.screen_res.rms) == ("state offset rephased", -1.0, 0.5)
-    near = refit._rephased_where_needed(_contender("viscous", 105.0), 110.0, new_bic)
-    assert near.bic_screen == -1.0
-    for f, bar in ((_contender("ripple", 200.0), 110.0), (_contender("edge", 110.0), 110.0),
-                   (_contender("oval", 90.0, symmetric=True), math.inf)):
-        assert refit._rephased_where_needed(f, bar, new_bic) is f
-    assert done == ["state offset", "state viscous"]
