@@ -113,8 +113,9 @@ class Counts:
                 out = gn(prob, x0, *a, **kw)
             finally:
                 del prob.model
-            steps = len(out.history) - 1
-            fits[0], fits[1], fits[2] = fits[0] + 1, fits[1] + steps, fits[2] + calls[0] - steps
+            steps = len(out.history) - 1  # each accepted step's trial; without a final Jacobian, one call more
+            rejected = calls[0] - steps - (out.jacobian is None)  # at the end (its remembered model)
+            fits[0], fits[1], fits[2] = fits[0] + 1, fits[1] + steps, fits[2] + rejected
             return out
         simd.FastInverseDynamics._run, optimiser.gauss_newton, problem.sample_torque = counted_run, counted_gn, counted_map
         return self
