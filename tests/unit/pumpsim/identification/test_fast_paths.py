@@ -125,3 +125,28 @@ def test_the_phase_scan_by_correlation_is_the_interpolated_scan():
         best = np.linspace(0, 2 * np.pi, start.PHASE_STEPS, endpoint=False)[valid][np.argmin(ref[valid, 0])]
         assert picked == best
         assert start._phase_start(Prob, np.full(start._GRID.size, 2.5), w, delay, 0.5) == 0.5
+
+
+def test_the_diagnose_benchs_counts_are_the_fits_own():
+    """bench/diagnose_scale.py --counts: inside `Counts` one fit's SIMD model runs and Jacobians are
+    counted with their samples, its Gauss-Newton steps are the fit's history and its rejected trials
+    the model calls beyond them; the library's call is restored after."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+    from pumpsim.identification import identify
+    from pumpsim.kernels import simd
+
+    run = simd.FastInverseDynamics._run
+    base, data = diagnose_scale.record("oval4", 1200)
+    with diagnose_scale.Counts() as c:
+        res = identify(base, data, ["mu", "theta0"], initial={"mu": 0.12, "theta0": 0.3}, multistart=False)
+    got = c.to_json()
+    assert simd.FastInverseDynamics._run is run
+    steps = len(res.iterations) - 1
+    assert got["gauss_newton"]["fits"] == 1 and got["gauss_newton"]["accepted_steps"] == steps > 0
+    assert got["kernel"]["jacobian"]["calls"] == steps + 1  # the start's and each step's
+    assert got["kernel"]["jacobian"]["samples"] == (steps + 1) * data.n
+    assert got["kernel"]["model"]["calls"] >= steps + got["gauss_newton"]["rejected_trials"]
+    assert got["kernel"]["casadi map"]["calls"] == 0
