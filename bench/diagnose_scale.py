@@ -3,12 +3,14 @@ and a k = 4 out-of-round record (the `make bench` diagnose case) on the 4-vane e
 5 % noise, each at several lengths, in one process, kernels built and loaded before any clock.
 
     .venv/bin/python bench/diagnose_scale.py [--samples 1000 5000 20000 80000] [--case none oval4]
-        [--kernel simd scalar] [--profile out/diagnose.prof] [--json out/bench_diagnose_scale.json]
+        [--kernel simd scalar] [--profile out/diagnose.prof] [--counts] [--json out/bench_diagnose_scale.json]
 
 Prints, per case, length and kernel: wall time, the process's CPU time (all threads; on a shared
 machine the less load-dependent number), the effects named and the verdict; then per case and
 kernel the least-squares terms CPU = fixed + per window sample x min(samples, window) + per sample
-x samples (`scaling_terms`): the search runs on a screening window (the first
+x samples (`scaling_terms`). `--counts`: per diagnosis, the SIMD library's calls (model runs and
+Jacobians: calls, samples, CPU seconds inside them), the CasADi map's, and the Gauss-Newton fits
+(fits, accepted steps, trial runs that a halving rejected). The search runs on a screening window (the first
 DiagnosisOptions.screen_samples = 5,000 samples), the whole-record refits, detectors and tests on
 every sample. `--kernel scalar` sets PUMPSIM_FIT_KERNEL=scalar
 (model torques on the CasADi map, as before the SIMD path); with both kernels each record runs back
@@ -67,21 +69,86 @@ def record(case: str, samples: int, seed: int = 0):
     return base, Dataset(sim.time, y)
 
 
-def run_one(case: str, samples: int, kernel: str = "simd", profile=None) -> dict:
+class Counts:
+    """The kernel calls and Gauss-Newton work of what runs inside the `with` (see --counts), by
+    wrapping the SIMD library's call, the CasADi map's evaluation and the optimiser's trials."""
+
+    def __enter__(self):
+        from pumpsim.identification import optimiser, problem
+        from pumpsim.kernels import simd
+        self.kernel = {k: [0, 0, 0.0] for k in ("model", "jacobian", "casadi map")}
+        self.fits = [0, 0, 0]  # fits, accepted steps, rejected trials
+        self._patched = [(simd.FastInverseDynamics, "_run"), (optimiser, "gauss_newton"), (problem, "sample_torque")]
+        self._orig = [getattr(o, n) for o, n in self._patched]
+        run, gn, maps, k, fits = *self._orig, self.kernel, self.fits
+
+        def counted_map(kern, directions, samples):
+            f = maps(kern, directions, samples)
+
+            def call(*args):
+                c0 = time.process_time()
+                try:
+                    return f(*args)
+                finally:
+                    e = k["casadi map"]
+                    e[0], e[1], e[2] = e[0] + 1, e[1] + samples, e[2] + time.process_time() - c0
+            return call
+
+        def counted_run(lib, fns, n, *a, **kw):
+            c0 = time.process_time()
+            try:
+                return run(lib, fns, n, *a, **kw)
+            finally:
+                e = k["jacobian" if len(a) > 7 or kw.get("extra") else "model"]
+                e[0], e[1], e[2] = e[0] + 1, e[1] + n, e[2] + time.process_time() - c0
+
+        def counted_gn(prob, x0, *a, **kw):
+            model, calls = prob.model, [0]
+
+            def trial(x):
+                calls[0] += 1
+                return model(x)
+            prob.model = trial
+            try:
+                out = gn(prob, x0, *a, **kw)
+            finally:
+                del prob.model
+            steps = len(out.history) - 1  # each accepted step's trial; without a final Jacobian, one call more
+            rejected = calls[0] - steps - (out.jacobian is None)  # at the end (its remembered model)
+            fits[0], fits[1], fits[2] = fits[0] + 1, fits[1] + steps, fits[2] + rejected
+            return out
+        simd.FastInverseDynamics._run, optimiser.gauss_newton, problem.sample_torque = counted_run, counted_gn, counted_map
+        return self
+
+    def __exit__(self, *exc):
+        for (o, n), f in zip(self._patched, self._orig):
+            setattr(o, n, f)
+
+    def to_json(self) -> dict:
+        return {"kernel": {k: {"calls": c, "samples": n, "cpu_seconds": t} for k, (c, n, t) in self.kernel.items()},
+                "gauss_newton": {"fits": self.fits[0], "accepted_steps": self.fits[1], "rejected_trials": self.fits[2]}}
+
+
+def run_one(case: str, samples: int, kernel: str = "simd", profile=None, counts=False) -> dict:
     base, data = record(case, samples)
     os.environ["PUMPSIM_FIT_KERNEL"] = kernel
     t0, c0 = time.perf_counter(), time.process_time()
+    counted = None
     if profile:
         pr = cProfile.Profile(time.process_time)  # CPU, not wall: on a shared machine waits are not costs
         out = pr.runcall(diagnose, base, data)
         pr.dump_stats(profile)
+    elif counts:
+        with Counts() as counted:
+            out = diagnose(base, data)
     else:
         out = diagnose(base, data)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     js = out.to_json() if hasattr(out, "to_json") else dict(out)
     return {"case": case, "samples": int(data.n), "kernel": kernel, "seconds": wall, "cpu_seconds": cpu,
             "load": os.getloadavg()[0], "effects": list(js["effects"]),
-            "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"]}
+            "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"],
+            **({"counts": counted.to_json()} if counted else {})}
 
 
 def columns_ratio(base, data, repeats: int = 3) -> dict:
@@ -142,7 +209,7 @@ def print_terms(terms):
               f"fixed share by length {shares})")
 
 
-def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print) -> dict:
+def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print, counts=False) -> dict:
     """The rows and the fitted terms (see the module docstring), warmed up first."""
     load = os.getloadavg()
     log(f"load average at start: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
@@ -153,11 +220,13 @@ def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print)
     for case in cases:
         for n in samples:
             for kernel in kernels:
-                r = run_one(case, n, kernel, profile)
+                r = run_one(case, n, kernel, profile, counts)
                 rows.append(r)
                 log(f"{case:6s} {r['samples']:6d} samples  {kernel:6s} {r['seconds']:6.1f} s wall  "
                     f"{r['cpu_seconds']:6.1f} s CPU  load {r['load']:.1f}  effects {r['effects']}  "
                     f"verdict {r['verdict']}")
+                if counts:
+                    log("  " + json.dumps(r["counts"]))
     os.environ.pop("PUMPSIM_FIT_KERNEL", None)
     end = os.getloadavg()
     log(f"load average at end: {' '.join(f'{v:.2f}' for v in end)}")
@@ -170,9 +239,10 @@ def main():
     ap.add_argument("--case", nargs="*", choices=list(CASES), default=["oval4"])
     ap.add_argument("--kernel", nargs="*", choices=["simd", "scalar"], default=["simd"])
     ap.add_argument("--profile", help="cProfile output in process CPU time (one case and length only)")
+    ap.add_argument("--counts", action="store_true", help="kernel calls and Gauss-Newton work per diagnosis")
     ap.add_argument("--json")
     a = ap.parse_args()
-    res = scale(a.samples, a.case, a.kernel, a.profile, log=lambda m: print(m, flush=True))
+    res = scale(a.samples, a.case, a.kernel, a.profile, log=lambda m: print(m, flush=True), counts=a.counts)
     print_terms(res["terms"])
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)

@@ -197,7 +197,8 @@ def _finalists(starts, scout_fit, opts: DiagnosisOptions = OPTIONS) -> list:
     effects: hence `needed` (docs/explanation/discrepancy-workflow.md)."""
     if len(starts) <= opts.refit_finalists:
         return list(range(len(starts)))
-    quick = [scout_fit(init, max_iter=opts.refit_quick_steps, polish=False).rms for init in starts]
+    quick = [scout_fit(init, max_iter=opts.refit_quick_steps, polish=False, final_jacobian=False).rms
+             for init in starts]
     return sorted(int(i) for i in np.argsort(quick, kind="stable")[:opts.refit_finalists])
 
 

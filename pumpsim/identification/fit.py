@@ -48,13 +48,16 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
              ripple_order=1, extra=None, transient=False, reversals=None,
-             interval=False, speed_in_band=False, adequacy=True, at=None, polish=True) -> IdentificationResult:
+             interval=False, speed_in_band=False, adequacy=True, at=None, polish=True,
+             final_jacobian=True) -> IdentificationResult:
     """Fit `params` to one measurement (a Dataset) or several (a list, fitted jointly) at constant
     speed, or to a run-up/coast-down's speed under its measured torque (transient=True). The
     engine behind `pumpsim.identify`, which also takes paths and arrays; see there. `at`: (x,
     model, Jacobian) the caller already has, used if x is this fit's start. `polish=False`: an
-    interval fit without its exact polish (a scout that only chooses a start)."""
-    optimiser = Optimiser(method, relaxation, max_iter, log)
+    interval fit without its exact polish (a scout that only chooses a start). `final_jacobian=False`:
+    a fit that ends by max_iter is not checked for identifiability at its end and its estimates
+    have values only (a scout compared by its RMS; optimiser.gauss_newton)."""
+    optimiser = Optimiser(method, relaxation, max_iter, log, final_jacobian)
     datasets = data if isinstance(data, (list, tuple)) else [data]
     if method == "ipopt" and len(datasets) > 1:
         raise ConfigError("method 'ipopt' fits one measurement; use gauss-newton or levenberg-marquardt")
@@ -144,7 +147,7 @@ def fit_identifiable(prob, start, optimiser, reduced, at_start=None) -> _Fit:
             prob_fit, start_fit, at_start = reduced(active, fixed, unident), np.array([fixed[n] for n in active]), None
         out = optimiser.fit(prob_fit, start_fit, start=at_start)
         at_start = (prob_fit.y - out.residual, out.jacobian)
-        if not any(to_fix(active, out.jacobian, out.x, prob_fit.y - out.residual)):
+        if out.jacobian is None or not any(to_fix(active, out.jacobian, out.x, prob_fit.y - out.residual)):
             return _Fit(prob_fit, out, start, m_start, unident, no_effect, evaluations)
         start_fit = out.x  # flat at the fit: the loop's head fixes those parameters and refits
 
@@ -167,8 +170,13 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
                 x[i] = 0.0 if x[i] > 2 * math.pi - 1e-12 else x[i]
         k, w = len(fitted_prob.names), fitted_prob.speed_of(x)
         kept = slice(None) if out.keep is None else out.keep  # the reversal-aware cost's samples
-        est, corr, intervals = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r[kept],
-                                             out.jacobian[kept], fitted_prob.y[kept], _channels(fitted_prob, out.keep))
+        if out.jacobian is None:  # a scout's end (final_jacobian=False): values only
+            est, corr, intervals = {n: Estimate(n, float(v), None, initial=x0[n]) for n, v in
+                                    zip(fitted_prob.names, x)}, None, None
+        else:
+            est, corr, intervals = fit_estimates(fitted_prob.names, x, [x0[n] for n in fitted_prob.names], r[kept],
+                                                 out.jacobian[kept], fitted_prob.y[kept],
+                                                 _channels(fitted_prob, out.keep))
         converged, message, on_bound = out.converged, out.message + prob.NOTE, bounds_reached(fitted_prob, x)
     for name in fit.unident:
         est[name] = Estimate(name, None, None, None, None, x0[name], identifiable=False)

@@ -44,6 +44,7 @@ class Optimiser:
     relaxation: float = 1.0  # Gauss-Newton's relaxation factor f in (0, 1]
     max_iter: int = 50
     log: Callable | None = None  # called with each history entry
+    final_jacobian: bool = True  # False: a fit that ends by max_iter has no Jacobian there (see gauss_newton)
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -56,7 +57,8 @@ class Optimiser:
         if self.method == "ipopt":
             return ipopt_fit(prob, x0, self.log, self.max_iter)
         return gauss_newton(prob, x0, relaxation=self.relaxation, max_iter=self.max_iter,
-                            lm=self.method == "levenberg-marquardt", log=self.log, start=start)
+                            lm=self.method == "levenberg-marquardt", log=self.log, start=start,
+                            final_jacobian=self.final_jacobian)
 
 
 def scaled_svd(J):
@@ -86,12 +88,15 @@ def _wrms(r, w) -> float:
 
 
 def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
-                 start=None) -> FitOutcome:
+                 start=None, final_jacobian=True) -> FitOutcome:
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
     Levenberg-Marquardt damping (Marquardt scaling) instead. Steps are computed by a column-scaled
     least-squares solve; bounds are enforced by projection. `start` = (model, Jacobian) at x0 when
     the caller has them already. With a reversal-aware problem the samples it drops weigh 0; that
-    mask is fixed during a step (trial points compared on it) and recomputed between steps."""
+    mask is fixed during a step (trial points compared on it) and recomputed between steps.
+    final_jacobian=False: the point the last of max_iter steps reaches gets its model only (the
+    trial's, remembered: no model run) and the outcome's `jacobian` is None -- for a scout that
+    only compares where a few steps lead (a Jacobian with interval columns costs ~10 model runs)."""
     x = np.array(x0, dtype=float)
     m, J = start if start is not None else prob.model_and_jacobian(x)
     r, w = prob.y - m, _weights(prob, x)
@@ -99,7 +104,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)}]
     lam = 1e-3
     converged, message = False, "maximum iterations reached"
-    for _ in range(max_iter):
+    for it in range(max_iter):
         rw = wt(r)
         scale, U, s, Vt = scaled_svd(wt(J))
         if s[-1] < s[0] / SINGULAR_COND:
@@ -127,7 +132,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
                 converged, message = True, "no further decrease of the residual"
                 break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
-        mn, Jn = prob.model_and_jacobian(xn)
+        mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
         x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)
         history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)})

@@ -165,7 +165,18 @@ class ConstantSpeedProblem(Problem):
         return d
 
     def z(self, x):
-        """The kernel-graph input z at the fitted values x."""
+        """The kernel-graph input z at the fitted values x (the last one remembered: a step's trial
+        point, then its Jacobian, ask for the same z; read-only, as it is shared)."""
+        key = np.asarray(x, dtype=float).tobytes()
+        last = self.__dict__.get("_z_last")
+        if last is not None and last[0] == key:
+            return last[1]
+        z = self._z(x)
+        z.flags.writeable = False
+        self._z_last = (key, z)
+        return z
+
+    def _z(self, x):
         d = self._values(x)
         p = self._parameters(dict(zip(self.names, x)))
         return np.concatenate([np.asarray(p, dtype=float).ravel(), [d[s] for s in Z_SPECIAL]])
@@ -184,10 +195,10 @@ class ConstantSpeedProblem(Problem):
                 S[self.p0.size + Z_SPECIAL.index(nm), j] = 1.0
         return S
 
-    def angle_and_jacobian(self, x, lib=np):
+    def angle_and_jacobian(self, x, lib=np, columns=True):
         """Rotor angle per sample and its derivative by the fitted values (lib = ca for a symbolic
         x): the integral of omega = omega0 (1 + rc cos(k theta_n) - rs sin(k theta_n)) with the
-        nominal angle theta_n = theta0 + omega0 (t - delay)."""
+        nominal angle theta_n = theta0 + omega0 (t - delay). columns=False: the angle alone (None)."""
         d = self._values(x)
         th0, w0, dl, rc, rs, k = (d["theta0"], d["speed"], d["delay"], d["ripple_cos"], d["ripple_sin"],
                                   self.ripple_order)
@@ -197,7 +208,7 @@ class ConstantSpeedProblem(Problem):
             theta, g = thn + 0.0, 1.0
         else:
             theta, g, _ = ripple_motion(thn, th0, 1.0, rc, rs, k, lib)  # g = omega / omega0
-        if lib is not np:
+        if lib is not np or not columns:
             return theta, None
         # each column computed only when fitted (at 10^6 samples each is 8 MB)
         cols = {"theta0": lambda: g - rc * math.cos(k * th0) + rs * math.sin(k * th0),
@@ -211,7 +222,7 @@ class ConstantSpeedProblem(Problem):
         return theta, J
 
     def angle(self, x):
-        return self.angle_and_jacobian(x)[0]
+        return self.angle_and_jacobian(x, columns=False)[0]
 
     def _lag(self, x):
         return self._values(x)["lag"]

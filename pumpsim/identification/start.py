@@ -145,37 +145,53 @@ def _order_spectra(t, y, speeds, orders):
     return out
 
 
-def _dot(a, b) -> float:
-    """a . b without BLAS: OpenBLAS threads a long ddot, and on a busy machine its spinning threads
-    made the 360 phases' dot products ~10x slower than one core's loop."""
-    return float(np.einsum("i,i", a, b))
+PHASE_STEPS = 360  # theta0 tried over one revolution (each 2 points of _GRID)
+
+
+def _phase_costs(t, y, one_rev, w, delay):
+    """The least-squares cost of y ~ scale m(theta0) + offset for each of the PHASE_STEPS phases
+    theta0 = j 2 pi / PHASE_STEPS, m(theta0) the one-revolution model interpolated linearly at
+    theta0 + w (t - delay), and whether its scale is positive. A phase step is a shift of the
+    model's grid by whole points, so every sample keeps its interval and weight for all phases:
+    the sums the cost needs (of m, m^2, m y) are circular correlations of the grid values with
+    per-point sums of the samples' weights, O(grid^2) for all phases instead of an interpolation
+    of every sample per phase (which made the scan a per-sample cost of every diagnosis fit)."""
+    G = _GRID.size
+    shift = G // PHASE_STEPS
+    pos = np.mod(w * (np.asarray(t, dtype=float) - delay), 2 * math.pi) * (G / (2 * math.pi))
+    i = np.minimum(pos.astype(np.int64), G - 1)
+    f = pos - i
+    nxt = (i + 1) % G
+    yc = y - y.mean()
+
+    def spread(lo, hi):  # per grid point: the samples' weights as the lower and as the upper point
+        return np.bincount(i, lo, G) + np.bincount(nxt, hi, G)
+    ones, my, mm = spread(1 - f, f), spread((1 - f) * yc, f * yc), spread((1 - f) ** 2, f * f)
+    cross = np.bincount(i, f * (1 - f), G)
+    rows = np.lib.stride_tricks.sliding_window_view(np.concatenate([one_rev, one_rev]), G + 1)
+    V = rows[:PHASE_STEPS * shift:shift]  # V[j, g]: the model at grid point g (and g + 1) for phase j
+    n = y.size
+    s1, sy = V[:, :G] @ ones, V[:, :G] @ my
+    s2 = (V[:, :G] ** 2) @ mm + 2 * (V[:, :G] * V[:, 1:]) @ cross
+    var = s2 - s1 * s1 / n  # |m - mean(m)|^2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cost = float(yc @ yc) - np.where(var > 0, sy * sy / var, 0.0)
+    return cost, (sy > 0) & (var > 0)
 
 
 def _phase_start(prob, one_rev, w, delay, th_init):
     """The theta0 whose model (scaled, plus an offset) fits the torque best over a 1-degree scan;
     phases the torque cannot tell apart (its angular period) cost the same: the one nearest
+    the initial guess; a one-revolution model without ripple (to rounding): every phase the same,
     the initial guess. The angle runs with the problem's drive time (a drifting measured speed)."""
-    t, y = prob.tau, prob.y
-    yc = y - y.mean()
-    grid, values = np.append(_GRID, 2 * math.pi), np.append(one_rev, one_rev[0])
-    costs = []
-    for th0 in np.linspace(0, 2 * math.pi, 360, endpoint=False):
-        m = np.interp(np.mod(th0 + w * (t - delay), 2 * math.pi), grid, values)
-        m -= m.mean()
-        mm = _dot(m, m)
-        if mm > 0:  # y ~ scale m + offset in closed form (an n x 2 lstsq per phase costs 5x more)
-            scale = _dot(m, yc) / mm
-            m *= scale
-            m -= yc
-            cost = _dot(m, m)
-        else:  # a torque without ripple: every phase the same
-            A = np.column_stack([m, np.ones_like(m)])
-            coef, res, *_ = np.linalg.lstsq(A, y, rcond=None)
-            scale, cost = coef[0], float(res[0]) if res.size else float(np.sum((y - A @ coef) ** 2))
-        if scale > 0:
-            costs.append((cost, th0))
-    if not costs:
+    one_rev = np.asarray(one_rev, dtype=float)
+    if np.ptp(one_rev) <= 1e-12 * max(float(np.max(np.abs(one_rev))), 1e-300):
         return th_init
+    cost, valid = _phase_costs(prob.tau, prob.y, one_rev, w, delay)
+    if not valid.any():
+        return th_init
+    phases = np.linspace(0, 2 * math.pi, PHASE_STEPS, endpoint=False)  # the values the scan always tried
+    costs = list(zip(cost[valid], phases[valid]))
     lowest = min(c for c, _ in costs)
     near = [th for c, th in costs if c <= lowest * (1 + 1e-6) + 1e-300]
     dist = lambda a: abs((a - th_init + math.pi) % (2 * math.pi) - math.pi)  # noqa: E731

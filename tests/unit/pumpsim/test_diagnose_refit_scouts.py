@@ -22,8 +22,9 @@ class Scouts:
     def __init__(self, quick, full):
         self.quick, self.full, self.calls = quick, full, []
 
-    def __call__(self, init, max_iter, polish=True):
-        self.calls.append((init, max_iter, polish))
+    def __call__(self, init, max_iter, polish=True, final_jacobian=True):
+        assert final_jacobian or not polish  # only a quick look goes without its end's Jacobian
+        self.calls.append((init, max_iter, polish, final_jacobian))
         cost = self.full[init] if polish else self.quick[init]
         return Fit(cost, init, max_iter, polish)
 
@@ -50,7 +51,7 @@ def test_a_fit_that_cannot_matter_is_scouted_from_the_finalists_only():
     res = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: False)
     quick = [c for c in sc.calls if not c[2]]
     full = [c[0] for c in sc.calls if c[2]]
-    assert len(quick) == 7 and all(c[1] == OPTIONS.refit_quick_steps for c in quick)
+    assert len(quick) == 7 and all(c[1] == OPTIONS.refit_quick_steps and not c[3] for c in quick)
     assert full == [0, 1, 2]  # the three lowest quick looks, in their order
     assert (res.start, res.rms) == (0, 0.9)
 

@@ -56,3 +56,97 @@ def test_drive_tangents_without_a_fitted_ripple_are_the_general_columns_bit_for_
     for a, b in zip(fast, general):
         assert a.shape == (n, 3)
         np.testing.assert_array_equal(a, b[:, :3])
+
+
+def test_a_fit_without_its_final_jacobian_ends_where_the_full_one_does():
+    """identify(final_jacobian=False) (a polar search's quick look): the same values and RMS, bit for
+    bit, as the fit that evaluates the Jacobian where its last step lands -- one model_and_jacobian
+    call fewer, its estimates without standard errors."""
+    from pumpsim.identification import identify
+    from pumpsim.simulate import simulate
+
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    truth = cfg.with_harmonics([[4, 1.5e-5, 0.3]])
+    sim = simulate(truth, duration=0.05, rate=20000.0)
+    y = sim.torque + np.random.default_rng(1).normal(0, 0.02 * np.std(sim.torque), sim.time.size)
+    data = Dataset(sim.time, y)
+    geo = cfg.with_harmonics([[4, 0.0, 0.0]])
+    names = ["mu", "theta0", "housing.harmonics.0.amplitude"]
+    init = {"mu": 0.17, "theta0": cfg.angle, "housing.harmonics.0.amplitude": 8e-6}
+    full = identify(geo, data, names, initial=init, multistart=False, max_iter=1, interval=True, polish=False)
+    quick = identify(geo, data, names, initial=init, multistart=False, max_iter=1, interval=True, polish=False,
+                     final_jacobian=False)
+    assert quick.rms == full.rms and len(quick.iterations) == len(full.iterations) == 2
+    assert {n: e.value for n, e in quick.estimates.items()} == {n: e.value for n, e in full.estimates.items()}
+    assert all(e.stderr is None for e in quick.estimates.values()) and quick.correlation is None
+    assert quick.n_evaluations == full.n_evaluations  # the end's model (remembered from the trial) counted
+
+
+def _phase_costs_by_interpolation(t, y, one_rev, w, delay):
+    """The phase scan as it interpolated every sample for every phase."""
+    from pumpsim.identification.start import _GRID, PHASE_STEPS
+
+    grid, values = np.append(_GRID, 2 * np.pi), np.append(one_rev, one_rev[0])
+    yc = y - y.mean()
+    out = []
+    for th0 in np.linspace(0, 2 * np.pi, PHASE_STEPS, endpoint=False):
+        m = np.interp(np.mod(th0 + w * (t - delay), 2 * np.pi), grid, values)
+        m -= m.mean()
+        scale = (m @ yc) / (m @ m)
+        out.append((float(np.sum((scale * m - yc) ** 2)), scale > 0))
+    return np.array(out)
+
+
+def test_the_phase_scan_by_correlation_is_the_interpolated_scan():
+    """start._phase_costs (circular correlations of the grid) against interpolating every sample at
+    every phase: the costs to 1e-12 of the largest, the same positive-scale phases, and
+    _phase_start's choice the same on records with a scale, an offset, noise and a delay; a
+    one-revolution model without ripple keeps the initial guess."""
+    from pumpsim.identification import start
+
+    rng = np.random.default_rng(5)
+    grid = np.append(start._GRID, 2 * np.pi)
+    for n in (300, 2001, 7000):
+        t = np.arange(n) / 20000.0
+        one_rev = 1 + 0.3 * np.cos(3 * start._GRID + 1.0) + 0.1 * (rng.random(start._GRID.size) < 0.03)
+        w, delay, th = rng.uniform(150, 400), rng.uniform(-1e-3, 1e-3), rng.uniform(0, 2 * np.pi)
+        y = 1.7 * np.interp(np.mod(th + w * (t - delay), 2 * np.pi), grid, np.append(one_rev, one_rev[0]))
+        y += 0.4 + rng.normal(0, 0.05, n)
+        cost, positive = start._phase_costs(t, y, one_rev, w, delay)
+        ref = _phase_costs_by_interpolation(t, y, one_rev, w, delay)
+        assert np.max(np.abs(cost - ref[:, 0])) <= 1e-12 * np.max(ref[:, 0])
+        assert np.array_equal(positive, ref[:, 1].astype(bool))
+
+        class Prob:
+            tau = t
+        Prob.y = y
+        picked = start._phase_start(Prob, one_rev, w, delay, 0.5)
+        valid = ref[:, 1].astype(bool)
+        best = np.linspace(0, 2 * np.pi, start.PHASE_STEPS, endpoint=False)[valid][np.argmin(ref[valid, 0])]
+        assert picked == best
+        assert start._phase_start(Prob, np.full(start._GRID.size, 2.5), w, delay, 0.5) == 0.5
+
+
+def test_the_diagnose_benchs_counts_are_the_fits_own():
+    """bench/diagnose_scale.py --counts: inside `Counts` one fit's SIMD model runs and Jacobians are
+    counted with their samples, its Gauss-Newton steps are the fit's history and its rejected trials
+    the model calls beyond them; the library's call is restored after."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+    from pumpsim.identification import identify
+    from pumpsim.kernels import simd
+
+    run = simd.FastInverseDynamics._run
+    base, data = diagnose_scale.record("oval4", 1200)
+    with diagnose_scale.Counts() as c:
+        res = identify(base, data, ["mu", "theta0"], initial={"mu": 0.12, "theta0": 0.3}, multistart=False)
+    got = c.to_json()
+    assert simd.FastInverseDynamics._run is run
+    steps = len(res.iterations) - 1
+    assert got["gauss_newton"]["fits"] == 1 and got["gauss_newton"]["accepted_steps"] == steps > 0
+    assert got["kernel"]["jacobian"]["calls"] == steps + 1  # the start's and each step's
+    assert got["kernel"]["jacobian"]["samples"] == (steps + 1) * data.n
+    assert got["kernel"]["model"]["calls"] >= steps + got["gauss_newton"]["rejected_trials"]
+    assert got["kernel"]["casadi map"]["calls"] == 0
