@@ -210,6 +210,9 @@ class DiagnosisResult(NamedSteps):
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in self.JSON}
+        # residual_white holds the verdict's view (a non-white remainder below the relevance bar is
+        # consistent); the tests' own answer beside it, so the JSON says what the text says
+        out["final"] = {**out["final"], "residual_tests_white": self.residual_tests_white}
         out["steps"] = [s.to_json() for s in self.steps]
         out["screens"] = [s.to_json() for s in self.screens]
         return out
