@@ -69,3 +69,13 @@ def test_a_flat_model_is_judged_by_its_systematic_share():
     assert a.model_orders == [] and a.verdict == "inadequate"
     b = assess(flat + lines([(1, 0.01)]) + noise(0.002), flat, ANGLE, DT, W)
     assert b.verdict == "systematic"
+
+
+@pytest.mark.parametrize("offset,verdict", [(0.0, "adequate"), (0.002, "systematic"), (0.4, "inadequate")])
+def test_a_white_residual_about_a_mean_the_fit_left_is_not_adequate(offset, verdict):
+    """White noise about a constant the fit could not remove (a COF on its bound, a reversed sensor):
+    0.002 N m is 25 standard errors of the mean of 4,000 samples at sigma 0.005 -- systematic; an
+    offset of twice the model's level is inadequate; none is adequate."""
+    model = 0.2 + lines([(4, 0.05), (8, 0.02)])
+    a = assess(model + offset + noise(0.005, seed=3), model, ANGLE, DT, W)
+    assert a.verdict == verdict
