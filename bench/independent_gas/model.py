@@ -117,6 +117,9 @@ class Pump:
     # hidden changes a bench log may carry (the generator sets them; a config never does)
     supply_resistance: float = 0.0
     heating: float = 0.0            # relative resistance rise per second of run
+    # pumpsim's readings where the spec leaves room (off: this model's own; for measuring the gap)
+    isothermal_plenums: bool = False  # inlet and exhaust plenums held at T0
+    pocket_in_cell: bool = False      # the slot mouth beside a retracted tip counts as cell gas
     extra: dict = field(default_factory=dict)
 
     def with_mu(self, mu):
@@ -233,7 +236,7 @@ class Vane:
         top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4)                  # flank-arc junction above P
         junction = off + (self.ell + top) * self.u
         tc = math.atan2(*(self.contact - self.P)[::-1])
-        if t_rot <= self.ell + top:
+        if t_rot <= self.ell + top or p.pocket_in_cell:
             x0 = off + t_rot * self.u
             tj = math.atan2(*(junction - self.P)[::-1])
             return [("line", x0, junction), ("arc", self.P, p.rho, tj, tj + _wrap(tc - tj))], x0
@@ -410,7 +413,7 @@ def gas_loads(p: Pump, v: Vanes, p_cell, G):
             end = v.contact[k]
             if p.rho == 0.0:
                 pieces = [(off + t_rot * v.u, off + v.ell[k] * v.u, None), (off + v.ell[k] * v.u, end, None)]
-            elif t_rot <= v.ell[k] + top:
+            elif t_rot <= v.ell[k] + top or p.pocket_in_cell:
                 j = off + (v.ell[k] + top) * v.u
                 pieces = [(off + t_rot * v.u, j, None), (j, end, P)]
             else:
@@ -530,6 +533,8 @@ class PumpDown:
         p, N = self.p, self.p.N
         m_c, T_c = y[:N], y[N:2 * N]
         m_in, T_in, m_ex, T_ex, pb = y[2 * N:2 * N + 5]
+        if p.isothermal_plenums:
+            T_in = T_ex = p.T0
         pc = m_c * p.gas_R * T_c / V
         p_in, p_ex = m_in * p.gas_R * T_in / p.V_in, m_ex * p.gas_R * T_ex / p.V_ex
         P = list(pc) + [p_in, p_ex]
@@ -580,6 +585,8 @@ class PumpDown:
         out = np.empty_like(y)
         out[:N], out[N:2 * N] = dm[:N], dT[:N]
         out[2 * N:2 * N + 4] = dm[N], dT[N], dm[N + 1], dT[N + 1]
+        if p.isothermal_plenums:
+            out[2 * N + 1] = out[2 * N + 3] = 0.0
         out[2 * N + 4] = -f_booster * p.gas_R * p.T0 / p.Vb
         out[-3] = (self.voltage(t) - (self.resistance(t) + self.r_src) * i_m - p.km * omega) / p.Lm
         slot = {"exhaust": p_ex, "inlet": p_in, "atmosphere": p.p_atm}.get(p.slot_pressure, p.slot_pressure)
