@@ -34,7 +34,7 @@ CASES = {
     "none": (None, {}, {}),
     "booster_leak": ("booster_leak", {"booster_leak": 5.0e-5}, {"booster.leak": 5.0e-5}),
     "tip_clearance": ("tip_clearance", {"tip_gap": 2.0e-5}, {"leak.tip_gap": 2.0e-5}),
-    "valve_late": ("valve_late", {"valve_crack": 8000.0, "valve_full": 11000.0}, {"valve.cracking": 8000.0}),
+    "valve_late": ("valve_late", {"valve_crack": 8000.0}, {"valve.cracking": 8000.0}),
     "motor_friction": ("motor_friction", {"motor_friction": 0.03}, {"motor.friction": 0.03}),
     "supply_resistance": ("supply_resistance", {"supply_resistance": 0.05}, {"supply_resistance": 0.05}),
     "winding_heating": ("winding_heating", {"heating": 0.4}, {"heating_per_s": 0.4}),

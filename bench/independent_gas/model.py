@@ -14,6 +14,9 @@ Readings where the spec is silent (each a named choice below):
   check valve, whose flow area is the hose orifice's opened in proportion to the excess pressure
   difference (one opening with the hose's C_d); the exhaust plenum reaches the atmosphere through
   the exhaust valve.
+* A check valve's area grows in proportion to the excess over its cracking pressure difference and
+  is full `full_open` (`check_full_open` for the booster's) above the cracking: the config keys'
+  meaning in pumpsim's configuration reference (the spec names no key for it).
 * Every orifice uses the isentropic law, linearised in the pressure difference for
   p_down/p_up > 0.999 (the exact law has an infinite slope at equal pressures).
 * End-face leak: both end faces, each a gap `leak.end_gap` along the flank length exposed outside
@@ -94,10 +97,10 @@ class Pump:
     V_ex: float = 2.0e-7
     hose_area: float = 0.0
     check_crack: float = 0.0
-    check_full: float = 500.0
+    check_full: float = 500.0       # excess over check_crack for the full area
     valve_area: float = 0.0
     valve_crack: float = 0.0
-    valve_full: float = 2000.0
+    valve_full: float = 2000.0      # excess over valve_crack for the full area
     tip_gap: float = 0.0
     end_gap: float = 0.0
     Vb: float = 4.0e-3
@@ -114,6 +117,9 @@ class Pump:
     # hidden changes a bench log may carry (the generator sets them; a config never does)
     supply_resistance: float = 0.0
     heating: float = 0.0            # relative resistance rise per second of run
+    # pumpsim's readings where the spec leaves room (off: this model's own; for measuring the gap)
+    isothermal_plenums: bool = False  # inlet and exhaust plenums held at T0
+    pocket_in_cell: bool = False      # the slot mouth beside a retracted tip counts as cell gas
     extra: dict = field(default_factory=dict)
 
     def with_mu(self, mu):
@@ -222,8 +228,7 @@ class Vane:
         ('line', a, b) / ('arc', centre, r, t1, t2), and the rotor-circle point."""
         p = self.p
         off = self.Ob + sgn * p.h / 2 * self.w
-        bo = off @ self.u
-        t_rot = -bo + math.sqrt(bo * bo - (off @ off - p.Rr ** 2))   # flank meets the rotor circle
+        t_rot = _flank_meets_rotor(p, self.Ob, self.u, self.w, sgn)
         if p.rho == 0.0:
             corner = off + (self.ell) * self.u                        # ell = s + L for a point tip
             x0 = off + t_rot * self.u
@@ -231,7 +236,7 @@ class Vane:
         top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4)                  # flank-arc junction above P
         junction = off + (self.ell + top) * self.u
         tc = math.atan2(*(self.contact - self.P)[::-1])
-        if t_rot <= self.ell + top:
+        if t_rot <= self.ell + top or p.pocket_in_cell:
             x0 = off + t_rot * self.u
             tj = math.atan2(*(junction - self.P)[::-1])
             return [("line", x0, junction), ("arc", self.P, p.rho, tj, tj + _wrap(tc - tj))], x0
@@ -240,13 +245,23 @@ class Vane:
         return [("arc", self.P, p.rho, t0, t0 + _wrap(tc - t0))], x0
 
     def flank_out(self):
-        """Flank length exposed outside the rotor (zero when the flank is inside)."""
+        """Length of the vane's flanks exposed outside the rotor, the mean of its two sides (each
+        from where that side meets the rotor circle; zero where it is inside)."""
         p = self.p
         top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4) if p.rho > 0 else 0.0
-        return max(0.0, self.ell + top - self.ell_mouth)
+        return 0.5 * sum(max(0.0, self.ell + top - _flank_meets_rotor(p, self.Ob, self.u, self.w, sg))
+                         for sg in (1.0, -1.0))
 
     def s(self):
         return self.ell - (self.p.L - self.p.rho)
+
+
+def _flank_meets_rotor(p, Ob, u, w, sgn):
+    """Distance along u from Ob + sgn h/2 w to where the flank on the side sgn w meets the rotor
+    circle."""
+    off = Ob + sgn * p.h / 2 * w
+    bo = off @ u
+    return -bo + math.sqrt(bo * bo - (off @ off - p.Rr ** 2))
 
 
 def _circle_cut(P, rho, Rr, wdir):
@@ -372,7 +387,9 @@ class Vanes:
         bm = Ob @ u
         self.ell_mouth = -bm + math.sqrt(bm * bm - (Ob @ Ob - p.Rr ** 2))
         top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4) if p.rho > 0 else 0.0
-        self.flank_out = np.maximum(0.0, self.ell + top - self.ell_mouth)
+        # the mean of the two flanks' lengths outside the rotor (each from its own rotor crossing)
+        self.flank_out = 0.5 * sum(np.maximum(0.0, self.ell + top - _flank_meets_rotor(p, Ob, u, w, sg))
+                                   for sg in (1.0, -1.0))
         self.s = self.ell - (p.L - p.rho)
         self.u, self.w, self.Ob = u, w, Ob
 
@@ -390,14 +407,13 @@ def gas_loads(p: Pump, v: Vanes, p_cell, G):
     top = math.sqrt(p.rho ** 2 - p.h ** 2 / 4) if p.rho > 0 else 0.0
     for side, pc in ((1.0, p_cell), (-1.0, np.roll(p_cell, 1))):
         off = v.Ob + side * p.h / 2 * v.w
-        bo = off @ v.u
-        t_rot = -bo + math.sqrt(bo * bo - (off @ off - p.Rr ** 2))
+        t_rot = _flank_meets_rotor(p, v.Ob, v.u, v.w, side)
         for k in range(p.N):
             P = v.Ob + v.ell[k] * v.u
             end = v.contact[k]
             if p.rho == 0.0:
                 pieces = [(off + t_rot * v.u, off + v.ell[k] * v.u, None), (off + v.ell[k] * v.u, end, None)]
-            elif t_rot <= v.ell[k] + top:
+            elif t_rot <= v.ell[k] + top or p.pocket_in_cell:
                 j = off + (v.ell[k] + top) * v.u
                 pieces = [(off + t_rot * v.u, j, None), (j, end, P)]
             else:
@@ -517,6 +533,8 @@ class PumpDown:
         p, N = self.p, self.p.N
         m_c, T_c = y[:N], y[N:2 * N]
         m_in, T_in, m_ex, T_ex, pb = y[2 * N:2 * N + 5]
+        if p.isothermal_plenums:
+            T_in = T_ex = p.T0
         pc = m_c * p.gas_R * T_c / V
         p_in, p_ex = m_in * p.gas_R * T_in / p.V_in, m_ex * p.gas_R * T_ex / p.V_ex
         P = list(pc) + [p_in, p_ex]
@@ -541,11 +559,11 @@ class PumpDown:
             # leaks across vane i: between cell i-1 and cell i
             link((i - 1) % N, i, p.cd_leak * (p.tip_gap * p.W + 2 * p.end_gap * flank_out[i]))
         # booster -> inlet plenum through the check valve (the hose area opened in proportion)
-        open_in = min(max((pb - p_in - p.check_crack) / (p.check_full - p.check_crack), 0.0), 1.0)
+        open_in = min(max((pb - p_in - p.check_crack) / p.check_full, 0.0), 1.0)
         f_b = max(orifice(p, p.cd_hose * p.hose_area * open_in, pb, p.T0, p_in, T_in), 0.0)
         dm[N] += f_b
         dh[N] += f_b * cp * p.T0
-        open_ex = min(max((p_ex - p.p_atm - p.valve_crack) / (p.valve_full - p.valve_crack), 0.0), 1.0)
+        open_ex = min(max((p_ex - p.p_atm - p.valve_crack) / p.valve_full, 0.0), 1.0)
         f_v = max(orifice(p, p.cd_valve * p.valve_area * open_ex, p_ex, T_ex, p.p_atm, p.T0), 0.0)
         dm[N + 1] -= f_v
         dh[N + 1] -= f_v * cp * T_ex
@@ -567,6 +585,8 @@ class PumpDown:
         out = np.empty_like(y)
         out[:N], out[N:2 * N] = dm[:N], dT[:N]
         out[2 * N:2 * N + 4] = dm[N], dT[N], dm[N + 1], dT[N + 1]
+        if p.isothermal_plenums:
+            out[2 * N + 1] = out[2 * N + 3] = 0.0
         out[2 * N + 4] = -f_booster * p.gas_R * p.T0 / p.Vb
         out[-3] = (self.voltage(t) - (self.resistance(t) + self.r_src) * i_m - p.km * omega) / p.Lm
         slot = {"exhaust": p_ex, "inlet": p_in, "atmosphere": p.p_atm}.get(p.slot_pressure, p.slot_pressure)
