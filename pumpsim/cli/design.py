@@ -15,12 +15,6 @@ def _idle_text(stats) -> str:
             f"{100 * stats.idle_between / W:.1f} %, after their last {100 * stats.idle_end / W:.1f} %")
 
 
-def _workers(n):
-    if n is not None and n < 1:
-        raise ConfigError(f"--workers must be >= 1, got {n}")
-    return n
-
-
 def _load(path):
     from ..design.study import load_study
 
@@ -49,7 +43,7 @@ def cmd_sweep(a) -> int:
         return _summary(a, study)
     outs = outputs(a, _inputs(a, study), csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
-    df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=_workers(a.workers),
+    df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=a.workers,
                           batch_size=a.batch_size, progress=None if live() else False)
     man = read_manifest(a.out) if a.out else None
     print(summary_text(df, study.outputs, study.limits, man))
@@ -113,7 +107,7 @@ def cmd_sensitivity(a) -> int:
     study = _load(a.study)
     outs = outputs(a, _inputs(a, study), json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
-                      workers=_workers(a.workers), progress=None if live() else False)
+                      workers=a.workers, progress=None if live() else False)
     print(sensitivity_text(res))
     with staged(outs) as tmp:
         if a.json:

@@ -62,7 +62,7 @@ def test_gas_outputs_without_the_gas_tables_exit_2_naming_the_output(tmp_path, c
     st.write_text(f'[study]\nconfig = "{RIG}"\noutputs = ["mean_torque", "pumping_speed"]\n'
                   '[vary."vane.mass"]\nvalues = [0.0012]\n')
     out = tmp_path / "res"
-    assert main(["sweep", str(st), "--out", str(out), "--workers", "0"]) == 2
+    assert main(["sweep", str(st), "--out", str(out), "--workers", "1"]) == 2
     err = capsys.readouterr().err
     assert "pumping_speed" in err and "[ports]" in err and "Traceback" not in err
     assert not out.exists()
