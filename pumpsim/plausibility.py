@@ -15,6 +15,7 @@ import numpy as np
 
 from .errors import ConfigError, DataError
 from .model_spec.housings import config_key
+from .pneumatics.config import MIN_BOOSTER_PRESSURE
 
 # A vane tip faster than this is no vane pump (automotive pumps run at 10-30 m/s, large
 # industrial ones below 40 m/s): an operation.speed given in rpm gives ~10x.
@@ -32,9 +33,7 @@ MIN_COF = 0.01
 # 16 km) is a pressure in kPa or bar, not Pa
 MAX_VESSEL_VOLUME = 1.0  # m^3
 MIN_ATMOSPHERE = 1.0e4  # Pa
-# A booster start or target below 1 kPa is below any vane pump's ultimate pressure (~5-10 kPa): a
-# value in kPa. A gas or wall temperature below 150 K is a temperature in degrees Celsius.
-MIN_BOOSTER_PRESSURE = 1.0e3  # Pa
+# A gas or wall temperature below 150 K is a temperature in degrees Celsius.
 MIN_TEMPERATURE = 150.0  # K
 
 TORQUE_FACTORS = {"N*mm (set the torque unit N*mm, or a 'torque [N*mm]' header)": 1e3,
@@ -172,15 +171,9 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
     return warnings
 
 
-def model_torque_range(cfg, speed):
-    """RMS of the model torque over one revolution at `speed` for COF MIN_COF and COF 2 (housing
-    and slot, statics scaled by the configured ratios): the range a fit of mu can reach."""
-    levels = _model_torques(cfg, speed)
-    return levels[0][0], levels[1][0]
-
-
 def _model_torques(cfg, speed):
-    """[(RMS, mean)] of the model torque over one revolution at COFs MIN_COF and 2."""
+    """[(RMS, mean)] of the model torque over one revolution at `speed` for COFs MIN_COF and 2
+    (housing and slot, statics scaled by the configured ratios): the range a fit of mu can reach."""
     from .config import as_array
     from .kernels import load_kernels, sampled_inverse_dynamics
 

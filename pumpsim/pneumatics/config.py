@@ -17,9 +17,9 @@ TABLES = ("gas", "ports", "valve", "leak", "booster", "motor")
 
 
 _GAS = {q.name: q for q in GAS_PARAMETERS}
-# A booster or target pressure below this is no vane pump's (their ultimate pressure is ~5-10 kPa):
-# a start of 101.3 is a pressure in kPa
-MIN_PRESSURE = 1000.0  # Pa
+# A booster start or target below this is below any vane pump's ultimate pressure (~5-10 kPa): a
+# value in kPa (also plausibility's limit)
+MIN_BOOSTER_PRESSURE = 1.0e3  # Pa
 
 
 def _num(default=None, required=False):
@@ -226,7 +226,7 @@ def _parse_booster(bo: dict, atmosphere: float, v: dict) -> tuple:
     target = bo["target"]
     if target is not None and not 0 < target < start:
         hint = (f"; booster.pressure = {start:g} Pa looks like kPa: pressures are absolute in Pa, "
-                f"{start:g} kPa is {start * 1000:g}") if start < MIN_PRESSURE else ""
+                f"{start:g} kPa is {start * 1000:g}") if start < MIN_BOOSTER_PRESSURE else ""
         raise ConfigError(f"booster.target must be in (0, booster.pressure ({start:g} Pa)), got {target:g}{hint}")
     return start, target
 
