@@ -48,7 +48,8 @@ QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "c
 # coefficients of (p_lead, p_trail, p_slot) in the gas loads (slide, lateral, tilt, rotor)
 VANE_GEOMETRY = ("Cx", "Cy", "nx", "ny", "ds", "d2s", *(f"load_{k}" for k in range(12)))
 VANE_DYN_OUTPUTS = ("torque_share", "torque_slope", "normal", "slot1", "slot2", "n_consistent",
-                    "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip")
+                    "friction_power", "load_power", "sdot", "kinetic_energy", "tip_slip", "mu_housing",
+                    "mu_slot", "ambiguity")
 
 
 class GasBuilder(Builder):
@@ -123,7 +124,7 @@ class GasBuilder(Builder):
         common.update(mu_h=mu_h, mu_r=mu_r)
         gf_slide, gf_lat, gf_tilt, gf_rotor = (
             ca.mtimes(ca.reshape(vg[6:18], 4, 3), ca.vertcat(p_lead, p_trail, p_slot))[i] for i in range(4))
-        best, n_cons, _, final = self.solve_contact_sides(("N", "F1", "F2"), common,
+        best, n_cons, amb, final = self.solve_contact_sides(("N", "F1", "F2"), common,
                                                           extra=(gf_slide, gf_lat, gf_tilt))
         share = final["torque_share"] - gf_rotor
         fric = (best[0] * mu_h * v_t + P["effects.viscous_tip_friction"] * v_t * v_t
@@ -131,7 +132,8 @@ class GasBuilder(Builder):
         outs = dict(torque_share=share, torque_slope=ca.jacobian(share, omegadot), normal=best[0],
                     slot1=best[1], slot2=best[2], n_consistent=n_cons, friction_power=fric,
                     load_power=omega * gf_rotor + sdot * gf_slide, sdot=sdot,
-                    kinetic_energy=final["kinetic_energy"], tip_slip=v_t)
+                    kinetic_energy=final["kinetic_energy"], tip_slip=v_t, mu_housing=mu_h, mu_slot=mu_r,
+                    ambiguity=amb)
         ins = [theta, omega, omegadot, phi, factor, s, alpha, p_lead, p_trail, p_slot]
         return ca.Function("vane_dynamics", ins + ([vg] if given else []) + [self.p],
                            [outs[nm] for nm in VANE_DYN_OUTPUTS],
@@ -211,8 +213,10 @@ def build_pneumatic_model(structure) -> BuiltModel:
         booster_leak=fl["f_bleak"], valve_flow=fl["f_valve"], reed_force=fl["F_reed"],
         mass_total=ca.sum1(m) + m_in + m_ex + m_b, inlet_length=geo["lin"],
         exhaust_length=geo["lex"], vane_volume=geo["vane_volume"],
+        motor_residual=ca.if_else(drive["motor"], drive["residual"], 0.0),
+        sdot=od["sdot"].T, tip_slip=od["tip_slip"].T, mu_housing=od["mu_housing"].T,
+        mu_slot=od["mu_slot"].T, ambiguity=od["ambiguity"].T,
     )
-    outs["motor_residual"] = ca.if_else(drive["motor"], drive["residual"], 0.0)
     out_s = ca.Function("outputs_at", [x, drive["omegadot_symbol"], p], list(outs.values()))
     out_fn = flat(ca.Function("pump_outputs", [x, p], out_s(x, wd, p), ["x", "p"], list(outs)))
     fns = {f.name(): f for f in (cell_geometry_function(geometry, p), orifice_function(P, p), rhs,

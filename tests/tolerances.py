@@ -161,6 +161,10 @@ CONTACT_LAW_REL = 1e-12
 # follows the falling pressure through the motor's lag (observed 2.1 %): 3 %.
 GAS_FLOW_VS_PUMPDOWN_REL = 0.01
 GAS_CURRENT_VS_PUMPDOWN_REL = 0.03
+# a study's revolution of the gas model's periodic steady state: means over the study's angles
+# (interpolated) against time means of the run (the map's quadratures) differ by the speed
+# ripple's share under the motor (measured 4e-4 on the EVP example)
+GAS_STUDY_BALANCE_REL = 2e-3
 # Data written in other units (N·mm, mN·m, rpm, ms, decimal comma) with 10 significant digits and
 # read back: the printing rounds to 5e-11 relative, each conversion adds rounding; 1e-9 relative.
 DATA_UNIT_REL = 1e-9

@@ -237,15 +237,18 @@ def design_speeds(study, cfg) -> list:
     return [math.nan] if motor_driven(study, cfg) else [float(cfg.speed)]
 
 
-def _gas_points(study, pr, speeds) -> tuple[list, dict]:
-    """(speeds, {speed: gas outputs}) from the gas model's periodic steady state (pneumatic.py);
-    ({} for a study that does not run it). Under a motor the one speed is the motor's."""
+def _gas_points(study, pr, speeds, theta) -> tuple[list, dict, dict | None]:
+    """(speeds, {speed: gas outputs}, the kernel outputs over the revolution theta per speed,
+    stacked as the mechanical kernel's) from the gas model's periodic steady state
+    (pneumatic.py): a config with the gas tables is studied pumping, its outputs carry the gas
+    loads. ({}, None for a config without them.) Under a motor the one speed is the motor's."""
     if study.booster_pressure is None:
-        return speeds, {}
-    if motor_driven(study, pr.cfg):
-        w, g = gas_outputs(pr.cfg, study.booster_pressure)
-        return [w], {w: g}
-    return speeds, {w: gas_outputs(pr.cfg, study.booster_pressure, w)[1] for w in speeds}
+        return speeds, {}, None
+    runs = ([gas_outputs(pr.cfg, study.booster_pressure, None, theta, KERNEL_OUTPUTS)]
+            if motor_driven(study, pr.cfg) else
+            [gas_outputs(pr.cfg, study.booster_pressure, w, theta, KERNEL_OUTPUTS) for w in speeds])
+    speeds = [w for w, _, _ in runs]
+    return speeds, {w: g for w, g, _ in runs}, _stacked([rev for _, _, rev in runs])
 
 
 def _asked(study, name) -> bool:
@@ -308,10 +311,8 @@ def _evaluate_one(study, kern, pr, nrev, ev=None):
     if verdict:
         return f"geometry: {verdict}", None
     try:
-        given = speeds
-        speeds, gas = _gas_points(study, pr, speeds)
-        if speeds != given:
-            ev = run(speeds)
+        speeds, gas, pumping = _gas_points(study, pr, speeds, theta)
+        ev = ev if pumping is None else pumping
     except PumpsimError as e:
         return f"numerical: gas model (spec §8): {e}", None
     res = ev["position_residual"]

@@ -107,6 +107,11 @@ def _check(study):
     if gas:
         raise ConfigError(f"optimize: {gas[0]} comes from the gas model's periodic steady state, which "
                           "has no kernel gradient here; sweep it (pumpsim sweep) instead")
+    if study.booster_pressure is not None:
+        raise ConfigError("optimize: the config has the gas tables, so its outputs carry the gas loads of "
+                          "the gas model's periodic steady state, which has no kernel gradient here; sweep "
+                          "the design (pumpsim sweep), or optimise the mechanics alone on the config "
+                          "without its gas tables")
     for v in study.variables:
         if v.bounds is None:
             raise ConfigError(f"vary.\"{v.key}\" needs bounds = [low, high] (or a range or distribution "

@@ -1,6 +1,9 @@
-"""Spec §9 outputs of the gas model (spec §8) for configs with its tables: `gas_power`,
-`pumping_speed`, `mean_current`, from the pneumatics package's periodic steady state
-(`pneumatics.pumpdown.pump_maps` at one booster pressure).
+"""A design study of a config with the gas tables (spec §8): every output from the gas model's
+periodic steady state with the booster held at one pressure (`pneumatics.pumpdown.pump_maps` and
+`steady_revolution`). The drive torque then includes the gas torque and the vanes carry the gas
+loads, so mean_torque, the friction powers and the vane forces are those of the pump pumping;
+`gas_power`, `pumping_speed` and `mean_current` are the gas model's own outputs. (A study of the
+mechanics alone runs on the config without its gas tables.)
 
 Operating point: the booster held at `study.booster_pressure` (default: the config's
 booster.pressure, the start of a pump-down). Drive:
@@ -27,21 +30,21 @@ GAS_OUTPUTS = ("gas_power", "pumping_speed", "mean_current")
 def check_gas_outputs(asked: list, cfg, speeds, model: str, booster_pressure) -> float | None:
     """Before any work: the gas outputs asked are computable for this base config and study.
     Returns the booster pressure of the operating point, or None when the gas model is not run
-    (no gas output asked, and the speed does not come from a motor)."""
+    (a config without the gas tables)."""
     gas = [o for o in asked if o in GAS_OUTPUTS]
-    by_motor = cfg.pneumatic is not None and cfg.pneumatic.motor and speeds is None
-    if not gas and not by_motor:
-        if booster_pressure is not None:
-            raise ConfigError("study.booster_pressure is for the gas outputs "
-                              f"({', '.join(GAS_OUTPUTS)}); none is asked")
-        return None
-    gas = gas or ["the motor's speed"]
     if cfg.pneumatic is None:
-        raise ConfigError(f"study.outputs: {gas[0]} needs the gas model's tables in the config "
-                          "([ports] and [booster], with [gas], [valve], [leak], [motor] as needed; spec §8)")
+        if gas:
+            raise ConfigError(f"study.outputs: {gas[0]} needs the gas model's tables in the config "
+                              "([ports] and [booster], with [gas], [valve], [leak], [motor] as needed; spec §8)")
+        if booster_pressure is not None:
+            raise ConfigError("study.booster_pressure is the gas model's operating point; the config has "
+                              "no gas tables ([ports], [booster])")
+        return None
+    gas = gas or ["the gas-loaded outputs"]
     if model != "constrained":
-        raise ConfigError(f"study.outputs: {gas[0]} is computed with the constrained model's gas "
-                          "version; use study.model = \"constrained\"")
+        raise ConfigError("study.model: a config with the gas tables is studied with the constrained "
+                          "model's gas version (its outputs carry the gas loads); use study.model = "
+                          "\"constrained\", or the config without its gas tables for the mechanics alone")
     motor = cfg.pneumatic.motor
     if motor and speeds is not None:
         raise ConfigError(f"study.speeds: the config drives the pump with its motor (operation.mode = "
@@ -61,10 +64,13 @@ def motor_driven(study, cfg) -> bool:
     return study.booster_pressure is not None and cfg.pneumatic is not None and cfg.pneumatic.motor
 
 
-def gas_outputs(cfg, booster_pressure: float, speed: float | None = None) -> tuple[float, dict]:
-    """(mean speed [rad/s], {gas output: value}) of one design in periodic steady state with the
-    booster at booster_pressure; speed: the constant speed (speed mode), None under the motor."""
-    from ..pneumatics.pumpdown import pump_maps
+def gas_outputs(cfg, booster_pressure: float, speed: float | None = None,
+                angles=None, names=None) -> tuple[float, dict, dict | None]:
+    """(mean speed [rad/s], {gas output: value}, revolution) of one design in periodic steady
+    state with the booster at booster_pressure; speed: the constant speed (speed mode), None under
+    the motor. revolution: the gas model's outputs `names` at the rotor angles `angles` (one
+    revolution; per vane as (N, n), like the mechanical kernel's), None without angles."""
+    from ..pneumatics.pumpdown import pump_maps, steady_revolution
 
     if speed is not None:
         cfg = dataclasses.replace(cfg, mode="speed", speed=float(speed))
@@ -73,7 +79,10 @@ def gas_outputs(cfg, booster_pressure: float, speed: float | None = None) -> tup
     out = {"gas_power": float(m.gas_torque[0]) * w, "pumping_speed": float(m.pumping_speed[0])}
     if cfg.pneumatic.motor:
         out["mean_current"] = float(m.current[0])
-    return w, out
+    if angles is None:
+        return w, out, None
+    rev = steady_revolution(cfg, m, 0, angles, names)
+    return w, out, {nm: (a if a.ndim == 1 else a.T) for nm, a in rev.items()}
 
 
 __all__ = ["GAS_OUTPUTS", "check_gas_outputs", "gas_outputs", "motor_driven"]

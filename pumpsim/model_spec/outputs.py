@@ -146,7 +146,7 @@ _CONTACT = {
 }
 _BOTH = {"housing_curve": Signature(("alpha", "p"), ("point", "normal_vector", "radius", "curvature"))}
 # spec §8: cells, gas, booster, motor (pump_outputs: per sample, or (n, N) per cell / vane)
-PUMP_OUTPUTS = (
+PUMP_OUTPUTS_COMMON = (
     "torque", "omegadot", "current", "pressure", "volume", "temperature", "dvolume",
     "inlet_pressure", "exhaust_pressure", "booster_pressure", "slot_pressure", "gas_torque",
     "friction_power", "gas_power", "load_power", "kinetic_energy", "normal", "slot1", "slot2",
@@ -154,6 +154,9 @@ PUMP_OUTPUTS = (
     "hose_flow", "booster_leak", "valve_flow", "reed_force", "mass_total", "inlet_length",
     "exhaust_length", "vane_volume", "motor_residual",
 )
+# Model 2 with gas: also the vanes' kinematics and friction coefficients, for the design
+# studies' outputs of a config with gas tables (friction split per vane, paradox)
+PUMP_OUTPUTS = PUMP_OUTPUTS_COMMON + ("sdot", "tip_slip", "mu_housing", "mu_slot", "ambiguity")
 _PNEUMATIC = {
     "cell_geometry": Signature(("theta", "p"), ("volume", "dvolume", "vane_volume", "inlet_length",
                                                 "exhaust_length", "s", "alpha", "position_residual",
@@ -173,7 +176,7 @@ _PNEUMATIC_TABLE = {
 
 
 # Model 1 with gas (spec §2 and §8): the vanes' own states, contacts and lift-off
-PUMP_CONTACT_OUTPUTS = PUMP_OUTPUTS + (
+PUMP_CONTACT_OUTPUTS = PUMP_OUTPUTS_COMMON + (
     "sdot", "penetration", "bottom", "alpha", "tip_slip", "ambiguity", "potential_energy",
     "contact_power", "volume_rate",
 )

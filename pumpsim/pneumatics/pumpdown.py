@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, SolverError
 from ..tolerances import (CONTACT_PUMPDOWN_ATOL, CONTACT_PUMPDOWN_RTOL, LIFT_OFF_ROUNDING_REL, PUMPDOWN_ATOL,
                           PUMPDOWN_RTOL)
 from . import run
@@ -219,6 +219,8 @@ class PumpMaps:
     steps: int = 0
     revolutions: list = field(default_factory=list)  # per map point: one revolution's traces
     runup: dict = field(default_factory=dict)  # motor start from rest at the start pressure
+    end_states: list = field(default_factory=list)  # per map point: the state its averaging ended on
+    p: np.ndarray | None = None  # the runtime parameters the maps ran with (booster held)
 
 
 def _crossing(theta, k_rev):
@@ -277,7 +279,7 @@ def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL, p=None) ->
         volt = v["motor.voltage"] if cfg.pneumatic.motor else 0.0
         current = q["electrical_energy"] / (volt * dt) if volt else float(np.mean(r.states[:, 2]))
         rows.append((pb, mdot, mdot * RT / pb, current, q["shaft_work"] / (w * dt), w,
-                     q["gas_work"] / (w * dt), q["friction_work"] / (w * dt)))
+                     q["gas_work"] / (w * dt), q["friction_work"] / (w * dt), r.states[-1]))
         one = slice(0, int(math.ceil(_crossing(th, 1))) + 1)  # the first revolution, for figures
         o = r.outputs
         revs.append({"booster_pressure": pb, "angle": th[one] - th[0], "volume": o["volume"][one, 0],
@@ -285,11 +287,39 @@ def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL, p=None) ->
                      "gas_torque": o["gas_torque"][one],
                      "friction_torque": o["friction_power"][one] / r.states[one, 1]})
         x = r.states[-1]
-    rows.sort()
-    a = np.array(rows).T
+    rows.sort(key=lambda row: row[0])
+    a = np.array([row[:-1] for row in rows]).T
     revs.sort(key=lambda d: d["booster_pressure"])
     return PumpMaps(*a, wall_time=_time.perf_counter() - wall0, steps=steps, revolutions=revs,
-                    runup=runup)
+                    runup=runup, end_states=[row[-1] for row in rows], p=p)
+
+
+STEADY_OVERSAMPLING = 16  # integrator output samples per requested angle (linear interpolation)
+
+
+def steady_revolution(cfg, maps: PumpMaps, k: int, angles, names=None,
+                      rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL) -> dict:
+    """pump_outputs over one revolution of map point k's periodic steady state, at the rotor
+    angles given (one revolution, any start): the run continues from the state the map's averaging
+    ended on for one more revolution, and each output is interpolated in angle from
+    STEADY_OVERSAMPLING samples per requested one. Per-sample outputs (n,), per cell/vane (n, N)."""
+    angles = np.asarray(angles, dtype=float)
+    x = maps.end_states[k]
+    T_rev = 2 * math.pi / max(x[1], 1.0)
+    rate = STEADY_OVERSAMPLING * angles.size / T_rev
+    r = run.integrate(cfg, 1.05 * T_rev, rate, p=maps.p, x0=x, rtol=rtol, atol=atol)
+    th = r.states[:, 0]
+    if np.any(np.diff(th) <= 0):
+        raise SolverError("the pump does not turn steadily forward at this operating point, so its "
+                          "revolution in periodic steady state is not defined")
+    at = th[0] + np.mod(angles - th[0], 2 * math.pi)  # each angle once, within the run's revolution
+    out = {}
+    for nm, a in r.outputs.items():
+        if names is None or nm in names:
+            a = np.asarray(a, dtype=float)
+            out[nm] = (np.interp(at, th, a) if a.ndim == 1
+                       else np.stack([np.interp(at, th, col) for col in a.T], axis=1))
+    return out
 
 
 def fast_pumpdown(cfg, maps: PumpMaps, until=None, duration=120.0) -> dict:

@@ -13,7 +13,7 @@ from pumpsim.pneumatics import pumpdown as pdm
 from pumpsim.pneumatics import run
 from tests.conftest import EXAMPLES
 from tests.tolerances import (CLOSED_FORM_REL, GAS_CURRENT_VS_PUMPDOWN_REL, GAS_FLOW_VS_PUMPDOWN_REL,
-                              ROUNDING_REL)
+                              GAS_STUDY_BALANCE_REL, ROUNDING_REL)
 
 EVP = str(EXAMPLES / "evp_booster.toml")
 RIG = str(EXAMPLES / "test_rig.toml")
@@ -53,9 +53,53 @@ def test_gas_outputs_agree_with_the_pneumatics_api_and_a_full_pumpdown():
     for k in ("pumping_speed", "gas_power", "speed"):
         assert row[k] == pytest.approx(full[k], rel=GAS_FLOW_VS_PUMPDOWN_REL), k
     assert row.mean_current == pytest.approx(full["mean_current"], rel=GAS_CURRENT_VS_PUMPDOWN_REL)
-    # the mechanical outputs are those of the motor's speed: the constrained model's friction power
-    # is the mean drive power there (spec §4), below the shaft power the motor delivers
+    # the friction is part of the shaft power the motor delivers (the gas power the rest)
     assert 0 < row.friction_power < row.mean_current * cfg.pneumatic.values["motor.voltage"]
+
+
+def test_a_gas_config_is_studied_pumping_its_outputs_carry_the_gas_loads():
+    """Spec §8: the drive torque includes the gas torque. Over a revolution of periodic steady
+    state the shaft power is the friction power plus the gas power (the kinetic energy repeats);
+    the study's mean torque meets that balance to the speed ripple's order, and the gas loads
+    raise it above the mechanics alone by at least the gas torque (they press the vanes harder)."""
+    pb = 60e3
+    cfg = load_config(EVP)
+    s = study_from_dict({"study": {"config": EVP, "sampler": "grid", "booster_pressure": pb},
+                         "vary": {"vane.mass": {"values": [0.00135]}}})
+    row = design.sweep(s, workers=0)[0].iloc[0]
+    assert row.status == "ok"
+    m = pdm.pump_maps(cfg, [pb])
+    assert row.speed == pytest.approx(m.speed[0], rel=ROUNDING_REL)
+    shaft = row.mean_torque * row.speed
+    assert shaft == pytest.approx(row.friction_power + row.gas_power, rel=GAS_STUDY_BALANCE_REL)
+    assert row.friction_power == pytest.approx(m.friction_torque[0] * m.speed[0], rel=GAS_STUDY_BALANCE_REL)
+    # the same design with the mechanics alone, at the motor's speed
+    mech = _mechanics_alone(s, {"vane.mass": 0.00135}, row.speed)
+    assert row.mean_torque > mech["mean_torque"] + m.gas_torque[0]
+    assert row.max_slot_force > mech["max_slot_force"]
+
+
+def _mechanics_alone(study, values, speed):
+    """The design's outputs from the mechanical kernel alone (no gas loads) at speed."""
+    from pumpsim.design.evaluate import evaluate_designs, prepare, revolution
+    from pumpsim.design.outputs import reduce_revolution
+    from pumpsim.kernels import load_kernels
+
+    pr = prepare(study, values)
+    kern = load_kernels(pr.cfg.structure_for("constrained"))
+    theta = revolution(pr.cfg.angle, study.revolution_samples)
+    ev = evaluate_designs(kern, pr.p[None, :], theta[None, :], np.array([speed]))
+    return reduce_revolution({k: v[0] for k, v in ev.items()}, pr.constants())[0]
+
+
+def test_a_gas_config_refuses_the_contact_model_and_the_optimiser():
+    with pytest.raises(Exception, match="study.model.*gas tables"):
+        study_from_dict({"study": {"config": EVP, "model": "contact"}, "vary": {"vane.mass": {"values": [0.0012]}}})
+    s = study_from_dict({"study": {"config": EVP}, "objective": {"minimize": "mean_torque"},
+                         "vary": {"vane.mass": {"bounds": [0.001, 0.002], "distribution": "uniform",
+                                                "low": 0.001, "high": 0.002}}})
+    with pytest.raises(Exception, match="gas tables.*no kernel gradient"):
+        design.optimize(s)
 
 def test_gas_outputs_without_the_gas_tables_exit_2_naming_the_output(tmp_path, capsys):
     st = tmp_path / "s.toml"
