@@ -209,3 +209,13 @@ def test_the_summary_of_a_run_with_its_own_sample_count_reads_it_back(tmp_path, 
     assert code == 0 and "6 designs" in text, err
     code, text, err = run(capsys, "sweep", st, "--out", out, "--summary")
     assert code == 0 and "6 designs" in text and "status complete" in text, text + err
+
+
+def test_a_gas_model_with_one_vane_is_refused_before_any_work(tmp_path, capsys):
+    # one vane makes one cell that spans the inlet and the exhaust: nothing to pump, no cell
+    # between two vanes (a refusal, not a failure after the whole integration)
+    path = tmp_path / "c.toml"
+    path.write_text(toml_text(apply_changes(example_dict("evp_booster"), {"rotor.vanes": 1})))
+    code, _, err = run(capsys, "pumpdown", path, "--duration", "0.02", "--out", tmp_path / "o.csv")
+    assert code == 2 and "rotor.vanes = 1" in err and "at least 2 vanes" in err, err
+    assert not (tmp_path / "o.csv").exists()
