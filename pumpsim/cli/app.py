@@ -49,7 +49,37 @@ def main(argv=None) -> int:
         return report_interrupt(e if isinstance(e, interrupt.Interrupted) else interrupt.Interrupted())
 
 
+class _PipeSafeStdout:
+    """sys.stdout whose reader may leave (`pumpsim ... | head -1`): from then on the printed text
+    goes to /dev/null and the command goes on, so the files it was asked to write are written."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def _gone(self):
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._gone()
+            return len(text)
+
+    def flush(self):
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._gone()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _main(argv) -> int:
+    if not isinstance(sys.stdout, _PipeSafeStdout) and sys.stdout is not None:
+        sys.stdout = _PipeSafeStdout(sys.stdout)
     ap = build_parser()
     try:
         a = ap.parse_args(argv)

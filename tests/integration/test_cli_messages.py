@@ -106,3 +106,22 @@ def test_kernel_build_messages_follow_the_commands_verbosity(capsys, quiet, show
     assert ("building the kernel x (test)" in capsys.readouterr().err) == shown
     log_build("building the kernel y (test)")
     assert "pumpsim: building the kernel y (test)" in capsys.readouterr().err
+
+
+def test_a_reader_that_leaves_early_does_not_cost_the_files(tmp_path):
+    """`pumpsim identify ... --json F | head -1`: the pipe closes before the command prints; the
+    command still finishes, writes its file and exits 0 (its printed text goes nowhere)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    js = tmp_path / "fit.json"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    p = subprocess.Popen([sys.executable, "-m", "pumpsim", "identify", CFG, DATA, "--params", "mu",
+                          "--json", str(js)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    p.stdout.close()  # the reader is gone before the first line
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 0, err.decode()
+    assert json.loads(js.read_text())["params"]["mu"]["value"] == pytest.approx(0.203, rel=0.01)
+    assert b"Traceback" not in err and b"BrokenPipe" not in err
