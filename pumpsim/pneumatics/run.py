@@ -420,28 +420,49 @@ def _finished(integ, kern, p, trace, events, t_target, wall0) -> PumpdownRun:
     return PumpdownRun(np.array(trace.times), X, np.array(trace.qs), outs, stats, events, t_target, p, peak)
 
 
+PEAK_SUBSTEP = 5e-5  # s: the grid an output interval is re-integrated on to find the current's peak
+
+
 def peak_current(integ, times, X, modes) -> float:
-    """|current| at its maximum, located between the output samples: the largest sample brackets
-    the maximum with a neighbour where di/dt (the kernel's rate) changes sign, and the root of
-    di/dt there is found by Illinois on re-integrations from the interval's start, as the target
-    is. The largest sample itself where nothing brackets (a maximum at the run's ends, a valve
-    event inside the interval, constant speed)."""
-    i = X[:, 2]
-    k = int(np.argmax(np.abs(i)))
-    sign = 1.0 if i[k] >= 0 else -1.0
+    """|current| at its maximum, located between the output samples, however coarse they are:
+    the first interval (the inrush of a start from rest) and the two beside the largest sample are
+    re-integrated on a PEAK_SUBSTEP grid (a peak can lie anywhere inside a long interval, the
+    inrush's within milliseconds of the start), and the largest sub-sample's bracket, where
+    di/dt (the kernel's rate) changes sign, is closed by Illinois on re-integrations from the
+    bracket's start, as the target is. The largest sample itself where nothing brackets (a maximum
+    at the run's ends, a valve event inside the interval, constant speed)."""
+    i = np.abs(X[:, 2])
+    k = int(np.argmax(i))
+    best = float(i[k])
+    for a in sorted({0, k - 1, k}):
+        if 0 <= a < len(X) - 1 and modes[a + 1] is not None:
+            best = max(best, _interval_peak(integ, times[a], times[a + 1], X[a], modes[a + 1]))
+    return best
+
+
+def _interval_peak(integ, t_a, t_b, x_a, mode) -> float:
+    """The largest |current| over [t_a, t_b] from x_a: on a sub-grid, then located (peak_current)."""
+    m = max(1, int(math.ceil((t_b - t_a) / PEAK_SUBSTEP - 1e-9)))
+    h = (t_b - t_a) / m
+    Xs = np.vstack([x_a[None, :], integ.grid(x_a, mode, h, m, t_a)[0]]) if m > 1 else None
+    if Xs is None:
+        Xs = np.vstack([x_a[None, :], integ.step(x_a, mode, h, t_a)[0][None, :]])
+    cur = np.abs(Xs[:, 2])
+    k = int(np.argmax(cur))
+    sign = 1.0 if Xs[k, 2] >= 0 else -1.0
     rate = lambda x, t: sign * float(integ.kern["pump_rhs"](x, integ.p_at(t))[0][2])  # noqa: E731
-    g_k = rate(X[k], times[k])
+    g_k = rate(Xs[k], t_a + k * h)
     j = k + 1 if g_k > 0 else k - 1  # the neighbour on the side the maximum lies
-    if g_k == 0.0 or not 0 <= j < len(X):
-        return abs(i[k])
-    a = min(j, k)
-    g_a, g_b = (g_k, rate(X[j], times[j])) if a == k else (rate(X[j], times[j]), g_k)
-    if not (g_a > 0 > g_b) or modes[a + 1] is None:
-        return abs(i[k])
-    x_a, mode, d = X[a], modes[a + 1], times[a + 1] - times[a]
-    t_a = times[a]
-    root = illinois(lambda s: rate(integ.step(x_a, mode, s, t_a)[0], t_a + s), 0.0, d, g_a, g_b, EVENT_TIME_TOL)
-    return max(abs(i[k]), abs(integ.step(x_a, mode, root, t_a)[0][2]))
+    if g_k == 0.0 or not 0 <= j < len(Xs):
+        return float(cur[k])
+    lo = min(j, k)
+    g_lo, g_hi = (g_k, rate(Xs[j], t_a + j * h)) if lo == k else (rate(Xs[j], t_a + j * h), g_k)
+    if not g_lo > 0 > g_hi:
+        return float(cur[k])
+    t_lo = t_a + lo * h
+    root = illinois(lambda s: rate(integ.step(Xs[lo], mode, s, t_lo)[0], t_lo + s), 0.0, h, g_lo, g_hi,
+                    EVENT_TIME_TOL)
+    return max(float(cur[k]), abs(float(integ.step(Xs[lo], mode, root, t_lo)[0][2])))
 
 
 def _first_reed_switch(kern, p, x, X, mode) -> int:

@@ -169,3 +169,7 @@ def test_peak_current_is_located_between_samples():
     assert coarse.summary["peak_current"] == pytest.approx(fine_peak, rel=PEAK_CURRENT_REL)
     assert abs(sampled - fine_peak) > 5 * PEAK_CURRENT_REL * fine_peak  # the test can tell
     assert fine.summary["peak_current"] == pytest.approx(fine_peak, rel=PEAK_CURRENT_REL)
+    # an output every 0.1 s: the inrush lies inside the first interval, its largest sample is not
+
+    sparse = pdm.pumpdown(cfg, duration=0.5, rate=10.0, rtol=1e-7, atol=1e-9)
+    assert sparse.summary["peak_current"] == pytest.approx(fine_peak, rel=PEAK_CURRENT_REL)
