@@ -51,6 +51,9 @@ START_SAMPLES = 20  # samples a quadratic is fitted to for the log's start press
 ATMOSPHERE_MARGIN = 0.005
 VOLTAGE_FACTOR = 5.0  # a median voltage this far from motor.voltage is a unit mistake
 MIN_SAMPLES = 10
+# the motor is off where the supply reads under this share of its running level (the 90th
+# percentile of |voltage|): a log's idle lead-in before the switch-on, or its tail after a switch-off
+IDLE_VOLTAGE_SHARE = 0.1
 SPIKE_SIGMAS = 12.0  # a single sample this many noise sigmas off its agreeing neighbours is a glitch
 SPIKES_LISTED = 5
 # Names loggers give the bench channels, compared in lower case with runs of other characters as
@@ -278,7 +281,35 @@ def _load(p: Path, cfg, options: DataOptions) -> BenchLog:
     for key in ("voltage", "current", "booster_pressure", "speed"):
         if key in si:
             si[key] = _despiked(si[key], key, src.rows, where, name[key], notes)
-    return BenchLog(t, si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
+    keep = _powered(t, si["voltage"], notes)
+    if keep.stop - keep.start < MIN_SAMPLES:
+        raise DataError(f"has {keep.stop - keep.start} samples with the motor powered (supply above "
+                        f"{100 * IDLE_VOLTAGE_SHARE:.0f} % of its running level); at least {MIN_SAMPLES} are needed")
+    si = {k: a[keep] for k, a in si.items()}
+    return BenchLog(t[keep], si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
+
+
+def _powered(t, v, notes) -> slice:
+    """The samples from the switch-on to the switch-off. The model starts the pump at rest at the
+    log's first sample and drives it with the logged voltage, switched on there: a lead-in with the
+    motor off is left out up to the first powered sample (as a log that starts at the switch-on;
+    a sample interval's ramp from 0 V instead would shape the inrush, which rises over L/R), a
+    tail after a switch-off from its first (an open relay: the supply side reads
+    0 V while the pump coasts with no current, which a motor model driven by 0 V would brake)."""
+    av = np.abs(v)
+    on = av >= IDLE_VOLTAGE_SHARE * float(np.percentile(av, 90))
+    idx = np.flatnonzero(on)
+    if not idx.size:
+        return slice(0, 0)
+    start, stop = int(idx[0]), min(int(idx[-1]) + 2, t.size)
+    if start > 0:
+        notes.append(f"the first {t[start] - t[0]:.4g} s ({start} samples) are the motor off before its "
+                     f"switch-on (supply under {100 * IDLE_VOLTAGE_SHARE:.0f} % of its running level): left "
+                     f"out, the model starts at rest, switched on, at t = {t[start]:.6g} s")
+    if stop < t.size:
+        notes.append(f"the last {t[-1] - t[stop - 1]:.4g} s ({t.size - stop} samples) are the motor off "
+                     f"after its switch-off: left out")
+    return slice(start, stop)
 
 
 def _unit(key, head, option, where):

@@ -188,3 +188,29 @@ def test_a_parquet_bench_log_reads_as_its_csv(tmp_path):
     a, b = read_bench_log(csv, CFG), read_bench_log(tmp_path / "log.parquet", CFG)
     for channel in ("time", "voltage", "current", "booster_pressure"):
         np.testing.assert_allclose(getattr(b, channel), getattr(a, channel), rtol=1e-8)
+
+
+def test_the_motor_off_before_the_switch_on_and_after_the_switch_off_is_left_out(tmp_path):
+    """The model starts the pump at rest, switched on, at the log's first sample: 30 idle samples
+    (0 V +- noise) before the switch-on and 10 after a switch-off (an open relay: 0 V, 0 A) are cut,
+    each with a note; the powered samples are the log's, at their own times."""
+    rng = np.random.default_rng(3)
+    powered = _rows(60)
+    idle = lambda t: (t, 0.02 * rng.standard_normal(), 0.01 * rng.standard_normal(), 101.3)  # noqa: E731
+    rows = ([idle(-0.03 + k / 1000.0) for k in range(30)] + powered
+            + [idle(0.06 + k / 1000.0) for k in range(10)])
+    f = _write(tmp_path / "log.csv", "time,voltage,current,booster_pressure [kPa abs]", rows)
+    log = read_bench_log(f, CFG)
+    assert log.n == 60 + 1  # the switch-off's sample is kept: the motor was on until then
+    assert log.time[0] == pytest.approx(0.0) and log.voltage[0] == pytest.approx(13.5)
+    assert any("before its switch-on" in n and "30 samples" in n for n in log.notes)
+    assert any("after its switch-off" in n and "9 samples" in n for n in log.notes)
+    plain = read_bench_log(_write(tmp_path / "plain.csv", "time,voltage,current,booster_pressure [kPa abs]",
+                                  powered), CFG)
+    assert np.array_equal(log.current[:60], plain.current) and not plain.notes
+
+
+def test_a_log_with_the_motor_never_on_is_refused(tmp_path):
+    rows = [(k / 1000.0, 0.0, 0.0, 101.3) for k in range(50)]
+    with pytest.raises(DataError, match="median supply voltage|motor powered"):
+        read_bench_log(_write(tmp_path / "off.csv", "time,voltage,current,booster_pressure [kPa abs]", rows), CFG)
