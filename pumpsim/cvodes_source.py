@@ -40,6 +40,8 @@ typedef struct {
   /* timing (drv_timing): wall seconds inside the right-hand side, the Jacobian (each with the
      table's interpolation) and drv_run */
   int timing; double wrhs, wjac, wrun;
+  /* blk: the leading-block solver is attached; mzero: the Newton matrix was zeroed once */
+  int blk, mzero;
 } drv_t;
 
 static double wall_now(void) {
@@ -292,11 +294,83 @@ static int linsys(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix M, sunboolea
     if (d->timing) d->wjac += wall_now() - w0;
     memcpy(d->jsave, d->jbuf, d->jnnz * sizeof(double));
   }
-  SUNMatZero(M);
   double *A = SM_DATA_D(M);  /* column-major, leading dimension n; jpos = col * n + row */
+  /* the leading-block solver factors a copy: M keeps its zeros, and only the Jacobian's nonzeros
+     and the diagonal are written again (zeroing all of M was a sixth of the set-up) */
+  if (!d->blk || !d->mzero) { SUNMatZero(M); d->mzero = d->blk; }
+  else for (long i = 0; i < d->n; i++) A[i * d->n + i] = 0.0;
   for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = -gamma * d->jsave[k];
   for (long i = 0; i < d->n; i++) A[i * d->n + i] += 1.0;
   return 0;
+}
+
+/* The serial vector's operations that CVODES calls at every step, compiled with the driver: the
+   same arithmetic, element by element and in the same order, as SUNDIALS' serial vector (its
+   special cases of LinearSum included: x + y, c (x + y), ... round alike only where written alike),
+   so the results do not change; a distribution's SUNDIALS may be built without optimisation
+   (Debian's 6.4: -O0, where these loops were a third of CVODES' own work). */
+#define VLEN(v) NV_LENGTH_S(v)
+#define VD(v) NV_DATA_S(v)
+static void fv_linearsum(sunrealtype a, N_Vector x, sunrealtype b, N_Vector y, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x), *yd = VD(y); double *zd = VD(z);
+  if (a == b && !(a == 1.0 || a == -1.0)) { for (long i = 0; i < n; i++) zd[i] = a * (xd[i] + yd[i]); return; }
+  if (a == -b && !(a == 1.0 || a == -1.0)) { for (long i = 0; i < n; i++) zd[i] = a * (xd[i] - yd[i]); return; }
+  /* every other case of SUNDIALS' (axpy, sum, difference, a x + y, a x - y, general) is a x + b y
+     rounded alike: products by +-1 are exact */
+  for (long i = 0; i < n; i++) zd[i] = (a * xd[i]) + (b * yd[i]);
+}
+static void fv_const(sunrealtype c, N_Vector z) {
+  long n = VLEN(z); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = c;
+}
+static void fv_prod(N_Vector x, N_Vector y, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x), *yd = VD(y); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = xd[i] * yd[i];
+}
+static void fv_div(N_Vector x, N_Vector y, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x), *yd = VD(y); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = xd[i] / yd[i];
+}
+static void fv_scale(sunrealtype c, N_Vector x, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = c * xd[i];
+}
+static void fv_abs(N_Vector x, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = fabs(xd[i]);
+}
+static void fv_inv(N_Vector x, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = 1.0 / xd[i];
+}
+static void fv_addconst(N_Vector x, sunrealtype b, N_Vector z) {
+  long n = VLEN(x); const double *xd = VD(x); double *zd = VD(z);
+  for (long i = 0; i < n; i++) zd[i] = xd[i] + b;
+}
+static sunrealtype fv_wsqrsum(N_Vector x, N_Vector w) {
+  long n = VLEN(x); const double *xd = VD(x), *wd = VD(w); double sum = 0.0;
+  for (long i = 0; i < n; i++) { double q = xd[i] * wd[i]; sum += q * q; }
+  return sum;
+}
+static sunrealtype fv_wrmsnorm(N_Vector x, N_Vector w) { return sqrt(fv_wsqrsum(x, w) / VLEN(x)); }
+static sunrealtype fv_maxnorm(N_Vector x) {
+  long n = VLEN(x); const double *xd = VD(x); double m = 0.0;
+  for (long i = 0; i < n; i++) if (fabs(xd[i]) > m) m = fabs(xd[i]);
+  return m;
+}
+static sunrealtype fv_min(N_Vector x) {
+  long n = VLEN(x); const double *xd = VD(x); double m = xd[0];
+  for (long i = 1; i < n; i++) if (xd[i] < m) m = xd[i];
+  return m;
+}
+
+/* v's (and its clones') hot operations by the driver's own */
+static void fast_ops(N_Vector v) {
+  N_Vector_Ops o = v->ops;
+  o->nvlinearsum = fv_linearsum; o->nvconst = fv_const; o->nvprod = fv_prod; o->nvdiv = fv_div;
+  o->nvscale = fv_scale; o->nvabs = fv_abs; o->nvinv = fv_inv; o->nvaddconst = fv_addconst;
+  o->nvwrmsnorm = fv_wrmsnorm; o->nvwsqrsumlocal = fv_wsqrsum; o->nvmaxnorm = fv_maxnorm; o->nvmaxnormlocal = fv_maxnorm;
+  o->nvmin = fv_min; o->nvminlocal = fv_min;
 }
 
 #if SUNDIALS_VERSION_MAJOR < 7
@@ -321,6 +395,7 @@ drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_s
   d->jsave = calloc(jnnz > 0 ? jnnz : 1, sizeof(double));
   d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
   d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
+  fast_ops(d->y); fast_ops(d->atol);
   for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
   d->cv = CVodeCreate(CV_BDF, d->ctx);
   if (!d->cv || CVodeInit(d->cv, rhs, 0.0, d->y) || CVodeSVtolerances(d->cv, rtol, d->atol)) return NULL;
@@ -476,7 +551,7 @@ int drv_block_solver(drv_t *d, int nl) {
   if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetLinSysFn(d->cv, linsys)) {
     blk_free(S); return -1;
   }
-  SUNLinSolFree(d->LS); d->LS = S;
+  SUNLinSolFree(d->LS); d->LS = S; d->blk = 1; d->mzero = 0;
   return 0;
 }
 
@@ -489,6 +564,10 @@ int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
   if (nlscoef > 0) f |= CVodeSetNonlinConvCoef(d->cv, nlscoef);
   return f;
 }
+
+/* the band of step-size ratios that leave the step unchanged after a successful step (CVODES'
+   default [0, 1.5]: a step is never shrunk before it fails) */
+int drv_step_bounds(drv_t *d, double lo, double hi) { return CVodeSetEtaFixedStepBounds(d->cv, lo, hi); }
 
 /* one step at a time from (t0, y0) until tend (the last step may pass it), at most maxrec steps;
    per step in rec (stride 6 + n): t, h, order, y[0], the error-test and Newton failures since the
