@@ -66,7 +66,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_new.restype = p
     dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
-                            ctypes.c_longlong, p, p]
+                            ctypes.c_longlong, p, p, ctypes.c_int]
     dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
     dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p, ctypes.c_int, p]
     dll.drv_drive_offset.argtypes = [p, ctypes.c_double]
@@ -184,10 +184,11 @@ class Driver:
     on the leading block only, by the driver's own LU, with the same results as SUNDIALS' dense
     solver (None) and faster; lin_size = n: the whole system by that LU. keep_step: (lo, hi),
     the ratios of the next step to the last that CVODES leaves the step at after a success
-    (None: its default (0, 1.5), which never shrinks a step before it fails)."""
+    (None: its default (0, 1.5), which never shrinks a step before it fails). sundials_vectors:
+    SUNDIALS' own serial vector operations instead of the driver's (the same results; a check)."""
 
     def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
-                 max_step=None, jac_every=None, lin_size=None, keep_step=None):
+                 max_step=None, jac_every=None, lin_size=None, keep_step=None, sundials_vectors=False):
         self.lib = library()
         if self.lib is None:
             raise OSError(available()[1])
@@ -219,7 +220,7 @@ class Driver:
             n, float(rtol), _ptr(self.atol), int(max_order), int(max_steps), float(max_step or 0.0),
             rhs.address(), _ptr(rhs.arg), _ptr(rhs.res), _ptr(rhs.iw), _ptr(rhs.w), rhs.slot, self.off.size,
             _ptr(self.off), jac.address(), _ptr(jac.arg), _ptr(jac.res), _ptr(jac.iw), _ptr(jac.w), jac.slot,
-            self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
+            self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf), int(not sundials_vectors))
         if not self.handle:
             raise OSError("SUNDIALS could not set up CVODES")
         if lin_size is not None and lin_size <= n and self.lib.drv_block_solver(self.handle, int(lin_size)):

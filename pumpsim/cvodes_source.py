@@ -384,7 +384,7 @@ const char *drv_message(drv_t *d) { return d->msg; }
 drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_steps, double max_step,
                fn_t f, const double **farg, double **fres, ci *fiw, double *fw, int fslot, int nout,
                const ci *off, fn_t j, const double **jarg, double **jres, ci *jiw, double *jw, int jslot,
-               ci jnnz, const ci *jpos, const double *jbuf) {
+               ci jnnz, const ci *jpos, const double *jbuf, int own_ops) {
   drv_t *d = calloc(1, sizeof(drv_t));
 #if SUNDIALS_VERSION_MAJOR >= 7
   if (SUNContext_Create(SUN_COMM_NULL, &d->ctx)) return NULL;
@@ -395,7 +395,7 @@ drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_s
   d->jsave = calloc(jnnz > 0 ? jnnz : 1, sizeof(double));
   d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
   d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
-  fast_ops(d->y); fast_ops(d->atol);
+  if (own_ops) { fast_ops(d->y); fast_ops(d->atol); }
   for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
   d->cv = CVodeCreate(CV_BDF, d->ctx);
   if (!d->cv || CVodeInit(d->cv, rhs, 0.0, d->y) || CVodeSVtolerances(d->cv, rtol, d->atol)) return NULL;
