@@ -32,8 +32,8 @@ ENV = "PUMPSIM_CVODES"
 TIMING_ENV = "PUMPSIM_CVODES_TIMING"  # "1": the driver times its kernel calls (Driver.times)
 LIBS = ["-lsundials_cvodes", "-lsundials_nvecserial", "-lsundials_sunmatrixdense",
         "-lsundials_sunlinsoldense", "-lm"]
-# -O3: the Newton systems' LU and solves and the geometry table's interpolation are loops over
-# contiguous columns that -O2 leaves scalar (no reductions among them: the same results)
+# -O3: the driver's vector operations, LU and table interpolation are short loops over contiguous
+# arrays that -O2 leaves mostly scalar; without -ffast-math no sum is reordered (the same results)
 CFLAGS = ["-O3"]
 STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails", "nsens_fevals", "njumps")
 _LIB: dict = {}
