@@ -32,6 +32,9 @@ ENV = "PUMPSIM_CVODES"
 TIMING_ENV = "PUMPSIM_CVODES_TIMING"  # "1": the driver times its kernel calls (Driver.times)
 LIBS = ["-lsundials_cvodes", "-lsundials_nvecserial", "-lsundials_sunmatrixdense",
         "-lsundials_sunlinsoldense", "-lm"]
+# -O3: the driver's vector operations, LU and table interpolation are short loops over contiguous
+# arrays that -O2 leaves mostly scalar; without -ffast-math no sum is reordered (the same results)
+CFLAGS = ["-O3"]
 STAT_NAMES = ("nsteps", "nfevals", "njevals", "nlinsetups", "netfails", "nniters", "nncfails", "nsens_fevals", "njumps")
 _LIB: dict = {}
 
@@ -39,7 +42,7 @@ _LIB: dict = {}
 def _build() -> ctypes.CDLL:
     from .model_spec import manifest as mf
 
-    tag = hashlib.sha1((SOURCE + " ".join(LIBS)).encode()).hexdigest()[:16]
+    tag = hashlib.sha1((SOURCE + " ".join(CFLAGS + LIBS)).encode()).hexdigest()[:16]
     folder = mf.generated_dir() / f"cvodes-driver-{tag}"
     lib = folder / "pumpsim_cvodes.so"
     if not lib.exists():
@@ -49,7 +52,7 @@ def _build() -> ctypes.CDLL:
         tmp = folder / f".{os.getpid()}.so"
         cc = os.environ.get("CC", "cc")
         try:
-            out = subprocess.run([cc, "-O2", "-fPIC", "-shared", str(src), "-o", str(tmp), *LIBS],
+            out = subprocess.run([cc, *CFLAGS, "-fPIC", "-shared", str(src), "-o", str(tmp), *LIBS],
                                  capture_output=True, text=True)
         finally:
             src.unlink()
@@ -63,7 +66,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_new.restype = p
     dll.drv_new.argtypes = [ctypes.c_int, ctypes.c_double, p, ctypes.c_int, ctypes.c_long, ctypes.c_double,
                             p, p, p, p, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, ctypes.c_int,
-                            ctypes.c_longlong, p, p]
+                            ctypes.c_longlong, p, p, ctypes.c_int]
     dll.drv_run.argtypes = [p, ctypes.c_double, p, ctypes.c_int, ctypes.c_int, p, p, p, p, p, p, p, p, p]
     dll.drv_drive.argtypes = [p, p, ctypes.c_int, ctypes.c_double, ctypes.c_int, p, ctypes.c_int, p]
     dll.drv_drive_offset.argtypes = [p, ctypes.c_double]
@@ -78,6 +81,7 @@ def _build() -> ctypes.CDLL:
     dll.drv_free.argtypes = [p]
     dll.drv_tune.argtypes = [p, ctypes.c_int, ctypes.c_long, ctypes.c_double]
     dll.drv_block_solver.argtypes = [p, ctypes.c_int]
+    dll.drv_step_bounds.argtypes = [p, ctypes.c_double, ctypes.c_double]
     dll.drv_profile.argtypes = [p, ctypes.c_double, p, ctypes.c_double, ctypes.c_long, p, p]
     dll.drv_rows.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_long, p, ctypes.c_long, ctypes.c_int, p, p]
     return dll
@@ -178,10 +182,13 @@ class Driver:
     most (CVODES' default 51); lin_size: the Jacobian's rows from lin_size on are zero (states
     that do not feed back, such as quadratures riding along): the Newton systems are then solved
     on the leading block only, by the driver's own LU, with the same results as SUNDIALS' dense
-    solver (None) and faster; lin_size = n: the whole system by that LU."""
+    solver (None) and faster; lin_size = n: the whole system by that LU. keep_step: (lo, hi),
+    the ratios of the next step to the last that CVODES leaves the step at after a success
+    (None: its default (0, 1.5), which never shrinks a step before it fails). sundials_vectors:
+    SUNDIALS' own serial vector operations instead of the driver's (the same results; a check)."""
 
     def __init__(self, n, rhs, out_offsets, jac, jac_blocks, rtol, atol, max_order=5, max_steps=500000,
-                 max_step=None, jac_every=None, lin_size=None):
+                 max_step=None, jac_every=None, lin_size=None, keep_step=None, sundials_vectors=False):
         self.lib = library()
         if self.lib is None:
             raise OSError(available()[1])
@@ -213,13 +220,18 @@ class Driver:
             n, float(rtol), _ptr(self.atol), int(max_order), int(max_steps), float(max_step or 0.0),
             rhs.address(), _ptr(rhs.arg), _ptr(rhs.res), _ptr(rhs.iw), _ptr(rhs.w), rhs.slot, self.off.size,
             _ptr(self.off), jac.address(), _ptr(jac.arg), _ptr(jac.res), _ptr(jac.iw), _ptr(jac.w), jac.slot,
-            self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf))
+            self.jpos.size, _ptr(self.jpos), _ptr(self.jbuf), int(not sundials_vectors))
         if not self.handle:
             raise OSError("SUNDIALS could not set up CVODES")
         if lin_size is not None and lin_size <= n and self.lib.drv_block_solver(self.handle, int(lin_size)):
             raise OSError("SUNDIALS could not set up the leading-block linear solver")
         if jac_every:
             self.lib.drv_tune(self.handle, 0, int(jac_every), 0.0)
+        if keep_step is not None:
+            lo, hi = (float(v) for v in keep_step)
+            if not 0.0 <= lo < 1.0 < hi:  # CVODES would put its default in silently
+                raise ValueError(f"keep_step = {keep_step}: needs 0 <= lo < 1 < hi")
+            self.lib.drv_step_bounds(self.handle, lo, hi)
         self._times = np.zeros(3)
         self.timed = os.environ.get(TIMING_ENV, "") == "1"
         self.lib.drv_timing(self.handle, int(self.timed), _ptr(self._times))

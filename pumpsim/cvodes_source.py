@@ -2,6 +2,8 @@
 the kernels' C entry points, a drive (a time-dependent input), root finding, forward sensitivities
 with jumps at switches of the right-hand side, and the leading-block dense linear solver."""
 
+from .cvodes_vectors import VECTOR_OPS
+
 SOURCE = r"""
 #include <stdio.h>
 #include <stdlib.h>
@@ -40,6 +42,8 @@ typedef struct {
   /* timing (drv_timing): wall seconds inside the right-hand side, the Jacobian (each with the
      table's interpolation) and drv_run */
   int timing; double wrhs, wjac, wrun;
+  /* blk: the leading-block solver is attached; mzero: the Newton matrix was zeroed once */
+  int blk, mzero;
 } drv_t;
 
 static double wall_now(void) {
@@ -292,14 +296,17 @@ static int linsys(sunrealtype t, N_Vector y, N_Vector fy, SUNMatrix M, sunboolea
     if (d->timing) d->wjac += wall_now() - w0;
     memcpy(d->jsave, d->jbuf, d->jnnz * sizeof(double));
   }
-  SUNMatZero(M);
   double *A = SM_DATA_D(M);  /* column-major, leading dimension n; jpos = col * n + row */
+  /* the leading-block solver factors a copy: M keeps its zeros, and only the Jacobian's nonzeros
+     and the diagonal are written again (zeroing all of M was a sixth of the set-up) */
+  if (!d->blk || !d->mzero) { SUNMatZero(M); d->mzero = d->blk; }
+  else for (long i = 0; i < d->n; i++) A[i * d->n + i] = 0.0;
   for (ci k = 0; k < d->jnnz; k++) if (d->jpos[k] >= 0) A[d->jpos[k]] = -gamma * d->jsave[k];
   for (long i = 0; i < d->n; i++) A[i * d->n + i] += 1.0;
   return 0;
 }
 
-#if SUNDIALS_VERSION_MAJOR < 7
+""" + VECTOR_OPS + r"""#if SUNDIALS_VERSION_MAJOR < 7
 static void quiet(int code, const char *mod, const char *fn, char *msg, void *u) {
   drv_t *d = (drv_t *)u; snprintf(d->msg, sizeof d->msg, "%s: %s", fn, msg);
 }
@@ -310,7 +317,7 @@ const char *drv_message(drv_t *d) { return d->msg; }
 drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_steps, double max_step,
                fn_t f, const double **farg, double **fres, ci *fiw, double *fw, int fslot, int nout,
                const ci *off, fn_t j, const double **jarg, double **jres, ci *jiw, double *jw, int jslot,
-               ci jnnz, const ci *jpos, const double *jbuf) {
+               ci jnnz, const ci *jpos, const double *jbuf, int own_ops) {
   drv_t *d = calloc(1, sizeof(drv_t));
 #if SUNDIALS_VERSION_MAJOR >= 7
   if (SUNContext_Create(SUN_COMM_NULL, &d->ctx)) return NULL;
@@ -321,6 +328,7 @@ drv_t *drv_new(int n, double rtol, const double *atol, int max_order, long max_s
   d->jsave = calloc(jnnz > 0 ? jnnz : 1, sizeof(double));
   d->rhs = (call_t){f, farg, fres, fiw, fw, fslot}; d->jac = (call_t){j, jarg, jres, jiw, jw, jslot};
   d->y = N_VNew_Serial(n, d->ctx); d->atol = N_VNew_Serial(n, d->ctx);
+  if (own_ops) { fast_ops(d->y); fast_ops(d->atol); }
   for (int i = 0; i < n; i++) { NV_Ith_S(d->y, i) = 0.0; NV_Ith_S(d->atol, i) = atol[i]; }
   d->cv = CVodeCreate(CV_BDF, d->ctx);
   if (!d->cv || CVodeInit(d->cv, rhs, 0.0, d->y) || CVodeSVtolerances(d->cv, rtol, d->atol)) return NULL;
@@ -476,7 +484,7 @@ int drv_block_solver(drv_t *d, int nl) {
   if (!b->B || !b->piv || CVodeSetLinearSolver(d->cv, S, d->A) || CVodeSetLinSysFn(d->cv, linsys)) {
     blk_free(S); return -1;
   }
-  SUNLinSolFree(d->LS); d->LS = S;
+  SUNLinSolFree(d->LS); d->LS = S; d->blk = 1; d->mzero = 0;
   return 0;
 }
 
@@ -489,6 +497,10 @@ int drv_tune(drv_t *d, int maxcor, long msbj, double nlscoef) {
   if (nlscoef > 0) f |= CVodeSetNonlinConvCoef(d->cv, nlscoef);
   return f;
 }
+
+/* the band of step-size ratios that leave the step unchanged after a successful step (CVODES'
+   default [0, 1.5]: a step is never shrunk before it fails) */
+int drv_step_bounds(drv_t *d, double lo, double hi) { return CVodeSetEtaFixedStepBounds(d->cv, lo, hi); }
 
 /* one step at a time from (t0, y0) until tend (the last step may pass it), at most maxrec steps;
    per step in rec (stride 6 + n): t, h, order, y[0], the error-test and Newton failures since the

@@ -238,3 +238,54 @@ def test_a_shifted_drive_runs_on_its_own_clock(driven):
     t = np.array([0.35, 0.395, 0.45, 0.7])
     _, X = _driven_run(driven, (39, 40), t, offset=0.3)
     assert np.max(np.abs(X[:, 0] - (_ramp_integral(t) - _ramp_integral(0.3)))) < 1e-9
+
+
+@pytest.fixture(scope="module")
+def van_der_pol(tmp_path_factory):
+    """Van der Pol at mu = 50 (stiff, nonlinear: Newton iterations, Jacobian reuse, error-test
+    failures at the relaxation jumps) with a quadrature of x^2 riding along."""
+    if not cvodes_driver.available()[0]:
+        pytest.skip(f"direct CVODES driver not available: {cvodes_driver.available()[1]}")
+    y, p = ca.SX.sym("y", 3), ca.SX.sym("p")
+    xdot = ca.vertcat(y[1], p * (1 - y[0] ** 2) * y[1] - y[0])
+    g = ca.Function("v", [y, p], [xdot, y[0] ** 2])
+    gj = ca.Function("v_jac", [y, p], [ca.jacobian(xdot, y), ca.SX(1, 3)])
+    return _compiled(tmp_path_factory.mktemp("vdp"), "vdp", g, gj), gj.sparsity_out(0), gj.sparsity_out(1)
+
+
+def _vdp_run(van_der_pol, **options):
+    so, sp_x, sp_q = van_der_pol
+    y, p = np.zeros(3), np.array([50.0])
+    rhs = cvodes_driver.KernelCall(so, "v", [y, p], 0)
+    jac = cvodes_driver.KernelCall(so, "v_jac", [y, p], 0)
+    d = cvodes_driver.Driver(3, rhs, [0, 2], jac, [(sp_x, 0), (sp_q, 2)], 1e-6, np.array([1e-8, 1e-6, 1e-7]),
+                             max_order=3, **options)
+    return d.run(0.0, np.array([2.0, 0.0, 0.0]), np.linspace(0.0, 150.0, 301)[1:]), d.stats
+
+
+@pytest.mark.parametrize("lin_size", [None, 2])
+def test_the_drivers_vector_operations_are_sundials_to_the_last_bit(van_der_pol, lin_size):
+    """The driver's own serial vector operations (LinearSum's special cases, norms, the error
+    weights' Abs/Inv/Min) give SUNDIALS' steps, failures and states bit for bit, with SUNDIALS'
+    dense solver and with the leading-block one."""
+    own, st_own = _vdp_run(van_der_pol, lin_size=lin_size)
+    ref, st_ref = _vdp_run(van_der_pol, lin_size=lin_size, sundials_vectors=True)
+    assert st_ref["netfails"] > 0 and st_ref["nsteps"] > 500  # the stiff jumps exercise the step control
+    assert st_own == st_ref
+    assert np.array_equal(own, ref)
+
+
+def test_keeping_steps_in_a_band_takes_other_steps_to_the_same_accuracy(van_der_pol):
+    """keep_step reaches CVODES (it changes the steps: CVODES would take an invalid band as its
+    default silently, so the driver refuses one) and the run stays at the tolerance's accuracy."""
+    ref, st_ref = _vdp_run(van_der_pol)
+    kept, st_kept = _vdp_run(van_der_pol, keep_step=(0.9, 1.2))
+    assert st_kept["nsteps"] != st_ref["nsteps"]
+    again, _ = _vdp_run(van_der_pol, keep_step=(0.9, 1.2))
+    assert np.array_equal(kept, again)  # deterministic
+    # the same solution at the tolerance: x of order 2, measured 2.8e-3 apart at the steepest
+    # rows of its relaxation jumps; a step control that broke the run would be O(1) off
+    assert np.max(np.abs(kept[:, 0] - ref[:, 0])) < 1e-2
+    for bad in ((1.0, 1.2), (0.5, 1.0), (-0.1, 1.5)):
+        with pytest.raises(ValueError, match="keep_step"):
+            _vdp_run(van_der_pol, keep_step=bad)
