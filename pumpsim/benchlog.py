@@ -282,9 +282,6 @@ def _load(p: Path, cfg, options: DataOptions) -> BenchLog:
         if key in si:
             si[key] = _despiked(si[key], key, src.rows, where, name[key], notes)
     keep = _powered(t, si["voltage"], notes)
-    if keep.stop - keep.start < MIN_SAMPLES:
-        raise DataError(f"has {keep.stop - keep.start} samples with the motor powered (supply above "
-                        f"{100 * IDLE_VOLTAGE_SHARE:.0f} % of its running level); at least {MIN_SAMPLES} are needed")
     si = {k: a[keep] for k, a in si.items()}
     return BenchLog(t[keep], si["voltage"], si["current"], si["booster_pressure"], si.get("speed"), str(p), notes)
 
@@ -300,7 +297,7 @@ def _powered(t, v, notes) -> slice:
     on = av >= IDLE_VOLTAGE_SHARE * float(np.percentile(av, 90))
     idx = np.flatnonzero(on)
     if not idx.size:
-        return slice(0, 0)
+        raise DataError("has no sample with the motor powered (the supply voltage is 0 throughout)")
     start, stop = int(idx[0]), min(int(idx[-1]) + 2, t.size)
     if start > 0:
         notes.append(f"the first {t[start] - t[0]:.4g} s ({start} samples) are the motor off before its "
@@ -309,6 +306,9 @@ def _powered(t, v, notes) -> slice:
     if stop < t.size:
         notes.append(f"the last {t[-1] - t[stop - 1]:.4g} s ({t.size - stop} samples) are the motor off "
                      f"after its switch-off: left out")
+    if stop - start < MIN_SAMPLES:
+        raise DataError(f"has {stop - start} samples with the motor powered (supply above "
+                        f"{100 * IDLE_VOLTAGE_SHARE:.0f} % of its running level); at least {MIN_SAMPLES} are needed")
     return slice(start, stop)
 
 
