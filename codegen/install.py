@@ -24,6 +24,19 @@ def _record_fingerprint(folder: Path, fingerprint: str | None) -> None:
         mf.write_manifest(folder, m)
 
 
+def _retire_untrusted(final: Path, variant: str) -> None:
+    """A folder at the build's final name whose library does not match its manifest (a truncated
+    copy, an edited file) is moved aside and removed, so the new build takes its place; without
+    this the rename fails on the folder that is there and every later run rebuilds in vain."""
+    if final.exists() and mf.trusted_manifest(final, variant, ca.__version__, None) is None:
+        aside = final.with_name(f".{final.name}.untrusted-{os.getpid()}")
+        try:
+            os.replace(final, aside)
+        except OSError:  # another process moved it first
+            return
+        shutil.rmtree(aside, ignore_errors=True)
+
+
 def install_library(named, structure, options: dict, generate, compile_, built, log, stage: str) -> Path:
     """The one build procedure of every compiled library (the scalar variants of build.py, the SIMD
     ones of simd.py): in a temporary folder under generated/, `generate(folder)` -> (C source path, manifest
@@ -59,10 +72,11 @@ def install_library(named, structure, options: dict, generate, compile_, built, 
             **checks, **generated, "seconds": {stage: round(t_gen, 3), "compile": round(t_compile, 3)},
         }
         mf.write_manifest(tmp, manifest)
+        _retire_untrusted(final, named.variant)
         try:
             os.replace(tmp, final)
         except OSError:  # another process won the race: its build is as good as ours
-            if mf.read_manifest(final) is None:
+            if mf.trusted_manifest(final, named.variant, ca.__version__, None) is None:
                 raise
             _record_fingerprint(final, fingerprint)
         built(final, t_gen, t_compile, checks)

@@ -50,10 +50,16 @@ def _list(found, folder) -> None:
     print(f"kernel folder: {folder} (set {GENERATED_ENV} to move it)")
     if found:
         w = max(len(k["variant"]) for k in found)
-        print(f"{'variant':<{w}}  {'key':<20}  {'size':>8}  {'status':<6}  path")
+        print(f"{'variant':<{w}}  {'key':<20}  {'size':>8}  {'status':<7}  path")
     for k in found:
         print(f"{k['variant']:<{w}}  {k['key']:<20}  {_megabytes(k['size']):>8}  "
-              f"{'ok' if k['usable'] else 'stale':<6}  {k['folder']}")
+              f"{_status(k):<7}  {k['folder']}")
     print(f"{len(found)} kernel(s), {_megabytes(sum(k['size'] for k in found))}"
           + ("; stale: not recorded for this model source, CasADi or CPU (`pumpsim kernels clear --stale`)"
-             if any(not k["usable"] for k in found) else ""))
+             if any(_status(k) == "stale" for k in found) else "")
+          + ("; damaged: the library's bytes differ from its manifest (rebuilt when next used, or "
+             "`pumpsim kernels clear --stale`)" if any(k.get("damaged") for k in found) else ""))
+
+
+def _status(k) -> str:
+    return "ok" if k["usable"] else "damaged" if k.get("damaged") else "stale"

@@ -14,6 +14,8 @@ building them ahead of use: `pumpsim.variants`).
 """
 from __future__ import annotations
 
+import hashlib
+
 import logging
 import os
 import shutil
@@ -97,8 +99,10 @@ def cached() -> list[dict]:
         variant = m.get("variant", "?")
         trusted = mf.trusted_manifest(folder, variant, ca.__version__, fingerprint)
         usable = trusted is not None and (not variant.endswith("-simd") or runs_here(trusted))
+        lib = folder / str(m.get("library", ""))
+        damaged = not lib.is_file() or hashlib.sha256(lib.read_bytes()).hexdigest() != m.get("library_sha256")
         out.append({"variant": variant, "key": m.get("key", "?"), "size": _size(folder),
-                    "folder": folder, "usable": usable})
+                    "folder": folder, "usable": usable, "damaged": damaged})
     return out
 
 

@@ -172,6 +172,25 @@ def test_tampered_library_is_not_trusted(private_cache, monkeypatch):
         kernels.load_kernels(st, build=False)
 
 
+def test_a_damaged_library_is_replaced_by_its_rebuild(private_cache, monkeypatch):
+    """A truncated library at the key's own folder: listed as damaged, then rebuilt into that
+    folder (moved aside, not a rename onto it that fails and leaves every later run rebuilding)."""
+    from pumpsim.kernels import cache
+
+    st = Structure(vanes=2)
+    k = kernels.load_kernels(st)
+    lib = k.folder / k.manifest["library"]
+    damaged = lib.with_suffix(".new")
+    damaged.write_bytes(lib.read_bytes()[:4096])
+    damaged.replace(lib)
+    assert [c["damaged"] for c in cache.cached()] == [True]
+    monkeypatch.setattr(kernels, "_LOADED", {})
+    k2 = kernels.load_kernels(st)
+    assert k2.folder == k.folder and k2.key == k.key
+    assert mf.trusted_manifest(k2.folder, st.variant, ca.__version__, None) is not None
+    assert [c["damaged"] for c in cache.cached()] == [False]
+
+
 def test_manifest_records_key_orders_and_units(private_cache):
     k = kernels.load_kernels(Structure(vanes=2))
     m = json.loads((k.folder / "manifest.json").read_text())
