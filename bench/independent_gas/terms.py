@@ -8,7 +8,8 @@ effective area, and the mechanics (shaft acceleration, tip normal forces, slot r
 Prints per term the largest difference relative to the term's size over the states. The states:
 a few shaft angles with cell pressures 30-120 kPa, temperatures 280-340 K, the plenums and the
 booster apart (pumpsim's manifold and exhaust port are isothermal, so the plenums are at
-gas.temperature). --pocket-in-cell reads the slot mouth beside a retracted tip as pumpsim does.
+gas.temperature). --pocket-in-cell counts the slot mouth beside a retracted tip as cell gas (not the
+spec's reading, nor pumpsim's).
 """
 from __future__ import annotations
 
