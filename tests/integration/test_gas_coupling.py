@@ -26,7 +26,9 @@ def _states(cfg, k, p, theta, omega, pressures, slot=None):
         X.append(np.concatenate([[th, omega, 0.0], pc * V / (R * T), pc * V / (g - 1),
                                  [1e5 * v["ports.inlet_volume"] / (R * T),
                                   1e5 * v["ports.exhaust_volume"] / (R * T),
-                                  1e5 * v["booster.volume"] / (R * T), 0.0, 0.0]]))
+                                  1e5 * v["booster.volume"] / (R * T),
+                                  1e5 * v["ports.inlet_volume"] / (g - 1),
+                                  1e5 * v["ports.exhaust_volume"] / (g - 1), 0.0, 0.0]]))
     return np.array(X)
 
 

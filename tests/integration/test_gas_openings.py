@@ -23,7 +23,8 @@ def _state(k, p, cfg, cells, p_in, p_ex, p_b, theta=0.5):
     RT = R_AIR * T0
     return np.concatenate([[theta, 300.0, 0.0], cells * V / RT, cells * V / (v["gas.gamma"] - 1),
                            [p_in * v["ports.inlet_volume"] / RT, p_ex * v["ports.exhaust_volume"] / RT,
-                            p_b * v["booster.volume"] / RT, 0.0, 0.0]])
+                            p_b * v["booster.volume"] / RT, p_in * v["ports.inlet_volume"] / (v["gas.gamma"] - 1),
+                            p_ex * v["ports.exhaust_volume"] / (v["gas.gamma"] - 1), 0.0, 0.0]])
 
 
 def _flows(cfg, X, **over):
