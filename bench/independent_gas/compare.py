@@ -37,8 +37,9 @@ INRUSH = 0.005  # s
 def pumpsim_curves(duration, config=CONFIG):
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "pd.csv"
+        # --until 1 Pa: the whole duration, as the independent model runs it (not stopping at booster.target)
         subprocess.run([sys.executable, "-m", "pumpsim", "pumpdown", str(config), "--duration", str(duration),
-                        "--rtol", "1e-6", "--rate", str(RATE), "--out", str(out), "-q"], check=True, cwd=ROOT)
+                        "--until", "1", "--rtol", "1e-6", "--rate", str(RATE), "--out", str(out), "-q"], check=True, cwd=ROOT)
         with open(out) as f:
             rows = list(csv.DictReader(f))
     return {k: np.array([float(r[k]) for r in rows]) for k in ("time", "speed", "booster_pressure", "current")}
