@@ -2,15 +2,20 @@
 parameter vector (a dimension change never recompiles).
 
 Cell i lies between vane i and vane i+1, bounded by the housing arc between the two tip contacts,
-the rotor circle and the two vanes' flanks. Its area follows from Green's theorem,
+the rotor circle and the two vanes' faces outside the rotor. Its area follows from Green's theorem,
 A = 1/2 oint (x dy - y dx), around the counter-clockwise boundary
 
-  R_i+ -> J_i+            straight: vane i's +w face, from the rotor circle to the tip
-  J_i+ -> C_i             vane i's tip: flat end (rho = 0, C = B) or tip arc about P (rho > 0)
+  E_i+ -> T_i+            straight: vane i's +w face, from the rotor circle to the tip
+  T_i+ -> C_i             vane i's tip: flat end (rho = 0, C = B) or tip arc about P (rho > 0)
   C_i -> C_{i+1}          housing arc, alpha_i .. alpha_{i+1}: Gauss-Legendre on the smooth curve
-  C_{i+1} -> J_{i+1}-     vane i+1's tip
-  J_{i+1}- -> R_{i+1}-    vane i+1's -w face
-  R_{i+1}- -> R_i+        rotor circle, clockwise
+  C_{i+1} -> T_{i+1}-     vane i+1's tip
+  T_{i+1}- -> E_{i+1}-    vane i+1's -w face
+  E_{i+1}- -> E_i+        rotor circle, clockwise
+
+With the flank out of the rotor, E is where the face meets the rotor circle and T the flank's end
+at the tip (J); where a round tip's flank ends inside the rotor, E = T is where the tip arc crosses
+the rotor circle, so the slot mouth beside the cap is outside every cell (spec: cells bounded by
+the rotor circle) and only the cap's part outside the rotor is loaded.
 
 (straight piece: 1/2 X1 x X2; circle arc of radius r about P: 1/2 [P x (X2 - X1) + r^2 dphi]).
 Every vane-side piece is shared with the vane outline, so Sum cells + Sum vane area outside the
@@ -81,17 +86,42 @@ class CellGeometry:
         gam = ca.atan2(ca.dot(C - P, w), ca.dot(C - P, u))
         eps = ca.atan2(sin_e, cos_e)
         G = Ob + (s + g["L"] / 2) * u
-        return dict(Ob=Ob, A=m["A"], u=u, w=w, P=P, C=C, Rp=Rp, Rm=Rm, Jp=Jp, Jm=Jm, gam=gam,
-                    eps=eps, rho=rho, round=round_tip, G=G)
+        o = dict(Ob=Ob, A=m["A"], u=u, w=w, P=P, C=C, Rp=Rp, Rm=Rm, Jp=Jp, Jm=Jm, gam=gam,
+                 eps=eps, rho=rho, round=round_tip, G=G)
+        for side, key in ((1.0, "p"), (-1.0, "m")):
+            o.update({k + key: v for k, v in self._wetted_start(o, side, Rr).items()})
+        return o
+
+    @staticmethod
+    def _wetted_start(o, side, Rr):
+        """Where the cell's boundary leaves the rotor circle on the vane's side `side` (E), where
+        its tip piece starts (T) and that point's angle on the tip arc (t). The cell is bounded by
+        the rotor circle: where a round tip's flank ends inside the rotor, the slot mouth beside
+        the cap is not the cell's, and the boundary meets the cap where the cap crosses the rotor
+        circle (face piece E -> T of zero length)."""
+        J, R = (o["Jp"], o["Rp"]) if side > 0 else (o["Jm"], o["Rm"])
+        P, u, w, rho = o["P"], o["u"], o["w"], o["rho"]
+        inside = ca.logic_and(o["round"], ca.dot(J - R, u) < 0)
+        # the cap circle (P, rho) meets |x| = Rr at a e +- hh e_perp; take the one on this side
+        d = ca.norm_2(P)
+        e = P / d
+        a = (Rr * Rr - rho * rho + d * d) / (2 * d)
+        # floor: the branch is unused where the circles do not meet; keeps its derivative finite
+        hh = ca.sqrt(ca.fmax(Rr * Rr - a * a, 1e-300))
+        perp = ca.vertcat(-e[1], e[0])
+        X = a * e + hh * ca.sign(side * ca.dot(perp, w)) * perp
+        t = ca.atan2(ca.dot(X - P, w), ca.dot(X - P, u))
+        return dict(E=ca.if_else(inside, X, R), T=ca.if_else(inside, X, J),
+                    t=ca.if_else(inside, t, side * o["eps"]))
 
     @staticmethod
     def _tip_piece(o, forward):
         """Green term and (force per unit p W, application point) of the tip from J+ to C
         (forward, cell on the +w side) or from C to J- (cell on the -w side)."""
         if forward:
-            X1, X2, dphi = o["Jp"], o["C"], o["gam"] - o["eps"]
+            X1, X2, dphi = o["Tp"], o["C"], o["gam"] - o["tp"]
         else:
-            X1, X2, dphi = o["C"], o["Jm"], -o["eps"] - o["gam"]
+            X1, X2, dphi = o["C"], o["Tm"], o["tm"] - o["gam"]
         arc = 0.5 * (_cross(o["P"], X2 - X1) + o["rho"] ** 2 * dphi)
         green = ca.if_else(o["round"], arc, 0.5 * _cross(X1, X2))
         force = ca.vertcat(X2[1] - X1[1], -(X2[0] - X1[0]))
@@ -100,7 +130,7 @@ class CellGeometry:
 
     @staticmethod
     def _face_piece(o, forward):
-        X1, X2 = (o["Rp"], o["Jp"]) if forward else (o["Jm"], o["Rm"])
+        X1, X2 = (o["Ep"], o["Tp"]) if forward else (o["Tm"], o["Em"])
         return 0.5 * _cross(X1, X2), ca.vertcat(X2[1] - X1[1], -(X2[0] - X1[0])), 0.5 * (X1 + X2)
 
     def vane_pieces(self, o):
@@ -109,7 +139,7 @@ class CellGeometry:
         face_p, tip_p = self._face_piece(o, True), self._tip_piece(o, True)
         tip_m, face_m = self._tip_piece(o, False), self._face_piece(o, False)
         Rr = self.b.geometry()["rotor_radius"]
-        dphi = ca.atan2(o["Rp"][1], o["Rp"][0]) - ca.atan2(o["Rm"][1], o["Rm"][0])
+        dphi = ca.atan2(o["Ep"][1], o["Ep"][0]) - ca.atan2(o["Em"][1], o["Em"][0])
         dphi = dphi - TWO_PI * ca.floor(dphi / TWO_PI)
         # vane outline counter-clockwise = reverse of the cells' pieces, closed along the rotor
         area = -(face_p[0] + tip_p[0] + tip_m[0] + face_m[0]) - 0.5 * Rr * Rr * dphi
@@ -187,7 +217,7 @@ class CellGeometry:
                 d = alpha[j] - alpha[i]
                 span = d - TWO_PI * ca.floor(d / TWO_PI)
             green_h, arc = self.arc_integrals(alpha[i], span, full_turn=N == 1)
-            Rp, Rm = outl[i]["Rp"], outl[j]["Rm"]
+            Rp, Rm = outl[i]["Ep"], outl[j]["Em"]
             dphi = ca.atan2(Rm[1], Rm[0]) - ca.atan2(Rp[1], Rp[0])
             dphi = dphi - TWO_PI * ca.floor(dphi / TWO_PI)
             if N == 1:

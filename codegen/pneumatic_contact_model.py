@@ -13,8 +13,9 @@ so with a lifted vane the cell boundary crosses the gap along that normal; dV_i/
 exactly from (omega, sdot_i, alphadot_i).
 
 State x (state_names): theta, omega, current, cell masses m_i, cell energies U_i, inlet manifold,
-exhaust port and booster masses, s_i, sdot_i, reed lift and lift rate (the reed stays last, the
-booster index is the pneumatic model's). Quadratures: the pneumatic model's QUAD_NAMES, then
+exhaust port and booster masses, s_i, sdot_i, inlet-manifold and exhaust-port energies, reed
+lift and lift rate (the reed stays last, the plenum energies just before it and the booster index
+is the pneumatic model's). Quadratures: the pneumatic model's QUAD_NAMES, then
 contact_work (elastic storage + damping of the penalty contacts) and load_work (work of the gas
 forces on vanes and rotor). Energy: shaft work = friction + contact + kinetic energy change -
 load work exactly; gas work (-oint sum p dV - p_slot dV_slot) equals -load work up to the work
@@ -30,9 +31,10 @@ from pumpsim.model_spec.outputs import PUMP_CONTACT_OUTPUTS, VANE_OUTPUTS
 from . import pneumatic_model
 from .contact_model import contact_vane, housing_contact
 from .builder import BuiltModel
-from .pneumatic_model import (GasBuilder, budget_rates, cell_geometry, cell_geometry_function,
-                              energy_rows, flat, gas_flows, gas_state, implicit_rates, motor_drive,
-                              parameter_symbols)
+from .pneumatic_model import (PLENUM_ENERGIES, GasBuilder, budget_rates, cell_geometry,
+                              cell_geometry_function, energy_rows, flat, gas_flows, gas_state,
+                              implicit_rates, motor_drive, parameter_symbols, plenum_energy_rows,
+                              plenum_state)
 
 QUAD_NAMES = pneumatic_model.QUAD_NAMES + ("contact_work", "load_work")
 VANE_GAS_OUTPUTS = ("sddot", "torque_share", "torque_slope", "normal", "slot1", "slot2", "bottom",
@@ -45,7 +47,7 @@ def state_names(N):
     return (["theta", "omega", "current"] + [f"mass_{i}" for i in range(N)]
             + [f"energy_{i}" for i in range(N)] + ["inlet_mass", "exhaust_mass", "booster_mass"]
             + [f"s_{i}" for i in range(N)] + [f"sdot_{i}" for i in range(N)]
-            + ["reed_lift", "reed_rate"])
+            + list(PLENUM_ENERGIES) + ["reed_lift", "reed_rate"])
 
 
 def vane_gas_function(b) -> ca.Function:
@@ -89,12 +91,12 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
     x = ca.MX.sym("x", nx)
     theta, omega, cur = x[0], x[1], x[2]
     m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
-    m_in, m_ex, m_b = (x[3 + 2 * N + k] for k in range(3))
+    m_in, m_ex, m_b, U_in, U_ex = plenum_state(x, N)
     s, sd = x[6 + 2 * N:6 + 3 * N], x[6 + 3 * N:6 + 4 * N]
     xr, vr = x[nx - 2], x[nx - 1]
     alpha, alphadot, delta = point_map(theta, omega, s.T, sd.T, phis, p)
     V, dVdt, lin, lex, wall, exposed, vvol = cell_rates(theta, s, alpha.T, sd, alphadot.T, omega, p)
-    gs = gas_state(P, m, U, V, m_in, m_ex, m_b)
+    gs = gas_state(P, m, U, V, m_in, m_ex, m_b, U_in, U_ex)
     lift_gap = ca.fmax(-delta.T, 0.0)  # a lifted vane's tip gap joins its two cells
     fl = gas_flows(P, N, gs, lin, lex, exposed, xr, vr, lift_gap)
     # mechanics: the drive torque each vane needs at omegadot, gas loads included
@@ -110,7 +112,7 @@ def build_pneumatic_contact_model(structure) -> BuiltModel:
     od = drive["outputs"]
     xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
                       energy_rows(P, N, gs, fl, dVdt, wall), fl["dm_in"], fl["dm_ex"], fl["dm_b"],
-                      sd, od["sddot"].T, fl["xr_dot"], fl["vr_dot"])
+                      sd, od["sddot"].T, plenum_energy_rows(N, gs, fl), fl["xr_dot"], fl["vr_dot"])
     gas_power = -ca.dot(gs["pc"], dVdt) - gs["p_slot"] * P("vane.thickness") * gs["W"] * ca.sum1(sd)
     fric_power = ca.sum2(od["friction_power"]) + tb * omega
     qdot = budget_rates(P, cur, omega, drive, fl, gas_power, fric_power,

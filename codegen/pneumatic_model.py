@@ -2,10 +2,13 @@
 booster and DC motor, for `codegen.build`.
 
 State x (STATE_NAMES): theta, omega, current, cell masses m_i, cell internal energies U_i, inlet
-manifold mass, exhaust-port mass, booster mass, reed lift and lift rate. Cells carry (m, U): mass
-and energy balances are then sums of flows, so mass is conserved to rounding by construction and
-to the integrator's tolerance in time. Manifold, exhaust port and booster are isothermal at
-gas.temperature. Quadratures (QUAD_NAMES) accumulate the energy and mass budgets.
+manifold mass, exhaust-port mass, booster mass, inlet-manifold and exhaust-port internal energies,
+reed lift and lift rate. Cells, manifold and exhaust port carry (m, U): mass and energy balances
+are then sums of flows, each carrying its upstream stagnation enthalpy, so mass is conserved to
+rounding by construction and to the integrator's tolerance in time. Manifold and exhaust port are
+adiabatic (their vanishing-volume limit is the network of openings in series: no wall there); the
+booster is isothermal at gas.temperature. Quadratures (QUAD_NAMES) accumulate the energy and mass
+budgets.
 
 Drive (operation.motor): 0 constant speed (omega is a state with zero rate, the torque is the
 inverse dynamics), 1 brushed DC motor: V = R i + L di/dt + k omega and
@@ -35,10 +38,22 @@ MOTOR_FRICTION_SPEED = 0.5  # rad/s: motor friction torque = friction * tanh(ome
 MOTOR_NEWTON_ITERATIONS = 2
 
 
+# the manifold's and the exhaust port's internal energies: in every state layout the two states
+# before the reed's two (state_names here and in pneumatic_contact_model)
+PLENUM_ENERGIES = ("inlet_energy", "exhaust_energy")
+
+
 def state_names(N):
     return (["theta", "omega", "current"] + [f"mass_{i}" for i in range(N)]
             + [f"energy_{i}" for i in range(N)]
-            + ["inlet_mass", "exhaust_mass", "booster_mass", "reed_lift", "reed_rate"])
+            + ["inlet_mass", "exhaust_mass", "booster_mass"] + list(PLENUM_ENERGIES)
+            + ["reed_lift", "reed_rate"])
+
+
+def plenum_state(x, N):
+    """(m_in, m_ex, m_b, U_in, U_ex) of a state vector in either layout."""
+    nx = x.size1()
+    return (*(x[3 + 2 * N + k] for k in range(3)), x[nx - 4], x[nx - 3])
 
 
 QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "copper_loss",
@@ -197,7 +212,7 @@ def build_pneumatic_model(structure) -> BuiltModel:
     r = rates(x, geo)
     gs, fl, drive, od, W = r["gs"], r["fl"], r["drive"], r["od"], r["gs"]["W"]
     cur, omega, m = x[2], x[1], x[3:3 + N]
-    m_in, m_ex, m_b = (x[3 + 2 * N + k] for k in range(3))
+    m_in, m_ex, m_b, _, _ = plenum_state(x, N)
     rhs, jac, wd = implicit_rates(x, r["xdot"], r["qdot"], drive, p)
     fric_power, gas_power = r["friction_power"], r["gas_power"]
     outs = dict(
@@ -245,8 +260,8 @@ def pump_rates(b, p, P, given=False):
     def rates(x, geo):
         theta, omega, cur = x[0], x[1], x[2]
         m, U = x[3:3 + N], x[3 + N:3 + 2 * N]
-        m_in, m_ex, m_b, xr, vr = (x[3 + 2 * N + k] for k in range(5))
-        gs = gas_state(P, m, U, geo["V"], m_in, m_ex, m_b)
+        xr, vr = x[x.size1() - 2], x[x.size1() - 1]
+        gs = gas_state(P, m, U, geo["V"], *plenum_state(x, N))
         fl = gas_flows(P, N, gs, geo["lin"], geo["lex"], geo["exposed"], xr, vr)
         # mechanics: required shaft torque at omegadot, gas loads included
         p_trail = ca.vertcat(*[gs["pc"][j] for j in fl["prev"]])
@@ -261,7 +276,8 @@ def pump_rates(b, p, P, given=False):
         od = drive["outputs"]
         xdot = ca.vertcat(omega, drive["omegadot_used"], drive["current_rate"], fl["dm"],
                           energy_rows(P, N, gs, fl, geo["dV"], geo["wall"], omega), fl["dm_in"],
-                          fl["dm_ex"], fl["dm_b"], fl["xr_dot"], fl["vr_dot"])
+                          fl["dm_ex"], fl["dm_b"], plenum_energy_rows(N, gs, fl), fl["xr_dot"],
+                          fl["vr_dot"])
         slot_rate = P("vane.thickness") * gs["W"] * ca.sum2(od["sdot"])
         gas_power = -ca.dot(gs["pc"], geo["dV"]) * omega - gs["p_slot"] * slot_rate
         fric_power = ca.sum2(od["friction_power"]) + tb * omega
@@ -344,20 +360,21 @@ def cell_geometry(b, p, phis):
     return geometry
 
 
-def gas_state(P, m, U, V, m_in, m_ex, m_b) -> dict:
+def gas_state(P, m, U, V, m_in, m_ex, m_b, U_in, U_ex) -> dict:
     """Gas constants, the cells' axial width W, cell pressures pc and temperatures Tc from
-    (m, U, V); manifold, exhaust-port and booster pressures (isothermal at gas.temperature); the
-    slot-bottom pressure."""
+    (m, U, V); manifold and exhaust-port pressures and temperatures (p_in, T_in, p_ex, T_ex) from
+    their (m, U); the booster pressure (isothermal at gas.temperature); the slot-bottom pressure."""
     R, g = P("gas.gas_constant"), P("gas.gamma")
     cv, cp = R / (g - 1), g * R / (g - 1)
     T0, p_atm = P("gas.temperature"), P("gas.atmosphere")
-    p_in = m_in * R * T0 / P("ports.inlet_volume")
-    p_ex = m_ex * R * T0 / P("ports.exhaust_volume")
+    p_in = (g - 1) * U_in / P("ports.inlet_volume")
+    p_ex = (g - 1) * U_ex / P("ports.exhaust_volume")
     src = P("vane.slot_pressure.source")
     p_slot = ca.if_else(src < 0.5, P("vane.slot_pressure.value"),
                         ca.if_else(src < 1.5, p_in, ca.if_else(src < 2.5, p_ex, p_atm)))
-    return dict(R=R, g=g, cv=cv, cp=cp, T0=T0, p_atm=p_atm, W=P("rotor.width"), pc=(g - 1) * U / V, Tc=U / (m * cv),
-                p_in=p_in, p_ex=p_ex, p_b=m_b * R * T0 / P("booster.volume"), p_slot=p_slot)
+    return dict(R=R, g=g, cv=cv, cp=cp, T0=T0, p_atm=p_atm, W=P("rotor.width"), pc=(g - 1) * U / V,
+                Tc=U / (m * cv), p_in=p_in, p_ex=p_ex, T_in=U_in / (m_in * cv), T_ex=U_ex / (m_ex * cv),
+                p_b=m_b * R * T0 / P("booster.volume"), p_slot=p_slot)
 
 
 def _flow(gs, p1, T1, p2, T2, area):
@@ -368,12 +385,12 @@ def cell_flows(P, N, gs, lin, lex, exposed, lift_gap=None) -> dict:
     """Port flows (into cell i from the inlet manifold, out of it into the exhaust port) and the
     leak across vane j from cell j-1 to cell j (tip gap, plus a lifted vane's gap, and both end
     faces); prev/nxt: the neighbouring cells."""
-    T0, pc, Tc, W = gs["T0"], gs["pc"], gs["Tc"], gs["W"]
+    pc, Tc, W = gs["pc"], gs["Tc"], gs["W"]
     Cd = P("ports.discharge_coefficient")
     A_in = Cd * lin * P("ports.inlet.width")
     A_ex = Cd * lex * P("ports.exhaust.width")
-    f_in = ca.vertcat(*[_flow(gs, gs["p_in"], T0, pc[i], Tc[i], A_in[i]) for i in range(N)])
-    f_ex = ca.vertcat(*[_flow(gs, pc[i], Tc[i], gs["p_ex"], T0, A_ex[i]) for i in range(N)])
+    f_in = ca.vertcat(*[_flow(gs, gs["p_in"], gs["T_in"], pc[i], Tc[i], A_in[i]) for i in range(N)])
+    f_ex = ca.vertcat(*[_flow(gs, pc[i], Tc[i], gs["p_ex"], gs["T_ex"], A_ex[i]) for i in range(N)])
     tip = P("leak.tip_gap") if lift_gap is None else P("leak.tip_gap") + lift_gap
     A_leak = P("leak.discharge_coefficient") * (tip * W + 2 * P("leak.end_gap") * exposed)
     prev = [(j - 1) % N for j in range(N)]
@@ -393,7 +410,7 @@ def booster_flows(P, gs) -> dict:
     A_hose = P("ports.hose_area") * ca.fmin(P("ports.hose_discharge_coefficient"),
                                             P("ports.check_discharge_coefficient") * lift)
     A_bleak = P("booster.leak") / gas.choked_flux(p_atm, T0, gs["R"], gs["g"])
-    return dict(f_hose=_flow(gs, p_b, T0, p_in, T0, A_hose),
+    return dict(f_hose=_flow(gs, p_b, T0, p_in, gs["T_in"], A_hose),
                 f_bleak=_flow(gs, p_atm, T0, p_b, T0, A_bleak))
 
 
@@ -404,7 +421,7 @@ def exhaust_valve(P, gs, xr, vr) -> dict:
     reed = P("valve.reed") > 0.5
     A_check = P("valve.area") * gas.ramp(p_ex - p_atm, P("valve.cracking"), P("valve.full_open"))
     A_reed = ca.fmin(math.pi * P("valve.diameter") * ca.fmax(xr, 0.0), P("valve.area"))
-    f_valve = _flow(gs, p_ex, T0, p_atm, T0,
+    f_valve = _flow(gs, p_ex, gs["T_ex"], p_atm, T0,
                     P("valve.discharge_coefficient") * ca.if_else(reed, A_reed, A_check))
     F_reed = (p_ex - p_atm) * P("valve.force_area") - P("valve.preload") - P("valve.stiffness") * xr
     free = ca.logic_and(reed, P("valve.mode") < 0.5)
@@ -429,16 +446,29 @@ def gas_flows(P, N, gs, lin, lex, exposed, xr, vr, lift_gap=None) -> dict:
 def energy_rows(P, N, gs, fl, dV, wall, omega=None):
     """dU_i/dt: enthalpy carried by every flow (upstream temperature), the p dV work and the wall
     heat. dV is dV/dtheta with omega given (Model 2), else dV/dt."""
-    T0, Tc, pc, cp = gs["T0"], gs["Tc"], gs["pc"], gs["cp"]
+    T_in, T_ex, Tc, pc, cp = gs["T_in"], gs["T_ex"], gs["Tc"], gs["pc"], gs["cp"]
     prev, nxt = fl["prev"], fl["nxt"]
     f_in, f_ex, f_lk = fl["f_in"], fl["f_ex"], fl["f_lk"]
     Q = P("gas.heat_transfer") * wall * (P("gas.wall_temperature") - Tc)
     work = [pc[i] * omega * dV[i] if omega is not None else pc[i] * dV[i] for i in range(N)]
     return ca.vertcat(*[
-        gas.enthalpy_flow(f_in[i], T0, Tc[i], cp) - gas.enthalpy_flow(f_ex[i], Tc[i], T0, cp)
+        gas.enthalpy_flow(f_in[i], T_in, Tc[i], cp) - gas.enthalpy_flow(f_ex[i], Tc[i], T_ex, cp)
         + gas.enthalpy_flow(f_lk[i], Tc[prev[i]], Tc[i], cp)
         - gas.enthalpy_flow(f_lk[nxt[i]], Tc[i], Tc[nxt[i]], cp)
         - work[i] + Q[i] for i in range(N)])
+
+
+def plenum_energy_rows(N, gs, fl):
+    """dU_in/dt, dU_ex/dt of the manifold and the exhaust port (rigid, adiabatic): the enthalpy the
+    flows carry in and out, each at its upstream temperature (the booster's gas.temperature, the
+    atmosphere's on a back-flow through the valve)."""
+    T0, T_in, T_ex, Tc, cp = gs["T0"], gs["T_in"], gs["T_ex"], gs["Tc"], gs["cp"]
+    f_in, f_ex = fl["f_in"], fl["f_ex"]
+    dU_in = (gas.enthalpy_flow(fl["f_hose"], T0, T_in, cp)
+             - sum(gas.enthalpy_flow(f_in[i], T_in, Tc[i], cp) for i in range(N)))
+    dU_ex = (sum(gas.enthalpy_flow(f_ex[i], Tc[i], T_ex, cp) for i in range(N))
+             - gas.enthalpy_flow(fl["f_valve"], T_ex, T0, cp))
+    return ca.vertcat(dU_in, dU_ex)
 
 
 def motor_drive(P, omega, cur, required, rotor_inertia, motor_inertia) -> dict:

@@ -151,7 +151,7 @@ class BenchModel:
         self.volt_integral = np.concatenate([[0.0], np.cumsum(0.5 * (volt[1:] + volt[:-1]) * self.step)])
         self.jittered = bool(np.ptp(np.diff(self.t)) > 0)
         N = cfg.vanes
-        self.i_in, self.i_b = 3 + 2 * N, 3 + 2 * N + 2  # inlet manifold and booster masses (run.state_names)
+        self.i_b = 3 + 2 * N + 2  # the booster's mass (run.state_names)
         self.edges = block_edges(self.n, block_samples(cfg, self.step))
         from ..kernels.pneumatic import parameter_vector
 
@@ -189,12 +189,7 @@ class BenchModel:
         from ..pneumatics import run
 
         p, start = self.split(p)
-        pv = dict(zip(self.names, p))
-        x0 = run.initial_state(self.cfg, self.kern, p, omega0=self.omega0)
-        RT = pv["gas.gas_constant"] * pv["gas.temperature"]
-        x0[self.i_in] = start * pv["ports.inlet_volume"] / RT
-        x0[self.i_b] = start * pv["booster.volume"] / RT
-        return x0
+        return run.initial_state(self.cfg, self.kern, p, omega0=self.omega0, booster_start=start)
 
     def _grid_states(self, ps) -> list:
         from ..pneumatics import run

@@ -541,8 +541,10 @@ GAS_PARAMETERS = (
     Parameter("ports.exhaust.width", "m", lower=POSITIVE, upper=Bound("rotor.width")),
     Parameter("ports.discharge_coefficient", "-", default=0.7, lower=POSITIVE, upper=Bound(1.0),
               doc="discharge coefficient of the inlet and exhaust windows"),
-    _p("ports.inlet_volume", "m^3", positive=True, doc="inlet manifold between hose and window"),
-    _p("ports.exhaust_volume", "m^3", positive=True, doc="exhaust port volume under the valve"),
+    _p("ports.inlet_volume", "m^3", positive=True, doc="inlet manifold, booster check valve to inlet "
+       "window: gas with its own mass and temperature, no wall heat exchange"),
+    _p("ports.exhaust_volume", "m^3", positive=True, doc="exhaust port, exhaust window to valve: gas "
+       "with its own mass and temperature, no wall heat exchange"),
     _p("ports.hose_area", "m^2", positive=True, doc="booster hose orifice area"),
     _p("ports.check_cracking", "Pa", 0.0, doc="inlet check valve cracking pressure difference"),
     _p("ports.check_full_open", "Pa", positive=True, doc="inlet check valve: excess for full area"),

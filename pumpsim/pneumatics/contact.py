@@ -59,7 +59,8 @@ def initial_state(cfg, kern, p, initial="housing", theta0=None, omega0=None):
         sd = np.zeros(N)
     if initial == "bottom":
         s = np.zeros(N)
-    return np.concatenate([xg[:-2], s, sd, xg[-2:]])
+    # the plenum energies and the reed stay last (codegen.pneumatic_contact_model.state_names)
+    return np.concatenate([xg[:-4], s, sd, xg[-4:]])
 
 
 def state_scale(x0, p, cfg, kern):

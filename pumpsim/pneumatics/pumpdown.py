@@ -248,7 +248,7 @@ def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL, p=None) ->
         p[parameter_index(st, "booster.volume")], p[parameter_index(st, "booster.leak")] = MAP_BOOSTER_VOLUME, 0.0
     v = cfg.pneumatic.values
     RT = v["gas.gas_constant"] * v["gas.temperature"]
-    i_bm, i_in = 3 + 2 * st.vanes + 2, 3 + 2 * st.vanes
+    i_bm = 3 + 2 * st.vanes + 2
     rows, revs, runup, wall0, steps = [], [], {}, _time.perf_counter(), 0
     x = None
     for pb in sorted(pressures, reverse=True):
@@ -257,9 +257,7 @@ def pump_maps(cfg, pressures, rtol=PUMPDOWN_RTOL, atol=PUMPDOWN_ATOL, p=None) ->
             settle = MAP_SETTLE
         else:
             settle = MAP_RESETTLE
-        x = x.copy()
-        x[i_bm] = pb * MAP_BOOSTER_VOLUME / RT
-        x[i_in] = pb * p[parameter_index(st, "ports.inlet_volume")] / RT
+        x = run.at_booster_pressure(x, st, p, pb)
         r0 = run.integrate(cfg, settle, 1000.0, p=p, x0=x, rtol=rtol, atol=atol)
         if not runup:  # the first point starts from rest at the start pressure: the run-up
             volt = v["motor.voltage"] if cfg.pneumatic.motor else 0.0

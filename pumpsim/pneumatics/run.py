@@ -58,7 +58,8 @@ QUAD_NAMES = ("electrical_energy", "shaft_work", "gas_work", "friction_work", "c
 def state_names(N):
     return (["theta", "omega", "current"] + [f"mass_{i}" for i in range(N)]
             + [f"energy_{i}" for i in range(N)]
-            + ["inlet_mass", "exhaust_mass", "booster_mass", "reed_lift", "reed_rate"])
+            + ["inlet_mass", "exhaust_mass", "booster_mass", "inlet_energy", "exhaust_energy",
+               "reed_lift", "reed_rate"])
 
 
 @dataclass
@@ -238,22 +239,34 @@ class PumpIntegrator:
         return X[:, 0], Q[:, 0]
 
 
-def initial_state(cfg, kern, p, theta0=None, omega0=None):
-    """Everything at rest pressure: cells and exhaust port at the atmosphere, inlet manifold and
-    booster at the booster's start pressure, reed seated."""
+def initial_state(cfg, kern, p, theta0=None, omega0=None, booster_start=None):
+    """Everything at rest at gas.temperature: cells and exhaust port at the atmosphere, inlet
+    manifold and booster at the booster's start pressure (booster_start, else the config's), reed
+    seated."""
     st = kern.structure
     v = dict(zip([q for q in _names(st)], p))
     th = cfg.angle if theta0 is None else theta0
     om = cfg.speed if omega0 is None else omega0
     V = np.asarray(kern["cell_geometry"](th, p)[0]).ravel()
     R, g, T0 = v["gas.gas_constant"], v["gas.gamma"], v["gas.temperature"]
-    pa, pb = v["gas.atmosphere"], cfg.pneumatic.booster_start
-    m = pa * V / (R * T0)
-    U = pa * V / (g - 1)
-    return np.concatenate([[th, om, 0.0], m, U,
-                           [pb * v["ports.inlet_volume"] / (R * T0),
-                            pa * v["ports.exhaust_volume"] / (R * T0),
-                            pb * v["booster.volume"] / (R * T0), 0.0, 0.0]])
+    pa = v["gas.atmosphere"]
+    x = np.concatenate([[th, om, 0.0], pa * V / (R * T0), pa * V / (g - 1),
+                        [0.0, pa * v["ports.exhaust_volume"] / (R * T0), 0.0,
+                         0.0, pa * v["ports.exhaust_volume"] / (g - 1), 0.0, 0.0]])
+    return at_booster_pressure(x, st, p, cfg.pneumatic.booster_start if booster_start is None else booster_start)
+
+
+def at_booster_pressure(x, st, p, pressure):
+    """x with the booster and the inlet manifold at `pressure` and gas.temperature (their masses,
+    and the manifold's energy), for the volumes in p."""
+    v = dict(zip(_names(st), p))
+    R, g, T0 = v["gas.gas_constant"], v["gas.gamma"], v["gas.temperature"]
+    i_in, nx = 3 + 2 * st.vanes, len(x)
+    x = np.array(x, dtype=float)
+    x[i_in] = pressure * v["ports.inlet_volume"] / (R * T0)
+    x[i_in + 2] = pressure * v["booster.volume"] / (R * T0)
+    x[nx - 4] = pressure * v["ports.inlet_volume"] / (g - 1)
+    return x
 
 
 def _names(st):
@@ -274,6 +287,7 @@ def state_scale(x0, p, st):
     sc[0], sc[1], sc[2] = 1.0, 100.0, 1.0
     sc[3:3 + 2 * N] = np.maximum(sc[3:3 + 2 * N], 1e-12)
     sc[3 + 2 * N:3 + 2 * N + 3] = np.maximum(sc[3 + 2 * N:3 + 2 * N + 3], 1e-12)
+    sc[-4:-2] = np.maximum(sc[-4:-2], 1e-12)  # the manifold's and the exhaust port's energies
     lift = v["valve.lift_max"] if v["valve.reed"] > 0.5 else 1e-3
     sc[-2], sc[-1] = lift, lift * 1e3
     return sc

@@ -48,12 +48,15 @@ def _states(cfg, kern, p, thetas, pressures, offsets=0.0, sdot_noise=0.0, seed=0
     return np.array(X)
 
 
-@pytest.mark.parametrize("pressure", [0.0, 1.0e5])
-def test_equal_pressures_give_the_mechanical_contact_model(pressure):
+# at a pressure, flat tips: a full-round tip whose flank ends inside the rotor is loaded on its
+# cap outside the rotor only (the cells are bounded by the rotor circle), so there the loads do
+# not cancel (test_gas_coupling.py: test_equal_pressures_push_only_a_retracted_round_tip_out)
+@pytest.mark.parametrize("pressure,changes", [(0.0, {}), (1.0e5, {"vane.tip_radius": 0.0})])
+def test_equal_pressures_give_the_mechanical_contact_model(pressure, changes):
     """All cells and the slot bottoms at one pressure (radial slots): the gas loads cancel and the
     rates, forces and drive torque are the mechanical contact model's -- with vanes pressed in,
     lifted off and sliding (offsets and sliding speeds off Model 2's)."""
-    cfg = _cfg(**{"vane.slot_pressure": pressure})
+    cfg = _cfg(**{"vane.slot_pressure": pressure, **changes})
     kern, p = pc.model_parts(cfg)
     N = cfg.vanes
     theta = np.linspace(0, 2 * math.pi, 25)

@@ -41,8 +41,14 @@ def test_reconstructed_torque_is_the_models_own(clean_twin, speed_column):
     """k i - tau_f - I omegadot from the log's channels against the model's load torque, over the
     log's second half: per sample (second-order differences at 20 kHz: the torque's kinks where a
     vane's contact changes side are smeared over a sample or two) and at the vane-passing orders
-    (the harmonic form the fit uses; measured 0.4-0.8 % at orders 4 and 8, 2-9 % at 12 and 16,
-    whose amplitude is 4-15 times smaller)."""
+    (the harmonic form the fit uses). The harmonic form differentiates each line as if it held
+    still over the window; the lines drift as the booster empties (order 16's amplitude grows by
+    60 % between the window's halves, its phase turns by ~1 rad), which leaves an error of about
+    the same absolute size at every order: 0.1-1.4 % of the order-4 line (speed column: exactly the
+    form's error on the model's own I omegadot; on the last eighth of the log 1.4 % of order 16
+    instead of 5 %). Order 16's line is 15 times smaller than order 4's, so relative to itself that
+    floor is 1-17 % depending on the model's ripple (measured 12.7 % back-EMF, 5.3 % speed column),
+    not a property of the reconstruction: the orders above 8 are held to 2 % of the order-4 line."""
     cfg, log, X, tau_model = clean_twin
     if not speed_column:
         log = BenchLog(log.time, log.voltage, log.current, log.booster_pressure, None)
@@ -56,7 +62,7 @@ def test_reconstructed_torque_is_the_models_own(clean_twin, speed_column):
     tau, _ = cr.torque_harmonics(log, motor, sl, cr.shaft_angle(log, motor, sl), orders)
     ref, _ = cr.harmonics(tau_model[sl], log.time[sl], X[sl, 0] - X[sl.start, 0], orders)
     rel = np.abs(tau - ref) / np.abs(ref)
-    assert rel[0] < 0.02 and rel[1] < 0.02 and rel.max() < 0.15, rel
+    assert rel[0] < 0.02 and rel[1] < 0.02 and np.all(np.abs(tau - ref) < 0.02 * np.abs(ref[0])), rel
     # the back-EMF angle matches the shaft's to a micro-radian over the window
     assert np.max(np.abs(cr.shaft_angle(log, motor, sl) - (X[sl, 0] - X[sl.start, 0]))) < 1e-4
 

@@ -23,7 +23,8 @@ def _state(k, p, cfg, cells, p_in, p_ex, p_b, theta=0.5):
     RT = R_AIR * T0
     return np.concatenate([[theta, 300.0, 0.0], cells * V / RT, cells * V / (v["gas.gamma"] - 1),
                            [p_in * v["ports.inlet_volume"] / RT, p_ex * v["ports.exhaust_volume"] / RT,
-                            p_b * v["booster.volume"] / RT, 0.0, 0.0]])
+                            p_b * v["booster.volume"] / RT, p_in * v["ports.inlet_volume"] / (v["gas.gamma"] - 1),
+                            p_ex * v["ports.exhaust_volume"] / (v["gas.gamma"] - 1), 0.0, 0.0]])
 
 
 def _flows(cfg, X, **over):
@@ -148,10 +149,17 @@ def test_end_face_leak_length_is_zero_where_the_flank_is_inside_the_rotor():
             outside += 1
     assert outside > 0.7 * 4 * theta.size  # most vane positions were checked
     # the wall area beside it: sum over cells = both end faces of every cell + the housing circle
-    # + the rotor circle less the vanes' chords + both exposed flanks of every vane
+    # + the rotor circle less what the vanes cover of it + both exposed flanks of every vane. A
+    # vane with its flank out covers the chord h; a retracted one the chord between the points
+    # where its cap circle (centre rb + s + L - rho out along the radial slot) crosses the rotor
+    # circle: the cells are bounded by the rotor circle, the slot mouth beside the cap is no cell's
+    rb, L = v["rotor.slot_radius"], v["vane.length"]
     for t in (tdc, tdc + 0.3, tdc + 1.2):
         g = _geometry(k, p, t)
-        rotor = 2 * math.pi * Rr - 4 * Rr * 2 * math.asin(h / (2 * Rr))
+        d = rb + g["s"] + L - rho
+        a = (Rr * Rr - rho * rho + d * d) / (2 * d)
+        half = np.where(g["exposed"] > 0, h / 2, np.sqrt(np.maximum(Rr * Rr - a * a, 0.0)))
+        rotor = 2 * math.pi * Rr - Rr * 2 * np.arcsin(half / Rr).sum()
         total = 2 * g["volume"].sum() / W + W * (2 * math.pi * Rh + rotor + 2 * g["exposed"].sum())
         assert g["wall_area"].sum() == pytest.approx(total, rel=CLOSED_FORM_REL)
 
