@@ -26,6 +26,7 @@ from .sampled import drive_motion, pointwise_columns, simd_torque, simd_torque_d
 from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
+_RIPPLE = np.array([Z_SPECIAL.index("ripple_cos"), Z_SPECIAL.index("ripple_sin")])
 
 
 def base_name(name):
@@ -245,7 +246,10 @@ class ConstantSpeedProblem(Problem):
         lib = self.kern if fast is None else fast
         run = (lambda: (torque_at(lib, theta, z, self.ripple_order, *kin),)) if fast is None else (
             lambda: (simd_torque(fast, theta, z, self.ripple_order, *kin),))
-        return MODEL_RUNS.get(("torque", lib, self.ripple_order, z.tobytes()), (theta, *kin), run)[0]
+        # without a ripple the SIMD path's drive is the same bits at any order (sampled._drive): the
+        # screen's speed-ripple candidates share the current fit's runs
+        order = self.ripple_order if fast is None or z[fast.n_params + _RIPPLE].any() else None
+        return MODEL_RUNS.get(("torque", lib, order, z.tobytes()), (theta, *kin), run)[0]
 
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
