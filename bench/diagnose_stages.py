@@ -103,13 +103,13 @@ class Stages:
 
 
 def print_stages(js: dict, log=print):
-    log(f"  {"stage (innermost)":<44}{'runs':>6}{'Msamples':>9}{'Jacs':>6}{'Msamples':>9}{'kernel s':>9}{'stage s':>9}")
+    log(f"  {'stage (innermost)':<44}{'runs':>6}{'Msamples':>9}{'Jacs':>6}{'Msamples':>9}{'kernel s':>9}{'stage s':>9}")
     rows = sorted(js["stages"].items(), key=lambda kv: -kv[1].get("kernel_cpu_seconds", 0.0))
     for k, v in rows:
         incl = v.get("cpu_seconds")
         log(f"  {k:<44}{v.get('runs', 0):>6}{v.get('run_samples', 0) / 1e6:>9.2f}{v.get('jacobians', 0):>6}"
             f"{v.get('jacobian_samples', 0) / 1e6:>9.2f}{v.get('kernel_cpu_seconds', 0.0):>9.2f}"
             f"{'' if incl is None else f'{incl:9.2f}'}")
-    log(f"  {"purpose":<44}{'calls':>6}{'Msamples':>9}{'kernel s':>9}")
+    log(f"  {'purpose':<44}{'calls':>6}{'Msamples':>9}{'kernel s':>9}")
     for k, v in sorted(js["purposes"].items(), key=lambda kv: -kv[1]["cpu_seconds"]):
-        log(f"  {k:<44}{v["calls"]:>6}{v['samples'] / 1e6:>9.2f}{v['cpu_seconds']:>9.2f}")
+        log(f"  {k:<44}{v['calls']:>6}{v['samples'] / 1e6:>9.2f}{v['cpu_seconds']:>9.2f}")
