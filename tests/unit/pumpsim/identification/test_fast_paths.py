@@ -150,3 +150,78 @@ def test_the_diagnose_benchs_counts_are_the_fits_own():
     assert got["kernel"]["jacobian"]["samples"] == (steps + 1) * data.n
     assert got["kernel"]["model"]["calls"] >= steps + got["gauss_newton"]["rejected_trials"]
     assert got["kernel"]["casadi map"]["calls"] == 0
+
+
+def _counting_runs(monkeypatch):
+    """Count the SIMD library's calls (model runs and Jacobians)."""
+    from pumpsim.kernels import simd
+    calls, run = [], simd.FastInverseDynamics._run
+
+    def counted(lib, fns, n, *a, **kw):
+        calls.append(n)
+        return run(lib, fns, n, *a, **kw)
+    monkeypatch.setattr(simd.FastInverseDynamics, "_run", counted)
+    return calls
+
+
+def test_a_run_without_ripple_is_the_same_bits_at_any_ripple_order_and_shared(monkeypatch):
+    from pumpsim.identification.runs import MODEL_RUNS
+    from pumpsim.identification.sampled import simd_torque
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    t = np.arange(1500) / 10000.0
+    probs = [make_problem(cfg, Dataset(t, np.zeros(t.size)), ["mu", "theta0"], ripple_order=k) for k in (1, 7)]
+    fast = probs[0]._simd
+    if fast is None:
+        return  # no SIMD library on this machine: the CasADi path keeps the order in its key
+    x = probs[0].x0
+    theta, z, kin = probs[0].angle(x), probs[0].z(x), (probs[0].tau, *probs[0]._rates)
+    ref = [simd_torque(fast, theta, z, k, *kin) for k in (1, 7)]
+    np.testing.assert_array_equal(ref[0], ref[1])  # what sharing the run relies on
+    MODEL_RUNS.entries.clear()
+    calls = _counting_runs(monkeypatch)
+    got = [p.model(x) for p in probs]
+    assert len(calls) == 1
+    np.testing.assert_array_equal(got[1], ref[1])
+    z1 = np.array(z)
+    z1[fast.n_params + 4] = 1e-3  # a ripple: the order matters again
+    MODEL_RUNS.entries.clear()
+    for p in probs:
+        p._torque(theta, z1, kin)
+    assert len(calls) == 3
+
+
+def _interval_bounds(prob, x):
+    return prob.angle(x), abs(prob.speed_of(x)) * prob._half_step, prob.z(x), (prob.tau, *prob._rates)
+
+
+def test_the_interval_ends_share_one_run_at_a_constant_drive(monkeypatch):
+    from pumpsim.identification.runs import MODEL_RUNS
+    prob = _problem(["mu", "theta0", "speed"], initial={"theta0": 0.77})
+    if prob._simd is None:
+        return
+    theta, h, z, kin = _interval_bounds(prob, prob.x0)
+    MODEL_RUNS.entries.clear()
+    calls = _counting_runs(monkeypatch)
+    shared = prob._ends(theta, h, z, kin)
+    assert calls == [prob.t.size + 1]
+    two = prob._torque(theta - h, z, kin), prob._torque(theta + h, z, kin)
+    scale = np.max(np.abs(two[0]))
+    for a, b in zip(shared, two):  # the same ends to the rounding of theta +- h
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * scale)
+    assert not np.array_equal(two[0], two[1])
+
+
+def test_the_interval_ends_are_two_runs_where_the_angles_are_not_evenly_spaced(monkeypatch):
+    from pumpsim.identification.runs import MODEL_RUNS
+    prob = _problem(["mu", "theta0", "speed"])
+    if prob._simd is None:
+        return
+    theta, h, z, kin = _interval_bounds(prob, prob.x0)
+    rippled = np.array(z)
+    rippled[prob._simd.n_params + 4] = 1e-3  # a speed ripple: the drive is not constant
+    MODEL_RUNS.entries.clear()
+    calls = _counting_runs(monkeypatch)
+    prob._ends(theta, h, rippled, kin)
+    jitter = theta + 1e-6 * h * np.sin(np.arange(theta.size))  # a logger's clock jitter
+    prob._ends(jitter, h, z, kin)
+    assert calls == [prob.t.size] * 4
