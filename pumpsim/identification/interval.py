@@ -32,10 +32,6 @@ MARGIN = 2
 # between the sampled points) that the parameter moves; on a smooth column the departure is
 # ~(k h)^2 / 2 of it, ~3e-3 for the 12th harmonic at h = 0.024 rad
 KINK_FRACTION = 0.05
-# the angles' spacing may depart from 2 h by this fraction of h and still share the intervals' ends:
-# rounding of theta0 + omega t (~1e-16 of the angle, a few hundred rad at most); a sample time's
-# jitter (a real logger's clock) is far more and keeps the two runs
-EVEN_ANGLES = 1e-9
 
 
 def subpoint_offsets(points: int) -> np.ndarray:
@@ -81,14 +77,3 @@ def smooth_interval_columns(d, points: int) -> np.ndarray:
     out = np.array(d, dtype=float)
     out[1:-1] += c * (d[2:] - 2 * d[1:-1] + d[:-2])
     return out
-
-
-def interval_ends(torque, theta, h, kin, steady) -> tuple:
-    """The torque at the sample intervals' ends, theta - h and theta + h; torque(angles, kin) runs
-    the model. With a constant drive (`steady`: no speed trend, no ripple, so the model's speed
-    and acceleration are the same at every sample) and the angles 2 h apart, the end after a
-    sample is the end before the next, to rounding: one run over the n + 1 ends, not two over n."""
-    if steady and theta.size > 1 and np.all(np.abs(np.diff(theta) - 2 * h) <= EVEN_ANGLES * h):
-        run = torque(np.append(theta - h, theta[-1] + h), tuple(np.append(a, a[-1]) for a in kin))
-        return run[:-1], run[1:]
-    return torque(theta - h, kin), torque(theta + h, kin)

@@ -19,7 +19,7 @@ from ..model_spec.parameters import (ANGLE_ACTING, COF_ALIASES, DERIVED, KERNEL_
                                      MEASUREMENT, alias_targets, derive, fit_bounds, layout)
 from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
-from .interval import interval_ends, smooth_interval_columns, stepped_samples, subpoint_offsets
+from .interval import smooth_interval_columns, stepped_samples, subpoint_offsets
 from .reversals import reversal_keep
 from .runs import MODEL_RUNS
 from .sampled import drive_kinematics, drive_motion, drive_note, pointwise_columns, simd_torque, simd_torque_designs
@@ -251,12 +251,6 @@ class ConstantSpeedProblem(Problem):
         order = self.ripple_order if fast is None or z[fast.n_params + _RIPPLE].any() else None
         return MODEL_RUNS.get(("torque", lib, order, z.tobytes()), (theta, *kin), run)[0]
 
-    def _ends(self, theta, h, z, kin):
-        """The torque at the sample intervals' ends theta -/+ h (interval.interval_ends)."""
-        fast = self._simd
-        steady = fast is not None and self.tau is self.t and not z[fast.n_params + _RIPPLE].any()
-        return interval_ends(lambda th, k: self._torque(th, z, k), theta, h, kin, steady)
-
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
         LAG_SUBSTEPS points per sample interval (angles, times and their derivatives interpolated
@@ -304,7 +298,7 @@ class ConstantSpeedProblem(Problem):
         slope = ends = None
         if any(n in ANGLE_ACTING for n in names) or ("lag" in names and T == 0) or geo:
             h = abs(self.speed_of(x)) * self._half_step / m
-            ends = self._ends(theta, h, z, kin)
+            ends = self._torque(theta - h, z, kin), self._torque(theta + h, z, kin)  # the intervals' ends
             slope = (ends[1] - ends[0]) / (2 * h)
             for i, c in enumerate(cols):
                 if self.names[c] in ANGLE_ACTING:

@@ -189,39 +189,3 @@ def test_a_run_without_ripple_is_the_same_bits_at_any_ripple_order_and_shared(mo
         p._torque(theta, z1, kin)
     assert len(calls) == 3
 
-
-def _interval_bounds(prob, x):
-    return prob.angle(x), abs(prob.speed_of(x)) * prob._half_step, prob.z(x), (prob.tau, *prob._rates)
-
-
-def test_the_interval_ends_share_one_run_at_a_constant_drive(monkeypatch):
-    from pumpsim.identification.runs import MODEL_RUNS
-    prob = _problem(["mu", "theta0", "speed"], initial={"theta0": 0.77})
-    if prob._simd is None:
-        return
-    theta, h, z, kin = _interval_bounds(prob, prob.x0)
-    MODEL_RUNS.entries.clear()
-    calls = _counting_runs(monkeypatch)
-    shared = prob._ends(theta, h, z, kin)
-    assert calls == [prob.t.size + 1]
-    two = prob._torque(theta - h, z, kin), prob._torque(theta + h, z, kin)
-    scale = np.max(np.abs(two[0]))
-    for a, b in zip(shared, two):  # the same ends to the rounding of theta +- h
-        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * scale)
-    assert not np.array_equal(two[0], two[1])
-
-
-def test_the_interval_ends_are_two_runs_where_the_angles_are_not_evenly_spaced(monkeypatch):
-    from pumpsim.identification.runs import MODEL_RUNS
-    prob = _problem(["mu", "theta0", "speed"])
-    if prob._simd is None:
-        return
-    theta, h, z, kin = _interval_bounds(prob, prob.x0)
-    rippled = np.array(z)
-    rippled[prob._simd.n_params + 4] = 1e-3  # a speed ripple: the drive is not constant
-    MODEL_RUNS.entries.clear()
-    calls = _counting_runs(monkeypatch)
-    prob._ends(theta, h, rippled, kin)
-    jitter = theta + 1e-6 * h * np.sin(np.arange(theta.size))  # a logger's clock jitter
-    prob._ends(jitter, h, z, kin)
-    assert calls == [prob.t.size] * 4
