@@ -189,3 +189,28 @@ def test_a_run_without_ripple_is_the_same_bits_at_any_ripple_order_and_shared(mo
         p._torque(theta, z1, kin)
     assert len(calls) == 3
 
+
+
+def test_the_diagnose_benchs_stages_add_up_to_its_counts():
+    """bench/diagnose_stages.py: every SIMD call of a diagnosis is charged to one stage and one
+    purpose (their totals are `Counts`' totals), the baseline's fit is the baseline's, and the
+    workflow's functions are restored after."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+    import diagnose_stages
+    from pumpsim.diagnosis import diagnose, workflow
+
+    score_test = workflow.score_test
+    base, data = diagnose_scale.record("none", 1200)
+    with diagnose_scale.Counts() as c, diagnose_stages.Stages() as st:
+        diagnose(base, data, max_effects=1)
+    counts, stages = c.to_json()["kernel"], st.to_json()
+    assert workflow.score_test is score_test
+    total = {k: sum(v.get(k, 0) for v in stages["stages"].values()) for k in ("runs", "jacobians")}
+    assert total == {"runs": counts["model"]["calls"], "jacobians": counts["jacobian"]["calls"]}
+    assert sum(v["calls"] for v in stages["purposes"].values()) == sum(total.values())
+    assert stages["stages"]["workflow._baseline"]["jacobians"] > 0
+    last_screen = stages["stages"]["workflow.score_test (conclusion)"]  # a white record: no search
+    assert last_screen["jacobians"] > 0 and last_screen["cpu_seconds"] > 0
