@@ -235,15 +235,16 @@ def run_case(family, truth_name, snr, seed, speed_column, **kw):
     if info["status"] == "unobservable":
         return {"rig": family, "truth": truth_name, "snr": snr, "seed": seed, "speed_column": speed_column,
                 "status": "unobservable", "effect_rms": info["effect_rms"]}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     out = diagnose(nominal, ds)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     mu = out["final"]["params"].get("mu", {}).get("value")
     return {"rig": family, "truth": truth_name, "snr": snr, "seed": seed, "speed_column": speed_column,
             "effects": out["effects"], "confounded": out["confounded"], "unexplained": out["unexplained"],
             "verdict": out["verdict"], "outcome": classify(truth_name, out, info["status"]), "status": info["status"],
             "mu_rel_error": None if mu is None else abs(mu / info["mu"] - 1), "wall_time": wall,
-            "samples": ds.n}
+            "cpu_time": cpu, "samples": ds.n, "final_rms": out["final"]["rms"],
+            "final_params": {k: v.get("value") for k, v in out["final"]["params"].items()}}
 
 
 def grid(rigs, truths, snrs, seeds, speed_columns):

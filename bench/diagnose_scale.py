@@ -10,7 +10,9 @@ machine the less load-dependent number), the effects named and the verdict; then
 kernel the least-squares terms CPU = fixed + per window sample x min(samples, window) + per sample
 x samples (`scaling_terms`). `--counts`: per diagnosis, the SIMD library's calls (model runs and
 Jacobians: calls, samples, CPU seconds inside them), the CasADi map's, and the Gauss-Newton fits
-(fits, accepted steps, trial runs that a halving rejected). The search runs on a screening window (the first
+(fits, accepted steps, trial runs that a halving rejected); the SIMD calls by workflow stage and by
+purpose (bench/diagnose_stages.py). `--rate 10000 --samples 5001`: the `make bench` diagnose
+row's record. The search runs on a screening window (the first
 DiagnosisOptions.screen_samples = 5,000 samples), the whole-record refits, detectors and tests on
 every sample. `--kernel scalar` sets PUMPSIM_FIT_KERNEL=scalar
 (model torques on the CasADi map, as before the SIMD path); with both kernels each record runs back
@@ -39,6 +41,8 @@ from pumpsim.diagnosis.effects import with_harmonic_pair  # noqa: E402
 from pumpsim.diagnosis.options import OPTIONS  # noqa: E402
 from pumpsim.kernels import fast_kernel, load_kernels  # noqa: E402
 from pumpsim.simulate import simulate  # noqa: E402
+
+from diagnose_stages import Stages, print_stages  # noqa: E402
 
 RATE = 20000.0
 CASES = {"none": [], "oval4": [[4, 2e-5, 0.3]]}
@@ -139,7 +143,7 @@ def run_one(case: str, samples: int, kernel: str = "simd", profile=None, counts=
         out = pr.runcall(diagnose, base, data)
         pr.dump_stats(profile)
     elif counts:
-        with Counts() as counted:
+        with Counts() as counted, Stages() as staged:
             out = diagnose(base, data)
     else:
         out = diagnose(base, data)
@@ -148,7 +152,7 @@ def run_one(case: str, samples: int, kernel: str = "simd", profile=None, counts=
     return {"case": case, "samples": int(data.n), "kernel": kernel, "seconds": wall, "cpu_seconds": cpu,
             "load": os.getloadavg()[0], "effects": list(js["effects"]),
             "verdict": js["verdict"], "unexplained": js.get("unexplained"), "final_rms": js["final"]["rms"],
-            **({"counts": counted.to_json()} if counted else {})}
+            **({"counts": counted.to_json(), "stages": staged.to_json()} if counted else {})}
 
 
 def columns_ratio(base, data, repeats: int = 3) -> dict:
@@ -227,6 +231,7 @@ def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print,
                     f"verdict {r['verdict']}")
                 if counts:
                     log("  " + json.dumps(r["counts"]))
+                    print_stages(r["stages"], log)
     os.environ.pop("PUMPSIM_FIT_KERNEL", None)
     end = os.getloadavg()
     log(f"load average at end: {' '.join(f'{v:.2f}' for v in end)}")
@@ -234,14 +239,17 @@ def scale(samples, cases=("oval4",), kernels=("simd",), profile=None, log=print,
 
 
 def main():
+    global RATE
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, nargs="*", default=[1000, 5000, 20000, 80000])
     ap.add_argument("--case", nargs="*", choices=list(CASES), default=["oval4"])
     ap.add_argument("--kernel", nargs="*", choices=["simd", "scalar"], default=["simd"])
     ap.add_argument("--profile", help="cProfile output in process CPU time (one case and length only)")
     ap.add_argument("--counts", action="store_true", help="kernel calls and Gauss-Newton work per diagnosis")
+    ap.add_argument("--rate", type=float, default=RATE, help="sampling rate, Hz (make bench's diagnose row: 10000)")
     ap.add_argument("--json")
     a = ap.parse_args()
+    RATE = a.rate
     res = scale(a.samples, a.case, a.kernel, a.profile, log=lambda m: print(m, flush=True), counts=a.counts)
     print_terms(res["terms"])
     if a.json:

@@ -51,7 +51,7 @@ class Dataset:
         1 s biased it by 1e-5 (0.005 rad of angle by the end, lines of 2.3 x the noise at order 3
         left after the ripple's fit). Over whole revolutions every integer shaft order averages
         out, to within one sample's share. A column with a significant slow trend: the trend's mean,
-        the one the model's drive time is scaled by (identification.problem.drive_kinematics)."""
+        the one the model's drive time is scaled by (identification.sampled.drive_kinematics)."""
         if self.speed is None:
             return None
         if self.speed_trend() is not None:

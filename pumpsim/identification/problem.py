@@ -22,10 +22,11 @@ from ..motion import ripple_motion
 from .interval import smooth_interval_columns, stepped_samples, subpoint_offsets
 from .reversals import reversal_keep
 from .runs import MODEL_RUNS
-from .sampled import drive_motion, pointwise_columns, simd_torque, simd_torque_designs
+from .sampled import drive_kinematics, drive_motion, drive_note, pointwise_columns, simd_torque, simd_torque_designs
 from .start import periodic_config_names, phase_and_speed_start
 
 Z_SPECIAL = KERNEL_GRAPH_INPUTS  # theta0, speed, delay, torque_offset, ripple_cos, ripple_sin
+_RIPPLE = np.array([Z_SPECIAL.index("ripple_cos"), Z_SPECIAL.index("ripple_sin")])
 
 
 def base_name(name):
@@ -151,7 +152,7 @@ class ConstantSpeedProblem(Problem):
             self.x0[i] = min(max(self.x0[i], self.speed_band[0]), self.speed_band[1])
         self.y = data.torque
         # the drive's own time: tau = t at a constant speed; with a drifting measured speed the
-        # angle and speed follow the column's trend (drive_kinematics)
+        # angle and speed follow the column's trend (sampled.drive_kinematics)
         self.tau, *self._rates = drive_kinematics(data, self.t)
         if self.tau is not self.t:
             self.NOTE = self.NOTE + drive_note(data)
@@ -245,7 +246,10 @@ class ConstantSpeedProblem(Problem):
         lib = self.kern if fast is None else fast
         run = (lambda: (torque_at(lib, theta, z, self.ripple_order, *kin),)) if fast is None else (
             lambda: (simd_torque(fast, theta, z, self.ripple_order, *kin),))
-        return MODEL_RUNS.get(("torque", lib, self.ripple_order, z.tobytes()), (theta, *kin), run)[0]
+        # without a ripple the SIMD path's drive is the same bits at any order (sampled._drive): the
+        # screen's speed-ripple candidates share the current fit's runs
+        order = self.ripple_order if fast is None or z[fast.n_params + _RIPPLE].any() else None
+        return MODEL_RUNS.get(("torque", lib, order, z.tobytes()), (theta, *kin), run)[0]
 
     def _grid(self, T, *per_sample):
         """The sensor filters the continuous torque: with a lag (T > 0) the model is evaluated on
@@ -445,7 +449,7 @@ _SAMPLE_FNS: dict = {}  # per (variant key, directions[, samples]): see sample_t
 def sample_torque(kern, directions: int, samples: int) -> ca.Function:
     """One sample's drive torque at angle theta and drive time tau given z (runtime parameters,
     theta0, speed, delay, torque_offset, ripple_cos, ripple_sin), the ripple order k and the drive
-    time's rates g = dtau/dt, gd = d2tau/dt2 (1 and 0 at a constant speed; see drive_kinematics):
+    time's rates g = dtau/dt, gd = d2tau/dt2 (1 and 0 at a constant speed; see sampled.drive_kinematics):
     the speed and acceleration come from the ripple at the nominal angle theta0 + speed (tau -
     delay), times g (chain rule) -- with, for directions m > 0, its derivatives along the m columns
     of a seed matrix S; mapped over `samples` samples. Inputs (theta, tau, z, k, g, gd[, S])."""
@@ -476,25 +480,6 @@ def torque_at(kern, theta, z, k, tau, g, gd) -> np.ndarray:
     if fast is None:
         return np.asarray(sample_torque(kern, 0, theta.size)(theta, tau, z, k, g, gd)).ravel()
     return simd_torque(fast, theta, z, k, tau, g, gd)
-
-
-def drive_kinematics(data: Dataset, t):
-    """(tau, g, gd): the drive time and its first two rates per sample. With a speed column whose
-    slow trend is significant against its noise (data.speed_trend(): a Legendre fit, see there)
-    tau = integral of omega_s / mean(speed): the model's angle is theta0 + the integral of the
-    smoothed measured speed, its speed and acceleration those of the trend (the column's noise
-    never enters omegadot). Otherwise tau is t itself (the same array), g = 1, gd = 0 -- the
-    constant-speed model as it always was (g and gd read-only views of one number: no memory)."""
-    trend = data.speed_trend()
-    if trend is None:
-        return t, np.broadcast_to(1.0, t.shape), np.broadcast_to(0.0, t.shape)
-    return (trend.warped_time(t), trend.speed(t) / trend.mean, trend.acceleration(t) / trend.mean)
-
-
-def drive_note(data: Dataset) -> str:
-    tr = data.speed_trend()
-    return (f"; the speed column drifts ({100 * tr.change():.2g} % over the record, F-test p = "
-            f"{tr.p_value:.2g}): angle and speed follow its Legendre trend of degree {tr.degree}")
 
 
 def start_and_bounds(names, pv, starts, initial=None):

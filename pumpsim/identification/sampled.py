@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..data import Dataset
 from ..kernels import FAST_THREADED, default_threads, fast_kernel
 from ..model_spec.parameters import KERNEL_GRAPH_INPUTS
 from ..motion import ripple_motion
@@ -143,3 +144,22 @@ def pointwise_columns(fast, theta, z, k, kin, seeds):
     tq += zs[3]
     J += sd[3][None, :]
     return tq, J
+
+
+def drive_kinematics(data: Dataset, t):
+    """(tau, g, gd): the drive time and its first two rates per sample. With a speed column whose
+    slow trend is significant against its noise (data.speed_trend(): a Legendre fit, see there)
+    tau = integral of omega_s / mean(speed): the model's angle is theta0 + the integral of the
+    smoothed measured speed, its speed and acceleration those of the trend (the column's noise
+    never enters omegadot). Otherwise tau is t itself (the same array), g = 1, gd = 0 -- the
+    constant-speed model as it always was (g and gd read-only views of one number: no memory)."""
+    trend = data.speed_trend()
+    if trend is None:
+        return t, np.broadcast_to(1.0, t.shape), np.broadcast_to(0.0, t.shape)
+    return (trend.warped_time(t), trend.speed(t) / trend.mean, trend.acceleration(t) / trend.mean)
+
+
+def drive_note(data: Dataset) -> str:
+    tr = data.speed_trend()
+    return (f"; the speed column drifts ({100 * tr.change():.2g} % over the record, F-test p = "
+            f"{tr.p_value:.2g}): angle and speed follow its Legendre trend of degree {tr.degree}")

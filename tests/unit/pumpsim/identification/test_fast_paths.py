@@ -150,3 +150,67 @@ def test_the_diagnose_benchs_counts_are_the_fits_own():
     assert got["kernel"]["jacobian"]["samples"] == (steps + 1) * data.n
     assert got["kernel"]["model"]["calls"] >= steps + got["gauss_newton"]["rejected_trials"]
     assert got["kernel"]["casadi map"]["calls"] == 0
+
+
+def _counting_runs(monkeypatch):
+    """Count the SIMD library's calls (model runs and Jacobians)."""
+    from pumpsim.kernels import simd
+    calls, run = [], simd.FastInverseDynamics._run
+
+    def counted(lib, fns, n, *a, **kw):
+        calls.append(n)
+        return run(lib, fns, n, *a, **kw)
+    monkeypatch.setattr(simd.FastInverseDynamics, "_run", counted)
+    return calls
+
+
+def test_a_run_without_ripple_is_the_same_bits_at_any_ripple_order_and_shared(monkeypatch):
+    from pumpsim.identification.runs import MODEL_RUNS
+    from pumpsim.identification.sampled import simd_torque
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    t = np.arange(1500) / 10000.0
+    probs = [make_problem(cfg, Dataset(t, np.zeros(t.size)), ["mu", "theta0"], ripple_order=k) for k in (1, 7)]
+    fast = probs[0]._simd
+    if fast is None:
+        return  # no SIMD library on this machine: the CasADi path keeps the order in its key
+    x = probs[0].x0
+    theta, z, kin = probs[0].angle(x), probs[0].z(x), (probs[0].tau, *probs[0]._rates)
+    ref = [simd_torque(fast, theta, z, k, *kin) for k in (1, 7)]
+    np.testing.assert_array_equal(ref[0], ref[1])  # what sharing the run relies on
+    MODEL_RUNS.entries.clear()
+    calls = _counting_runs(monkeypatch)
+    got = [p.model(x) for p in probs]
+    assert len(calls) == 1
+    np.testing.assert_array_equal(got[1], ref[1])
+    z1 = np.array(z)
+    z1[fast.n_params + 4] = 1e-3  # a ripple: the order matters again
+    MODEL_RUNS.entries.clear()
+    for p in probs:
+        p._torque(theta, z1, kin)
+    assert len(calls) == 3
+
+
+
+def test_the_diagnose_benchs_stages_add_up_to_its_counts():
+    """bench/diagnose_stages.py: every SIMD call of a diagnosis is charged to one stage and one
+    purpose (their totals are `Counts`' totals), the baseline's fit is the baseline's, and the
+    workflow's functions are restored after."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "bench"))
+    import diagnose_scale
+    import diagnose_stages
+    from pumpsim.diagnosis import diagnose, workflow
+
+    score_test = workflow.score_test
+    base, data = diagnose_scale.record("none", 1200)
+    with diagnose_scale.Counts() as c, diagnose_stages.Stages() as st:
+        diagnose(base, data, max_effects=1)
+    counts, stages = c.to_json()["kernel"], st.to_json()
+    assert workflow.score_test is score_test
+    total = {k: sum(v.get(k, 0) for v in stages["stages"].values()) for k in ("runs", "jacobians")}
+    assert total == {"runs": counts["model"]["calls"], "jacobians": counts["jacobian"]["calls"]}
+    assert sum(v["calls"] for v in stages["purposes"].values()) == sum(total.values())
+    assert stages["stages"]["workflow._baseline"]["jacobians"] > 0
+    last_screen = stages["stages"]["workflow.score_test (conclusion)"]  # a white record: no search
+    assert last_screen["jacobians"] > 0 and last_screen["cpu_seconds"] > 0
