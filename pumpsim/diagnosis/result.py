@@ -190,10 +190,13 @@ class DiagnosisResult(NamedSteps):
     budget: dict = field(default_factory=dict)  # {"seconds", "bound", "cut"}: what the time budget cut
     final_polar: tuple = ()  # PolarEstimate per named pair effect, at the final fit
     final_harmonics: list = field(default_factory=list)  # the final model's housing harmonics (labels)
+    # [effect, baseline parameter]: an effect this record cannot tell from a fitted baseline
+    # parameter (an offset inside mu at one speed); `confounded` holds pairs of effects only
+    hidden_in_baseline: list = field(default_factory=list)
 
-    JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "unexplained_where",
-            "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected", "method", "wall_time",
-            "drift", "budget")
+    JSON = ("baseline", "steps", "effects", "final", "unexplained", "confounded", "hidden_in_baseline",
+            "unexplained_where", "verdict", "notes", "detectors", "speed", "ranking", "screens", "rejected",
+            "method", "wall_time", "drift", "budget")
 
 
     white_alpha = WHITE_ALPHA
@@ -250,6 +253,7 @@ class DiagnosisResult(NamedSteps):
                           for w in self.unexplained_where) or "broadband"
         lines.append(f"verdict: {self.verdict}" + (f" (at {where})" if self.unexplained else ""))
         lines += [f"confounded: {a} ~ {b}" for a, b in self.confounded]
+        lines += [f"cannot be told from the fitted {b} on this data: {a}" for a, b in self.hidden_in_baseline]
         lines += [f"note: {n}" for n in self.notes]
         lines.append(PLUS_MINUS)
         if not self.residual_tests_white:

@@ -14,7 +14,7 @@ import scipy.linalg
 from ..distributions import chi2_sf
 from ..signals import order_lines
 
-from .effects import EFFECTS, Candidate, Effect, clearance, owner_of
+from .effects import EFFECTS, Candidate, Effect, clearance, effect_of, owner_of
 from .options import OPTIONS, DiagnosisOptions
 from .state import State, ar1, bic, common_keep, on_kept, prewhiten, split_rows, sum_squares
 
@@ -438,11 +438,15 @@ def screen_table(ranking, alpha, effects) -> Screen:
     return Screen(effects[-1] if effects else "baseline", alpha, tuple(rows))
 
 
-def note_confounded(scored, alpha, confounded, cfg):
+def note_confounded(scored, alpha, confounded, cfg, hidden=None):
     """A candidate nearly collinear with a fitted parameter whose own (projected) score is not
-    significant could hide inside that parameter: report the pair."""
+    significant could hide inside that parameter: report the pair -- among the confounded when
+    the parameter is a named effect's, in `hidden` (when given) when it is a baseline parameter
+    (mu, theta0, ...): that is what one record cannot tell, not two effects it cannot tell apart."""
     for c, s in scored:
         if s.partner is not None and s.p_value >= alpha:
-            pair = [c.effect, owner_of(s.partner, cfg)]
-            if pair not in confounded:
-                confounded.append(pair)
+            owner = owner_of(s.partner, cfg)
+            into = hidden if hidden is not None and effect_of(s.partner, cfg) is None else confounded
+            pair = [c.effect, owner]
+            if pair not in into:
+                into.append(pair)

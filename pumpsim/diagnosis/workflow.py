@@ -67,6 +67,7 @@ class Run(Budgeted):
     opts: DiagnosisOptions = OPTIONS
     log: list = field(default_factory=list)  # log.Note records, in the order the steps made them
     confounded: list = field(default_factory=list)
+    hidden: list = field(default_factory=list)  # [effect, baseline parameter] one record cannot tell apart
     torque_rms: float = 0.0
     mean_torque: float = 0.0
     added: list = field(default_factory=list)  # per named effect: the fitted names it added
@@ -221,7 +222,7 @@ def _search_step(run, state, current, detection, steps, screens) -> SearchStep:
     tests = len(scored) + (examined and not detected)  # the detector counts as one candidate
     ranking = rank_candidates(scr, scored, tests, opts)
     screens.append(screen_table(ranking, opts.score_alpha / tests, [s.effect.name for s in steps]))
-    note_confounded(scored, opts.score_alpha / tests, run.confounded, state.cfg)
+    note_confounded(scored, opts.score_alpha / tests, run.confounded, state.cfg, run.hidden)
     sig = [r for r in ranking if r.significant]
     rho = ar1(on_kept(current.residual, current.keep))
     refuted = set()
@@ -265,13 +266,13 @@ def _conclude(run, state, current, detection, steps, rival_pair):
     scr = state.on(run.screen_data)
     scored = [(c, score_test(scr, c, start=False, opts=opts)) for c in candidates(state.cfg, named)
               if not c.symmetric]
-    note_confounded(scored, opts.score_alpha / max(len(scored), 1), run.confounded, state.cfg)
+    note_confounded(scored, opts.score_alpha / max(len(scored), 1), run.confounded, state.cfg, run.hidden)
     if rival_pair is not None:
         run.log.append(Rivals(rival_pair[0], rival_pair[1], opts.bic_decisive))
     for m, k in zip(detection.per, kurtosis_off_reversals(run, state, current)):
         m["kurtosis"] = k  # reported as tested: on the samples off the model's reversals
     run.log += verdict_notes(detection, detection.per[0]["kurtosis"], detection.consistent(), opts)
-    run.log += confounded_notes(run.confounded, state, run.screen_data, len(run.datasets), opts)
+    run.log += confounded_notes(run.confounded + run.hidden, state, run.screen_data, len(run.datasets), opts)
     drifts = drift_findings(run, state)
     run.log += [Drifting(d.text(), len(d.segments), d.p_value) for d in drifts]
     if run.budget.get("bound"):
@@ -314,7 +315,7 @@ def _result(run, base, state, current, detection, steps, ranking, screens, rival
     return DiagnosisResult(
         baseline={"rms": base.rms, "params": params_json(base, list(base.estimates), run.cfg)},
         steps=tuple(steps), final=_final(current, state, detection, verdict.consistent),
-        unexplained=not verdict.consistent, confounded=run.confounded,
+        unexplained=not verdict.consistent, confounded=run.confounded, hidden_in_baseline=run.hidden,
         unexplained_where=[] if verdict.consistent else where_unexplained(current, run.datasets, detection, run.opts),
         verdict=verdict.text, log=tuple(run.log), detectors=detection.to_json(), speed=run.speed_info,
         ranking=[{"effect": r.cand.label, "score_p_value": r.score.p_value, "one_step_bic": r.bic,

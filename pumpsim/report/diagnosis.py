@@ -59,6 +59,10 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
         parts.append(f"<p class=warn>Confounded: {html.escape(a)} and {html.escape(b)} have nearly collinear "
                      f"effects on this data, which cannot tell them apart: {html.escape(a)} is not named "
                      "(see the notes).</p>")
+    for a, b in getattr(out, "hidden_in_baseline", ()):
+        parts.append(f"<p class=note>{html.escape(a)} would hide in the fitted {html.escape(b)} on this "
+                     f"data: a {html.escape(a)} the size of the noise cannot be told from a different "
+                     f"{html.escape(b)} (see the notes for what would separate them).</p>")
     last_res = out.history[-1].result if out.history else None
     parts.append(interval_warning(white, final["runs_p_value"], final["ljung_box_p_value"],
                                   None if last_res is None else last_res.residual))

@@ -39,12 +39,15 @@ def test_disturbance_outside_the_library_is_unexplained_and_located():
 
 
 def test_offset_and_cof_at_one_speed_are_reported_confounded():
-    """Concentric rig at one speed: an offset and the COF both only shift a constant torque."""
+    """Concentric rig at one speed: an offset and the COF both only shift a constant torque. The
+    pair is an effect and a baseline parameter: `hidden_in_baseline`, not among the confounded
+    effect pairs (which a clean record leaves empty)."""
     cfg = make_config("test_rig")
     ref = pumpsim.simulate(cfg, duration=0.05, rate=10000)
     y = ref.torque + 0.002 + np.random.default_rng(5).normal(0, 0.0005, ref.time.size)
     out = diagnose(cfg, Dataset(ref.time, y))
-    assert ["torque_offset", "mu"] in out["confounded"]
+    assert ["torque_offset", "mu"] in out["hidden_in_baseline"]
+    assert all("mu" not in pair for pair in out["confounded"])
     assert "torque_offset" not in out["effects"]
     assert any("second speed" in n for n in out["notes"])
 
