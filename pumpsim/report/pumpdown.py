@@ -72,17 +72,32 @@ def _current_panel(a, res):
     _legend(a, h1 + h2, ncol=1)
 
 
+def energy_parts(s) -> list[tuple[str, float]]:
+    """(label, J) summing to the supply's energy (the shaft work's without a motor): the shaft
+    work's parts (work_split) with the motor's losses, and the kinetic energy the run leaves in
+    rotor, vanes and motor (and the winding's L i^2 / 2) as what remains."""
+    from ..pneumatics.pumpdown import work_split
+
+    names = {"gas": "gas work", "friction": "vane friction (tips, slots)", "valve damping": "valve damping",
+             "contacts": "contact work"}
+    shaft = [(names[n], v) for n, v in work_split(s) if n != "kinetic"]
+    if s["energy"] is None:
+        return shaft + [("kinetic (rotor, vanes)", s["shaft_work"] - sum(v for _, v in shaft))]
+    motor = [("copper loss R i²", s["copper_loss"]), ("motor friction", s["motor_friction_work"])]
+    rest = s["energy"] - sum(v for _, v in shaft + motor)
+    return shaft + motor + [("kinetic (rotor, vanes, motor)", rest)]
+
+
 def _energy_panel(a, res):
     s = res.summary
-    motor = s["energy"] is not None
-    q = np.array([s["gas_work"], s["friction_work"]] + ([s["copper_loss"], s["motor_friction_work"]] if motor else []))
-    names = ["gas work", "vane friction (tips, slots)", "copper loss R i²", "motor friction"][:q.size]
-    a.barh(names, q, color=["C0", "C3", "C1", "C4"][:q.size])
+    parts = energy_parts(s)
+    q = np.array([v for _, v in parts])
+    a.barh([n for n, _ in parts], q, color=[f"C{k}" for k in range(len(parts))])
     for y, v in enumerate(q):
-        a.text(v, y, f" {v:.0f} J", va="center", fontsize=8)
-    a.set_xlim(0, 1.2 * max(q.max(), 1e-300))
-    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.0f} J from the supply go" if motor
-          else f"Where the {s['shaft_work']:.0f} J of shaft work go (no motor)")
+        a.text(max(v, 0.0), y, f" {v:.1f} J", va="center", fontsize=8)
+    a.set_xlim(min(0.0, 1.2 * q.min()), 1.2 * max(q.max(), 1e-300))
+    a.set(xlabel="energy over the run [J]", title=f"Where the {s['energy']:.1f} J from the supply go"
+          if s["energy"] is not None else f"Where the {s['shaft_work']:.1f} J of shaft work go (no motor)")
 
 
 def _indicator_panel(a, maps, cfg, picks):

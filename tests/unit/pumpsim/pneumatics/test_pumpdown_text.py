@@ -32,3 +32,17 @@ def test_report_work_row_closes():
     assert label == "shaft work = gas + friction + valve damping + contacts + kinetic"
     shaft, *parts = _numbers(value)
     assert sum(parts) == pytest.approx(shaft, rel=ROUNDING_REL)
+
+
+def test_the_energy_figures_bars_add_up_to_the_supplys_energy():
+    """The bars under 'Where the ... J from the supply go': every part of the shaft work but its
+    kinetic share, the motor's losses, and the kinetic energy left (rotor, vanes, motor) as the
+    rest; without a motor they add up to the shaft work."""
+    from pumpsim.report.pumpdown import energy_parts
+
+    s = {**SUMMARY, "copper_loss": 6.0, "motor_friction_work": 1.5}
+    parts = dict(energy_parts(s))
+    assert sum(parts.values()) == pytest.approx(s["energy"], rel=ROUNDING_REL)
+    assert parts["kinetic (rotor, vanes, motor)"] == pytest.approx(20.0 - 6.0 - 1.5 - 8.5, rel=ROUNDING_REL)
+    speed_driven = dict(energy_parts({**s, "energy": None}))
+    assert sum(speed_driven.values()) == pytest.approx(s["shaft_work"], rel=ROUNDING_REL)
