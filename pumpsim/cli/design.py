@@ -46,7 +46,7 @@ def cmd_sweep(a) -> int:
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=a.workers,
                           batch_size=a.batch_size, progress=None if live() else False)
     man = read_manifest(a.out) if a.out else None
-    print(summary_text(df, study.outputs, study.limits, man))
+    print(summary_text(df, study.outputs, study.limits, man, sampler=study.sampler))
     size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
     print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
           f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
@@ -79,7 +79,7 @@ def _summary(a, study) -> int:
     running = holder_of(a.out)
     if running:
         print(f"a run is writing this folder ({running}); the summary is of the parts written so far")
-    print(summary_text(df, study.outputs, study.limits, man))
+    print(summary_text(df, study.outputs, study.limits, man, sampler=study.sampler))
     parts = len(list(Path(a.out).glob("part-*.parquet")))
     if parts < man.get("batches", 0) and not running:
         print(f"{parts} of {man['batches']} batches written: rerun without --summary to resume")

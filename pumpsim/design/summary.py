@@ -162,7 +162,9 @@ def coverage_text(cov) -> str | None:
     return "; ".join(parts) or None
 
 
-def summary_text(df, study_outputs, limits, manifest=None) -> str:
+def summary_text(df, study_outputs, limits, manifest=None, sampler=None) -> str:
+    """The terminal's table of a result; a grid's designs (the manifest's sampler, else
+    `sampler`) are chosen, not drawn: no spread, Cpk or yield, only the in-spec shares."""
     lines = []
     if manifest:
         status = manifest.get("status")
@@ -184,14 +186,14 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
     def f(x, w, p=5):
         return f"{'—':>{w}s}" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:>{w}.{p}g}"
 
-    grid = bool(manifest) and manifest.get("sampler") == "grid"
+    grid = (manifest.get("sampler") if manifest else sampler) == "grid"
     table = output_table(df, study_outputs, limits, sample=not grid)
     for r in table:
         ins = f"{100 * r['within']:7.2f}%" if "within" in r else f"{'':>8s}"
         # values below the solvers' resolution are round-off: shown as 0, not as 2.6e-13
         size = max(abs(r["min"]), abs(r["max"])) if r["n"] else 0.0
         mean, lo, hi = (resolved(r[k], r["unit"]) for k in ("mean", "min", "max"))
-        sd = resolved(r["sd"], r["unit"], size)
+        sd = None if grid else resolved(r["sd"], r["unit"], size)
         lines.append(f"{r['output']:22s} {r['unit']:>6s} {r['n']:6d} {f(mean, 11)} {f(sd, 10, 4)} "
                      f"{f(lo, 11)} {f(hi, 11)} {f(r['lower'], 9, 4)} {f(r['upper'], 9, 4)} {ins} "
                      f"{f(r.get('cpk'), 6, 3)}")
@@ -200,4 +202,9 @@ def summary_text(df, study_outputs, limits, manifest=None) -> str:
         lines.append(f"in spec: share of the {len(df) - failed} evaluated rows ({failed} not evaluated)")
     if limits and not grid:
         lines.append(f"yield (evaluated and within every limit): {100 * yield_share(df, limits):.2f} %")
+    elif limits:
+        n_ok = int(evaluated(df).sum()) if len(df) else 0
+        inside = round(yield_share(df, limits) * len(df)) if len(df) else 0
+        lines.append(f"within every limit: {inside} of the {n_ok} evaluated rows (a grid: no yield, spread "
+                     "or Cpk)")
     return "\n".join(lines)

@@ -49,7 +49,14 @@ def test_in_spec_share_leaves_failed_designs_out_and_a_grid_has_no_cpk():
     assert p["min"] == 0.0  # 1e-13 N·m is below the solver's resolution: shown as 0
     assert r["max_extension"]["constant"] and r["max_extension"]["sd"] == 0.0
     text = summary_text(df, ["ptp_torque"], {"ptp_torque": (None, 0.03)}, {"sampler": "grid", "designs": 6})
-    assert "yield" not in text and "4 evaluated rows (2 not evaluated)" in text
+    assert "yield (" not in text and "4 evaluated rows (2 not evaluated)" in text
+    assert "within every limit: 3 of the 4 evaluated rows" in text
+    # the command's own table of a grid run without a results folder (no manifest): the study's
+    # sampler says it is a grid, so no spread either
+    alone = summary_text(df, ["ptp_torque"], {"ptp_torque": (None, 0.03)}, None, sampler="grid")
+    assert "yield (" not in alone and "within every limit: 3 of the 4" in alone
+    row = next(line for line in alone.splitlines() if line.startswith("ptp_torque"))
+    assert row.split()[4] == "—"  # the sd column
     assert "cpk" in output_table(df, ["ptp_torque"], {"ptp_torque": (None, 0.03)})[0]
 
 
