@@ -198,6 +198,11 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     datasets = as_datasets(data, options, cfg.speed if cfg.mode == "speed" else None)
     warnings = list(cfg.warnings)
     for d in datasets:
+        if d.measured is not None and not np.all(d.measured):
+            # its spectra and screens read the residual as one uniform record: no sample can be left out
+            raise DataError(f"data '{d.name}': {int(np.sum(~d.measured))} resampled samples lie inside a gap "
+                            "in time (interpolated, not measured) and the diagnosis needs one continuous "
+                            "record; cut the record at the gap and diagnose each part")
         warnings += check_measurement(cfg, d, ("mu", "theta0"), force=force)
     for w in warnings:  # accepted under force: say so where the user looks
         if progress:
