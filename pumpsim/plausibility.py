@@ -37,7 +37,7 @@ MIN_ATMOSPHERE = 1.0e4  # Pa
 MIN_TEMPERATURE = 150.0  # K
 
 TORQUE_FACTORS = {"N*mm (set the torque unit N*mm, or a 'torque [N*mm]' header)": 1e3,
-                  "N*cm (set the torque unit N*cm)": 1e2,
+                  "N*cm (set the torque unit N*cm, or a 'torque [N*cm]' header)": 1e2,
                   "N*m, but the torque unit option or the header says N*mm": 1e-3}
 SPEED_FACTORS = {"rpm (set the speed unit rpm, or a 'speed [rpm]' header)": 60 / (2 * math.pi),
                  "rev/s (set the speed unit rev/s)": 1 / (2 * math.pi),
@@ -45,6 +45,10 @@ SPEED_FACTORS = {"rpm (set the speed unit rpm, or a 'speed [rpm]' header)": 60 /
                  "rad/s, but the speed unit option or the header says rpm": 2 * math.pi / 60}
 TIME_FACTORS = {"ms (set the time unit ms, or a 'time [ms]' header)": 1e3,
                 "us (set the time unit us, or a 'time [us]' header)": 1e6}
+# a torque unit is named alone when its factor brings the level nearer the model's at the configured
+# COF by half a decade than the next unit's does (N*cm and N*mm, a decade apart, are told apart
+# unless the configured COF is ~3x off the data's); otherwise both are named
+AMBIGUOUS_DECADES = 0.5
 FACTOR_TOL = 0.15  # relative: a ratio within 15 % of a unit factor is taken as that unit
 
 
@@ -173,7 +177,8 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
 
 def _model_torques(cfg, speed):
     """[(RMS, mean)] of the model torque over one revolution at `speed` for COFs MIN_COF and 2
-    (housing and slot, statics scaled by the configured ratios): the range a fit of mu can reach."""
+    (housing and slot, statics scaled by the configured ratios): the range a fit of mu can reach;
+    then at the configured COF: the level the data should have."""
     from .config import as_array
     from .kernels import load_kernels, sampled_inverse_dynamics
 
@@ -181,7 +186,7 @@ def _model_torques(cfg, speed):
     kern = load_kernels(pv.structure)
     grid = np.linspace(0, 2 * math.pi, 360, endpoint=False)
     out = []
-    for mu in (MIN_COF, 2.0):
+    for mu in (MIN_COF, 2.0, pv.values["friction.housing.dynamic"]):
         vals = dict(pv.values)
         for side in ("housing", "slot"):
             ratio = vals[f"friction.{side}.static"] / max(vals[f"friction.{side}.dynamic"], 1e-300)
@@ -194,8 +199,18 @@ def _model_torques(cfg, speed):
     return out
 
 
+def _nearest_units(level, nominal, candidates) -> list:
+    """The unit whose factor brings `level` nearest the model's `nominal` level (log distance);
+    both nearest when the runner-up is within half a decade of as near (ambiguous)."""
+    if nominal <= 0:
+        return [u for u, _ in candidates[:1]]
+    ranked = sorted(candidates, key=lambda uf: abs(math.log10(level / uf[1] / nominal)))
+    far = [abs(math.log10(level / f / nominal)) for _, f in ranked]
+    return [u for (u, _), d in zip(ranked[:2], far[:2]) if d - far[0] < AMBIGUOUS_DECADES]
+
+
 def _check_torque_level(cfg, ds, speed, force):
-    (lo, low_mean), (hi, high_mean) = _model_torques(cfg, speed)
+    (lo, low_mean), (hi, high_mean), (nominal, _) = _model_torques(cfg, speed)
     level, mean = float(np.sqrt(np.mean(ds.torque**2))), float(np.mean(ds.torque))
     if mean < -0.5 * level and min(low_mean, high_mean) > 0:
         return _refuse(f"data '{ds.name}': the torque column's mean is negative ({mean:.4g} N m) where the "
@@ -204,8 +219,8 @@ def _check_torque_level(cfg, ds, speed, force):
                        force, DataError)
     if not level > 0 or hi <= 0 or lo / TORQUE_MARGIN <= level <= hi * TORQUE_MARGIN:
         return []
-    fits = [u for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi]
-    why = f": the torque looks like {fits[0]}" if fits else \
+    fits = _nearest_units(level, nominal, [(u, f) for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi])
+    why = f": the torque looks like {' or '.join(fits)}" if fits else \
         ": check the torque unit and the configuration (lengths m, masses kg)"
     return _refuse(f"data '{ds.name}': torque RMS {level:.4g} N m is outside what the model gives at "
                    f"{speed:.5g} rad/s for any COF in [{MIN_COF:g}, 2] ({lo:.3g} .. {hi:.3g} N m){why}",

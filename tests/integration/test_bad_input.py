@@ -52,6 +52,7 @@ def write_toml(path, d):
 
 @pytest.mark.parametrize("transform,expect", [
     (lambda t, tq, w: (t, tq * 1000, w), ["N*mm", "set the torque unit N*mm"]),
+    (lambda t, tq, w: (t, tq * 100, w), ["looks like N*cm (set the torque unit N*cm", "force option"]),
     (lambda t, tq, w: (t, tq, w * 60 / (2 * math.pi)), ["rpm", "set the speed unit rpm"]),
     (lambda t, tq, w: (t * 1000, tq, w), ["ms", "set the time unit ms"]),
 ])
@@ -62,6 +63,21 @@ def test_unit_mistakes_in_data_are_refused_with_the_fix(tmp_path, capsys, transf
     code, _, err = run(capsys, "identify", RIG, data, "--params", "mu", "--json", js)
     assert code == 2 and all(e in err for e in expect) and "force option" in err, err
     assert not js.exists()
+    if "N*cm" in expect[0]:  # named alone: N*mm would read it 10x too low and fit a COF 10x too low
+        assert "N*mm" not in err, err
+
+
+def test_a_torque_level_between_two_units_names_both(tmp_path, capsys):
+    # the config's COF ~3x below the data's puts the torque in N*cm half a decade above the model's
+    # level in N*cm and half a decade below it in N*mm: either unit could be meant
+    t, tq, w = rig_columns()
+    d = example_dict("test_rig")
+    d["friction"]["housing"].update(static=0.067, dynamic=0.064)
+    cfg = write_toml(tmp_path / "low.toml", d)
+    data = write(tmp_path / "d.csv", "time,torque,speed", t, tq * 100, w)
+    code, _, err = run(capsys, "identify", cfg, data, "--params", "mu")
+    hint = err.split("looks like ", 1)[-1]
+    assert code == 2 and "N*mm (" in hint and ") or N*" in hint and "N*cm (" in hint, err
 
 
 def test_torque_in_n_mm_without_speed_column_is_refused(tmp_path, capsys):
