@@ -49,6 +49,7 @@ TIME_FACTORS = {"ms (set the time unit ms, or a 'time [ms]' header)": 1e3,
 # COF by half a decade than the next unit's does (N*cm and N*mm, a decade apart, are told apart
 # unless the configured COF is ~3x off the data's); otherwise both are named
 AMBIGUOUS_DECADES = 0.5
+ANGLE_FACTORS = {"degrees": 180 / math.pi}
 FACTOR_TOL = 0.15  # relative: a ratio within 15 % of a unit factor is taken as that unit
 
 
@@ -161,6 +162,8 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
                                 f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (set the speed unit rpm)",
                                 force, DataError)
     w = speed if speed and speed > 0 else (cfg.speed if cfg.speed else None)
+    if w and ds.angle is not None and ds.n > 2 and not warnings:
+        warnings += _check_angle_unit(ds, w, "the speed" if speed and speed > 0 else "the configured speed", force)
     if w and "speed" not in params and ds.n > 1:
         dt = float(np.median(np.diff(ds.time)))
         per_rev = 2 * math.pi / (w * dt)
@@ -173,6 +176,18 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
     if w:
         warnings += _check_torque_level(cfg, ds, w, force)
     return warnings
+
+
+def _check_angle_unit(ds, speed, against, force) -> list:
+    """An angle column whose slope is a unit factor times `speed` [rad/s]: degrees read as rad. The
+    median step, not the end-to-end slope, so an angle wrapped at 360 (or 2 pi) reads the same."""
+    step = float(np.median(np.diff(ds.angle))) / float(np.median(np.diff(ds.time)))
+    unit = _match(step / speed, ANGLE_FACTORS)
+    if not unit:
+        return []
+    return _refuse(f"data '{ds.name}': the angle column looks like {unit} (its slope {step:.5g} /s is "
+                   f"{step / speed:.3g}x {against}, {speed:.5g} rad/s): give its header as 'angle [deg]'",
+                   force, DataError)
 
 
 def _model_torques(cfg, speed):

@@ -3,6 +3,7 @@
 The command line runs in-process (`pumpsim.cli.main(argv)` returns the exit status), which is fast
 and still sees every message; a traceback would escape as an exception and fail the test.
 """
+import json
 import math
 import os
 import stat
@@ -396,3 +397,19 @@ def test_bench_log_options_on_torque_data_are_refused(capsys, command):
     code, _, err = run(capsys, command, str(EXAMPLES / "test_rig.toml"), str(EXAMPLES / "data" / "test_rig_measurement.csv"),
                        "--current-column", "I_motor")
     assert code == 2 and "--current-column is for a bench log" in err and "check the column names" in err, err
+
+
+@pytest.mark.parametrize("wrap", [None, 360.0])
+def test_an_angle_column_in_degrees_is_refused_and_its_header_unit_reads_it(tmp_path, capsys, wrap):
+    t, tq, w = rig_columns()
+    deg = np.degrees(0.3 + np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]))
+    deg = deg if wrap is None else np.mod(deg, wrap)
+    data = write(tmp_path / "d.csv", "time,torque,speed,angle", t, tq, w, deg)
+    code, _, err = run(capsys, "identify", RIG, data, "--params", "mu")
+    assert code == 2 and "the angle column looks like degrees" in err and "57.3x the speed" in err, err
+    assert "'angle [deg]'" in err, err
+    ok = write(tmp_path / "ok.csv", "time,torque,speed,angle [deg]", t, tq, w, deg)
+    js = tmp_path / "fit.json"
+    code, _, err = run(capsys, "identify", RIG, ok, "--params", "mu", "--json", js)
+    assert code == 0, err
+    assert abs(json.loads(js.read_text())["params"]["mu"]["value"] - RIG_MU) < RIG_MU_ABS
