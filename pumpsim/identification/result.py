@@ -64,6 +64,7 @@ class IdentificationResult:
     keep: np.ndarray | None = None  # samples kept by the reversal-aware cost (None: all); rms over them
     adequacy: Adequacy | None = None  # how well the model describes the data (adequacy.py)
     intervals: Intervals | None = None  # white or residual-aware intervals, the residual's structure
+    notes: list = field(default_factory=list)  # what the estimates rest on beyond the data (sentences)
 
     @property
     def residual(self):
@@ -124,7 +125,7 @@ class IdentificationResult:
             "on_bound": [{"name": n, "bound": b} for n, b in self.on_bound], "no_effect": self.no_effect,
             "problems": self.problems(), "warnings": self.warnings,
             "adequacy": None if self.adequacy is None else self.adequacy.to_json(),
-            "intervals": None if self.intervals is None else self.intervals.to_json(),
+            "intervals": None if self.intervals is None else self.intervals.to_json(), "notes": self.notes,
         }
 
     def __str__(self):
@@ -149,7 +150,7 @@ class IdentificationResult:
             lines.append("  " + self.adequacy.summary().replace("\n", "\n  "))
         lines.append(f"  {PLUS_MINUS}")
         notes = self.interval_notes()
-        lines += [f"  {n}" for n in notes]
+        lines += [f"  {n}" for n in notes + [f"note: {n}" for n in self.notes]]
         if not notes and not d["white_at_5pct"]:
             lines.append(f"  {OPTIMISTIC}")
         return "\n".join(lines)

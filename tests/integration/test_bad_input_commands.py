@@ -233,3 +233,28 @@ def test_resampling_across_a_gap_leaves_the_interpolated_samples_out_of_the_fit(
     assert abs(mu_gap - mu_full) < 3 * se_gap, (mu_gap, mu_full, se_gap)
     code, _, err = run(capsys, "diagnose", RIG, gap, "--resample", "auto")
     assert code == 2 and "599 resampled samples lie inside a gap" in err and "cut the record" in err, err
+
+
+def test_a_fit_on_the_configured_speed_says_so_and_what_a_speed_error_does_to_mu(tmp_path, capsys):
+    t, tq, w = rig_columns()  # measured at 5800 rpm
+    d = example_dict("test_rig")
+    d["operation"]["speed_rpm"] = 5500
+    slow = tmp_path / "slow.toml"
+    slow.write_text(toml_text(d))
+    bare = write(tmp_path / "bare.csv", "time,torque", t, tq)
+    js = tmp_path / "slow.json"
+    code, out, err = run(capsys, "identify", slow, bare, "--params", "mu", "--json", js)
+    assert code == 0, err
+    note = out.split("note: speed: ", 1)[1]
+    assert "no speed column" in note and "operation.speed" in note and "5500 rpm" in note, out
+    assert json.loads(js.read_text())["notes"][0].startswith("speed: the data has no speed column")
+    # concentric: the torque is mu times the vanes' centrifugal load, mu ~ 1/omega^2
+    per_percent = float(note.split("moves mu by ", 1)[1].split(" %")[0])
+    assert math.isclose(per_percent, -2.0, abs_tol=0.05), note
+    assert "a speed column removes it" in note, note  # and the data cannot tell the speed from mu
+    # the fits bear it out: the config's 5 % slow speed moved mu by (5800/5500)^2
+    mu_slow = json.loads(js.read_text())["params"]["mu"]["value"]
+    mu_right, _, _ = _fit_mu(capsys, tmp_path, bare)
+    assert math.isclose(mu_slow / mu_right, (5800 / 5500) ** 2, rel_tol=2e-3), (mu_slow, mu_right)
+    code, out, _ = run(capsys, "identify", RIG, write(tmp_path / "w.csv", "time,torque,speed", t, tq, w), "--params", "mu")
+    assert code == 0 and "note: speed:" not in out
