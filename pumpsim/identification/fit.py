@@ -196,7 +196,7 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
-        keep=keep, adequacy=adequacy, intervals=intervals)
+        keep=keep, adequacy=adequacy, intervals=intervals, residual_unit=prob.RESIDUAL_UNIT)
 
 
 def _channels(prob, keep) -> list:

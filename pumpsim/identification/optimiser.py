@@ -137,7 +137,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)
         history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)})
         interrupt.progress(f"in a fit of {', '.join(prob.names)} after {len(history) - 1} iterations "
-                           f"(residual RMS {history[-1]['rms']:.4g} N m)")
+                           f"(residual RMS {history[-1]['rms']:.4g} {getattr(prob, 'RESIDUAL_UNIT', 'N m')})")
         if log:
             log(history[-1])
         if small:

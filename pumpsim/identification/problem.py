@@ -46,6 +46,7 @@ class Problem:
 
     SPECIAL: tuple = ()
     KIND = ""  # how an error message names the problem
+    RESIDUAL_UNIT = "N m"  # the measured channel's: the torque (a transient fit's: the speed)
     METHOD_TAG = ""  # appended to the result's method
     NOTE = ""  # appended to the result's message
     # None: every sample weighs in the cost; a number: the reversal-aware cost (reversals.py) with
@@ -65,8 +66,7 @@ class Problem:
 
     def _setup(self, cfg: PumpConfig, data: Dataset, names, starts: dict, initial=None):
         self.cfg, self.data = cfg, data
-        # False where resampling interpolated inside a gap in time (Dataset.measured), None: all measured
-        self.measured = None if data.measured is None else np.asarray(data.measured, bool)
+        self.measured = None if data.measured is None else np.asarray(data.measured, bool)  # Dataset.measured
         self.pv = cfg.parameters("constrained")
         self.kern = load_kernels(self.pv.structure)
         self.p0 = as_array(self.pv)

@@ -27,6 +27,7 @@ class TransientProblem(Problem):
 
     SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if m.transient)
     KIND = " for transient identification"
+    RESIDUAL_UNIT = "rad/s"
     METHOD_TAG = "/transient"
     NOTE = " (transient: speed fitted under the measured torque)"
 
