@@ -156,7 +156,7 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
             if unit:
                 warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s is "
                                     f"{speed / cfg.speed:.4g} x the configured {cfg.speed:.5g} rad/s: "
-                                    f"the column looks like {unit}", force, DataError)
+                                    + _which_speed(cfg, ds, speed, unit), force, DataError)
         if tip > MAX_TIP_SPEED and not warnings:
             warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s gives a vane tip "
                                 f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (set the speed unit rpm)",
@@ -168,14 +168,40 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
         dt = float(np.median(np.diff(ds.time)))
         per_rev = 2 * math.pi / (w * dt)
         if per_rev < MIN_SAMPLES_PER_REV:
-            unit = next((u for u, f in TIME_FACTORS.items() if per_rev * f >= MIN_SAMPLES_PER_REV), None)
-            hint = f": the time column looks like {unit}" if unit else ""
+            # a unit that would make the record shorter than a revolution is not the record's
+            span = float(ds.time[-1] - ds.time[0])
+            unit = next((u for u, f in TIME_FACTORS.items() if per_rev * f >= MIN_SAMPLES_PER_REV
+                         and w * span / f >= 2 * math.pi), None)
+            vanes = cfg.vanes
+            hint = f": the time column looks like {unit}" if unit else (
+                f": the log is too slow for this pump (read in ms or us the {span:.3g} s record would be "
+                f"shorter than a revolution); log at {MIN_SAMPLES_PER_REV * w / (2 * math.pi):.3g} Hz or "
+                f"faster (the vane passing of {vanes} vanes at {w:.5g} rad/s is at "
+                f"{vanes * w / (2 * math.pi):.3g} Hz)")
             warnings += _refuse(f"data '{name}': {per_rev:.3g} samples per revolution at {w:.5g} rad/s "
                                 f"(sample interval {dt:.4g} s; at least {MIN_SAMPLES_PER_REV} needed){hint}",
                                 force, DataError)
     if w:
         warnings += _check_torque_level(cfg, ds, w, force)
     return warnings
+
+
+def _which_speed(cfg, ds, speed, unit) -> str:
+    """Which of two speeds a unit factor apart is wrong: the one at which no COF in [MIN_COF, 2]
+    gives the measured torque level (the model's torque grows with the speed) -- the config's
+    names its key, the column's its unit; both when the torque tells neither apart."""
+    level = float(np.sqrt(np.mean(ds.torque**2)))
+    fits = {w: lo <= level <= hi for w, ((lo, _), (hi, _), _) in
+            ((w, _model_torques(cfg, w)) for w in (speed, cfg.speed))}
+    column = f"the column looks like {unit}"
+    key = (f"operation.speed = {cfg.speed:.5g} rad/s (operation.speed_rpm = {cfg.speed * 30 / math.pi:.5g}) "
+           f"looks wrong: write the pump's speed in rad/s as operation.speed, or in rpm as operation.speed_rpm")
+    if fits[speed] and not fits[cfg.speed]:
+        return (f"the torque level ({level:.3g} N m RMS) fits the model at the column's speed, not at the "
+                f"configured one: {key}")
+    if fits[cfg.speed] and not fits[speed]:
+        return column
+    return f"{column}, or {key}"
 
 
 def _check_angle_unit(ds, speed, against, force) -> list:

@@ -413,3 +413,25 @@ def test_an_angle_column_in_degrees_is_refused_and_its_header_unit_reads_it(tmp_
     code, _, err = run(capsys, "identify", RIG, ok, "--params", "mu", "--json", js)
     assert code == 0, err
     assert abs(json.loads(js.read_text())["params"]["mu"]["value"] - RIG_MU) < RIG_MU_ABS
+
+
+def test_a_slow_logger_is_told_to_log_faster_not_that_its_time_is_in_ms(tmp_path, capsys):
+    t, tq, w = (c[::25] for c in rig_columns())  # 400 Hz: 4.1 samples per revolution at 5800 rpm
+    data = write(tmp_path / "d.csv", "time,torque,speed", t, tq, w)
+    code, _, err = run(capsys, "identify", RIG, data, "--params", "mu")
+    # read in ms the 0.2 s record would last 0.2 ms, an eighth of a revolution
+    assert code == 2 and "the log is too slow" in err and "log at 773 Hz or faster" in err, err
+    assert "4 vanes" in err and "looks like ms" not in err, err
+
+
+def test_a_config_speed_in_the_wrong_key_is_named_not_the_right_speed_column(tmp_path, capsys):
+    d = example_dict("test_rig")
+    d["operation"]["speed_rpm"] = 607.37  # rad/s typed into the rpm key
+    cfg = write_toml(tmp_path / "c.toml", d)
+    code, _, err = run(capsys, "identify", cfg, RIG_DATA, "--params", "mu")
+    assert code == 2 and "operation.speed_rpm = 607.37" in err and "looks wrong" in err, err
+    assert "the column looks like rpm" not in err, err
+    t, tq, w = rig_columns()  # the other way round: the column in rpm, the config right
+    rpm = write(tmp_path / "rpm.csv", "time,torque,speed", t, tq, w * 30 / math.pi)
+    code, _, err = run(capsys, "identify", RIG, rpm, "--params", "mu")
+    assert code == 2 and "the column looks like rpm" in err and "operation.speed" not in err, err
