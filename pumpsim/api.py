@@ -134,8 +134,11 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
     if log_data is not None:
         from .identification.pumpdown_fit import identify_bench
 
-        return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
-                              max_iter=max_iter, relaxation=relaxation, progress=log)
+        from .identification.pumpdown_fit import fitting
+
+        with fitting(params):
+            return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
+                                  max_iter=max_iter, relaxation=relaxation, progress=log)
     params = params or ["mu", "theta0"]
     nominal = None if "speed" in params or cfg.mode != "speed" else cfg.speed
     datasets = as_datasets(data, options, nominal)

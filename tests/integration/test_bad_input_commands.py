@@ -258,3 +258,22 @@ def test_a_fit_on_the_configured_speed_says_so_and_what_a_speed_error_does_to_mu
     assert math.isclose(mu_slow / mu_right, (5800 / 5500) ** 2, rel_tol=2e-3), (mu_slow, mu_right)
     code, out, _ = run(capsys, "identify", RIG, write(tmp_path / "w.csv", "time,torque,speed", t, tq, w), "--params", "mu")
     assert code == 0 and "note: speed:" not in out
+
+
+def test_the_simulate_lift_off_warning_names_the_flag_not_the_keyword(tmp_path, capsys):
+    d = example_dict("test_rig")  # an ellipse so flat that the vanes must be pulled in: they lift off
+    d["housing"] = {"shape": "ellipse", "a": 0.031, "b": 0.0203, "center": [0.0, 0.0], "angle": 0.0}
+    d["vane"]["length"], d["rotor"]["slot_radius"] = 0.0135, 0.005
+    cfg = tmp_path / "flat.toml"
+    cfg.write_text(toml_text(d))
+    code, _, err = run(capsys, "simulate", cfg, "--duration", "0.02")
+    assert code == 0 and "would lift off" in err and "use --model contact" in err, err
+    assert "model='contact'" not in err, err
+
+
+def test_identify_help_names_every_data_format(capsys):
+    from pumpsim.cli import main
+
+    assert main(["identify", "--help"]) == 0
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps the lines
+    assert all(f in out for f in ("CSV", ".mat", ".tdms", "Parquet")), out
