@@ -132,9 +132,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
     params = [params] if isinstance(params, str) else (None if params is None else list(params))
     log_data = bench_log(cfg, data, options)
     if log_data is not None:
-        from .identification.pumpdown_fit import identify_bench
-
-        from .identification.pumpdown_fit import fitting
+        from .identification.pumpdown_fit import fitting, identify_bench
 
         with fitting(params):
             return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
