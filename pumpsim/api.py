@@ -126,6 +126,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
         print(res.value("mu"), res.estimates["mu"].stderr)
     """
     from .identification import identify as _identify
+    from .identification.speed_note import speed_notes
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
@@ -146,6 +147,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
     res = _identify(cfg, datasets if len(datasets) > 1 else datasets[0], params=params, method=method,
                     relaxation=relaxation, initial=initial, max_iter=max_iter, log=log)
     res.warnings = warnings
+    res.notes += speed_notes(cfg, datasets, res)  # here, not in the fit engine: diagnose's fits need none
     return res
 
 

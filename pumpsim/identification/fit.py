@@ -18,7 +18,6 @@ from .identifiability import to_fix
 from .joint import JointProblem
 from .optimiser import FitOutcome, Optimiser
 from .problem import ConstantSpeedProblem, Problem, base_name, interval_geometric
-from .speed_note import configured_speed_note
 from .result import Estimate, IdentificationResult, bounds_reached, fit_estimates, provenance
 from .transient import TransientProblem
 
@@ -88,9 +87,6 @@ def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="ga
     res = _result(prob, fit, multistart, adequacy)
     res.initial_model, res.method = initial_model, method + prob.METHOD_TAG
     res.provenance, res.wall_time = provenance(cfg, data, prob.kern), _time.perf_counter() - wall0
-    note = None if transient or len(datasets) > 1 or fit.outcome is None or not adequacy else \
-        configured_speed_note(cfg, datasets[0], res, ripple_order)
-    res.notes += [note] if note else []
     if polish and interval and fit.outcome is not None and any(interval_geometric(n) for n in prob.names):
         # the interval columns lead into the valley; the exact ones polish inside it (their
         # difference quotients resolve a reversal's motion to 1/8 interval only: noisy near the

@@ -33,3 +33,9 @@ def configured_speed_note(cfg, data, result, ripple_order=1) -> str | None:
     return (f"speed: the data has no speed column and the speed was not fitted, so the model turns at the "
             f"config's operation.speed {cfg.speed:.6g} rad/s ({cfg.speed * 30 / math.pi:.6g} rpm); a 1 % error "
             f"in it moves mu by {per_percent:+.2g} % ({per_percent * mu / 100:+.2g}); {cure}")
+
+
+def speed_notes(cfg, datasets, result) -> list:
+    """[configured_speed_note] for a converged fit of one measurement, else []."""
+    note = configured_speed_note(cfg, datasets[0], result) if len(datasets) == 1 and result.converged else None
+    return [note] if note else []
