@@ -126,16 +126,18 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
         print(res.value("mu"), res.estimates["mu"].stderr)
     """
     from .identification import identify as _identify
+    from .identification.speed_note import speed_notes
     from .plausibility import check_measurement
 
     cfg = as_config(config, force)
     params = [params] if isinstance(params, str) else (None if params is None else list(params))
     log_data = bench_log(cfg, data, options)
     if log_data is not None:
-        from .identification.pumpdown_fit import identify_bench
+        from .identification.pumpdown_fit import fitting, identify_bench
 
-        return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
-                              max_iter=max_iter, relaxation=relaxation, progress=log)
+        with fitting(params):
+            return identify_bench(cfg, log_data, *([params] if params else []), method=method, initial=initial,
+                                  max_iter=max_iter, relaxation=relaxation, progress=log)
     params = params or ["mu", "theta0"]
     nominal = None if "speed" in params or cfg.mode != "speed" else cfg.speed
     datasets = as_datasets(data, options, nominal)
@@ -145,6 +147,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
     res = _identify(cfg, datasets if len(datasets) > 1 else datasets[0], params=params, method=method,
                     relaxation=relaxation, initial=initial, max_iter=max_iter, log=log)
     res.warnings = warnings
+    res.notes += speed_notes(cfg, datasets, res)  # here, not in the fit engine: diagnose's fits need none
     return res
 
 
@@ -198,6 +201,11 @@ def diagnose(config, data, *, options: DataOptions | None = None, force=False, p
     datasets = as_datasets(data, options, cfg.speed if cfg.mode == "speed" else None)
     warnings = list(cfg.warnings)
     for d in datasets:
+        if d.measured is not None and not np.all(d.measured):
+            # its spectra and screens read the residual as one uniform record: no sample can be left out
+            raise DataError(f"data '{d.name}': {int(np.sum(~d.measured))} resampled samples lie inside a gap "
+                            "in time (interpolated, not measured) and the diagnosis needs one continuous "
+                            "record; cut the record at the gap and diagnose each part")
         warnings += check_measurement(cfg, d, ("mu", "theta0"), force=force)
     for w in warnings:  # accepted under force: say so where the user looks
         if progress:

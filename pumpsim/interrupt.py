@@ -17,7 +17,7 @@ import contextlib
 import signal
 import threading
 
-_state = {"signal": None, "progress": None, "defer": 0}
+_state = {"signal": None, "progress": None, "defer": 0, "stage": None}
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -55,9 +55,28 @@ def check(partial=None) -> None:
         raise Interrupted(_state["signal"], partial) from None
 
 
-def progress(text: str) -> None:
-    """How far the run got, in words that follow 'interrupted by SIGINT' (e.g. 'at t = 0.2 s')."""
+def progress(text: str, detail: bool = False) -> None:
+    """How far the run got, in words that follow 'interrupted by SIGINT' (e.g. 'at t = 0.2 s').
+    detail=True: how far one model run got (a simulation's time); inside a `stage` it is said after
+    the stage's progress, which it does not replace (a fit whose model runs are simulations)."""
+    if detail and _state["stage"] is not None:
+        _state["progress"] = f"{_state['stage']}; its last model run at {text.removeprefix('at ')}"
+        return
     _state["progress"] = text
+    if _state["stage"] is not None:
+        _state["stage"] = text
+
+
+@contextlib.contextmanager
+def stage(text: str):
+    """A run made of model runs (a bench-log fit of pump-down simulations): `text` is its progress
+    until its own progress() replaces it; a model run's progress(detail=True) is added to it."""
+    outer = _state["stage"]
+    _state["stage"] = _state["progress"] = text
+    try:
+        yield
+    finally:
+        _state["stage"] = outer
 
 
 def _handler(signum, frame):
@@ -84,7 +103,7 @@ def deferred():
 def handling():
     """Route SIGINT and SIGTERM to Interrupted for the block (main thread only). A signal that is
     ignored when the run starts (nohup, a background job) stays ignored."""
-    _state.update(signal=None, progress=None, defer=0)
+    _state.update(signal=None, progress=None, defer=0, stage=None)
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -37,7 +37,7 @@ MIN_ATMOSPHERE = 1.0e4  # Pa
 MIN_TEMPERATURE = 150.0  # K
 
 TORQUE_FACTORS = {"N*mm (set the torque unit N*mm, or a 'torque [N*mm]' header)": 1e3,
-                  "N*cm (set the torque unit N*cm)": 1e2,
+                  "N*cm (set the torque unit N*cm, or a 'torque [N*cm]' header)": 1e2,
                   "N*m, but the torque unit option or the header says N*mm": 1e-3}
 SPEED_FACTORS = {"rpm (set the speed unit rpm, or a 'speed [rpm]' header)": 60 / (2 * math.pi),
                  "rev/s (set the speed unit rev/s)": 1 / (2 * math.pi),
@@ -45,6 +45,11 @@ SPEED_FACTORS = {"rpm (set the speed unit rpm, or a 'speed [rpm]' header)": 60 /
                  "rad/s, but the speed unit option or the header says rpm": 2 * math.pi / 60}
 TIME_FACTORS = {"ms (set the time unit ms, or a 'time [ms]' header)": 1e3,
                 "us (set the time unit us, or a 'time [us]' header)": 1e6}
+# a torque unit is named alone when its factor brings the level nearer the model's at the configured
+# COF by half a decade than the next unit's does (N*cm and N*mm, a decade apart, are told apart
+# unless the configured COF is ~3x off the data's); otherwise both are named
+AMBIGUOUS_DECADES = 0.5
+ANGLE_FACTORS = {"degrees": 180 / math.pi}
 FACTOR_TOL = 0.15  # relative: a ratio within 15 % of a unit factor is taken as that unit
 
 
@@ -151,18 +156,28 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
             if unit:
                 warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s is "
                                     f"{speed / cfg.speed:.4g} x the configured {cfg.speed:.5g} rad/s: "
-                                    f"the column looks like {unit}", force, DataError)
+                                    + _which_speed(cfg, ds, speed, unit), force, DataError)
         if tip > MAX_TIP_SPEED and not warnings:
             warnings += _refuse(f"data '{name}': the speed column's mean {speed:.5g} rad/s gives a vane tip "
                                 f"speed of {tip:.3g} m/s (limit {MAX_TIP_SPEED:g}); rpm? (set the speed unit rpm)",
                                 force, DataError)
     w = speed if speed and speed > 0 else (cfg.speed if cfg.speed else None)
+    if w and ds.angle is not None and ds.n > 2 and not warnings:
+        warnings += _check_angle_unit(ds, w, "the speed" if speed and speed > 0 else "the configured speed", force)
     if w and "speed" not in params and ds.n > 1:
         dt = float(np.median(np.diff(ds.time)))
         per_rev = 2 * math.pi / (w * dt)
         if per_rev < MIN_SAMPLES_PER_REV:
-            unit = next((u for u, f in TIME_FACTORS.items() if per_rev * f >= MIN_SAMPLES_PER_REV), None)
-            hint = f": the time column looks like {unit}" if unit else ""
+            # a unit that would make the record shorter than a revolution is not the record's
+            span = float(ds.time[-1] - ds.time[0])
+            unit = next((u for u, f in TIME_FACTORS.items() if per_rev * f >= MIN_SAMPLES_PER_REV
+                         and w * span / f >= 2 * math.pi), None)
+            vanes = cfg.vanes
+            hint = f": the time column looks like {unit}" if unit else (
+                f": the log is too slow for this pump (read in ms or us the {span:.3g} s record would be "
+                f"shorter than a revolution); log at {MIN_SAMPLES_PER_REV * w / (2 * math.pi):.3g} Hz or "
+                f"faster (the vane passing of {vanes} vanes at {w:.5g} rad/s is at "
+                f"{vanes * w / (2 * math.pi):.3g} Hz)")
             warnings += _refuse(f"data '{name}': {per_rev:.3g} samples per revolution at {w:.5g} rad/s "
                                 f"(sample interval {dt:.4g} s; at least {MIN_SAMPLES_PER_REV} needed){hint}",
                                 force, DataError)
@@ -171,9 +186,40 @@ def check_measurement(cfg, ds, params=(), force=False) -> list[str]:
     return warnings
 
 
+def _which_speed(cfg, ds, speed, unit) -> str:
+    """Which of two speeds a unit factor apart is wrong: the one at which no COF in [MIN_COF, 2]
+    gives the measured torque level (the model's torque grows with the speed) -- the config's
+    names its key, the column's its unit; both when the torque tells neither apart."""
+    level = float(np.sqrt(np.mean(ds.torque**2)))
+    fits = {w: lo <= level <= hi for w, ((lo, _), (hi, _), _) in
+            ((w, _model_torques(cfg, w)) for w in (speed, cfg.speed))}
+    column = f"the column looks like {unit}"
+    key = (f"operation.speed = {cfg.speed:.5g} rad/s (operation.speed_rpm = {cfg.speed * 30 / math.pi:.5g}) "
+           f"looks wrong: write the pump's speed in rad/s as operation.speed, or in rpm as operation.speed_rpm")
+    if fits[speed] and not fits[cfg.speed]:
+        return (f"the torque level ({level:.3g} N m RMS) fits the model at the column's speed, not at the "
+                f"configured one: {key}")
+    if fits[cfg.speed] and not fits[speed]:
+        return column
+    return f"{column}, or {key}"
+
+
+def _check_angle_unit(ds, speed, against, force) -> list:
+    """An angle column whose slope is a unit factor times `speed` [rad/s]: degrees read as rad. The
+    median step, not the end-to-end slope, so an angle wrapped at 360 (or 2 pi) reads the same."""
+    step = float(np.median(np.diff(ds.angle))) / float(np.median(np.diff(ds.time)))
+    unit = _match(step / speed, ANGLE_FACTORS)
+    if not unit:
+        return []
+    return _refuse(f"data '{ds.name}': the angle column looks like {unit} (its slope {step:.5g} /s is "
+                   f"{step / speed:.3g}x {against}, {speed:.5g} rad/s): give its header as 'angle [deg]'",
+                   force, DataError)
+
+
 def _model_torques(cfg, speed):
     """[(RMS, mean)] of the model torque over one revolution at `speed` for COFs MIN_COF and 2
-    (housing and slot, statics scaled by the configured ratios): the range a fit of mu can reach."""
+    (housing and slot, statics scaled by the configured ratios): the range a fit of mu can reach;
+    then at the configured COF: the level the data should have."""
     from .config import as_array
     from .kernels import load_kernels, sampled_inverse_dynamics
 
@@ -181,7 +227,7 @@ def _model_torques(cfg, speed):
     kern = load_kernels(pv.structure)
     grid = np.linspace(0, 2 * math.pi, 360, endpoint=False)
     out = []
-    for mu in (MIN_COF, 2.0):
+    for mu in (MIN_COF, 2.0, pv.values["friction.housing.dynamic"]):
         vals = dict(pv.values)
         for side in ("housing", "slot"):
             ratio = vals[f"friction.{side}.static"] / max(vals[f"friction.{side}.dynamic"], 1e-300)
@@ -194,8 +240,18 @@ def _model_torques(cfg, speed):
     return out
 
 
+def _nearest_units(level, nominal, candidates) -> list:
+    """The unit whose factor brings `level` nearest the model's `nominal` level (log distance);
+    both nearest when the runner-up is within half a decade of as near (ambiguous)."""
+    if nominal <= 0:
+        return [u for u, _ in candidates[:1]]
+    ranked = sorted(candidates, key=lambda uf: abs(math.log10(level / uf[1] / nominal)))
+    far = [abs(math.log10(level / f / nominal)) for _, f in ranked]
+    return [u for (u, _), d in zip(ranked[:2], far[:2]) if d - far[0] < AMBIGUOUS_DECADES]
+
+
 def _check_torque_level(cfg, ds, speed, force):
-    (lo, low_mean), (hi, high_mean) = _model_torques(cfg, speed)
+    (lo, low_mean), (hi, high_mean), (nominal, _) = _model_torques(cfg, speed)
     level, mean = float(np.sqrt(np.mean(ds.torque**2))), float(np.mean(ds.torque))
     if mean < -0.5 * level and min(low_mean, high_mean) > 0:
         return _refuse(f"data '{ds.name}': the torque column's mean is negative ({mean:.4g} N m) where the "
@@ -204,8 +260,8 @@ def _check_torque_level(cfg, ds, speed, force):
                        force, DataError)
     if not level > 0 or hi <= 0 or lo / TORQUE_MARGIN <= level <= hi * TORQUE_MARGIN:
         return []
-    fits = [u for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi]
-    why = f": the torque looks like {fits[0]}" if fits else \
+    fits = _nearest_units(level, nominal, [(u, f) for u, f in TORQUE_FACTORS.items() if lo / 2 <= level / f <= 2 * hi])
+    why = f": the torque looks like {' or '.join(fits)}" if fits else \
         ": check the torque unit and the configuration (lengths m, masses kg)"
     return _refuse(f"data '{ds.name}': torque RMS {level:.4g} N m is outside what the model gives at "
                    f"{speed:.5g} rad/s for any COF in [{MIN_COF:g}, 2] ({lo:.3g} .. {hi:.3g} N m){why}",

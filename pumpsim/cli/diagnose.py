@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .common import Help, REPORT_SUFFIXES, add_fit_outputs, data_options, in_range, live, load_config, outputs, read_bench, \
     read_data, refuse_bench_only, refuse_torque_only, write_fit_outputs
+from .identify import unusable
 
 BUDGET_PER_5000 = 30.0  # s: the command's default time budget per 5,000 samples
 
@@ -88,7 +89,8 @@ def run(a) -> int:
         diagnosis_report(out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data)
 
     write_fit_outputs(outs, a, out.to_json(), report)
-    return 0
+    base = out.history[0].result.adequacy  # another pump: exit 1, as identify does on this data
+    return unusable([base.reason] if base is not None and base.orders_missed() else [])
 
 
 def run_bench(a, cfg, outs) -> int:

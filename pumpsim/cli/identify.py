@@ -15,7 +15,7 @@ def register(sub):
                         formatter_class=Help,
                         description="Fit model parameters to a measured drive torque at constant speed.")
     ip.add_argument("config", help="TOML configuration (SI units)")
-    ip.add_argument("data", help="CSV, MATLAB .mat or NI .tdms file")
+    ip.add_argument("data", help="CSV (or other delimited text), MATLAB .mat, NI .tdms or Apache Parquet (.parquet) file")
     ip.add_argument("--params", default=None,
                     help="comma-separated: mu, mu_slot, theta0, speed, torque_offset, delay or any "
                          "numeric config key path (e.g. housing.center.0); default mu,theta0 -- for a "
@@ -121,7 +121,7 @@ def run(a) -> int:
 
 def run_bench(a, cfg, outs) -> int:
     """identify on a bench log (the command recognised its columns): fitted as logged."""
-    from ..identification.pumpdown_fit import identify_bench
+    from ..identification.pumpdown_fit import fitting, identify_bench
     from ..limits import read_limits
 
     params = parse_params(a.params or ",".join(BENCH_DEFAULT_PARAMS))
@@ -130,8 +130,9 @@ def run_bench(a, cfg, outs) -> int:
     limits = read_limits(a.limits, params) if a.limits else {}
     log = read_bench(a, a.data, cfg)
     shown = live()
-    fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
-                         _bench_progress if shown else None)
+    with fitting(params):
+        fit = identify_bench(cfg, log, params, a.method, initial, a.max_iter, a.relaxation,
+                             _bench_progress if shown else None)
     if shown:
         print(file=sys.stderr)
     print(fit)

@@ -82,5 +82,5 @@ def run(a) -> int:
         raise
     _write(outs, a, res, cfg)
     print(res.summary(warnings=False))
-    warn(res.warnings)
+    warn(w.replace("use model='contact'", "use --model contact") for w in res.warnings)  # the flag, not the keyword
     return 0

@@ -27,6 +27,9 @@ class Dataset:
     angle: np.ndarray | None = None
     source: str = ""
     notes: list = field(default_factory=list)
+    # per sample, False where resampling interpolated inside a gap in time (sampling.resample):
+    # invented values a fit leaves out of its residual; None: every sample measured
+    measured: np.ndarray | None = None
     _trend: object = field(default=None, init=False, repr=False, compare=False)
 
     @property
@@ -72,7 +75,7 @@ class Dataset:
     def window(self, lo: int, hi: int) -> "Dataset":
         cut = lambda a: None if a is None else a[lo:hi]  # noqa: E731
         return Dataset(self.time[lo:hi], self.torque[lo:hi], cut(self.speed), cut(self.angle),
-                       self.source, list(self.notes))
+                       self.source, list(self.notes), cut(self.measured))
 
     def __repr__(self):
         cols = ", ".join(k for k in ("speed", "angle") if getattr(self, k) is not None)

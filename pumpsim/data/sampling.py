@@ -94,7 +94,10 @@ def check_rate(rate) -> None:
 
 def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
     """`ds` linearly interpolated onto a uniform grid at `rate` [Hz] from its first sample; the note
-    says so, and names the gaps bridged (`gaps`: from `time_gaps`)."""
+    says so, and names the gaps bridged (`gaps`: from `time_gaps`). A new sample strictly inside a
+    gap (between two measured samples farther apart than `gaps.limit`, the step that makes a gap)
+    is a straight line drawn across it, not a measurement: `measured` marks it False, so a fit
+    leaves it out of its residual, and the note counts them."""
     check_rate(rate)
     if (ds.time[-1] - ds.time[0]) * rate > 5_000_000:
         raise DataError(f"resample {rate:g} Hz over {ds.time[-1] - ds.time[0]:.4g} s gives more than "
@@ -103,9 +106,22 @@ def resample(ds: Dataset, rate: float, gaps: TimeGaps | None = None) -> Dataset:
     t = t[t <= ds.time[-1] + 1e-6 / rate]  # the last sample also when rounding puts it a hair beyond
     f = lambda a: None if a is None else np.interp(t, ds.time, a)  # noqa: E731
     note = f"resampled to {rate:.6g} Hz (linear interpolation){gaps.bridged() if gaps else ''}"
-    out = Dataset(t, f(ds.torque), f(ds.speed), f(np.unwrap(ds.angle)) if ds.angle is not None else None,
-                  ds.source, ds.notes + [note])
-    return out
+    measured = _outside_gaps(t, gaps) if gaps is not None and gaps.gaps.size else None
+    if measured is not None:
+        note += (f"; {int(np.sum(~measured))} of the {t.size} resampled samples lie inside the gaps "
+                 "(interpolated, not measured) and are left out of the fit's residual")
+    return Dataset(t, f(ds.torque), f(ds.speed), f(np.unwrap(ds.angle)) if ds.angle is not None else None,
+                   ds.source, ds.notes + [note], measured)
+
+
+def _outside_gaps(t, gaps: TimeGaps) -> np.ndarray:
+    """True for each time in t not strictly inside one of the gaps' intervals (a grid time within
+    1e-3 sample interval of a measured one, rounding of the grid, is that sample)."""
+    eps = 1e-3 * gaps.step
+    lo, hi = gaps.time[gaps.gaps] + eps, gaps.time[gaps.gaps + 1] - eps
+    k = np.searchsorted(lo, t, side="right") - 1  # the last gap starting at or before t
+    inside = (k >= 0) & (t > lo[np.maximum(k, 0)]) & (t < hi[np.maximum(k, 0)])
+    return ~inside
 
 
 def steady_section(ds: Dataset, tolerance: float = 0.01) -> Dataset:

@@ -21,8 +21,8 @@ REVERSAL_COST = None
 
 
 def identify(*args, **kw):  # the workflow refines the operating point: its speed stays in the band;
-    # its own detectors and verdict judge the fits (no per-fit adequacy)
-    return _identification_fit(*args, reversals=REVERSAL_COST, speed_in_band=True, adequacy=False, **kw)
+    # its own detectors and verdict judge the fits (no per-fit adequacy unless asked: the baseline's)
+    return _identification_fit(*args, reversals=REVERSAL_COST, speed_in_band=True, **{"adequacy": False, **kw})
 
 
 def make_problem(*args, **kw):

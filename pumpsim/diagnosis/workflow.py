@@ -34,7 +34,7 @@ def _screen(datasets, opts: DiagnosisOptions = OPTIONS):
     return [d.window(0, min(d.n, each)) for d in datasets]
 
 
-def _fit(cfg, data, names, values, ripple, screen, multistart=True, screen_hold=()):
+def _fit(cfg, data, names, values, ripple, screen, multistart=True, screen_hold=(), adequacy=False):
     """identify on the screening window first (cheap), then polished on the whole record.
     `screen_hold`: names the window fit keeps at their values because the whole record already
     determines them better (a speed from the synchronous scan of the whole record: a window of a
@@ -49,7 +49,8 @@ def _fit(cfg, data, names, values, ripple, screen, multistart=True, screen_hold=
                       ripple_order=ripple, extra=sheld)
         init.update({n: e.value for n, e in r0.estimates.items() if e.value is not None})
         multistart = False
-    return identify(cfg, data, names, initial=init, multistart=multistart, ripple_order=ripple, extra=held)
+    return identify(cfg, data, names, initial=init, multistart=multistart, ripple_order=ripple, extra=held,
+                    adequacy=adequacy)
 
 
 @dataclass
@@ -110,11 +111,14 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int | None = None, pro
     run.deadline = None if budget is None else wall0 + budget
     run.budget = {"seconds": budget, "bound": False, "cut": []}
     base, state = _baseline(run, baseline_params, held)
+    # the baseline misses its own shaft orders: another pump (identify's inadequate verdict), whose
+    # mismatch effects would only imitate; none is searched and the verdict says so
+    mismatch = base.adequacy.reason if base.adequacy is not None and base.adequacy.orders_missed() else None
     current = base
     history, steps, ranking, screens = [ModelFit("baseline", base)], [], [], []
     detection = Detection(current, datasets, len(state.names), options)
     rival_pair = None
-    for _ in range(options.max_effects if max_effects is None else max_effects):
+    for _ in range(0 if mismatch else options.max_effects if max_effects is None else max_effects):
         if not detection.searching() or run.out_of_time("the search for a further effect"):
             break
         found = _search_step(run, state, current, detection, steps, screens)
@@ -126,7 +130,8 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int | None = None, pro
         history.append(ModelFit(found.accepted.contender.cand.label, current))
         state, current = drop_superseded(run, state, current, steps, history)
         detection = Detection(current, datasets, len(state.names), options)
-    return _result(run, base, state, current, detection, steps, ranking, screens, rival_pair, history, wall0)
+    out = _result(run, base, state, current, detection, steps, ranking, screens, rival_pair, history, wall0)
+    return dataclasses.replace(out, verdict=mismatch) if mismatch else out
 
 
 def _start(cfg, datasets, progress, opts):
@@ -183,7 +188,7 @@ def _baseline(run, baseline_params, held):
     values = dict(held)
     scanned = [f"speed@{i}" if K > 1 else "speed" for i in run.free
                if run.speed_info["measurements"][i]["source"] == "synchronous scan"]
-    base = _fit(cfg, run.full_data, base_names, values, 1, run.screen_data, screen_hold=scanned)
+    base = _fit(cfg, run.full_data, base_names, values, 1, run.screen_data, screen_hold=scanned, adequacy=True)
     # a speed the data does not determine stays where the synchronous evidence put it (or nominal)
     loose = [n for n, e in base.estimates.items() if base_name(n) == "speed" and
              (e.value is None or e.stderr is None or
@@ -197,7 +202,7 @@ def _baseline(run, baseline_params, held):
     if loose:
         keep = [b for b in base_names if b != "speed"] if K == 1 or len(loose) == len(run.free) else base_names
         if keep != base_names:
-            base = _fit(cfg, run.full_data, keep, values, 1, run.screen_data, screen_hold=scanned)
+            base = _fit(cfg, run.full_data, keep, values, 1, run.screen_data, screen_hold=scanned, adequacy=True)
     names = [n for n in base.estimates if base.estimates[n].identifiable and base.estimates[n].value is not None]
     for n in base.estimates:
         if base_name(n) == "speed" and n in names:

@@ -63,6 +63,12 @@ class Adequacy:
     def problem(self) -> str | None:
         return self.reason if self.verdict == "inadequate" else None
 
+    def orders_missed(self) -> bool:
+        """The model's own shaft orders (the vane passing and its harmonics) stay in the residual:
+        a config that is not this pump, not an effect it lacks (ORDER_MISFIT_MAX)."""
+        return (self.order_misfit is not None and self.order_misfit > ORDER_MISFIT_MAX
+                and self.order_misfit_p < ORDER_MISFIT_ALPHA)
+
     def warning(self) -> str | None:
         if self.verdict != "systematic":
             return None
@@ -178,8 +184,7 @@ def assess(measured, fitted, angle, dt, speed, fitted_parameters: int = 0) -> Ad
     out.segment_rms = [float(np.sqrt(np.mean(s**2))) for s in np.array_split(r, TIME_SEGMENTS) if s.size]
     what = ("a config that is not this pump (vane count, housing, slot tilt), a wrong speed, or a local "
             "minimum; check the config and the speed, or fit the speed")
-    if (out.order_misfit is not None and out.order_misfit > ORDER_MISFIT_MAX
-            and out.order_misfit_p < ORDER_MISFIT_ALPHA):
+    if out.orders_missed():
         out.verdict = "inadequate"
         out.reason = (f"the model cannot describe this measurement: {100 * out.order_misfit:.0f} % of its own "
                       f"shaft orders ({_orders_text(out.model_orders)}) stays in the residual -- {what}")

@@ -192,7 +192,7 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
-        keep=keep, adequacy=adequacy, intervals=intervals)
+        keep=keep, adequacy=adequacy, intervals=intervals, residual_unit=prob.RESIDUAL_UNIT)
 
 
 def _channels(prob, keep) -> list:
@@ -211,7 +211,24 @@ def _adequacy(prob, x, fitted):
     if isinstance(prob, TransientProblem):
         return None
     if isinstance(prob, JointProblem):
-        found = [assess(s.y, fitted[a:b], s.angle(x[c]), s.dt, s.speed_of(x[c]), len(prob.names))
+        found = [_assess_measured(s, fitted[a:b], x[c], len(prob.names))
                  for s, c, a, b in zip(prob.subs, prob.cols, prob.rows[:-1], prob.rows[1:])]
         return max(found, key=lambda q: VERDICTS.index(q.verdict))
-    return assess(prob.y, fitted, prob.angle(x), prob.dt, prob.speed_of(x), len(prob.names))
+    return _assess_measured(prob, fitted, x, len(prob.names))
+
+
+def _assess_measured(prob, fitted, x, k):
+    """assess on the longest stretch of measured samples (all of them unless resampling bridged a
+    gap): its tests need a uniform grid, and the samples inside a gap were not measured."""
+    lo, hi = longest_run(prob.measured, prob.y.size)
+    return assess(prob.y[lo:hi], fitted[lo:hi], prob.angle(x)[lo:hi], prob.dt, prob.speed_of(x), k)
+
+
+def longest_run(mask, n) -> tuple:
+    """(lo, hi) of the longest run of True in mask (all n samples when mask is None)."""
+    if mask is None:
+        return 0, n
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask, int), [0]])))
+    starts, ends = edges[::2], edges[1::2]
+    i = int(np.argmax(ends - starts))
+    return int(starts[i]), int(ends[i])

@@ -137,7 +137,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         x, r, J, w = xn, prob.y - mn, Jn, _weights(prob, xn)
         history.append({"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)})
         interrupt.progress(f"in a fit of {', '.join(prob.names)} after {len(history) - 1} iterations "
-                           f"(residual RMS {history[-1]['rms']:.4g} N m)")
+                           f"(residual RMS {history[-1]['rms']:.4g} {getattr(prob, 'RESIDUAL_UNIT', 'N m')})")
         if log:
             log(history[-1])
         if small:
@@ -151,9 +151,13 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
 
 def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:
     """IPOPT (limited-memory Hessian) on 0.5 |y - model|^2 with the fit's bounds; the problem gives
-    its model as a CasADi expression (`symbolic_model`)."""
+    its model as a CasADi expression (`symbolic_model`); the samples it did not measure
+    (Problem.measured) weigh 0."""
     phi = ca.MX.sym("phi", len(prob.names))
+    keep = prob.measured
     r = ca.DM(prob.y) - prob.symbolic_model(phi)
+    if keep is not None:
+        r = r * ca.DM(keep.astype(float))
     nlp = {"x": phi, "f": 0.5 * ca.sumsqr(r)}
     sol = ca.nlpsol("fit", "ipopt", nlp, {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                                           "ipopt.hessian_approximation": "limited-memory",
@@ -164,9 +168,10 @@ def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:
     x = np.asarray(res["x"]).ravel()
     m, J = prob.model_and_jacobian(x)
     st = sol.stats()
-    history = [{"params": dict(zip(prob.names, map(float, x0))), "rms": _rms(prob.residual(x0)), "iteration": 0},
-               {"params": dict(zip(prob.names, map(float, x))), "rms": _rms(prob.y - m),
+    w = None if keep is None else keep.astype(float)
+    history = [{"params": dict(zip(prob.names, map(float, x0))), "rms": _wrms(prob.residual(x0), w), "iteration": 0},
+               {"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(prob.y - m, w),
                 "iteration": int(st.get("iter_count", 0))}]
     status = str(st.get("return_status"))
     converged = bool(st.get("success")) or status in IPOPT_CONVERGED
-    return FitOutcome(x, prob.y - m, J, history, converged, status)
+    return FitOutcome(x, prob.y - m, J, history, converged, status, keep)

@@ -47,6 +47,7 @@ class Problem:
 
     SPECIAL: tuple = ()
     KIND = ""  # how an error message names the problem
+    RESIDUAL_UNIT = "N m"  # the measured channel's: the torque (a transient fit's: the speed)
     METHOD_TAG = ""  # appended to the result's method
     NOTE = ""  # appended to the result's message
     # None: every sample weighs in the cost; a number: the reversal-aware cost (reversals.py) with
@@ -57,8 +58,8 @@ class Problem:
     interval_geometry: bool = False
 
     def keep_at(self, x):
-        """The samples the reversal-aware cost keeps at x (bool per sample), None: all."""
-        return None
+        """The samples the cost keeps at x (bool per sample), None: all; here the measured ones."""
+        return self.measured
 
     def exact_at(self, x):
         """(model, Jacobian without interval columns) at x if the problem kept them, else None."""
@@ -66,6 +67,7 @@ class Problem:
 
     def _setup(self, cfg: PumpConfig, data: Dataset, names, starts: dict, initial=None):
         self.cfg, self.data = cfg, data
+        self.measured = None if data.measured is None else np.asarray(data.measured, bool)  # Dataset.measured
         self.pv = cfg.parameters("constrained")
         self.kern = load_kernels(self.pv.structure)
         self.p0 = as_array(self.pv)
@@ -407,9 +409,9 @@ class ConstantSpeedProblem(Problem):
     def keep_at(self, x):
         """False at the samples next to the model's torque steps at x (reversals.py): the model
         (unfiltered: a lag does not move a reversal) at the samples, at the interval midpoints and,
-        for the intervals with a step, at the bisection points that locate it."""
+        for the intervals with a step, at the bisection points that locate it; and where not measured."""
         if self.reversal_sigma is None or self.t.size < 3:
-            return None
+            return self.measured
         self.n_eval += 1
         theta, z = self.angle(x), self.z(x)
         h = abs(self.speed_of(x)) * self._half_step
@@ -423,7 +425,7 @@ class ConstantSpeedProblem(Problem):
             return self._torque(inner[0], z, inner[1:])[:k.size]
         # sigma 0: from the residual at x itself, so the mask is a function of x alone
         sigma = self.reversal_sigma or noise_sigma(self.y - (samples if self._lag(x) <= 0 else self.model(x)))
-        return reversal_keep(samples, mids, sigma, evaluate)
+        return reversal_keep(samples, mids, sigma, evaluate) & (True if self.measured is None else self.measured)
 
     def start(self, x):
         return phase_and_speed_start(self, x)

@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import interrupt
 from ..benchlog import BenchLog, fit_percent, start_above_atmosphere
 from ..signals import measured_noise
 from ..errors import ConfigError
@@ -122,6 +123,7 @@ class BenchLogProblem(Problem):
 
     KIND = " for a bench log"
     METHOD_TAG = "/bench-log"
+    RESIDUAL_UNIT = "noise sigmas"  # each channel divided by its noise sigma
     SPECIAL = COF_ALIASES
 
     def __init__(self, cfg, log: BenchLog, names, initial=None, hold=None, rtol=BENCH_FIT_RTOL,
@@ -447,6 +449,12 @@ class BenchFit:
                          f"(noise sigma {c.noise:.3g} {c.unit})")
         lines += [f"  note: {n}" for n in self.notes]
         return "\n".join(lines)
+
+
+def fitting(params=None):
+    """An interruption names the fit, not only the pump-down run it was in (interrupt.stage)."""
+    what = ", ".join(params) if params else "the bench log's parameters"
+    return interrupt.stage(f"in a fit of {what} before its first iteration ended")
 
 
 def identify_bench(cfg, log: BenchLog, params=("mu", "booster.leak", "motor.resistance"), method="gauss-newton",

@@ -64,10 +64,12 @@ class IdentificationResult:
     keep: np.ndarray | None = None  # samples kept by the reversal-aware cost (None: all); rms over them
     adequacy: Adequacy | None = None  # how well the model describes the data (adequacy.py)
     intervals: Intervals | None = None  # white or residual-aware intervals, the residual's structure
+    notes: list = field(default_factory=list)  # what the estimates rest on beyond the data (sentences)
+    residual_unit: str = "N m"  # the measured channel's (a transient fit compares speeds: rad/s)
 
     @property
     def residual(self):
-        """Measured minus fitted torque [N m] per sample."""
+        """Measured minus fitted per sample: torque [N m] (a transient fit's speed [rad/s])."""
         return self.measured - self.fitted
 
     def value(self, name):
@@ -100,11 +102,11 @@ class IdentificationResult:
         vals = ", ".join(f"{n}={e.value:.6g}" if e.value is not None else f"{n}=None"
                          for n, e in self.estimates.items())
         state = "converged" if self.converged and not self.problems() else "NOT usable"
-        return f"<IdentificationResult {self.method}: {vals}; RMS {self.rms:.4g} N m; {state}>"
+        return f"<IdentificationResult {self.method}: {vals}; RMS {self.rms:.4g} {self.residual_unit}; {state}>"
 
     def to_json(self) -> dict:
         """The spec §7 JSON document: params {name: value, stderr, ci95, initial, identifiable},
-        iterations, rms [N m], converged, and message, problems, on_bound, correlation, diagnostics.
+        iterations, rms [residual_unit: N m, a transient fit's rad/s], converged, and message, problems, on_bound, correlation, diagnostics.
 
         Example::
 
@@ -116,7 +118,7 @@ class IdentificationResult:
                            "initial": e.initial, "identifiable": e.identifiable, "stderr_white": e.stderr_white,
                            "stderr_residual_aware": e.stderr_residual_aware}
                        for n, e in self.estimates.items()},
-            "iterations": self.iterations, "rms": self.rms, "converged": self.converged,
+            "iterations": self.iterations, "rms": self.rms, "rms_unit": self.residual_unit, "converged": self.converged,
             "message": self.message, "method": self.method, "unidentifiable": self.unidentifiable,
             "correlation": {"names": [n for n in names if self.estimates[n].identifiable],
                             "matrix": None if self.correlation is None else self.correlation.tolist()},
@@ -124,14 +126,14 @@ class IdentificationResult:
             "on_bound": [{"name": n, "bound": b} for n, b in self.on_bound], "no_effect": self.no_effect,
             "problems": self.problems(), "warnings": self.warnings,
             "adequacy": None if self.adequacy is None else self.adequacy.to_json(),
-            "intervals": None if self.intervals is None else self.intervals.to_json(),
+            "intervals": None if self.intervals is None else self.intervals.to_json(), "notes": self.notes,
         }
 
     def __str__(self):
         its = self.iterations[-1].get("iteration", len(self.iterations) - 1) if self.iterations else 0
         usable = "" if not self.converged or not self.problems() else " but NOT a usable estimate (see below)"
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
-                 f"after {its} iterations{usable}, residual RMS {self.rms:.6g} N m"]
+                 f"after {its} iterations{usable}, residual RMS {self.rms:.6g} {self.residual_unit}"]
         if self.provenance:
             pv = self.provenance
             lines.append(f"  from {pv['config']} and " + ", ".join(
@@ -149,7 +151,7 @@ class IdentificationResult:
             lines.append("  " + self.adequacy.summary().replace("\n", "\n  "))
         lines.append(f"  {PLUS_MINUS}")
         notes = self.interval_notes()
-        lines += [f"  {n}" for n in notes]
+        lines += [f"  {n}" for n in notes + [f"note: {n}" for n in self.notes]]
         if not notes and not d["white_at_5pct"]:
             lines.append(f"  {OPTIMISTIC}")
         return "\n".join(lines)

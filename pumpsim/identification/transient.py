@@ -27,6 +27,7 @@ class TransientProblem(Problem):
 
     SPECIAL = COF_ALIASES + tuple(m.name for m in MEASUREMENT if m.transient)
     KIND = " for transient identification"
+    RESIDUAL_UNIT = "rad/s"
     METHOD_TAG = "/transient"
     NOTE = " (transient: speed fitted under the measured torque)"
 
@@ -37,6 +38,10 @@ class TransientProblem(Problem):
         dt = np.diff(data.time)
         if np.ptp(dt) > 1e-6 * dt.mean():
             raise DataError("transient identification needs uniformly sampled data (set the resample option)")
+        if data.measured is not None and not np.all(data.measured):
+            # the measured torque drives the model: a straight line across a gap would drive it too
+            raise DataError("transient identification cannot leave out a gap in time (the torque across it "
+                            "drives the model): cut the record at the gap and fit the part before or after it")
         starts = {"speed0": float(data.speed[0]),
                   "theta0": float(data.angle[0]) if data.angle is not None else cfg.angle, **(extra or {})}
         self._setup(cfg, data, names, starts, initial)

@@ -416,7 +416,7 @@ def integrate(cfg, duration, rate, p=None, x0=None, until=None, rtol=GAS_RTOL, a
             t = t + dt
             k += 1
             trace.add(t, x.copy(), q.copy(), None)
-        interrupt.progress(f"at simulated t = {t:.6g} s of {duration:.6g} s (booster {p_booster(x):.6g} Pa)")
+        interrupt.progress(f"at simulated t = {t:.6g} s of {duration:.6g} s (booster {p_booster(x):.6g} Pa)", detail=True)
         if progress:
             progress(t, p_booster(x))
     return _finished(integ, kern, p, trace, events, t_target, wall0)

@@ -3,6 +3,7 @@
 The command line runs in-process (`pumpsim.cli.main(argv)` returns the exit status), which is fast
 and still sees every message; a traceback would escape as an exception and fail the test.
 """
+import json
 import math
 import os
 import stat
@@ -52,6 +53,7 @@ def write_toml(path, d):
 
 @pytest.mark.parametrize("transform,expect", [
     (lambda t, tq, w: (t, tq * 1000, w), ["N*mm", "set the torque unit N*mm"]),
+    (lambda t, tq, w: (t, tq * 100, w), ["looks like N*cm (set the torque unit N*cm", "force option"]),
     (lambda t, tq, w: (t, tq, w * 60 / (2 * math.pi)), ["rpm", "set the speed unit rpm"]),
     (lambda t, tq, w: (t * 1000, tq, w), ["ms", "set the time unit ms"]),
 ])
@@ -62,6 +64,21 @@ def test_unit_mistakes_in_data_are_refused_with_the_fix(tmp_path, capsys, transf
     code, _, err = run(capsys, "identify", RIG, data, "--params", "mu", "--json", js)
     assert code == 2 and all(e in err for e in expect) and "force option" in err, err
     assert not js.exists()
+    if "N*cm" in expect[0]:  # named alone: N*mm would read it 10x too low and fit a COF 10x too low
+        assert "N*mm" not in err, err
+
+
+def test_a_torque_level_between_two_units_names_both(tmp_path, capsys):
+    # the config's COF ~3x below the data's puts the torque in N*cm half a decade above the model's
+    # level in N*cm and half a decade below it in N*mm: either unit could be meant
+    t, tq, w = rig_columns()
+    d = example_dict("test_rig")
+    d["friction"]["housing"].update(static=0.067, dynamic=0.064)
+    cfg = write_toml(tmp_path / "low.toml", d)
+    data = write(tmp_path / "d.csv", "time,torque,speed", t, tq * 100, w)
+    code, _, err = run(capsys, "identify", cfg, data, "--params", "mu")
+    hint = err.split("looks like ", 1)[-1]
+    assert code == 2 and "N*mm (" in hint and ") or N*" in hint and "N*cm (" in hint, err
 
 
 def test_torque_in_n_mm_without_speed_column_is_refused(tmp_path, capsys):
@@ -380,3 +397,41 @@ def test_bench_log_options_on_torque_data_are_refused(capsys, command):
     code, _, err = run(capsys, command, str(EXAMPLES / "test_rig.toml"), str(EXAMPLES / "data" / "test_rig_measurement.csv"),
                        "--current-column", "I_motor")
     assert code == 2 and "--current-column is for a bench log" in err and "check the column names" in err, err
+
+
+@pytest.mark.parametrize("wrap", [None, 360.0])
+def test_an_angle_column_in_degrees_is_refused_and_its_header_unit_reads_it(tmp_path, capsys, wrap):
+    t, tq, w = rig_columns()
+    deg = np.degrees(0.3 + np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))]))
+    deg = deg if wrap is None else np.mod(deg, wrap)
+    data = write(tmp_path / "d.csv", "time,torque,speed,angle", t, tq, w, deg)
+    code, _, err = run(capsys, "identify", RIG, data, "--params", "mu")
+    assert code == 2 and "the angle column looks like degrees" in err and "57.3x the speed" in err, err
+    assert "'angle [deg]'" in err, err
+    ok = write(tmp_path / "ok.csv", "time,torque,speed,angle [deg]", t, tq, w, deg)
+    js = tmp_path / "fit.json"
+    code, _, err = run(capsys, "identify", RIG, ok, "--params", "mu", "--json", js)
+    assert code == 0, err
+    assert abs(json.loads(js.read_text())["params"]["mu"]["value"] - RIG_MU) < RIG_MU_ABS
+
+
+def test_a_slow_logger_is_told_to_log_faster_not_that_its_time_is_in_ms(tmp_path, capsys):
+    t, tq, w = (c[::25] for c in rig_columns())  # 400 Hz: 4.1 samples per revolution at 5800 rpm
+    data = write(tmp_path / "d.csv", "time,torque,speed", t, tq, w)
+    code, _, err = run(capsys, "identify", RIG, data, "--params", "mu")
+    # read in ms the 0.2 s record would last 0.2 ms, an eighth of a revolution
+    assert code == 2 and "the log is too slow" in err and "log at 773 Hz or faster" in err, err
+    assert "4 vanes" in err and "looks like ms" not in err, err
+
+
+def test_a_config_speed_in_the_wrong_key_is_named_not_the_right_speed_column(tmp_path, capsys):
+    d = example_dict("test_rig")
+    d["operation"]["speed_rpm"] = 607.37  # rad/s typed into the rpm key
+    cfg = write_toml(tmp_path / "c.toml", d)
+    code, _, err = run(capsys, "identify", cfg, RIG_DATA, "--params", "mu")
+    assert code == 2 and "operation.speed_rpm = 607.37" in err and "looks wrong" in err, err
+    assert "the column looks like rpm" not in err, err
+    t, tq, w = rig_columns()  # the other way round: the column in rpm, the config right
+    rpm = write(tmp_path / "rpm.csv", "time,torque,speed", t, tq, w * 30 / math.pi)
+    code, _, err = run(capsys, "identify", RIG, rpm, "--params", "mu")
+    assert code == 2 and "the column looks like rpm" in err and "operation.speed" not in err, err

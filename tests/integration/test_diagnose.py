@@ -100,3 +100,30 @@ def test_two_clean_speeds_together_are_consistent_with_noise():
     assert out["effects"] == [] and not out["unexplained"] and out["final"]["residual_white"]
     assert len(out["detectors"]["per_measurement"]) == 2
     assert not any("second speed would separate" in n for n in out["notes"])
+
+
+def test_diagnose_gives_identify_s_verdict_on_a_config_of_another_pump(tmp_path, capsys):
+    """4-vane data, a 5-vane config: the baseline misses its own orders (10, 20, ...) and the
+    vane passing at 4; no effect is named on it (they would only imitate the mismatch), the verdict
+    is identify's, exit 1 with the outputs written."""
+    from pumpsim.cli import main
+    from tests.conftest import EXAMPLES, example_dict, toml_text
+
+    _, ds, _ = _nominal_signal(6)
+    data = tmp_path / "d.csv"
+    np.savetxt(data, np.column_stack([ds.time, ds.torque]), delimiter=",", header="time,torque", comments="")
+    d = example_dict("ellipse_4vanes")
+    d["rotor"]["vanes"] = 5
+    five = tmp_path / "five.toml"
+    five.write_text(toml_text(d))
+    js = tmp_path / "d.json"
+    code = main(["diagnose", str(five), str(data), "--json", str(js)])
+    err = capsys.readouterr().err
+    assert code == 1 and "a config that is not this pump (vane count" in err, err
+    out = json.loads(js.read_text())
+    assert out["steps"] == [] and "a config that is not this pump" in out["verdict"], out["verdict"]
+    assert main(["identify", str(five), str(data)]) == 1
+    assert "a config that is not this pump (vane count" in capsys.readouterr().err
+    # the right config on the same data: no such verdict
+    assert main(["diagnose", str(EXAMPLES / "ellipse_4vanes.toml"), str(data), "--json", str(js)]) == 0
+    assert "not this pump" not in json.loads(js.read_text())["verdict"]

@@ -22,6 +22,17 @@ def test_transient_fit_recovers_cof(run):
     assert res.value("mu") == pytest.approx(0.17, rel=TRANSIENT_MU_REL)
     assert abs(res.value("speed0") - 150.0) < TRANSIENT_SPEED0_ABS
     assert res.diagnostics["white_at_5pct"]
+    # its residual is the speed's: labelled by that channel, not as a torque
+    assert str(res).splitlines()[0].endswith(f"residual RMS {res.rms:.6g} rad/s") and "N m" not in repr(res)
+    assert res.to_json()["rms_unit"] == "rad/s"
+
+
+def test_a_transient_fit_refuses_samples_interpolated_across_a_gap(run):
+    measured = np.ones(run.time.size, bool)
+    measured[10:15] = False  # resampling drew a straight line there: it would drive the model
+    ds = Dataset(run.time, run.torque, run.speed, measured=measured)
+    with pytest.raises(DataError, match="cannot leave out a gap in time.*cut the record"):
+        TransientProblem(start_config(), ds, ["mu"])
 
 
 def test_sensitivities_match_finite_differences_in_four_directions(run):
