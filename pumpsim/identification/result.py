@@ -133,7 +133,8 @@ class IdentificationResult:
         its = self.iterations[-1].get("iteration", len(self.iterations) - 1) if self.iterations else 0
         usable = "" if not self.converged or not self.problems() else " but NOT a usable estimate (see below)"
         lines = [f"identification ({self.method}): {'converged' if self.converged else 'NOT converged'} "
-                 f"after {its} iterations{usable}, residual RMS {self.rms:.6g} {self.residual_unit}"]
+                 f"after {its} iterations{usable}, residual RMS {self.rms:.6g} {self.residual_unit}"
+                 + (f" -- {self.message}" if its == 0 and self.message else "")]
         if self.provenance:
             pv = self.provenance
             lines.append(f"  from {pv['config']} and " + ", ".join(
