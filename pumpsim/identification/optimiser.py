@@ -87,6 +87,11 @@ def _wrms(r, w) -> float:
     return _rms(r) if w is None else float(np.sqrt((w * r) @ (w * r) / max(w.sum(), 1.0)))
 
 
+NO_DECREASE = "no further decrease of the residual"
+NO_STEP_FROM_START = ("no step from the start lowered the residual: the start may sit on a step of the cost "
+                      "(friction reversals make it a staircase); a fit from another --start tells")
+
+
 def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
                  start=None, final_jacobian=True) -> FitOutcome:
     """The report's Gauss-Newton with relaxation factor f (report §12); with lm=True a
@@ -129,10 +134,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
                     break
                 step = 0.5 * step
             else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
-                converged, message = True, ("no further decrease of the residual" if it else
-                                            "no step from the start lowered the residual: the start may sit "
-                                            "on a step of the cost (friction reversals make it a staircase); "
-                                            "a fit from another --start tells")
+                converged, message = True, NO_DECREASE if it else NO_STEP_FROM_START
                 break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)

@@ -68,16 +68,25 @@ def building_allowed(build: bool | None) -> bool:
     return os.environ.get("PUMPSIM_NO_BUILD", "") in ("", "0") if build is None else build
 
 
-def build_library(structure: Structure, log=None, simd: bool = False):
+def build_library(structure: Structure, log=None, simd: bool = False, ready=None):
     """The one way the runtime builds a library -- the variant's, or with simd=True its SIMD
-    inverse dynamics -- through codegen's one entry point, imported here and nowhere else."""
+    inverse dynamics -- through codegen's one entry point, imported here and nowhere else. One
+    build per variant at a time on this kernel folder (a study's workers start together): the
+    others wait for it, and `ready()` (the caller's lookup: a folder or None) then finds its
+    library, so nothing is generated or compiled twice."""
+    from filelock import FileLock
+
     log = log or log_build
     base = writable_dir()
-    log(f"building the {'SIMD ' if simd else ''}kernel {structure.variant} in {base} "
-        "(once per model variant; up to a minute)")
-    from ..codegen.build import build_library as build
+    with FileLock(str(base / f".{structure.variant}{'-simd' if simd else ''}.build.lock")):
+        found = ready() if ready is not None else None
+        if found is not None:
+            return found
+        log(f"building the {'SIMD ' if simd else ''}kernel {structure.variant} in {base} "
+            "(once per model variant; up to a minute)")
+        from ..codegen.build import build_library as build
 
-    return build(structure, simd=simd, log=log)
+        return build(structure, simd=simd, log=log)
 
 
 def _size(folder: Path) -> int:

@@ -70,7 +70,8 @@ def load_kernels(structure: Structure, build: bool | None = None, log=None) -> K
                 f"compiled kernel for {structure.variant} is missing or stale (source "
                 f"{fingerprint}, CasADi {ca.__version__}, in {mf.generated_dir()}); "
                 "build it with `pumpsim kernels build CONFIG` or unset PUMPSIM_NO_BUILD")
-        folder = build_library(structure, log)
+        folder = build_library(structure, log,
+                               ready=lambda: mf.find_variant(structure, ca.__version__, fingerprint)[0])
         manifest = mf.trusted_manifest(folder, structure.variant, ca.__version__, fingerprint)
         if manifest is None:
             raise CodegenError(f"build of {structure.variant} did not produce a valid library")

@@ -328,7 +328,8 @@ def load_fast_kernel(structure: Structure, build: bool | None = None, fallback: 
                 "or unset PUMPSIM_NO_BUILD")
         log = log or log_build
         try:
-            build_library(structure, log, simd=True)
+            build_library(structure, log, simd=True,
+                          ready=lambda: find_simd(structure, ca.__version__, fingerprint)[0])
         except CodegenError as exc:
             if not fallback:
                 raise

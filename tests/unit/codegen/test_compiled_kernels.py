@@ -198,3 +198,32 @@ def test_manifest_records_key_orders_and_units(private_cache):
     assert m["parameters"][0] == {"name": "rotor.radius", "unit": "m"}
     assert m["functions"]["inverse_dynamics"]["inputs"] == ["theta", "omega", "omegadot", "p"]
     # (the compile-time target, < 60 s, is checked by `make bench`, not by a test)
+
+
+def test_concurrent_builds_of_one_variant_build_once(private_cache, monkeypatch):
+    """A study's workers start together: the second build waits on the variant's lock and finds
+    the first one's library (its `ready` lookup) instead of generating and compiling again."""
+    import threading
+    import time
+
+    from pumpsim.kernels import cache
+
+    st = Structure(vanes=2)
+    built, made = [], {}
+
+    def fake_build(structure, simd=False, log=None):
+        built.append(structure.variant)
+        time.sleep(0.3)  # long enough for the other thread to reach the lock
+        made["folder"] = private_cache / "done"
+        return made["folder"]
+
+    monkeypatch.setattr(build, "build_library", fake_build)
+    got = []
+    threads = [threading.Thread(target=lambda: got.append(cache.build_library(st, log=lambda m: None,
+                                                                              ready=lambda: made.get("folder"))))
+               for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert built == [st.variant] and got == [private_cache / "done"] * 2
