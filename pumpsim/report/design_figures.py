@@ -172,11 +172,25 @@ def regression_swings(df, keys, output):
     return sw, r2
 
 
+def tornado_gap(df, study) -> str | None:
+    """Why the tornado cannot be drawn (a sentence), or None when it can."""
+    keys = [k for k in study.keys if df[k].nunique() > 1]
+    if not keys:
+        return "No key varies across the designs (every varied key has one value, e.g. sd = 0): no influences to draw."
+    outs = chosen(df, study, 4)
+    finite = [int(np.isfinite(df[o].to_numpy(dtype=float)).sum()) for o in outs]
+    if not outs or max(finite, default=0) < len(keys) + 2:
+        return (f"Too few evaluated designs ({max(finite, default=0)}) for a linear fit of {len(keys)} keys "
+                f"(it needs at least {len(keys) + 2}): run more samples to see the influences.")
+    return None
+
+
 def tornado(df, study) -> str:
+    gap = tornado_gap(df, study)
+    if gap is not None:
+        return f"<p class=note>{gap}</p>"
     keys = [k for k in study.keys if df[k].nunique() > 1]
     outs = chosen(df, study, 4)
-    if not keys or not outs:
-        return ""
     fig, axes = plt.subplots(1, len(outs), figsize=(3.3 * len(outs), 0.5 * len(keys) + 1.8), squeeze=False)
     for ax, o in zip(axes[0], outs):
         sw, r2 = regression_swings(df, keys, o)

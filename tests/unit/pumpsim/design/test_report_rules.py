@@ -132,3 +132,22 @@ def test_convergence_draws_every_variable_with_its_bounds(monkeypatch):
     fg.convergence_figure(res, None)
     titles = [a.get_title() for a in figs[0].axes if a.axison]
     assert titles[2:] == ["vane.mass [g]", "vane.length [mm]", "rotor.slot_radius [mm]", "housing.b [mm]"]
+
+
+def test_the_tornado_says_why_it_is_not_drawn():
+    """Five designs cannot fit five keys plus a mean; a key that never varies has no influence:
+    each is said in words, not a blank figure; enough designs draw it."""
+    study = study_from_dict({"study": {"config": str(EXAMPLES / "test_rig.toml"), "sampler": "random",
+                                       "samples": 5, "seed": 1},
+                             "vary": {k: {"distribution": "normal", "sd": 1e-6}
+                                      for k in ("housing.radius", "vane.length", "vane.mass",
+                                                "vane.thickness", "rotor.radius")}})
+    rng = np.random.default_rng(0)
+    df = pd.DataFrame({k: rng.normal(size=5) for k in study.keys})
+    df["mean_torque"], df["status"] = rng.normal(size=5), "ok"
+    assert "Too few evaluated designs (5)" in fg.tornado(df, study) and "at least 7" in fg.tornado_gap(df, study)
+    flat = df.assign(**{k: 1.0 for k in study.keys})
+    assert fg.tornado_gap(flat, study).startswith("No key varies")
+    more = pd.DataFrame({k: rng.normal(size=40) for k in study.keys})
+    more["mean_torque"], more["status"] = rng.normal(size=40), "ok"
+    assert fg.tornado_gap(more, study) is None
