@@ -104,10 +104,6 @@ def parse(c: dict, raw: dict, mode: str) -> PneumaticSettings | None:
     for t in ("ports", "booster"):
         if t not in raw:
             raise ConfigError(f"the gas model needs the [{t}] table (found [{'], ['.join(present)}])")
-    if isinstance(c["rotor"]["vanes"], int) and c["rotor"]["vanes"] < 2:
-        raise ConfigError(f"rotor.vanes = {c['rotor']['vanes']}: the gas model needs at least 2 vanes (one "
-                          "vane leaves one cell open to the inlet and the exhaust at once, which pumps "
-                          "nothing); remove the gas tables to study one vane's mechanics")
     W = c["rotor"]["width"]
     if W is None:
         raise ConfigError("missing required key 'rotor.width' (the gas model needs the axial width)")

@@ -26,6 +26,7 @@ from ..integrate import illinois
 from ..tolerances import GAS_ATOL, GAS_RTOL
 from ..kernels.pneumatic import kernels, parameter_index, parameter_vector
 from ..model_spec.parameters import REED_MODES
+from ..model_spec.outputs import shape as output_shape
 
 EVENT_TIME_TOL = 1e-10  # s
 CHUNK = 50  # output intervals per integrator call
@@ -317,7 +318,7 @@ def evaluate_outputs(kern, X, p, names=None):
     for nm, a in zip(f.name_out(), res):
         if names is not None and nm not in names:
             continue
-        out[nm] = a.ravel() if a.shape[0] == 1 else a.T  # per cell/vane: (n, N)
+        out[nm] = a.ravel() if output_shape(nm) == "sample" else a.T  # per cell/vane: (n, N), also for N = 1
     return out
 
 
@@ -328,7 +329,7 @@ def _outputs_by_rows(kern, f, X, p, names):
     sizes = [f.sparsity_out(k).numel() for k in range(f.n_out())]
     wanted = [names is None or nm in names for nm in f.name_out()]
     cols = call.rows(np.asarray(X, float).reshape(-1, f.size1_in(0)), sizes, wanted)
-    return {nm: (a[:, 0] if a.shape[1] == 1 else a) for nm, a, w in zip(f.name_out(), cols, wanted) if w}
+    return {nm: (a[:, 0] if output_shape(nm) == "sample" else a) for nm, a, w in zip(f.name_out(), cols, wanted) if w}
 
 
 def _reed_switch(kern, p, X, mode):
