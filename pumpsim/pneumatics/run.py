@@ -318,7 +318,7 @@ def evaluate_outputs(kern, X, p, names=None):
     for nm, a in zip(f.name_out(), res):
         if names is not None and nm not in names:
             continue
-        out[nm] = a.ravel() if output_shape(nm) == "sample" else a.T  # per cell/vane: (n, N), also for N = 1
+        out[nm] = a.ravel() if _per_sample(nm, a.shape[0], kern.structure.vanes == 1) else a.T  # per cell/vane: (n, N)
     return out
 
 
@@ -329,7 +329,15 @@ def _outputs_by_rows(kern, f, X, p, names):
     sizes = [f.sparsity_out(k).numel() for k in range(f.n_out())]
     wanted = [names is None or nm in names for nm in f.name_out()]
     cols = call.rows(np.asarray(X, float).reshape(-1, f.size1_in(0)), sizes, wanted)
-    return {nm: (a[:, 0] if output_shape(nm) == "sample" else a) for nm, a, w in zip(f.name_out(), cols, wanted) if w}
+    one = kern.structure.vanes == 1
+    return {nm: (a[:, 0] if _per_sample(nm, a.shape[1], one) else a) for nm, a, w in zip(f.name_out(), cols, wanted)
+            if w}
+
+
+def _per_sample(name, size, one_vane) -> bool:
+    """An output of one value per sample: size 1 -- with one vane, only where the contract says
+    so (a per-cell or per-vane output then has size 1 too and keeps its column)."""
+    return size == 1 and (not one_vane or output_shape(name) == "sample")
 
 
 def _reed_switch(kern, p, X, mode):
