@@ -476,9 +476,9 @@ def _interval_peak(integ, t_a, t_b, x_a, mode) -> float:
     """The largest |current| over [t_a, t_b] from x_a: on a sub-grid, then located (peak_current)."""
     m = max(1, int(math.ceil((t_b - t_a) / PEAK_SUBSTEP - 1e-9)))
     h = (t_b - t_a) / m
-    Xs = np.vstack([x_a[None, :], integ.grid(x_a, mode, h, m, t_a)[0]]) if m > 1 else None
-    if Xs is None:
-        Xs = np.vstack([x_a[None, :], integ.step(x_a, mode, h, t_a)[0][None, :]])
+    # one sub-step: a step (a grid of one would make CasADi's plugin an integrator per length)
+    after = integ.grid(x_a, mode, h, m, t_a)[0] if m > 1 else integ.step(x_a, mode, h, t_a)[0][None, :]
+    Xs = np.vstack([x_a[None, :], after])
     cur = np.abs(Xs[:, 2])
     k = int(np.argmax(cur))
     sign = 1.0 if Xs[k, 2] >= 0 else -1.0

@@ -172,9 +172,14 @@ def regression_swings(df, keys, output):
     return sw, r2
 
 
+def varied_keys(df, study) -> list:
+    """The study's keys that take more than one value in the table."""
+    return [k for k in study.keys if df[k].nunique() > 1]
+
+
 def tornado_gap(df, study) -> str | None:
     """Why the tornado cannot be drawn (a sentence), or None when it can."""
-    keys = [k for k in study.keys if df[k].nunique() > 1]
+    keys = varied_keys(df, study)
     if not keys:
         return "No key varies across the designs (every varied key has one value, e.g. sd = 0): no influences to draw."
     outs = chosen(df, study, 4)
@@ -189,7 +194,7 @@ def tornado(df, study) -> str:
     gap = tornado_gap(df, study)
     if gap is not None:
         return f"<p class=note>{gap}</p>"
-    keys = [k for k in study.keys if df[k].nunique() > 1]
+    keys = varied_keys(df, study)
     outs = chosen(df, study, 4)
     fig, axes = plt.subplots(1, len(outs), figsize=(3.3 * len(outs), 0.5 * len(keys) + 1.8), squeeze=False)
     for ax, o in zip(axes[0], outs):
@@ -216,7 +221,7 @@ def tornado(df, study) -> str:
 
 
 def scatter_matrix(df, study) -> str:
-    keys = [k for k in study.keys if df[k].nunique() > 1][:6]
+    keys = varied_keys(df, study)[:6]
     outs = chosen(df, study, 4)
     if not keys or not outs:
         return ""
@@ -252,7 +257,7 @@ def scatter_matrix(df, study) -> str:
 def grid_layout(df, study):
     """(x key, grouping key or None, contour?) of a grid: lines over a continuous key, one per
     value of a discrete one (a vane count); contours for two continuous keys of 3+ values."""
-    keys = [k for k in study.keys if df[k].nunique() > 1]
+    keys = varied_keys(df, study)
     if not keys:
         return None, None, False
     k1, k2 = keys[0], (keys[1] if len(keys) > 1 else None)
