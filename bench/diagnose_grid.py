@@ -199,7 +199,7 @@ def classify(truth_name, out, status="in_library"):
     """right | confounded_right | wrong_name | extra_name | missed | false_unexplained | right_unexplained |
     clean (no effect, nothing claimed)."""
     named = out["effects"]
-    conf = {e for pair in out["confounded"] + out.get("hidden_in_baseline", []) for e in pair}
+    conf = {e for pair in out["confounded"] + out["hidden_in_baseline"] for e in pair}
     if truth_name == "two_effects":
         if set(named) == set(TWO_EFFECTS):
             return "right"
