@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -18,19 +19,25 @@ from .state import Fitted, State, bic, common_keep, identify, lr_bic, measuremen
 @dataclass(frozen=True, eq=False)
 class Contender:
     """A significant candidate refitted on the screening window, with the BIC of that fit on the
-    window (against the current model on their common samples, on the current model's scale)."""
+    window (against the current model on their common samples, on the current model's scale).
+    `complete`: for a fit cut short because it trailed the contenders before it by more than
+    completing it could gain (a polar search left at its best scout), what returns the contender as
+    the full refit would have made it; None when it is complete."""
 
     cand: Candidate
     score: Score
     screen_state: State
     screen_res: object
     bic_screen: float = math.nan
+    complete: Callable[[], "Contender"] | None = None
 
 
 def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
     """The contenders among the significant candidates `sig` -- the best by the one-step BIC,
     the best by score p-value (a smooth effect whose one-step fit a probe grid happened to beat)
-    and the lowest significant orders -- refitted on the screen, sorted by their BIC there."""
+    and the lowest significant orders -- refitted on the screen, sorted by their BIC there. A
+    contender that trails those before it beyond what completing its fit can gain is left
+    incomplete (Contender.complete; completed_contenders)."""
     best = sig[:run.opts.contenders]
     contenders = best + [r for r in sorted(sig, key=lambda r_: r_.score.p_value)[:2]
                          if not any(r is b_ for b_ in best)]
@@ -40,6 +47,16 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
     def polar(r):  # the lowest order of an out-of-round, an eccentricity
         return any(r is r_ for r_ in lowest) or (r.cand.symmetric and not r.cand.kind.harmonic_pair)
     screen_bic = _screen_bic(scr, state, rho)
+
+    def contender(c, s, is_polar, needed, behind=None):
+        st, res, settled = refit(scr, c, s, polar=is_polar, opts=run.opts, needed=needed, behind=behind)
+        full = lambda: contender(c, s, is_polar, needed)  # noqa: E731  (every start, to the bit)
+        if not settled:
+            return Contender(c, s, st, res, screen_bic(st, res), full)
+        if not c.symmetric:  # (whether or not it trails: rephasing can gain a quarter of the RMS)
+            st, res = rephased(st, res)
+        return Contender(c, s, st, res, screen_bic(st, res))
+
     out = []
     # the polar searches last: their starts are all scouted only where the fit could still matter
     for r in sorted(contenders, key=polar):
@@ -48,13 +65,36 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
             continue
         run.say(f"refitting with {c.label}")
         bar = min((f.bic_screen for f in out), default=math.inf) + _search_margin(scr, run.opts)
-        st, res = refit(scr, c, s, polar=polar(r), opts=run.opts,  # nothing to trail yet: every start
-                        needed=None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar)
-        if not c.symmetric:
-            st, res = rephased(st, res)
-        out.append(Contender(c, s, st, res, screen_bic(st, res)))
+        lead = min(out, key=lambda f: f.bic_screen, default=None)
+        out.append(contender(  # nothing to trail yet: every start, rephased
+            c, s, polar(r), None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar,
+            None if lead is None else lambda r_, lead=lead: _trails(r_, lead.screen_res, run.opts)))
     out.sort(key=lambda f: f.bic_screen)
     return out
+
+
+def completed_contenders(fits: list, done: int) -> None:
+    """Complete, in place, the contenders after the first `done` (already judged) that were left
+    incomplete, and sort those again by their BIC on the screen: the order the full refits would
+    have given them. An incomplete one trails the first by more than completing it can gain, so
+    while the first stands nothing needs completing."""
+    if any(f.complete is not None for f in fits[done:]):
+        rest = [f.complete() if f.complete is not None else f for f in fits[done:]]
+        fits[done:] = sorted(rest, key=lambda f: f.bic_screen)
+
+
+def _trails(scout, lead, opts: DiagnosisOptions = OPTIONS) -> bool:
+    """Whether a polar search's best scout (a few steps on the probe window, the screen's first
+    samples) trails the best contender so far, on the samples both keep there, by more than
+    finishing it and completing its search could gain (opts.refit_gain in RMS each): it is then
+    left unfinished, as a search whose finalists' fit trails is not completed."""
+    n = scout.residual.size
+    if lead.residual.size < n:
+        return False
+    lead_keep = None if lead.keep is None else lead.keep[:n]
+    keep = common_keep(scout.keep, lead_keep)
+    (rss, m), (rss_lead, _) = sum_squares(scout.residual, keep), sum_squares(lead.residual[:n], keep)
+    return m > 0 and rss > (1 + opts.refit_gain) ** 4 * rss_lead
 
 
 def _screen_bic(scr, state, rho):
@@ -119,18 +159,20 @@ def full_fit(run, f):
     return refit_on(f.screen_state, run.full_data)
 
 
-def refit(state: State, cand: Candidate, score: Score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None):
+def refit(state: State, cand: Candidate, score: Score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None,
+          behind=None):
     """_refit_from the score step and from each tied subset's (score_test), the lowest RMS kept:
     the subsets' one-step fits rank them only to first order (independent 4-vane ellipse, one vane
     25 % smoother with the baseline's phase a vane pitch off, so that vane is not vane 3 but vane 2:
     the best one-step subset, vane 3's factor, refitted to 1.266 at 1.05 sigma -- vane 2's to 0.749
     at the noise -- and a 0.0045 % speed ripple was named for the difference). `needed`: see
     _refit_from."""
-    fits = [_refit_from(state, cand, s, polar, opts, needed) for s in (score, *score.tied)]
-    return min(fits, key=lambda f: f[1].rms)
+    fits = [_refit_from(state, cand, s, polar, opts, needed, behind) for s in (score, *score.tied)]
+    return min(fits, key=lambda f: f[1].rms)  # (state, fit, settled)
 
 
-def _refit_from(state: State, cand: Candidate, score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None):
+def _refit_from(state: State, cand: Candidate, score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None,
+                behind=None):
     """Fit the current names plus the candidate's parameters, starting from the score step (on the
     state's data). A geometric defect (eccentricity, out-of-round) is fitted with the interval
     Jacobian columns (identification/problem.py: they carry the friction reversals' motion), and
@@ -140,7 +182,9 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
     one-step start often misses (the grid's 15 um oval on the 4-vane ellipse: 1.61 sigma from the
     one-step start, 1.02 from a polar start, the truth's valley 1.017; an eccentricity's one-step
     estimate can be the mirror image of the truth). `needed(state, res)`: whether a fit could still
-    matter to the selection (_scouted); without it every start is scouted in full."""
+    matter to the selection (_scouted); without it every start is scouted in full. `behind(scout)`:
+    whether the best scout on the probe window trails so far that it is not fitted to convergence
+    (its result then takes one step on the state's data): (state, fit, whether fitted to convergence)."""
     cfg = cand.config(state.cfg)
     values = dict(state.values)
     values.update(score.start or {})  # the joint one-step estimate
@@ -155,36 +199,43 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
     fit = lambda init, data=state.data, **kw: identify(  # noqa: E731
         cfg, data, names, initial=init, multistart=False, ripple_order=ripple, extra=held,
         interval=cand.symmetric, **kw)
+    settled = True
     if len(starts) == 1:
         res = fit(starts[0])
     else:  # a few steps from the starts (on the probe window), then the best one to convergence
         scout = _scout_window(state.data, opts)
 
-        def finish(r):
+        def finish(r, settle=True):
             if scout is not state.data or not r.converged:
-                return fit({n: r.estimates[n].value for n in names if r.estimates[n].value is not None})
+                at = {n: r.estimates[n].value for n in names if r.estimates[n].value is not None}
+                return fit(at) if settle else fit(at, max_iter=1, polish=False, final_jacobian=False)
             return r
-        res = _scouted(starts, lambda init, **kw: fit(init, scout, **kw), finish, opts,
+        res, settled = _scouted(starts, lambda init, **kw: fit(init, scout, **kw), finish, opts,
                        None if needed is None else lambda r: needed(state_from(cfg, state.data, names, values, r,
-                                                                               ripple), r))
-    return state_from(cfg, state.data, names, values, res, ripple), res
+                                                                               ripple), r),
+                       None if behind is None or scout is state.data else behind)
+    return state_from(cfg, state.data, names, values, res, ripple), res, settled
 
 
-def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed=None):
+def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed=None, behind=None):
     """The best of opts.refit_scout_steps Gauss-Newton steps (and a polish) from each start, fitted
     to convergence by `finish`. With `needed`, first only from the finalists (_finalists); the
     other starts are scouted too when `needed` says that fit could still win or tie the selection,
-    and the result is then the one all starts give, to the bit (the first best start by cost)."""
+    and the result is then the one all starts give, to the bit (the first best start by cost).
+    With `behind`, finalists whose best scout trails (behind(scout) true) are not finished:
+    finish(scout, settle=False). Returns (fit, whether it was finished)."""
     chosen = range(len(starts)) if needed is None else _finalists(starts, scout_fit, opts)
     scouts = {i: scout_fit(starts[i], max_iter=opts.refit_scout_steps) for i in chosen}
     win = min(sorted(scouts), key=lambda i: scouts[i].rms)
+    if needed is not None and behind is not None and behind(scouts[win]):
+        return finish(scouts[win], settle=False), False
     res = finish(scouts[win])
     if len(scouts) < len(starts) and needed(res):
         scouts.update({i: scout_fit(starts[i], max_iter=opts.refit_scout_steps)
                        for i in range(len(starts)) if i not in scouts})
         best = min(sorted(scouts), key=lambda i: scouts[i].rms)
         res = res if best == win else finish(scouts[best])
-    return res
+    return res, True
 
 
 def _finalists(starts, scout_fit, opts: DiagnosisOptions = OPTIONS) -> list:

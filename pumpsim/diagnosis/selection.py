@@ -15,7 +15,7 @@ from ..signals import speed_column_disagreement
 from .detectors import Detection, noise_scatter
 from .effects import absent_values
 from .log import Dropped, NotStationary, Rejected, TooSmall
-from .refit import Contender, full_fit
+from .refit import Contender, completed_contenders, full_fit
 from .state import State, ar1, common_keep, identify, lr_bic, make_problem, on_kept, state_from, sum_squares
 from .stationarity import stationary_at_its_speed
 
@@ -76,9 +76,13 @@ def accept(run, fits, state, current, verdict, rho, score_level) -> Acceptance:
     """The first fit (by screening BIC) that is plausible, refitted on the whole record, changes
     the torque by at least `named_size` x the noise's scatter, passes the LR test (prewhitened and
     plain), lowers BIC and is stationary, each fit compared with the current one on their common
-    samples. Implausible fits are logged as rejected with their reasons."""
+    samples. Implausible fits are logged as rejected with their reasons. The contenders after the
+    first are completed (refit.completed_contenders) before any of them is judged."""
     opts, judged, refuted = run.opts, [], set()
-    for f in fits:
+    for i in range(len(fits)):
+        if i:  # past the first: the rest as the full refits would have ordered them
+            completed_contenders(fits, i)
+        f = fits[i]
         j = _judge(run, f, state, current, rho)
         if isinstance(j, Rejected):
             if j.by_speed_column:

@@ -32,3 +32,7 @@ class RunMemo:
 
 
 MODEL_RUNS = RunMemo()
+# the library's Jacobian calls apart: the screen's speed-ripple orders differ only in the drive's
+# tangents, chained after the call (sampled.pointwise_columns), so at zero amplitude they make the
+# same call
+JACOBIAN_RUNS = RunMemo()

@@ -10,6 +10,8 @@ from ..kernels import FAST_THREADED, default_threads, fast_kernel
 from ..model_spec.parameters import KERNEL_GRAPH_INPUTS
 from ..motion import ripple_motion
 
+from .runs import JACOBIAN_RUNS
+
 SAMPLE_BLOCK = 1 << 16  # samples per block of a SIMD torque evaluation: its temporaries stay ~0.5 MB
 
 
@@ -135,8 +137,11 @@ def pointwise_columns(fast, theta, z, k, kin, seeds):
     for sl in sample_blocks(n):
         b = sl.stop - sl.start
         w, wd = _drive(zs, k, tau[sl], g[sl], gd[sl])
-        tq[sl], D = fast.jacobian(theta[sl], np.broadcast_to(w, (b,)), np.broadcast_to(wd, (b,)), z[:npar],
-                                  dirs, out=buf[:, :b], threads=default_threads() if b >= FAST_THREADED else 1)
+        w, wd = np.broadcast_to(w, (b,)), np.broadcast_to(wd, (b,))
+        tq[sl], D = JACOBIAN_RUNS.get(
+            ("jacobian", fast, z[:npar].tobytes(), dirs.tobytes(), dirs.shape), (theta[sl], w, wd),
+            lambda: fast.jacobian(theta[sl], w, wd, z[:npar], dirs, out=buf[:, :b],
+                                  threads=default_threads() if b >= FAST_THREADED else 1))
         J[sl] = D[:m].T
         if moves:
             dw, dwd = drive_tangents(tau[sl], zs, k, g[sl], gd[sl], sd)

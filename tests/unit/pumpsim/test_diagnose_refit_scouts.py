@@ -29,8 +29,8 @@ class Scouts:
         return Fit(cost, init, max_iter, polish)
 
 
-def finish(r):
-    return Fit(r.rms, r.start, -1, True)  # "fitted to convergence" from that scout
+def finish(r, settle=True):
+    return Fit(r.rms, r.start, -1 if settle else 1, True)  # "fitted to convergence" (or one step) from that scout
 
 
 # the best full scout (start 5) is not among the three best quick looks (0, 1, 2)
@@ -40,7 +40,7 @@ FULL = [0.9, 0.95, 0.97, 4.0, 3.0, 0.5, 2.0]
 
 def test_without_needed_every_start_is_scouted_in_full_the_first_best_wins():
     sc = Scouts(QUICK, FULL + [0.5])  # a tie: the first best start wins, as min() over the starts
-    res = refit._scouted(list(range(8)), sc, finish, OPTIONS)
+    res, settled = refit._scouted(list(range(8)), sc, finish, OPTIONS)
     assert (res.start, res.rms) == (5, 0.5)
     assert [c[0] for c in sc.calls] == list(range(8))
     assert all(c[1] == OPTIONS.refit_scout_steps and c[2] for c in sc.calls)
@@ -48,26 +48,58 @@ def test_without_needed_every_start_is_scouted_in_full_the_first_best_wins():
 
 def test_a_fit_that_cannot_matter_is_scouted_from_the_finalists_only():
     sc = Scouts(QUICK, FULL)
-    res = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: False)
+    res, settled = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: False)
     quick = [c for c in sc.calls if not c[2]]
     full = [c[0] for c in sc.calls if c[2]]
     assert len(quick) == 7 and all(c[1] == OPTIONS.refit_quick_steps and not c[3] for c in quick)
     assert full == [0, 1, 2]  # the three lowest quick looks, in their order
-    assert (res.start, res.rms) == (0, 0.9)
+    assert (res.start, res.rms, settled) == (0, 0.9, True)
+
+
+def test_a_finalists_scout_that_trails_is_not_finished_and_nothing_else_is_scouted():
+    sc = Scouts(QUICK, FULL)
+    asked = []
+    res, settled = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: asked.append(r) or True,
+                                  behind=lambda r: r.rms > 0.8)
+    assert [c[0] for c in sc.calls if c[2]] == [0, 1, 2]  # the finalists only
+    assert (res.start, res.steps, settled) == (0, 1, False) and not asked  # one step from the best scout
+    res, settled = refit._scouted(list(range(7)), Scouts(QUICK, FULL), finish, OPTIONS, needed=lambda r: True,
+                                  behind=lambda r: r.rms > 0.95)  # it does not trail: as without `behind`
+    assert (res.start, res.rms, settled) == (5, 0.5, True)
 
 
 def test_a_fit_that_could_matter_gets_every_start_and_the_same_winner_as_all():
     sc = Scouts(QUICK, FULL)
     seen = []
-    res = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: seen.append(r.start) or True)
+    res, settled = refit._scouted(list(range(7)), sc, finish, OPTIONS, needed=lambda r: seen.append(r.start) or True)
     assert seen == [0]  # asked once, about the finalists' fit
     assert sorted(c[0] for c in sc.calls if c[2]) == list(range(7))  # each start scouted in full once
     assert (res.start, res.rms) == (5, 0.5)
-    ref = refit._scouted(list(range(7)), Scouts(QUICK, FULL), finish, OPTIONS)
+    ref, _ = refit._scouted(list(range(7)), Scouts(QUICK, FULL), finish, OPTIONS)
     assert (ref.start, ref.rms) == (res.start, res.rms)
 
 
 def test_few_starts_are_all_finalists_without_a_quick_look():
     sc = Scouts(QUICK[:2], FULL[:2])
-    res = refit._scouted([0, 1], sc, finish, OPTIONS, needed=lambda r: True)
+    res, settled = refit._scouted([0, 1], sc, finish, OPTIONS, needed=lambda r: True)
     assert all(c[2] for c in sc.calls) and (res.start, res.rms) == (0, 0.9)
+
+
+def test_incomplete_contenders_are_completed_and_sorted_again_only_past_the_judged_ones():
+    """A contender cut short trails the first by more than completing it can gain: it is completed
+    (as the full refit would have made it) only when the judging goes past the first."""
+    def made(label, bic, complete=None):
+        return refit.Contender(label, None, None, None, bic, complete)
+    done = []
+
+    def completes(label, bic):
+        return lambda: done.append(label) or made(label, bic)
+    fits = [made("lead", 1.0), made("smooth", 5.0), made("oval2", 9.0, completes("oval2", 3.0)),
+            made("offset", 7.0, completes("offset", 6.0))]
+    assert not done
+    refit.completed_contenders(fits, 1)
+    assert sorted(done) == ["offset", "oval2"]
+    assert [(f.cand, f.bic_screen, f.complete) for f in fits] == [
+        ("lead", 1.0, None), ("oval2", 3.0, None), ("smooth", 5.0, None), ("offset", 6.0, None)]
+    refit.completed_contenders(fits, 2)  # all complete: nothing more
+    assert sorted(done) == ["offset", "oval2"]

@@ -190,6 +190,35 @@ def test_a_run_without_ripple_is_the_same_bits_at_any_ripple_order_and_shared(mo
     assert len(calls) == 3
 
 
+def test_the_ripple_orders_columns_share_one_library_jacobian_and_keep_their_own_tangents(monkeypatch):
+    """At zero ripple amplitude the speed-ripple candidates of every order linearise at the same
+    kernel inputs (the order enters only through the drive's tangents, chained after the call): one
+    library Jacobian serves them all, and each order's columns are those computed alone."""
+    from pumpsim.identification.runs import JACOBIAN_RUNS, MODEL_RUNS
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    t = np.arange(1500) / 10000.0
+    names = ["mu", "theta0", "ripple_cos", "ripple_sin"]
+    probs = [make_problem(cfg, Dataset(t, np.zeros(t.size)), names, ripple_order=k) for k in (2, 5)]
+    if probs[0]._simd is None or not probs[0]._simd.has_jacobian:
+        return  # the CasADi map's path: nothing shared
+    alone = []
+    for p in probs:
+        JACOBIAN_RUNS.entries.clear()
+        MODEL_RUNS.entries.clear()
+        alone.append(p.model_and_jacobian(p.x0))
+    assert not np.array_equal(alone[0][1][:, 2:], alone[1][1][:, 2:])  # the orders' columns differ
+    JACOBIAN_RUNS.entries.clear()
+    MODEL_RUNS.entries.clear()
+    jac = []
+    from pumpsim.kernels import simd
+    orig = simd.FastInverseDynamics.jacobian
+    monkeypatch.setattr(simd.FastInverseDynamics, "jacobian", lambda *a, **k: jac.append(1) or orig(*a, **k))
+    shared = [p.model_and_jacobian(p.x0) for p in probs]
+    assert len(jac) == 1
+    for (m0, J0), (m1, J1) in zip(alone, shared):
+        np.testing.assert_array_equal(m0, m1)
+        np.testing.assert_array_equal(J0, J1)
+
 
 def test_the_diagnose_benchs_stages_add_up_to_its_counts():
     """bench/diagnose_stages.py: every SIMD call of a diagnosis is charged to one stage and one
