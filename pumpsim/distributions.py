@@ -71,11 +71,11 @@ class Marginal:
         return out[()] if out.ndim == 0 else out
 
     def _standard_ppf(self, q, *shape):
+        if self.kind == "uniform":
+            return q  # (no scipy.special: a study of bounds alone is read without it)
         special = _special()
         if self.kind == "norm":
             return special.ndtri(q)
-        if self.kind == "uniform":
-            return q
         if self.kind == "lognorm":
             return np.exp(shape[0] * special.ndtri(q))
         return _truncnorm_ppf(special, q, *shape)
