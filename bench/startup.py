@@ -8,8 +8,8 @@ each import's line to stderr as the import ends, so the lines before the marker 
 command made before its first work had finished: the command's start, plus what reading and checking
 the config or study took (counted in, so the figure errs on the high side). A figure is the sum of the
 cumulative column of the top-level lines (module name not indented: each import counted once with
-everything it pulled in). Held against the target: the imports to first work, the least of three
-runs (the first run goes to the end and gives the whole run's imports and wall time; the other two
+everything it pulled in). Held against the target: the imports to first work, the least of five
+runs (the first run goes to the end and gives the whole run's imports and wall time; the other four
 are ended at the marker). The wall time from the process's start to the marker's arrival is printed
 beside it (with -X importtime's own overhead, which the import sums leave out).
 """
@@ -86,7 +86,7 @@ def run_once(args: list, to_the_end: bool) -> dict:
     return {"before": before, "after": after, "to_marker": marker, "wall": wall, "status": p.returncode}
 
 
-def measure(repeats: int = 3) -> dict:
+def measure(repeats: int = 5) -> dict:
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(repeats):
@@ -109,7 +109,7 @@ def measure(repeats: int = 3) -> dict:
     return rows
 
 
-def bench_startup(repeats: int = 3) -> dict:
+def bench_startup(repeats: int = 5) -> dict:
     """Each command's imports to its first work (least of `repeats` runs) against 0.5 s, its
     whole run's imports and its process wall time (module docstring: what "first work" is)."""
     load = os.getloadavg()[0]
