@@ -564,10 +564,19 @@ def bench_load(rows=LOAD_ROWS):
             "target_seconds": LOAD_TARGET_S, "target_met": fast["seconds"] <= LOAD_TARGET_S}
 
 
+def bench_startup():
+    """Each command's imports before its first work (target 0.5 s) and over its whole run, in its
+    own process (bench/startup.py: what "first work" is)."""
+    sys.path.insert(0, str(ROOT / "bench"))
+    from startup import bench_startup as run_startup
+
+    return run_startup()
+
+
 BENCHES = {"inverse_dynamics": bench_inverse_dynamics, "compile": bench_compile, "contact": bench_contact,
            "identify": bench_identify, "identify_1e6": bench_identify_large, "jacobian_simd": bench_jacobian_simd,
            "diagnose": bench_diagnose, "benchlog": bench_benchlog,
-           "load": bench_load}
+           "load": bench_load, "startup": bench_startup}
 def bench_benchlog_diagnose():
     """The bench-log diagnosis grid's rates, quick form (bench/benchlog_diagnose_grid.py --quick)."""
     sys.path.insert(0, str(ROOT / "bench"))

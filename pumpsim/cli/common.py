@@ -322,12 +322,12 @@ def outputs(a, inputs, **options):
     outs = Outputs(inputs)
     for attr, suffixes in options.items():
         path = getattr(a, attr, None)
-        if suffixes is FIGURE:
+        if suffixes is not FIGURE:
+            outs.add(option_name(attr), path, suffixes)
+        elif path is not None:  # the figure writer's module loads matplotlib: only for a figure
             from ..report.simulation import figure_format
 
             outs.add(option_name(attr), path, kind=figure_format)
-        else:
-            outs.add(option_name(attr), path, suffixes)
     outs.check()
     hold_files({option_name(attr): getattr(a, attr, None) for attr in options})
     return outs

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import ConfigError
-from .common import at_least, live, outputs, positive_int, staged, warn
+from .common import LOG, at_least, live, outputs, positive_int, staged, warn
 
 
 def _idle_text(stats) -> str:
@@ -16,9 +16,11 @@ def _idle_text(stats) -> str:
 
 
 def _load(path):
+    """The study, read and checked: each command's first work, before it imports what runs it."""
     from ..design.study import load_study
 
     study = load_study(path)
+    LOG.debug("study %s: %d keys varied, %s", path, len(study.variables), study.sampler)
     warn(study.warnings)
     return study
 
@@ -33,14 +35,14 @@ def _json_safe(obj):
 
 
 def cmd_sweep(a) -> int:
-    from ..design.execute import check_out_dir, read_manifest, run_study
-    from ..design.summary import summary_text
-
     study = _load(a.study)
     if a.samples is not None:
         override_samples(study, a.samples)
     if a.summary:
         return _summary(a, study)
+    from ..design.execute import check_out_dir, read_manifest, run_study
+    from ..design.summary import summary_text
+
     outs = outputs(a, _inputs(a, study), csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=a.workers,
@@ -101,10 +103,10 @@ def override_samples(study, n):
 
 
 def cmd_sensitivity(a) -> int:
+    study = _load(a.study)
     from ..design.indices import sensitivity
     from ..io import write_text
 
-    study = _load(a.study)
     outs = outputs(a, _inputs(a, study), json=None, report=None)
     res = sensitivity(study, method=a.method, samples=a.samples, scheduler=a.scheduler,
                       workers=a.workers, progress=None if live() else False)
@@ -147,10 +149,10 @@ def sensitivity_text(res) -> str:
 
 
 def cmd_optimize(a) -> int:
+    study = _load(a.study)
     from ..design.optimiser import optimize
     from ..io import write_text
 
-    study = _load(a.study)
     outs = outputs(a, _inputs(a, study), json=None, report=None)
     res = optimize(study, method=a.method, max_iter=a.max_iter)
     print(optimize_text(res))

@@ -56,15 +56,15 @@ def _refuse_repeated(paths) -> None:
 
 
 def run(a) -> int:
-    from ..api import diagnose
-    from ..diagnosis import tty_progress
     from ..errors import ConfigError
-
-    from ..benchlog import is_bench_log
 
     outs = outputs(a, [a.config, *a.data], json=None, report=REPORT_SUFFIXES)
     _refuse_repeated(a.data)
     cfg = load_config(a)
+    from ..api import diagnose  # (after the config: a command's first work waits for no model import)
+    from ..benchlog import is_bench_log
+    from ..diagnosis import tty_progress
+
     if any(is_bench_log(d, data_options(a)) for d in a.data):
         return run_bench(a, cfg, outs)
     refuse_bench_only(a, a.data[0])

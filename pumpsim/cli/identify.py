@@ -78,10 +78,10 @@ def unusable(problems) -> int:
 
 
 def run(a) -> int:
-    from ..benchlog import is_bench_log
-
     outs = outputs(a, [a.config, a.data] + ([a.limits] if a.limits else []), json=None, report=REPORT_SUFFIXES)
     cfg = load_config(a)
+    from ..benchlog import is_bench_log  # (after the config: a command's first work waits for no model import)
+
     if is_bench_log(a.data, data_options(a)):
         return run_bench(a, cfg, outs)
     refuse_bench_only(a, a.data)

@@ -42,13 +42,14 @@ def _progress(t, pb):
 
 def run(a) -> int:
     from ..io import write_text
-    from ..pneumatics import pumpdown as pdm
 
     outs = outputs(a, [a.config], out=None, plot=(".png",), json=None, report=REPORT_SUFFIXES)
     if a.model == "contact" and (a.fast or a.plot or a.report):
         raise ConfigError("--fast, --plot and --report use Model 2's cycle-averaged maps: run them "
                           "without --model contact")
     cfg = load_config(a)  # the unit/plausibility checks, --force and their warnings as simulate
+    from ..pneumatics import pumpdown as pdm  # (after the config: its first work waits for no model import)
+
     if cfg.pneumatic is None:
         raise ConfigError(f"{a.config}: pumpdown needs the gas tables [ports] and [booster]")
     start = cfg.pneumatic.booster_start

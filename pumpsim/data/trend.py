@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..distributions import f_sf
+
 TREND_MAX_DEGREE = 20  # Legendre degrees tried for the speed column's trend (BIC chooses; a run-up needs ~18)
 TREND_ALPHA = 1e-3  # F-test level at which the trend counts as significant against the column's noise
 TREND_REVOLUTIONS_PER_DEGREE = 2.0  # a degree per two revolutions at most: the trend stays below order 1
@@ -72,9 +74,7 @@ def speed_trend(time, speed) -> SpeedTrend | None:
     if d == 0:
         return None
     f = ((rss[0] - rss[d]) / d) / (max(rss[d], 1e-300) / (n - d - 1))
-    from scipy import stats  # here: scipy.stats takes ~0.5 s to import
-
-    p = float(stats.f.sf(f, d, n - d - 1))
+    p = float(f_sf(f, d, n - d - 1))  # scipy.stats.f.sf's value, without its ~0.5 s import
     if p >= TREND_ALPHA:
         return None
     return SpeedTrend(fits[d], span, mean, d, p)

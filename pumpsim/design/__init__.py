@@ -7,9 +7,24 @@
     s = design.sensitivity(study)                            # Sobol S1/ST with intervals (SALib)
     r = design.optimize(study)                               # SLSQP with exact kernel gradients
 """
-from .execute import run_study
-from .store import read_manifest, read_results
+import importlib
+
 from .study import Study, load_study, study_from_dict
+
+# loaded on first use (pandas, pyarrow, dask): reading and checking a study needs none of them
+_LAZY = {"run_study": ".execute", "read_manifest": ".store", "read_results": ".store"}
+
+
+def __getattr__(name):
+    if name not in _LAZY:
+        raise AttributeError(f"module 'pumpsim.design' has no attribute '{name}'")
+    value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted([*globals(), *_LAZY])
 
 
 def _study(study):
@@ -18,6 +33,8 @@ def _study(study):
 
 def sweep(study, out=None, **kw):
     """Run every design of a study; returns (DataFrame, RunStats). See execute.run_study."""
+    from .execute import run_study
+
     return run_study(_study(study), out=out, **kw)
 
 

@@ -13,9 +13,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
-from scipy.stats import qmc
 
+from ..distributions import Marginal
 from ..errors import ConfigError
 
 SAMPLERS = ("grid", "sobol", "lhs", "random")
@@ -30,7 +29,7 @@ class Variable:
     key: str
     values: list | None = None  # grid values (or a discrete choice for the other samplers)
     distribution: str | None = None
-    dist: object = None  # frozen scipy distribution
+    dist: Marginal | None = None  # scipy.stats' frozen distribution of that name, without the import
     params: dict | None = None  # absolute parameters as given after `relative` is applied
     bounds: tuple | None = None  # optimisation bounds
     start: float | None = None  # optimisation start (default: the base value)
@@ -94,7 +93,7 @@ def parse_variable(key: str, spec, default, sampler) -> Variable:
         var.start = _need(spec, where, "start")
     if var.values is None and var.dist is None and sampler != "grid":
         # bounds only: sampled uniformly between them
-        var.dist = stats.uniform(var.bounds[0], var.bounds[1] - var.bounds[0])
+        var.dist = Marginal("uniform", var.bounds[0], var.bounds[1] - var.bounds[0])
         var.distribution = "uniform"
     return var
 
@@ -126,7 +125,7 @@ def _parse_distribution(var: Variable, spec: dict, where: str, key: str, default
         if sd < 0:
             raise ConfigError(f"{where}.sd must be >= 0, got {sd:g}")
     if name == "normal":
-        var.dist = stats.norm(mean, sd) if sd > 0 else None
+        var.dist = Marginal("norm", mean, sd) if sd > 0 else None
         var.params = {"mean": mean, "sd": sd}
     elif name == "truncnormal":
         # relative: low/high are multiples of the mean (0.98 = 2 % below it)
@@ -136,7 +135,7 @@ def _parse_distribution(var: Variable, spec: dict, where: str, key: str, default
         if not lo < hi:
             raise ConfigError(f"{where}.low ({lo:g}) must be < high ({hi:g})")
         if sd > 0:
-            var.dist = stats.truncnorm((lo - mean) / sd, (hi - mean) / sd, loc=mean, scale=sd)
+            var.dist = Marginal("truncnorm", mean, sd, ((lo - mean) / sd, (hi - mean) / sd))
         var.params = {"mean": mean, "sd": sd, "low": lo, "high": hi}
     elif name == "uniform":
         lo, hi = _need(spec, where, "low"), _need(spec, where, "high")
@@ -146,14 +145,14 @@ def _parse_distribution(var: Variable, spec: dict, where: str, key: str, default
             lo, hi = lo * mean, hi * mean
         if not lo <= hi:
             raise ConfigError(f"{where}.low ({lo:g}) must be <= high ({hi:g})")
-        var.dist = stats.uniform(lo, hi - lo) if hi > lo else None
+        var.dist = Marginal("uniform", lo, hi - lo) if hi > lo else None
         var.params = {"low": lo, "high": hi}
         mean = 0.5 * (lo + hi)
     else:  # lognormal with the given mean and standard deviation of the variable itself
         if not mean > 0:
             raise ConfigError(f"{where}: a lognormal needs mean > 0, got {mean:g}")
         s2 = math.log1p((sd / mean) ** 2)
-        var.dist = stats.lognorm(math.sqrt(s2), scale=mean * math.exp(-s2 / 2)) if sd > 0 else None
+        var.dist = Marginal("lognorm", 0.0, mean * math.exp(-s2 / 2), (math.sqrt(s2),)) if sd > 0 else None
         var.params = {"mean": mean, "sd": sd, "sigma_log": math.sqrt(s2)}
     var.distribution = name
     if var.dist is None:  # zero spread: the mean, exactly
@@ -174,6 +173,9 @@ def implied_bounds(var: Variable):
 def unit_points(sampler: str, n: int, dim: int, seed: int) -> np.ndarray:
     """n points in [0, 1)^dim. sobol: scrambled (Owen) Sobol' sequence; lhs: Latin hypercube;
     random: one SeedSequence stream per design."""
+    if sampler in ("sobol", "lhs"):
+        from scipy.stats import qmc  # here: scipy.stats takes ~0.5 s to import, which reading a study need not pay
+
     if sampler == "sobol":
         return qmc.Sobol(dim, scramble=True, rng=np.random.default_rng(np.random.SeedSequence(seed))).random(n)
     if sampler == "lhs":

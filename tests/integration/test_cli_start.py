@@ -55,3 +55,53 @@ def test_a_sweep_loads_the_report_module_only_with_report(tmp_path):
     code, out, modules = _imported("sweep", study, "--samples", "16", "--csv", tmp_path / "mc.csv")
     assert code == 0 and (tmp_path / "mc.csv").is_file()
     assert "pumpsim.report" not in modules and not [m for m in modules if m.startswith("matplotlib")]
+
+
+# Each command on the bundled examples up to its first work (bench/startup.py: its config or study
+# read and checked, which -v says in one line); the process is ended there.
+EX = ROOT / "examples"
+STUDY = EX / "studies" / "test_rig_tolerances.toml"
+FIRST_WORK = ("pumpsim: config ", "pumpsim: study ")
+BEFORE_WORK_HEAVY = ("matplotlib", "scipy.stats", "scipy.optimize", "pandas", "dask", "distributed", "SALib", "pymoo")
+
+
+def _commands(out):
+    return {"simulate": ["simulate", EX / "test_rig.toml", "--out", out / "s.csv"],
+            "identify": ["identify", EX / "test_rig.toml", EX / "data" / "test_rig_measurement.csv", "--params", "mu",
+                         "--json", out / "f.json"],
+            "diagnose": ["diagnose", EX / "ellipse_4vanes.toml", EX / "data" / "ellipse_hidden_effects.csv",
+                         "--json", out / "d.json"],
+            "pumpdown": ["pumpdown", EX / "evp_booster.toml", "--json", out / "p.json"],
+            "sweep": ["sweep", STUDY, "--samples", "256", "--out", out / "mc"],
+            "sensitivity": ["sensitivity", STUDY, "--samples", "64", "--json", out / "se.json"],
+            "optimize": ["optimize", EX / "studies" / "ellipse_optimize.toml", "--json", out / "op.json"]}
+
+
+def test_no_command_imports_the_heavy_stack_before_its_first_work(tmp_path):
+    """The commands start side by side; each is read up to its first-work line and ended."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    procs = {name: subprocess.Popen([sys.executable, "-X", "importtime", "-m", "pumpsim", "-v", *map(str, args)],
+                                    cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+             for name, args in _commands(tmp_path).items()}
+    heavy, unmarked = {}, []
+    for name, p in procs.items():
+        modules, marked = set(), False
+        try:
+            for line in p.stderr:
+                if line.startswith(FIRST_WORK):
+                    marked = True
+                    break
+                if line.startswith("import time:") and line.count("|") == 2:
+                    modules.add(line.rsplit("|", 1)[1].strip())
+        finally:
+            p.kill()
+            p.wait()
+            p.stderr.close()
+        assert "pumpsim" in modules, name  # the importtime lines were read
+        if not marked:
+            unmarked.append(name)
+        found = [h for h in BEFORE_WORK_HEAVY if any(m == h or m.startswith(h + ".") for m in modules)]
+        if found:
+            heavy[name] = found
+    assert unmarked == [], f"no first-work line from {unmarked} (pumpsim -v prints 'config PATH: NAME' / 'study ...')"
+    assert heavy == {}, f"imported before the command's first work: {heavy}"
