@@ -145,6 +145,12 @@ def sensitivity_text(res) -> str:
                 lines.append(f"{o:26s} {k:28s} {mu:11.4g} {conf:10.3g} {sigma:11.4g}")
     for s in res["skipped"]:
         lines.append(f"not computed: {s['output']} ({s['reason']})")
+    found = res.get("_unresolved")
+    if found:  # after the table, where the numbers it qualifies were just read
+        lines.append(f"WARNING: {found['head']}:")
+        lines += [f"  {', '.join(outs)}: {why}" for outs, why in found["groups"]]
+        if found["advice"]:
+            lines.append(f"  {found['advice']}")
     return "\n".join(lines)
 
 

@@ -10,6 +10,7 @@ import casadi as ca
 import numpy as np
 
 from .. import interrupt
+from ..distributions import f_sf
 from ..errors import ConfigError
 from ..tolerances import SINGULAR_COND
 
@@ -88,8 +89,41 @@ def _wrms(r, w) -> float:
 
 
 NO_DECREASE = "no further decrease of the residual"
-NO_STEP_FROM_START = ("no step from the start lowered the residual: the start may sit on a step of the cost "
-                      "(friction reversals make it a staircase); a fit from another --start tells")
+# A start no step leaves counts as a minimum when the data cannot tell it from the one the
+# Gauss-Newton step points to: the F test of "the parameters are the start's" (the linear model's
+# reduction of the residual against the residual left) does not reject at this level, i.e. the start
+# lies inside the fit's own 95 % confidence region. Started at the truth this holds 95 % of the time;
+# a start the slope leads many standard errors away (a step of a staircase cost) fails it.
+START_TEST_LEVEL = 0.05
+NO_STEP_FROM_START = "no step from the start lowered the residual"
+START_IS_MINIMUM = (NO_STEP_FROM_START + ", and the data cannot tell the start from a minimum: the "
+                    "Gauss-Newton step from it is {se} standard errors long (F test p = {p:.2g}); the "
+                    "estimates are the start values")
+START_NOT_MINIMUM = (NO_STEP_FROM_START + ", yet the start is NOT a minimum: the model's slope there points "
+                     "{se} standard errors away (to {to}; F test p = {p:.2g}); the start may sit on a step "
+                     "of the cost (friction reversals make it a staircase) -- fit again from another start "
+                     "(--start NAME=VALUE, e.g. the values the slope points to)")
+
+
+def start_test(x, full, rw, Jw, lower, upper, n) -> tuple[float, float]:
+    """(length, p): the Gauss-Newton step from x in standard errors, and the F test's p-value of
+    "x is the minimum". The linear model's reduction of the residual's sum of squares, d, against
+    what it leaves, |rw|^2 - d, over n - k degrees of freedom: length = sqrt(d / sigma^2) (the step
+    in the estimate's covariance sigma^2 (J'J)^-1), F = d / k / sigma^2. rw, Jw: the weighted
+    residual and Jacobian; n: the samples weighed (the reversal-aware cost's kept ones). A parameter
+    on a bound the step points past is held there (the minimum on that face is what counts)."""
+    free = ~(((x <= lower) & (full < 0)) | ((x >= upper) & (full > 0)))
+    if not free.any():  # every parameter is held by its bound: the start is the minimum on them
+        return 0.0, 1.0
+    U = scaled_svd(Jw[:, free])[1]
+    d, k = _sumsq(U.T @ rw), int(free.sum())
+    left = max(_sumsq(rw) - d, 0.0)
+    if d == 0.0:
+        return 0.0, 1.0
+    if left == 0.0:  # the step would fit the data exactly: no noise to hide it in
+        return float("inf"), 0.0
+    sigma2 = left / max(n - k, 1)
+    return float(np.sqrt(d / sigma2)), float(f_sf(d / k / sigma2, k, max(n - k, 1)))
 
 
 def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=None,
@@ -118,24 +152,14 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         g = U.T @ rw
         del U  # n x k: not held while the next point's model and Jacobian are evaluated
         if lm:
-            while True:
-                step = (Vt.T @ (s * g / (s**2 + lam))) / scale
-                xn = np.clip(x + step, prob.lower, prob.upper)
-                if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw or lam > 1e12:
-                    lam = max(lam / 3, 1e-12)
-                    break
-                lam *= 4
+            xn, lam = _damped_step(prob, x, rw, wt, (g, s, Vt, scale), lam)
         else:
-            step = relaxation * (Vt.T @ (g / s)) / scale
-            for _ in range(10):  # safeguard: halve a step that would increase the residual
-                xn = np.clip(x + step, prob.lower, prob.upper)
-                # trial: the model only, the Jacobian once accepted
-                if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw:
-                    break
-                step = 0.5 * step
-            else:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
-                converged, message = True, NO_DECREASE if it else NO_STEP_FROM_START
-                break
+            xn = _halved_step(prob, x, rw, wt, relaxation * (Vt.T @ (g / s)) / scale)
+        if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
+            converged, message = True, NO_DECREASE
+            if not it:  # ... unless it never moved: a minimum only if the slope there is noise
+                converged, message = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w, scale, tol)
+            break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)
         small = np.all(np.abs(xn - x) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale))
@@ -152,6 +176,43 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
             converged, message = True, "residual no longer decreases (relative change < 1e-6)"
             break
     return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0)
+
+
+def _halved_step(prob, x, rw, wt, step):
+    """x + step, halved (up to 9 times) until the residual does not increase (trials run the model
+    only, the Jacobian once accepted); None when none lowers it."""
+    for _ in range(10):
+        xn = np.clip(x + step, prob.lower, prob.upper)
+        if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw:
+            return xn
+        step = 0.5 * step
+    return None
+
+
+def _damped_step(prob, x, rw, wt, svd, lam):
+    """Levenberg-Marquardt (Marquardt scaling): (x + the step damped by lam, raised 4x until the
+    residual decreases; the next lam), or (None, lam) when no damping up to 1e12 lowers it. Strictly
+    lower: a step damped to rounding leaves the residual equal, and read as 'step below tolerance'
+    it would call any start a minimum."""
+    g, s, Vt, scale = svd
+    while lam <= 1e12:
+        xn = np.clip(x + (Vt.T @ (s * g / (s**2 + lam))) / scale, prob.lower, prob.upper)
+        if _sumsq(wt(prob.y - prob.model(xn))) < rw @ rw:
+            return xn, max(lam / 3, 1e-12)
+        lam *= 4
+    return None, lam
+
+
+def _stalled_start(prob, x, full, rw, Jw, w, scale, tol):
+    """(converged, message) of a fit no step leaves from its start: a minimum when the whole
+    Gauss-Newton step is below the step tolerance or the start passes start_test, else not
+    converged, with where the slope points."""
+    se, p = start_test(x, full, rw, Jw, prob.lower, prob.upper, rw.size if w is None else float(w.sum()))
+    if p >= START_TEST_LEVEL or np.all(np.abs(full) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale)):
+        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p)
+    to = np.clip(x + full, prob.lower, prob.upper)
+    length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
+    return False, START_NOT_MINIMUM.format(se=length, p=p, to=", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to)))
 
 
 def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:

@@ -241,6 +241,21 @@ def _sensitivity_table(res) -> str:
     return table(head, rows)
 
 
+def _unresolved_parts(res) -> list[str]:
+    """The warning that the sample is too small for some outputs' Sobol' indices (before the
+    figures: the clipped intervals there would hide an index outside [0, 1]); [] when none."""
+    found = res.get("_unresolved")
+    if not found:
+        return []
+    head, limit = found["head"], found["limit"]
+    rows = "".join(f"<li><b>{html.escape(', '.join(outs))}</b>: {html.escape(why)}</li>" for outs, why in found["groups"])
+    bold = ("Sample too small: do not rank keys by these indices yet." if found["inconsistent"]
+            else f"Sample too small to read these indices to ±{limit:g}.")
+    return [f"<div class=warn><p><b>{bold}</b> {html.escape(head[0].upper() + head[1:])}:</p><ul>{rows}</ul>"
+            f"<p>An index should be known to ±{limit:g} (95 %): that tells a key carrying {200 * limit:g} % of the "
+            "output's variance from one carrying none. " + html.escape(found["advice"]) + "</p></div>"]
+
+
 def sensitivity_report(res, study, path, title=None) -> None:
     title = title or f"pumpsim sensitivity: {study.path}"
     groups = fg.distinct_results(res)
@@ -249,6 +264,7 @@ def sensitivity_report(res, study, path, title=None) -> None:
              + ", ".join(f"{k} {n}" for k, n in res["status"].items()) + f". {len(res['indices'])} outputs "
              f"carry {len(groups)} distinct result(s): outputs with identical indices share a panel and a "
              "table block.</p>"]
+    parts += _unresolved_parts(res)
     if res["method"] == "sobol":
         parts.append("<h2>Sobol' indices</h2><p>S1: share of the output's variance from the key alone; ST: "
                      "with all its interactions. The 95 % bootstrap intervals are clipped to [0, 1], where "

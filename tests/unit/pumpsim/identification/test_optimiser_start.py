@@ -1,26 +1,32 @@
-"""Gauss-Newton's stop where no step lowers the residual: at the start point it says so (the
-model's slope there does not lead anywhere lower, as on a friction reversal's kink, and another
-start tells whether it is a minimum), later it is the usual minimum."""
+"""Gauss-Newton's stop where no step lowers the residual. At the start point that is a minimum
+only if the data cannot tell the start from the minimum the model's slope points to (an F test:
+the start inside the fit's own 95 % confidence region); a start on a kink of the cost whose slope
+points many standard errors away is NOT converged, and the message says where the slope points
+and to fit again from another start. Later in a fit it is the usual minimum."""
 import numpy as np
+import pytest
 
-from pumpsim.identification.optimiser import gauss_newton
+from pumpsim.identification.optimiser import START_TEST_LEVEL, gauss_newton, start_test
+
+N = 50
 
 
 class Kinked:
-    """model = t (1 + c |x - 1|) against data t y_data: at x = 1 the model has a kink whose
-    one-sided slopes both raise it, while the Jacobian reports the smooth slope t (kink=True);
-    kink=False: the plain line t x."""
+    """model = t (1 + c |x - 1|) against data t y_data (+ noise): at x = 1 the model has a kink
+    whose one-sided slopes both raise it, while the Jacobian reports the smooth slope t (kink=True),
+    as a friction reversal's staircase does; c = 1e4 > 2 * 2^9: even the ninth halving of any step
+    raises the cost. kink=False: the plain line t x."""
 
     names = ["x"]
     lower, upper = np.array([-10.0]), np.array([10.0])
 
-    def __init__(self, y_data, kink=True):
-        self.t = np.linspace(0.0, 1.0, 50)
-        self.y = self.t * y_data
+    def __init__(self, y_data, kink=True, noise=0.0, seed=0):
+        self.t = np.linspace(0.0, 1.0, N)
+        self.y = self.t * y_data + noise * np.random.default_rng(seed).normal(size=N)
         self.kink = kink
 
     def model(self, x):
-        return self.t * ((1.0 + 3.0 * abs(x[0] - 1.0)) if self.kink else x[0])
+        return self.t * ((1.0 + 1e4 * abs(x[0] - 1.0)) if self.kink else x[0])
 
     def model_and_jacobian(self, x):
         return self.model(x), self.t[:, None].copy()
@@ -29,13 +35,70 @@ class Kinked:
         return None
 
 
-def test_a_start_no_step_leaves_is_named_as_such():
+def test_a_start_the_slope_leads_far_from_is_not_converged():
+    # the least-squares slope of the data is ~0.9, 1e-3 noise: the start 1 is ~400 standard errors off
+    out = gauss_newton(Kinked(0.9, noise=1e-3), np.array([1.0]))
+    assert len(out.history) == 1 and out.x[0] == 1.0
+    assert not out.converged
+    assert "NOT a minimum" in out.message and "--start" in out.message
+    # the message names where the slope points: the data's least-squares slope
+    prob = Kinked(0.9, noise=1e-3)
+    slope = float(prob.t @ prob.y / (prob.t @ prob.t))
+    assert f"x = {slope:.6g}" in out.message
+
+
+def test_noise_free_data_off_the_start_is_not_converged():
     out = gauss_newton(Kinked(0.9996), np.array([1.0]))
-    assert out.converged and len(out.history) == 1
-    assert "no step from the start lowered the residual" in out.message and "--start" in out.message
+    assert not out.converged and "infinitely many" in out.message
+
+
+def test_a_start_at_the_truth_is_converged_as_often_as_the_test_level_says():
+    """Started at the truth (the kink at x = 1, data slope 1, noise): the step from it is noise, so
+    the start passes in 1 - START_TEST_LEVEL of the records. 400 seeds: the count that fails is
+    binomial(400, 0.05), mean 20, sd 4.4; 4 sd either side."""
+    fails = 0
+    for seed in range(400):
+        out = gauss_newton(Kinked(1.0, noise=1e-2, seed=seed), np.array([1.0]))
+        assert len(out.history) == 1
+        fails += not out.converged
+        if out.converged:
+            assert "cannot tell the start from a minimum" in out.message
+    mean, sd = 400 * START_TEST_LEVEL, np.sqrt(400 * START_TEST_LEVEL * (1 - START_TEST_LEVEL))
+    assert mean - 4 * sd <= fails <= mean + 4 * sd
+
+
+def test_a_parameter_on_its_bound_the_step_points_past_is_held_in_the_test():
+    """Two orthogonal columns; the data wants x1 = 0.5 but x1 sits on its upper bound 0: the start
+    is the minimum on that face (only x0 is tested, and its step is noise). Without the bound it is not."""
+    rng = np.random.default_rng(1)
+    t = np.arange(200) / 200
+    J = np.column_stack([np.sin(6 * np.pi * t), np.cos(6 * np.pi * t)])
+    rw = 0.5 * J[:, 1] + 1e-3 * rng.normal(size=t.size)
+    full = np.linalg.lstsq(J, rw, rcond=None)[0]
+    x = np.array([1.0, 0.0])
+    se, p = start_test(x, full, rw, J, np.array([-10.0, -10.0]), np.array([10.0, 0.0]), t.size)
+    assert p > START_TEST_LEVEL and se < 3.0
+    se, p = start_test(x, full, rw, J, np.array([-10.0, -10.0]), np.array([10.0, 10.0]), t.size)
+    assert p < 1e-12 and se > 100
 
 
 def test_a_minimum_reached_by_steps_keeps_the_usual_message():
     out = gauss_newton(Kinked(0.9996, kink=False), np.array([0.9]))
     assert len(out.history) > 1 and abs(out.x[0] - 0.9996) < 1e-9
     assert "from the start" not in out.message
+
+
+@pytest.mark.parametrize("y_data", [0.9, 1.1])
+def test_a_smooth_cost_from_the_start_steps_away(y_data):
+    # no kink: the start is left and the fit converges at the data's slope (the test never runs)
+    out = gauss_newton(Kinked(y_data, kink=False, noise=1e-3), np.array([1.0]))
+    assert out.converged and len(out.history) > 1 and "from the start" not in out.message
+
+
+def test_levenberg_marquardt_stalled_at_the_start_is_judged_the_same_way():
+    # before: no damping lowered the residual, a step damped to rounding was taken anyway and read
+    # as "step below tolerance", converged
+    far = gauss_newton(Kinked(0.9, noise=1e-3), np.array([1.0]), lm=True)
+    assert not far.converged and len(far.history) == 1 and "NOT a minimum" in far.message
+    near = gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0]), lm=True)
+    assert near.converged and abs(near.x[0] - 0.9) < 0.01
