@@ -81,8 +81,9 @@ fig.tight_layout()
 # -----------------------
 # Sobol' indices split each output's variance between the varied keys: S1 is a key's share on its
 # own, ST its share including interactions (ST − S1 large: the key acts together with others).
-# The intervals are 95 % bootstrap intervals; 128 base samples are enough to rank the keys
-# (the file's ``[sensitivity]`` asks for 512).
+# The intervals are 95 % bootstrap intervals; 128 base samples are enough to rank the keys, not
+# to read their shares to ±0.1 (the file's ``[sensitivity]`` asks for 1024; `pumpsim sensitivity`
+# says when a sample is too small for that).
 s = design.sensitivity(study, samples=128, workers=0)
 indices = s["indices"]
 
