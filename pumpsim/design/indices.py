@@ -219,7 +219,8 @@ def sensitivity(study, method=None, samples=None, seed=None, resamples=None, **r
     res = {"method": method, "samples": n, "designs": int(U.shape[0]), "seed": seed,
             "resamples": resamples, "keys": problem["names"],
             "speeds": [float(w) for w in speeds if w is not None], "indices": indices,
-            "skipped": skipped, "unresolved": unresolved, "samples_needed": max(needed, default=None), "status": {k: int(v) for k, v in df["status"].str.split(":").str[0].value_counts().items()},
+            "skipped": skipped, "unresolved": unresolved, "samples_needed": max(needed, default=None),
+            "status": {k: int(v) for k, v in df["status"].str.split(":").str[0].value_counts().items()},
             "run": stats.as_dict(), "_table": df}
     res["_unresolved"] = unresolved_text(res)
     return res
