@@ -21,7 +21,7 @@ from ..sensor import LAG_SUBSTEPS, first_order_lag, refine
 from ..motion import ripple_motion
 from .interval import smooth_interval_columns, stepped_samples, subpoint_offsets
 from .reversals import reversal_keep
-from .runs import MODEL_RUNS
+from .runs import DESIGN_RUNS, MODEL_RUNS
 from .sampled import drive_kinematics, drive_motion, drive_note, pointwise_columns, simd_torque, simd_torque_designs
 from .start import periodic_config_names, phase_and_speed_start
 
@@ -359,7 +359,10 @@ class ConstantSpeedProblem(Problem):
         if self._simd is None:
             runs = [self._torque(th, z, kin)[at] for th, z in zip(thetas, zs)]
         else:
-            runs = simd_torque_designs(self._simd, np.array(thetas), np.array(zs), self.ripple_order, *kin)
+            thetas, zs = np.array(thetas), np.array(zs)
+            runs = DESIGN_RUNS.get(
+                ("designs", self._simd, self.ripple_order, zs.tobytes(), zs.shape), (thetas, *kin),
+                lambda: (simd_torque_designs(self._simd, thetas, zs, self.ripple_order, *kin),))[0]
         return [np.mean(runs[i:i + offsets.size], axis=0) for i in range(0, len(runs), offsets.size)]
 
     def _interval_columns(self, x, J, which, cols, samples, ends):

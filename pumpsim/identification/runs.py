@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-RUNS = 8  # runs remembered, over all problems
+RUNS = 32  # runs remembered, over all problems
 RUN_SAMPLES = 1 << 16  # runs over more samples are not remembered (memory; a long run is rarely repeated)
 
 
@@ -36,3 +36,6 @@ MODEL_RUNS = RunMemo()
 # tangents, chained after the call (sampled.pointwise_columns), so at zero amplitude they make the
 # same call
 JACOBIAN_RUNS = RunMemo()
+# the interval columns' sub-sample runs apart, more of them: a polar search's finalists are scouted
+# from the starts their quick looks ran at, 17 quick looks earlier
+DESIGN_RUNS = RunMemo(size=24)

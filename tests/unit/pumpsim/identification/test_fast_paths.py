@@ -82,6 +82,42 @@ def test_a_fit_without_its_final_jacobian_ends_where_the_full_one_does():
     assert quick.n_evaluations == full.n_evaluations  # the end's model (remembered from the trial) counted
 
 
+def test_a_scout_from_its_quick_looks_start_reuses_its_sub_sample_runs(monkeypatch):
+    """A polar search scouts a finalist from the start its quick look ran at: the interval columns'
+    sub-sample runs there are remembered (runs.DESIGN_RUNS), and the scout's fit is the same bits as
+    one that runs them again."""
+    from pumpsim.identification import identify, problem
+    from pumpsim.identification.runs import DESIGN_RUNS, JACOBIAN_RUNS, MODEL_RUNS
+    from pumpsim.simulate import simulate
+
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    sim = simulate(cfg.with_harmonics([[4, 1.5e-5, 0.3]]), duration=0.05, rate=20000.0)
+    data = Dataset(sim.time, sim.torque + np.random.default_rng(1).normal(0, 0.02 * np.std(sim.torque), sim.time.size))
+    geo = cfg.with_harmonics([[4, 0.0, 0.0]])
+    names = ["mu", "theta0", "housing.harmonics.0.amplitude"]
+    init = {"mu": 0.17, "theta0": cfg.angle, "housing.harmonics.0.amplitude": 8e-6}
+
+    def scout():
+        return identify(geo, data, names, initial=init, multistart=False, max_iter=2, interval=True, polish=False)
+    if problem.ConstantSpeedProblem(geo, data, names)._simd is None:
+        return  # no SIMD library: the CasADi map's path runs every sample, nothing remembered
+    runs = []
+    orig = problem.simd_torque_designs
+    monkeypatch.setattr(problem, "simd_torque_designs", lambda *a: runs.append(1) or orig(*a))
+    for memo in (DESIGN_RUNS, JACOBIAN_RUNS, MODEL_RUNS):
+        memo.entries.clear()
+    alone = scout()
+    assert len(runs) >= 2  # at its start and after its first step
+    runs.clear()
+    identify(geo, data, names, initial=init, multistart=False, max_iter=1, interval=True, polish=False,
+             final_jacobian=False)  # the quick look
+    assert not runs  # the scout before it left them (the same start)
+    again = scout()
+    assert not runs
+    assert again.rms == alone.rms
+    assert {n: e.value for n, e in again.estimates.items()} == {n: e.value for n, e in alone.estimates.items()}
+
+
 def _phase_costs_by_interpolation(t, y, one_rev, w, delay):
     """The phase scan as it interpolated every sample for every phase."""
     from pumpsim.identification.start import _GRID, PHASE_STEPS
