@@ -70,7 +70,9 @@ class DiagnosisOptions:
     refit_quick_steps: int = 1
     # the RMS a polar search's other starts may still gain over its finalists': a search whose
     # finalists' fit trails the best contender by more (and the decisive margin) is not completed.
-    # Twice the largest gain seen on the reduced grid's geometric refits (4.5 %, tilted3 oval)
+    # Twice the largest gain seen on the reduced grid's geometric refits (4.5 %, tilted3 oval). Its
+    # best scout's fit to convergence may gain as much again: a scout that trails by (1 + gain)^2 is
+    # not fitted to convergence (refit._trails; completed if the selection reaches it)
     refit_gain: float = 0.1
     # the polar starts' least radius, of the housing's larger semi-axis (~5 um on a 22 mm housing)
     refit_radius: float = 2e-4
