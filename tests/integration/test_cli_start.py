@@ -105,3 +105,22 @@ def test_no_command_imports_the_heavy_stack_before_its_first_work(tmp_path):
             heavy[name] = found
     assert unmarked == [], f"no first-work line from {unmarked} (pumpsim -v prints 'config PATH: NAME' / 'study ...')"
     assert heavy == {}, f"imported before the command's first work: {heavy}"
+
+
+def test_a_command_runs_its_blas_on_one_thread_unless_the_user_said_otherwise():
+    """The command's small solves on one BLAS thread (no spinning second thread on a busy machine):
+    the counts are set before NumPy loads its BLAS, and a count the user set is kept."""
+    from pumpsim.cli.app import BLAS_THREADS, one_blas_thread
+    env = {"MKL_NUM_THREADS": "4"}
+    one_blas_thread(env)
+    assert env == {**{n: "1" for n in BLAS_THREADS}, "MKL_NUM_THREADS": "4"}
+    probe = ("import os, sys; from pumpsim.cli.app import main; import pumpsim.cli.app as a; "
+             "a._main = lambda argv: print('numpy' in sys.modules, os.environ['OPENBLAS_NUM_THREADS']) or 0; "
+             "main([])")
+    for given, seen in ((None, "1"), ("2", "2")):
+        env = {k: v for k, v in os.environ.items() if k not in BLAS_THREADS}
+        env["PYTHONPATH"] = str(ROOT)
+        if given:
+            env["OPENBLAS_NUM_THREADS"] = given
+        r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, env=env)
+        assert r.stdout.split() == ["False", seen], r.stderr[-2000:]  # set, and NumPy not loaded yet
