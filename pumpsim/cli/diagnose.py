@@ -118,4 +118,4 @@ def run_bench(a, cfg, outs) -> int:
         bench_diagnosis_report(out, path, cfg=cfg, log=log)
 
     write_fit_outputs(outs, a, out.to_json(), report)
-    return 0
+    return unusable(out.unconverged())  # a verdict on a fit that did not converge: exit 1, as identify

@@ -20,7 +20,7 @@ import numpy as np
 from ..benchlog import start_above_atmosphere
 from ..distributions import chi2_sf, norm_sf
 from ..identification.bench_model import START_NAME
-from ..identification.optimiser import scaled_svd
+from ..identification.optimiser import NO_STEP_FROM_START, START_TEST_LEVEL, scaled_svd, start_test
 from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, quantization_step, runs_test
@@ -100,6 +100,23 @@ class Alias(Note):
                 f"log; to rule it out: {self.how}")
 
 
+@dataclass(frozen=True)
+class NotConverged(Note):
+    """A fit of the diagnosis that did not converge (gauss_newton's why), and what that leaves open."""
+
+    fit: str  # "baseline", or the effect whose refit it is
+    why: str
+
+    def text(self) -> str:
+        if self.fit == "baseline":
+            return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, and the "
+                    "residual tests and the search start from them -- the verdict may be wrong; check the config's "
+                    "values against the pump (the vane COF first), or fit the log with pumpsim identify")
+        return (f"the refit of {self.fit} is NOT converged ({self.why}): its figures are not the fit's minimum and "
+                "what it explains (likelihood ratio, BIC, size) is understated -- the verdict may miss it, name a "
+                "rival in its place, or misstate its size")
+
+
 @dataclass
 class Fit:
     """One model's fit: its fitted names, every value it holds, the residual (noise sigmas) and
@@ -111,6 +128,7 @@ class Fit:
     jacobian: np.ndarray
     converged: bool
     prob: EffectProblem
+    why: str = ""  # how the fit stopped when it did not converge (gauss_newton)
 
     @property
     def rms(self) -> float:
@@ -236,6 +254,8 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
         run.log.append(DataNote(above))
     run.say("fitting the baseline")
     base = _weighted(run, _fit(run, [n for n in BASELINE if not (atmosphere_known and n == START_NAME)], values, None))
+    if not base.converged:
+        run.log.append(NotConverged("baseline", base.why))
     current, steps, history, ranking = base, [], [_model_fit("baseline", base)], []
     detection = _detect(current, options)
     limit = options.max_effects if max_effects is None else max_effects
@@ -255,8 +275,13 @@ def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | 
 
 def _fit(run, names, values, start) -> Fit:
     prob = EffectProblem(run.drives, names, values)
-    x, r, J, converged = gauss_newton(prob, prob.x0 if start is None else np.clip(start, prob.lower, prob.upper))
-    return Fit(list(names), {**values, **dict(zip(names, map(float, x)))}, r, J, converged, prob)
+    x, r, J, converged, why = gauss_newton(prob, prob.x0 if start is None else np.clip(start, prob.lower, prob.upper))
+    return Fit(list(names), {**values, **dict(zip(names, map(float, x)))}, r, J, converged, prob, why)
+
+
+START_NOT_MINIMUM = (NO_STEP_FROM_START + ", yet the start is NOT a minimum: the model's slope there points {se} "
+                     "standard errors away (to {to}; F test p = {p:.2g}); the start may sit on a step of the cost "
+                     "(friction reversals make it a staircase)")
 
 
 def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
@@ -264,28 +289,45 @@ def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
     the residual sum of squares by less than STOP_RSS: the residual is in noise sigmas, so such a
     change moves no test, and a loose integrator's error would make a tighter stop wander. The
     Jacobian of that last small step is the one before it (one run instead of 1 + parameters).
-    Returns (x, residual, Jacobian, converged)."""
+    A fit no step leaves from its start is converged only when the data cannot tell the start from
+    a minimum (optimiser.start_test). Returns (x, residual, Jacobian, converged, why): why says
+    how a fit that did not converge stopped ("" when it converged)."""
     m, J = prob.model_and_jacobian(x)
     r = prob.y - m
-    for _ in range(max_iter):
+    for it in range(max_iter):
         scale, U, s, Vt = scaled_svd(J)
         keep = s > s[0] * 1e-10
-        step = (Vt[keep].T @ ((U[:, keep].T @ r) / s[keep])) / scale
+        step = full = (Vt[keep].T @ ((U[:, keep].T @ r) / s[keep])) / scale
         for k in range(halvings):
             xn = np.clip(x + step, prob.lower, prob.upper)
             rn = prob.y - prob.model(xn)
             if rn @ rn < r @ r:
                 break
             step = 0.5 * step
-        else:
-            return x, r, J, True
+        else:  # no step lowers the residual: a minimum, unless the fit never left its start
+            return (x, r, J, True, "") if it else (x, r, J, *_stalled_start(prob, x, full, r, J))
         # a halved step's small gain says the model is nonlinear there, not that the fit is done
-        small = k == 0 and r @ r - rn @ rn < STOP_RSS
+        gain = float(r @ r - rn @ rn)
+        small = k == 0 and gain < STOP_RSS
         x, r = xn, rn
         if small:
-            return x, r, J, True
+            return x, r, J, True, ""
         J = prob.model_and_jacobian(x)[1]
-    return x, r, J, False
+    return x, r, J, False, (f"{max_iter} Gauss-Newton steps did not settle: the last lowered the residual sum of "
+                            f"squares by {gain:.3g} ({NOISE_UNIT} squared; a fit stops below {STOP_RSS:g})")
+
+
+def _stalled_start(prob, x, full, r, J) -> tuple:
+    """(converged, why) of a fit no step leaves from its start x (full: the Gauss-Newton step
+    there): start_test on the residual in noise sigmas, over the values weighed (a value of
+    infinite weight, the current's switch-on block, counts for nothing)."""
+    n = int(np.count_nonzero(np.isfinite(np.broadcast_to(getattr(prob, "w", 1.0), r.shape))))
+    se, p = start_test(x, full, r, J, prob.lower, prob.upper, n)
+    if p >= START_TEST_LEVEL:
+        return True, ""
+    to = ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, np.clip(x + full, prob.lower, prob.upper)))
+    length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
+    return False, START_NOT_MINIMUM.format(se=length, p=p, to=to)
 
 
 def _weighted(run, fit: Fit) -> Fit:
@@ -294,7 +336,7 @@ def _weighted(run, fit: Fit) -> Fit:
     run.drives.set_weights(fit.residual)
     prob = EffectProblem(run.drives, fit.names, fit.values)
     w = prob.w / fit.prob.w
-    return Fit(fit.names, fit.values, fit.residual / w, fit.jacobian / w[:, None], fit.converged, prob)
+    return Fit(fit.names, fit.values, fit.residual / w, fit.jacobian / w[:, None], fit.converged, prob, fit.why)
 
 
 def _detect(fit: Fit, opts) -> BenchDetection:
@@ -431,6 +473,8 @@ def _judge(run, current: Fit, group: list, detection) -> dict:
     s = group[0]
     names = current.names + [s.effect.param]
     fit = _fit(run, names, {**current.values, **s.one_step}, np.array([s.one_step[n] for n in names]))
+    if not fit.converged:
+        run.log.append(NotConverged(s.effect.name, fit.why))
     # the noise's AR(1) under the hypothesis tested, as an F-test's variance is the larger model's:
     # the current residual's would be the misfit's
     rho = ar1(fit.residual)
@@ -531,8 +575,9 @@ def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wa
     p = detection.p
     level = opts.score_alpha / max(len(ranking), 1)
     return BenchDiagnosis(
-        baseline={"rms": base.rms, "params": history[0].params}, steps=tuple(steps),
-        final={"rms": current.rms, "params": history[-1].params, "residual_white": verdict.consistent,
+        baseline={"rms": base.rms, "params": history[0].params, "converged": base.converged}, steps=tuple(steps),
+        final={"rms": current.rms, "params": history[-1].params, "converged": current.converged,
+               "residual_white": verdict.consistent,
                "runs_p_value": p["runs_test"], "ljung_box_p_value": p["ljung_box"],
                "noise_level_p_value": p["noise_level"], "mean_level_p_value": p["mean_level"]},
         unexplained=not verdict.consistent or inadequate, confounded=run.confounded,

@@ -273,11 +273,21 @@ def fast_fit(fp, x0, max_iter) -> np.ndarray:
                                    tol=FAST_TOL).x, float)
 
 
+# where a full-model step does not lower the residual, x is the full model's minimum only if the
+# data cannot tell it from the one the step points to (optimiser.start_test)
+NOT_FULL_MINIMUM = ("a full-model step did not lower the residual, yet the fit is NOT at the full model's minimum: "
+                    "its Gauss-Newton step points {se} standard errors away (to {to}; F test p = {p:.2g}); the full "
+                    "model's steps from the fast (cycle-averaged) model's fit stalled short of the full model's "
+                    "minimum -- these estimates are not the full model's fit: do not use them; check the config "
+                    "against the pump, or fit fewer parameters (--params)")
+
+
 def _chord_steps(prob, x, m, J, accept, history, secant):
     """Gauss-Newton steps with the Jacobian J, until one is below STEP_SE standard errors or no
     longer lowers the residual, at most FULL_STEPS; J follows a step that moves some parameter by
-    at least its `secant` (Broyden)."""
-    from .optimiser import FitOutcome
+    at least its `secant` (Broyden). A step that does not lower the residual ends the fit converged
+    only when x passes start_test against J (x inside its own confidence region)."""
+    from .optimiser import NO_DECREASE, FitOutcome
 
     rms = _rms(prob.y - m)
     converged, message = False, f"full-model steps did not settle within {FULL_STEPS}"
@@ -289,13 +299,27 @@ def _chord_steps(prob, x, m, J, accept, history, secant):
         xn = np.clip(x + dx, prob.lower, prob.upper)
         mn = prob.model(xn)
         if _rms(prob.y - mn) >= rms:
-            converged, message = True, "no further decrease of the residual"
+            converged, message = _at_minimum(prob, x, dx, prob.y - m, J, NO_DECREASE)
             break
         if np.any(np.abs(xn - x) >= secant):
             J = _broyden(J, xn - x, mn - m)
         x, m, rms = xn, mn, _rms(prob.y - mn)
         accept(x, m, "full model, its Jacobian")
     return FitOutcome(x, prob.y - m, J, history, converged, message)
+
+
+def _at_minimum(prob, x, dx, r, J, message) -> tuple:
+    """(converged, message) where no step from x lowered the residual r (noise sigmas; dx the
+    Gauss-Newton step from x with J): `message` when the data cannot tell x from the minimum the
+    step points to, else not converged and NOT_FULL_MINIMUM."""
+    from .optimiser import START_TEST_LEVEL, start_test
+
+    se, p = start_test(x, dx, r, J, prob.lower, prob.upper, r.size)
+    if p >= START_TEST_LEVEL:
+        return True, message
+    to = ", ".join(f"{n} = {v:.6g}" for n, v in zip(prob.names, np.clip(x + dx, prob.lower, prob.upper)))
+    length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
+    return False, NOT_FULL_MINIMUM.format(se=length, p=p, to=to)
 
 
 def _rms(r) -> float:

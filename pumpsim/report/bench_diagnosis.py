@@ -63,7 +63,8 @@ def _separations(out) -> dict:
 def verdict_html(out) -> str:
     """The banner: what is named, what is confounded and how to separate it, what is unexplained
     and where, the final RMS and the detectors."""
-    clear = not out.unexplained and not out.confounded
+    stalled = out.unconverged()
+    clear = not out.unexplained and not out.confounded and not stalled
     f = out.final
     base_rms, final_rms = f"{out.baseline['rms']:.3g}", f"{f['rms']:.3g} noise σ"
     head = (f"<b>Verdict: {html.escape(out.verdict)}.</b> Residual RMS {nb(base_rms)} "
@@ -76,6 +77,7 @@ def verdict_html(out) -> str:
         items.append("<b>Withdrawn</b>: the search named " + html.escape(", ".join(s.effect.name for s in out.withdrawn))
                      + ", but the model with them is not consistent over the log (its parameters differ between "
                      "the log's parts): the model cannot describe this log; see the notes.")
+    items += [f"<b>{html.escape(p[0].upper() + p[1:])}</b>: the verdict may be wrong; see the notes." for p in stalled]
     how = _separations(out)
     for a, b in out.confounded:
         sep = how.get(frozenset((a, b)), "a second experiment")
