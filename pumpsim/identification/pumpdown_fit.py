@@ -169,6 +169,11 @@ class BenchLogProblem(Problem):
         self.last = None  # the channels of the last simulation (unscaled)
         self._at = None  # (x, model) of the last simulation: a Jacobian at an accepted trial point reuses it
 
+    def keep_at(self, x):
+        """Every sample of every channel (`measured` here is the channels' logged values, not a
+        mask of the measured samples as for a torque record)."""
+        return None
+
     def _check_name(self, n):
         if n in NOT_FITTED:
             raise ConfigError(f"--params: '{n}' is not a fit parameter of a bench log"
