@@ -98,11 +98,11 @@ bench-diagnose-independent: codegen
 
 # pumpsim diagnose/identify on bench logs from an independent pump-down model with hidden changes
 # (bench/independent_gas; the truth in out/independent_gas/manifest.json; QUICK=1: ~20 logs), then
-# diagnose_grid.py: the sensor rivals and two pump effects x 2 seeds (QUICK=1: 1), in-process
+# gas_diagnose_grid.py: the sensor rivals and two pump effects x 2 seeds (QUICK=1: 1), in-process
 bench-independent-gas: codegen
 	mkdir -p out
 	nice -n 10 $(BIN)/python bench/independent_gas/run.py $(if $(QUICK),--quick)
-	nice -n 10 $(BIN)/python bench/independent_gas/diagnose_grid.py $(if $(QUICK),--seeds 1)
+	nice -n 10 $(BIN)/python bench/independent_gas/gas_diagnose_grid.py $(if $(QUICK),--seeds 1)
 
 bench-intervals: codegen
 	mkdir -p out

@@ -16,7 +16,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "bench" / "independent_gas"))
-import diagnose_grid as grid  # noqa: E402
+import gas_diagnose_grid as grid  # noqa: E402  (not bench/diagnose_grid.py: both on sys.path in one worker)
 
 from pumpsim.config import load_config  # noqa: E402
 from pumpsim.diagnosis.pump_workflow import diagnose_bench  # noqa: E402

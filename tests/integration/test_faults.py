@@ -37,10 +37,9 @@ ROOT = Path(__file__).resolve().parents[2]
 RIG = EXAMPLES / "test_rig.toml"
 ELLIPSE = EXAMPLES / "ellipse_4vanes.toml"
 EVP = EXAMPLES / "evp_booster.toml"
-RIG_DATA = EXAMPLES / "data" / "test_rig_measurement.csv"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 INTERRUPTED = re.compile(r"^pumpsim: interrupted by (SIGINT|SIGTERM)( at simulated t = (\S+) s of (\S+) s"
-                         r"[^;]*| with (\d+) of (\d+) designs done"
+                         r"[^;]*| with (\d+) of (\d+) designs done| in a fit of [^;]*"
                          r"| while the local Dask cluster started \(no design done\))?; (.+)$")
 
 
@@ -398,7 +397,9 @@ def _commands(tmp):
                      [tmp / "s.csv", tmp / "s.png"]),
         "simulate-contact": (["simulate", ELLIPSE, "--model", "contact", "--duration", "3", "--out",
                               tmp / "c.csv", "--keep-partial"], [tmp / "c.csv"]),
-        "identify": (["identify", RIG, RIG_DATA, "--params", "mu,theta0,speed", "--json", tmp / "i.json",
+        # (the ellipse: on the concentric rig the speed is not identifiable, a refused fit, exit 1)
+        "identify": (["identify", ELLIPSE, EXAMPLES / "data" / "ellipse_hidden_effects.csv", "--params",
+                      "mu,theta0,speed", "--json", tmp / "i.json",
                       "--report", tmp / "i.html"], [tmp / "i.json", tmp / "i.html"]),
         "diagnose": (["diagnose", ELLIPSE, EXAMPLES / "data" / "ellipse_hidden_effects.csv", "--json",
                       tmp / "d.json"], [tmp / "d.json"]),
@@ -444,4 +445,6 @@ def test_interrupted_kernel_build_leaves_no_temporary(tmp_path, monkeypatch):
     code, _, err = signal_after(p, rng("build").uniform(0.2, 2.0), signal.SIGINT)
     assert code == 130, err
     the_message(err, signal.SIGINT)
-    assert [f.name for f in cache.iterdir() if f.name.startswith(".")] == []
+    # (a variant's build lock file stays, empty: deleting it on release would race another process
+    # taking it; it is no half-built variant)
+    assert [f.name for f in cache.iterdir() if f.name.startswith(".") and not f.name.endswith(".build.lock")] == []

@@ -11,7 +11,7 @@ Outcomes: right (the truth named alone; for the clean pump, nothing named), conf
 confounded pair holding the truth), unexplained (no name, the verdict unexplained), nothing (no
 name, consistent with noise), wrong (any other name).
 
-    python bench/independent_gas/diagnose_grid.py [--out out/independent_gas] [--seeds 2] [--json F]
+    python bench/independent_gas/gas_diagnose_grid.py [--out out/independent_gas] [--seeds 2] [--json F]
 """
 from __future__ import annotations
 
