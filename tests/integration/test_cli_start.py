@@ -57,24 +57,16 @@ def test_a_sweep_loads_the_report_module_only_with_report(tmp_path):
     assert "pumpsim.report" not in modules and not [m for m in modules if m.startswith("matplotlib")]
 
 
-# Each command on the bundled examples up to its first work (bench/startup.py: its config or study
-# read and checked, which -v says in one line); the process is ended there.
-EX = ROOT / "examples"
-STUDY = EX / "studies" / "test_rig_tolerances.toml"
-FIRST_WORK = ("pumpsim: config ", "pumpsim: study ")
+# Each command on the bundled examples up to its first work (bench/startup.py's commands: its
+# config or study read and checked, which -v says in one line); the process is ended there.
 BEFORE_WORK_HEAVY = ("matplotlib", "scipy.stats", "scipy.optimize", "pandas", "dask", "distributed", "SALib", "pymoo")
 
 
-def _commands(out):
-    return {"simulate": ["simulate", EX / "test_rig.toml", "--out", out / "s.csv"],
-            "identify": ["identify", EX / "test_rig.toml", EX / "data" / "test_rig_measurement.csv", "--params", "mu",
-                         "--json", out / "f.json"],
-            "diagnose": ["diagnose", EX / "ellipse_4vanes.toml", EX / "data" / "ellipse_hidden_effects.csv",
-                         "--json", out / "d.json"],
-            "pumpdown": ["pumpdown", EX / "evp_booster.toml", "--json", out / "p.json"],
-            "sweep": ["sweep", STUDY, "--samples", "256", "--out", out / "mc"],
-            "sensitivity": ["sensitivity", STUDY, "--samples", "64", "--json", out / "se.json"],
-            "optimize": ["optimize", EX / "studies" / "ellipse_optimize.toml", "--json", out / "op.json"]}
+def _startup():
+    sys.path.insert(0, str(ROOT / "bench"))
+    import startup
+
+    return startup
 
 
 def test_no_command_imports_the_heavy_stack_before_its_first_work(tmp_path):
@@ -82,13 +74,13 @@ def test_no_command_imports_the_heavy_stack_before_its_first_work(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     procs = {name: subprocess.Popen([sys.executable, "-X", "importtime", "-m", "pumpsim", "-v", *map(str, args)],
                                     cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-             for name, args in _commands(tmp_path).items()}
+             for name, args in _startup().commands(tmp_path).items()}
     heavy, unmarked = {}, []
     for name, p in procs.items():
         modules, marked = set(), False
         try:
             for line in p.stderr:
-                if line.startswith(FIRST_WORK):
+                if line.startswith(_startup().MARKERS):
                     marked = True
                     break
                 if line.startswith("import time:") and line.count("|") == 2:
