@@ -66,12 +66,9 @@ from .problem import Problem, following, parameter_map, slot_ratio
 
 CHANNEL_FLOOR = 1e-4  # a channel's noise sigma is at least this share of its largest value
 DIFFERENCE_STEP = 1e-2  # forward-difference step, of the parameter's scale (see scale_of)
-# tolerance continuation (identify_bench, bench_fast.fast_then_full): the Jacobian's difference
-# steps at this rtol (atol in proportion), a run there costing ~0.6 of one at 1e-6, with a wider
-# difference step (each run's own integration error over the step). The Jacobian's noise moves
-# where the steps settle: measured on a 5 s twin log, the Gauss-Newton fixed point moved by up to
-# 0.12 standard errors from the 1e-6 Jacobian's over atol changes of 1e-12 (rtol 3e-5: 0.25, 1e-4:
-# up to 0.47), the standard errors within 3 % (docs, bench-log fit)
+# tolerance continuation (identify_bench, bench_fast.fast_then_full): the Jacobian's difference steps
+# at this rtol (atol in proportion; a run ~0.6 of one at 1e-6) and a wider step for its integration
+# error; its noise moves the fixed point by up to 0.12 standard errors (docs: the bench-log fit)
 CONTINUATION_RTOL, CONTINUATION_STEP = 1e-5, 3e-2
 # a parameter's scale when its value may be 0 (no leak, no cracking pressure): a size it typically has
 TYPICAL = {"booster.leak": 1e-4, "leak.tip_gap": 1e-6, "leak.end_gap": 1e-6, "valve.cracking": 100.0,
@@ -169,9 +166,7 @@ class BenchLogProblem(Problem):
         self.last = None  # the channels of the last simulation (unscaled)
         self._at = None  # (x, model) of the last simulation: a Jacobian at an accepted trial point reuses it
 
-    def keep_at(self, x):
-        """Every sample of every channel (`measured` here is the channels' logged values, not a
-        mask of the measured samples as for a torque record)."""
+    def keep_at(self, x):  # every sample: `measured` here is the channels' logged values, not a mask
         return None
 
     def _check_name(self, n):
