@@ -313,7 +313,8 @@ def gauss_newton(prob, x, max_iter=FIT_ITERATIONS, halvings=4) -> tuple:
         if small:
             return x, r, J, True, ""
         J = prob.model_and_jacobian(x)[1]
-    return x, r, J, False, (f"{max_iter} Gauss-Newton steps did not settle: the last lowered the residual sum of "
+    return x, r, J, False, (f"{max_iter} Gauss-Newton step{'s' if max_iter != 1 else ''} did not settle: the last "
+                            f"lowered the residual sum of "
                             f"squares by {gain:.3g} ({NOISE_UNIT} squared; a fit stops below {STOP_RSS:g})")
 
 

@@ -29,7 +29,7 @@ def test_a_baseline_that_did_not_converge_is_said_everywhere(tmp_path, monkeypat
     captured = capsys.readouterr()
     assert code == 1
     assert "not a usable estimate: the baseline fit is NOT converged" in captured.err
-    assert "note: the baseline fit is NOT converged (1 Gauss-Newton steps did not settle" in captured.out
+    assert "note: the baseline fit is NOT converged (1 Gauss-Newton step did not settle" in captured.out
     out = json.loads(js.read_text())
     assert out["baseline"]["converged"] is False and out["final"]["converged"] is False
     assert any(n.startswith("the baseline fit is NOT converged") for n in out["notes"])

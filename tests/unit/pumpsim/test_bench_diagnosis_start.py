@@ -78,7 +78,7 @@ def test_a_smooth_fit_leaves_the_start_and_converges():
 
 def test_a_fit_stopped_by_its_iteration_limit_says_so():
     x, r, J, converged, why = gauss_newton(Kinked(0.9, kink=False), np.array([3.0]), max_iter=1)
-    assert not converged and "1 Gauss-Newton steps did not settle" in why
+    assert not converged and "1 Gauss-Newton step did not settle" in why
 
 
 def test_the_notes_say_what_a_fit_that_did_not_converge_leaves_open():
