@@ -178,12 +178,10 @@ def _estimate(run: dict, designs: int) -> str:
     if not done or "wall" not in run or "compute" not in run:
         return ""
     seconds = run["wall"] + run["compute"] / done * max(designs - done, 0) / workers
-    return f", about {_duration(seconds)} at this run's pace"
+    return f", {'under a second' if seconds < 1 else 'about ' + _duration(seconds)} at this run's pace"
 
 
 def _duration(seconds: float) -> str:
-    if seconds < 1:
-        return "under a second"
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
 
 
