@@ -7,29 +7,15 @@ import pytest
 
 from pumpsim.diagnosis.pump_workflow import NotConverged, gauss_newton
 from pumpsim.identification.optimiser import START_TEST_LEVEL
+from tests.stall_problems import Kinked as _Kinked
 
 N, A = 200, 100.0  # residuals in noise sigmas: the slope's standard error 1 / (A |t|) = 0.0012
 
 
-class Kinked:
-    """model = A t (1 + c |x - 1|) against data A t y_data + unit noise (the residual is in noise
-    sigmas, as the diagnosis's): at x = 1 both one-sided slopes raise the model while the Jacobian
-    reports the smooth slope A t (kink=True), as a friction reversal's staircase does; c = 1e4: even
-    the fourth trial (1/8 of the step) raises the cost. kink=False: the line A t x."""
-
-    names = ["x"]
-    lower, upper = np.array([-10.0]), np.array([10.0])
-
-    def __init__(self, y_data, kink=True, seed=0):
-        self.t = np.linspace(0.0, 1.0, N)
-        self.y = A * self.t * y_data + np.random.default_rng(seed).normal(size=N)
-        self.kink = kink
-
-    def model(self, x):
-        return A * self.t * ((1.0 + 1e4 * abs(x[0] - 1.0)) if self.kink else x[0])
-
-    def model_and_jacobian(self, x):
-        return self.model(x), A * self.t[:, None]
+def Kinked(y_data, kink=True, seed=0):
+    """tests/stall_problems.Kinked in noise sigmas (the diagnosis's residual): N samples, slope A,
+    unit noise."""
+    return _Kinked(y_data, kink, N, A, 1.0, seed)
 
 
 def test_a_start_the_slope_leads_far_from_is_not_converged():

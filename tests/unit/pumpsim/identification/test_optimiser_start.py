@@ -7,32 +7,14 @@ import numpy as np
 import pytest
 
 from pumpsim.identification.optimiser import START_TEST_LEVEL, gauss_newton, start_test
+from tests.stall_problems import Kinked as _Kinked
 
 N = 50
 
 
-class Kinked:
-    """model = t (1 + c |x - 1|) against data t y_data (+ noise): at x = 1 the model has a kink
-    whose one-sided slopes both raise it, while the Jacobian reports the smooth slope t (kink=True),
-    as a friction reversal's staircase does; c = 1e4 > 2 * 2^9: even the ninth halving of any step
-    raises the cost. kink=False: the plain line t x."""
-
-    names = ["x"]
-    lower, upper = np.array([-10.0]), np.array([10.0])
-
-    def __init__(self, y_data, kink=True, noise=0.0, seed=0):
-        self.t = np.linspace(0.0, 1.0, N)
-        self.y = self.t * y_data + noise * np.random.default_rng(seed).normal(size=N)
-        self.kink = kink
-
-    def model(self, x):
-        return self.t * ((1.0 + 1e4 * abs(x[0] - 1.0)) if self.kink else x[0])
-
-    def model_and_jacobian(self, x):
-        return self.model(x), self.t[:, None].copy()
-
-    def keep_at(self, x):
-        return None
+def Kinked(y_data, kink=True, noise=0.0, seed=0):
+    """tests/stall_problems.Kinked on N samples, slope scale 1."""
+    return _Kinked(y_data, kink, N, 1.0, noise, seed)
 
 
 def test_a_start_the_slope_leads_far_from_is_not_converged():
