@@ -64,8 +64,9 @@ class DiagnosisOptions:
     refit_starts: int = 8
     # Gauss-Newton steps from each finalist start before the best is fitted to convergence
     refit_scout_steps: int = 4
-    # the starts scouted in full: those whose quick look (refit_quick_steps interval-column steps,
-    # no exact polish) ends lowest (refit._finalists: what that cost and saved on the grid)
+    # the starts scouted in full: those whose quick look (refit_quick_steps steps on the interval
+    # columns' smooth formula, no exact polish) ends lowest (refit._finalists: what that cost and
+    # saved on the grid)
     refit_finalists: int = 3
     refit_quick_steps: int = 1
     # the RMS a polar search's other starts may still gain over its finalists': a search whose

@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..identification import base_name, half_band
+from ..identification import SMOOTH_COLUMNS, base_name, half_band
 
 from .effects import Candidate
 from .log import SpeedRefined
@@ -196,9 +196,9 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
     starts = [{n: values[n] for n in names if n in values}]
     if polar and len(score.params) == 2:
         starts += _polar_starts(state, cand, score.params, values, opts)
-    fit = lambda init, data=state.data, **kw: identify(  # noqa: E731
+    fit = lambda init, data=state.data, interval=True, **kw: identify(  # noqa: E731
         cfg, data, names, initial=init, multistart=False, ripple_order=ripple, extra=held,
-        interval=cand.symmetric, **kw)
+        interval=interval if cand.symmetric else False, **kw)
     settled = True
     if len(starts) == 1:
         res = fit(starts[0])
@@ -239,17 +239,18 @@ def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed
 
 
 def _finalists(starts, scout_fit, opts: DiagnosisOptions = OPTIONS) -> list:
-    """The opts.refit_finalists starts (in their order) whose opts.refit_quick_steps interval-column
-    steps on the scout window, without the exact polish, reach the lowest cost: only they are
-    scouted in full (opts.refit_scout_steps steps and a polish each), which costs ~4x a quick
-    look. Scouting all 17 starts in full was half of a 5,000-sample diagnosis; on 11 geometric
-    refits of the reduced grid the winner of all 17 was among the three best quick looks in 8, the
-    three reached a cost 1e-6 lower in one, and 2.0 and 4.5 % higher RMS in two, both named
-    effects: hence `needed` (docs/explanation/discrepancy-workflow.md)."""
+    """The opts.refit_finalists starts (in their order) whose opts.refit_quick_steps steps on the
+    scout window reach the lowest cost: only they are scouted in full (opts.refit_scout_steps steps
+    and a polish each). A quick look steps on the interval columns' smooth formula on every sample
+    (SMOOTH_COLUMNS: no sub-sample runs, ~0.2x the cost). Scouting all 17 starts in full was half
+    of a 5,000-sample diagnosis; on 11 geometric refits of the reduced grid the winner of all 17 was
+    among the three best quick looks in 8, the three reached a cost 1e-6 lower in one, and 2.0 and
+    4.5 % higher RMS in two, both named effects: hence `needed`
+    (docs/explanation/discrepancy-workflow.md, which also has what the smooth quick looks changed)."""
     if len(starts) <= opts.refit_finalists:
         return list(range(len(starts)))
-    quick = [scout_fit(init, max_iter=opts.refit_quick_steps, polish=False, final_jacobian=False).rms
-             for init in starts]
+    quick = [scout_fit(init, max_iter=opts.refit_quick_steps, polish=False, final_jacobian=False,
+                       interval=SMOOTH_COLUMNS).rms for init in starts]
     return sorted(int(i) for i in np.argsort(quick, kind="stable")[:opts.refit_finalists])
 
 

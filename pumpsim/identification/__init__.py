@@ -17,12 +17,12 @@ config value) to measured data.
 from .fit import identify, identify_transient, make_problem
 from .joint import JointProblem
 from .optimiser import METHODS, FitOutcome, Optimiser, gauss_newton, ipopt_fit
-from .problem import (ConstantSpeedProblem, Problem, base_name, half_band, parameter_map, sample_torque,
-                      speed_band)
+from .problem import (SMOOTH_COLUMNS, ConstantSpeedProblem, Problem, base_name, half_band, parameter_map,
+                      sample_torque, speed_band)
 from .result import Estimate, IdentificationResult, provenance
 from .transient import TransientProblem
 
 __all__ = ["identify", "identify_transient", "make_problem", "Problem", "ConstantSpeedProblem",
            "JointProblem", "TransientProblem", "Optimiser", "FitOutcome", "METHODS", "gauss_newton",
            "ipopt_fit", "IdentificationResult", "Estimate", "provenance", "base_name", "parameter_map",
-           "sample_torque", "speed_band", "half_band"]
+           "sample_torque", "speed_band", "half_band", "SMOOTH_COLUMNS"]

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 from pumpsim.diagnosis import refit
 from pumpsim.diagnosis.options import OPTIONS
+from pumpsim.identification import SMOOTH_COLUMNS
 
 
 @dataclass
@@ -22,8 +23,9 @@ class Scouts:
     def __init__(self, quick, full):
         self.quick, self.full, self.calls = quick, full, []
 
-    def __call__(self, init, max_iter, polish=True, final_jacobian=True):
+    def __call__(self, init, max_iter, polish=True, final_jacobian=True, interval=True):
         assert final_jacobian or not polish  # only a quick look goes without its end's Jacobian
+        assert (interval == SMOOTH_COLUMNS) == (not polish)  # ... and without the sub-sample runs
         self.calls.append((init, max_iter, polish, final_jacobian))
         cost = self.full[init] if polish else self.quick[init]
         return Fit(cost, init, max_iter, polish)

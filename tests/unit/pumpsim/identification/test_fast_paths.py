@@ -82,10 +82,10 @@ def test_a_fit_without_its_final_jacobian_ends_where_the_full_one_does():
     assert quick.n_evaluations == full.n_evaluations  # the end's model (remembered from the trial) counted
 
 
-def test_a_scout_from_its_quick_looks_start_reuses_its_sub_sample_runs(monkeypatch):
-    """A polar search scouts a finalist from the start its quick look ran at: the interval columns'
-    sub-sample runs there are remembered (runs.DESIGN_RUNS), and the scout's fit is the same bits as
-    one that runs them again."""
+def test_a_second_fit_from_the_same_start_reuses_its_sub_sample_runs(monkeypatch):
+    """The interval columns' sub-sample runs at a point are remembered (runs.DESIGN_RUNS): another
+    fit that evaluates them there (a polar search's finalist scouted again, a completed search) runs
+    none, and its fit is the same bits as one that runs them again."""
     from pumpsim.identification import identify, problem
     from pumpsim.identification.runs import DESIGN_RUNS, JACOBIAN_RUNS, MODEL_RUNS
     from pumpsim.simulate import simulate
@@ -279,3 +279,32 @@ def test_the_diagnose_benchs_stages_add_up_to_its_counts():
     assert stages["stages"]["workflow._baseline"]["jacobians"] > 0
     last_screen = stages["stages"]["workflow.score_test (conclusion)"]  # a white record: no search
     assert last_screen["jacobians"] > 0 and last_screen["cpu_seconds"] > 0
+
+
+def test_a_quick_looks_smooth_columns_run_no_sub_samples(monkeypatch):
+    """interval=SMOOTH_COLUMNS (a polar search's quick look, which only ranks starts): the geometric
+    columns from the smooth formula on every sample, without the sub-sample runs -- the interval
+    columns' own bits wherever those take that formula, different only at and next to the friction
+    reversals; the model and the other columns the same bits."""
+    from pumpsim.identification import SMOOTH_COLUMNS, make_problem, problem
+    from pumpsim.identification.runs import DESIGN_RUNS
+    from pumpsim.simulate import simulate
+
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    sim = simulate(cfg.with_harmonics([[4, 1.5e-5, 0.3]]), duration=0.05, rate=20000.0)
+    data = Dataset(sim.time, sim.torque)
+    geo = cfg.with_harmonics([[4, 0.0, 0.0]])
+    names = ["mu", "theta0", "housing.harmonics.0.amplitude"]
+    init = {"mu": 0.17, "theta0": cfg.angle, "housing.harmonics.0.amplitude": 8e-6}
+    runs = []
+    orig = problem.simd_torque_designs
+    monkeypatch.setattr(problem, "simd_torque_designs", lambda *a: runs.append(1) or orig(*a))
+    DESIGN_RUNS.entries.clear()
+    smooth = make_problem(geo, data, names, initial=init, interval=SMOOTH_COLUMNS)
+    m_s, J_s = smooth.model_and_jacobian(smooth.x0)
+    assert not runs
+    full = make_problem(geo, data, names, initial=init, interval=True)
+    m_i, J_i = full.model_and_jacobian(full.x0)
+    assert np.array_equal(m_s, m_i) and np.array_equal(J_s[:, :2], J_i[:, :2])
+    differ = J_s[:, 2] != J_i[:, 2]
+    assert 0 < differ.mean() < 0.5  # a minority of the samples: the rest are the same bits
