@@ -210,6 +210,32 @@ class Drifting(Note):
 
 
 @dataclass(frozen=True)
+class NotConverged(Note):
+    """A fit of the diagnosis that did not converge (the optimiser's why), and what that leaves
+    open: the baseline's, the final model's (the torque workflow: its whole-record fit) or an
+    effect's refit (the bench-log workflow). `data`: what the baseline's advice fits again."""
+
+    fit: str  # "baseline", "final", or the effect whose refit it is
+    why: str
+    data: str = "log"
+
+    def text(self) -> str:
+        if self.fit == "baseline":
+            return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, and the "
+                    "residual tests and the search start from them -- the verdict may be wrong; check the config's "
+                    f"values against the pump (the vane COF first), or fit the {self.data} with pumpsim identify")
+        if self.fit == "final":
+            return (f"the final model's fit is NOT converged ({self.why}): its figures (the named effects' "
+                    "parameters, the final RMS, the residual tests behind the verdict) are not the fit's minimum "
+                    "-- the verdict may be wrong and a named effect's size misstated; check the config's values "
+                    "against the pump (the vane COF first) and diagnose again; until a diagnosis converges, read "
+                    "the named effects as candidates, not findings")
+        return (f"the refit of {self.fit} is NOT converged ({self.why}): its figures are not the fit's minimum and "
+                "what it explains (likelihood ratio, BIC, size) is understated -- the verdict may miss it, name a "
+                "rival in its place, or misstate its size")
+
+
+@dataclass(frozen=True)
 class BudgetReached(Note):
     seconds: float
     cut: tuple
