@@ -54,7 +54,8 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
     clear = final["residual_white"] and not out.unexplained and not stalled
     parts.append(f"<p class={'ok' if clear else 'warn'}>{verdict}</p>")
     parts += [f"<p class=warn><b>{html.escape(s[0].upper() + s[1:])}</b>: its figures are not the fit's minimum and "
-              "the verdict may be wrong; see the notes.</p>" for s in stalled]
+              "the verdict may be wrong -- check the config's values against the pump (the vane COF first) and "
+              "diagnose again; the notes say how the fit stopped.</p>" for s in stalled]
     if out.unexplained:
         parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Where: "
                      + ", ".join(nb(_where_text(w)) for w in out.unexplained_where) + ".</p>")
