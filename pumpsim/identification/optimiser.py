@@ -32,6 +32,9 @@ class FitOutcome:
     converged: bool
     message: str
     keep: np.ndarray | None = None  # the samples the reversal-aware cost kept at x (None: all)
+    # a fit no step left from its start, which is NOT a minimum (start_test): where the Gauss-Newton
+    # step from it points (clipped to the bounds), the start to fit again from; None otherwise
+    points_to: np.ndarray | None = None
 
     def __iter__(self):  # unpacks as (x, residual, jacobian, history, converged, message)
         return iter((self.x, self.residual, self.jacobian, self.history, self.converged, self.message))
@@ -150,7 +153,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     wt = (lambda v: v) if w is None else (lambda v: (w * v.T).T)  # noqa: E731
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)}]
     lam = 1e-3
-    converged, message = False, MAX_ITER
+    converged, message, points_to = False, MAX_ITER, None
     for it in range(max_iter):
         rw = wt(r)
         scale, U, s, Vt = scaled_svd(wt(J))
@@ -166,7 +169,8 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
             converged, message = True, NO_DECREASE
             if not it:  # ... unless it never moved: a minimum only if the slope there is noise
-                converged, message = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w, scale, tol)
+                converged, message, points_to = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w,
+                                                               scale, tol)
             break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)
@@ -186,7 +190,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     else:  # the iteration limit: still creeping, or there (a scout's end has no Jacobian to tell)
         if J is not None:
             converged, message = _remaining_step(prob, x, wt(r), wt(J), r.size if w is None else float(w.sum()))
-    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0)
+    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0, points_to)
 
 
 def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
@@ -245,15 +249,16 @@ def _damped_step(prob, x, rw, wt, svd, lam):
 
 
 def _stalled_start(prob, x, full, rw, Jw, w, scale, tol):
-    """(converged, message) of a fit no step leaves from its start: a minimum when the whole
-    Gauss-Newton step is below the step tolerance or the start passes start_test, else not
-    converged, with where the slope points."""
+    """(converged, message, points_to) of a fit no step leaves from its start: a minimum when the
+    whole Gauss-Newton step is below the step tolerance or the start passes start_test (points_to
+    None), else not converged, with where the slope points (in the message, and as points_to)."""
     se, p = start_test(x, full, rw, Jw, prob.lower, prob.upper, rw.size if w is None else float(w.sum()))
     if p >= START_TEST_LEVEL or np.all(np.abs(full) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale)):
-        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p)
+        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p), None
     to = np.clip(x + full, prob.lower, prob.upper)
     length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
-    return False, START_NOT_MINIMUM.format(se=length, p=p, to=", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to)))
+    where = ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to))
+    return False, START_NOT_MINIMUM.format(se=length, p=p, to=where), to
 
 
 def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:
