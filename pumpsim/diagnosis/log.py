@@ -83,6 +83,22 @@ class BaselineImplausible(Note):
 
 
 @dataclass(frozen=True)
+class BaselineRestarted(Note):
+    """The baseline fit stalled at its start, which the start test found NOT a minimum, and was
+    fitted again from where its Gauss-Newton step pointed; the better of the two (by RMS) is kept."""
+
+    rms_before: float
+    rms_after: float
+    kept_again: bool  # the fit from where the step pointed is the baseline
+
+    def text(self) -> str:
+        change = f"RMS {self.rms_before:.6g} -> {self.rms_after:.6g}"
+        return ("baseline: no step left its start, which is not the fit's minimum (its slope points many standard "
+                f"errors away); fitted again from where the slope points ({change}): "
+                + ("that fit is the baseline" if self.kept_again else "the first fit kept, the second not better"))
+
+
+@dataclass(frozen=True)
 class Rejected(Note):
     """A contender refused for physical reasons (a range, a measured speed column)."""
 
