@@ -96,7 +96,7 @@ NO_DECREASE = "no further decrease of the residual"
 # standard errors in every parameter (_remaining_step); the message says how long it is
 MAX_ITER = "maximum iterations reached"
 STEP_BELOW_SE = MAX_ITER + "; the remaining Gauss-Newton step is below {lim:g} standard errors (at most {se:.2g}, in {name})"
-STEP_ABOVE_SE = MAX_ITER + "; the remaining Gauss-Newton step is {se:.3g} standard errors (in {name})"
+STEP_ABOVE_SE = MAX_ITER + "; the remaining Gauss-Newton step is {se:.3g} standard errors in {name}"
 ALL_ON_BOUNDS = MAX_ITER + "; every parameter is on a bound the remaining Gauss-Newton step points past"
 # A start no step leaves counts as a minimum when the data cannot tell it from the one the
 # Gauss-Newton step points to: the F test of "the parameters are the start's" (the linear model's

@@ -50,7 +50,7 @@ def test_a_fit_still_creeping_at_its_limit_is_converged_only_within_the_step_rul
         assert f"below {STEP_SE:g} standard errors" in out.message
         assert f"at most {left:.2g}, in x" in out.message
     else:
-        assert f"step is {left:.3g} standard errors (in x)" in out.message
+        assert f"step is {left:.3g} standard errors in x" in out.message
 
 
 def test_the_rule_changes_the_flag_only_never_the_estimates():
