@@ -16,6 +16,11 @@ ATOL = 1e-10
 # direction (J'J singular to working precision after squaring: 1e14 of 1e16): the parameters along it
 # are not identifiable, and Gauss-Newton stops rather than take a step along it.
 SINGULAR_COND = 1e7
+# A fit is at its minimum when the Gauss-Newton step from its last point is below this many of each
+# parameter's standard errors: the bench-log fit's full-model steps stop there, and a Gauss-Newton
+# fit that reaches its iteration limit still creeping (a few 1e-6 of the RMS per step) is converged
+# when its remaining step is: what is left moves no estimate by a fifth of its uncertainty.
+STEP_SE = 0.2
 # A fitted parameter whose change by its own size (or by 1 for angles and offsets) moves the model
 # by less than this share of its norm does not act on the data at all (rounding of the kernel is ~1e-15).
 NO_EFFECT_REL = 1e-8

@@ -89,8 +89,9 @@ def run(a) -> int:
         diagnosis_report(out, path, title=f"pumpsim diagnosis: {cfg.name}", cfg=cfg, data=data)
 
     write_fit_outputs(outs, a, out.to_json(), report)
-    base = out.history[0].result.adequacy  # another pump: exit 1, as identify does on this data
-    return unusable([base.reason] if base is not None and base.orders_missed() else [])
+    # a verdict on a fit that did not converge, or another pump: exit 1, as identify on this data
+    base = out.history[0].result.adequacy
+    return unusable(out.unconverged() + ([base.reason] if base is not None and base.orders_missed() else []))
 
 
 def run_bench(a, cfg, outs) -> int:

@@ -83,6 +83,22 @@ class BaselineImplausible(Note):
 
 
 @dataclass(frozen=True)
+class BaselineRestarted(Note):
+    """The baseline fit stalled at its start, which the start test found NOT a minimum, and was
+    fitted again from where its Gauss-Newton step pointed; the better of the two (by RMS) is kept."""
+
+    rms_before: float
+    rms_after: float
+    kept_again: bool  # the fit from where the step pointed is the baseline
+
+    def text(self) -> str:
+        change = f"RMS {self.rms_before:.6g} -> {self.rms_after:.6g}"
+        return ("baseline: no step left its start, which is not the fit's minimum (its slope points many standard "
+                f"errors away); fitted again from where the slope points ({change}): "
+                + ("that fit is the baseline" if self.kept_again else "the first fit kept, the second not better"))
+
+
+@dataclass(frozen=True)
 class Rejected(Note):
     """A contender refused for physical reasons (a range, a measured speed column)."""
 
@@ -207,6 +223,32 @@ class Drifting(Note):
     def text(self) -> str:
         return (f"{self.finding} (a straight line through {self.segments} segment fits, p {self.p_value:.2g}): the "
                 "model's constant value is its mean over the record")
+
+
+@dataclass(frozen=True)
+class NotConverged(Note):
+    """A fit of the diagnosis that did not converge (the optimiser's why), and what that leaves
+    open: the baseline's, the final model's (the torque workflow: its whole-record fit) or an
+    effect's refit (the bench-log workflow). `data`: what the baseline's advice fits again."""
+
+    fit: str  # "baseline", "final", or the effect whose refit it is
+    why: str
+    data: str = "log"
+
+    def text(self) -> str:
+        if self.fit == "baseline":
+            return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, and the "
+                    "residual tests and the search start from them -- the verdict may be wrong; check the config's "
+                    f"values against the pump (the vane COF first), or fit the {self.data} with pumpsim identify")
+        if self.fit == "final":
+            return (f"the final model's fit is NOT converged ({self.why}): its figures (the named effects' "
+                    "parameters, the final RMS, the residual tests behind the verdict) are not the fit's minimum "
+                    "-- the verdict may be wrong and a named effect's size misstated; check the config's values "
+                    "against the pump (the vane COF first) and diagnose again; until a diagnosis converges, read "
+                    "the named effects as candidates, not findings")
+        return (f"the refit of {self.fit} is NOT converged ({self.why}): its figures are not the fit's minimum and "
+                "what it explains (likelihood ratio, BIC, size) is understated -- the verdict may miss it, name a "
+                "rival in its place, or misstate its size")
 
 
 @dataclass(frozen=True)

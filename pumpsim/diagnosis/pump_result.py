@@ -97,14 +97,6 @@ class BenchDiagnosis(NamedSteps):
         out["withdrawn"] = [s.to_json() for s in self.withdrawn]
         return out
 
-    def unconverged(self) -> list[str]:
-        """The models the diagnosis reports (the baseline, the final one) whose fit did not
-        converge: the verdict rests on them (the command exits 1; the notes say how each stopped)."""
-        out = ["the baseline fit is NOT converged"] if not self.baseline.get("converged", True) else []
-        if len(self.history) > 1 and not self.final.get("converged", True):  # the final model is not the baseline
-            out.append("the final model's fit is NOT converged")
-        return out
-
     def __str__(self):
         return self.summary()
 

@@ -25,7 +25,7 @@ from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, quantization_step, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import Budgeted, BudgetReached, DataNote, Note, Rejected, TooSmall
+from .log import Budgeted, BudgetReached, DataNote, Note, NotConverged, Rejected, TooSmall
 from .options import OPTIONS, DiagnosisOptions
 from .pump_guard import Inconsistent, consistency
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
@@ -98,23 +98,6 @@ class Alias(Note):
     def text(self) -> str:
         return (f"{self.effect} is named assuming calibrated sensors: {self.alias} reads the same on a pump-down "
                 f"log; to rule it out: {self.how}")
-
-
-@dataclass(frozen=True)
-class NotConverged(Note):
-    """A fit of the diagnosis that did not converge (gauss_newton's why), and what that leaves open."""
-
-    fit: str  # "baseline", or the effect whose refit it is
-    why: str
-
-    def text(self) -> str:
-        if self.fit == "baseline":
-            return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, and the "
-                    "residual tests and the search start from them -- the verdict may be wrong; check the config's "
-                    "values against the pump (the vane COF first), or fit the log with pumpsim identify")
-        return (f"the refit of {self.fit} is NOT converged ({self.why}): its figures are not the fit's minimum and "
-                "what it explains (likelihood ratio, BIC, size) is understated -- the verdict may miss it, name a "
-                "rival in its place, or misstate its size")
 
 
 @dataclass

@@ -153,7 +153,8 @@ class PolarEstimate:
 
 
 class NamedSteps:
-    """What every diagnosis result reads off its `steps` and its step `log`."""
+    """What every diagnosis result reads off its `steps`, its step `log` and the convergence of
+    its reported fits (`baseline`, `final`, `history`)."""
 
     @property
     def effects(self) -> list[str]:
@@ -163,6 +164,14 @@ class NamedSteps:
     @property
     def notes(self) -> list[str]:
         return [n.text() for n in self.log]
+
+    def unconverged(self) -> list[str]:
+        """The models the diagnosis reports (the baseline, the final one) whose fit did not
+        converge: the verdict rests on them (the command exits 1; the notes say how each stopped)."""
+        out = ["the baseline fit is NOT converged"] if not self.baseline.get("converged", True) else []
+        if len(self.history) > 1 and not self.final.get("converged", True):  # the final model is not the baseline
+            out.append("the final model's fit is NOT converged")
+        return out
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,8 @@ from ..identification import base_name, half_band, speed_band
 
 from .detectors import Detection, kurtosis_off_reversals, where_unexplained
 from .effects import candidates, harmonic_pair, plausible
-from .log import BaselineImplausible, Budgeted, BudgetReached, Drifting, Rivals, SpeedColumnDrift, SpeedHeld
+from .log import BaselineImplausible, BaselineRestarted, Budgeted, BudgetReached, Drifting, NotConverged, Rivals, \
+    SpeedColumnDrift, SpeedHeld
 from .options import OPTIONS, DiagnosisOptions
 from .refit import contender_fits, try_speed
 from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, vane_cofs
@@ -188,7 +189,7 @@ def _baseline(run, baseline_params, held):
     values = dict(held)
     scanned = [f"speed@{i}" if K > 1 else "speed" for i in run.free
                if run.speed_info["measurements"][i]["source"] == "synchronous scan"]
-    base = _fit(cfg, run.full_data, base_names, values, 1, run.screen_data, screen_hold=scanned, adequacy=True)
+    base = _baseline_fit(run, base_names, values, scanned)
     # a speed the data does not determine stays where the synchronous evidence put it (or nominal)
     loose = [n for n, e in base.estimates.items() if base_name(n) == "speed" and
              (e.value is None or e.stderr is None or
@@ -202,7 +203,9 @@ def _baseline(run, baseline_params, held):
     if loose:
         keep = [b for b in base_names if b != "speed"] if K == 1 or len(loose) == len(run.free) else base_names
         if keep != base_names:
-            base = _fit(cfg, run.full_data, keep, values, 1, run.screen_data, screen_hold=scanned, adequacy=True)
+            base = _baseline_fit(run, keep, values, scanned)
+    if not base.converged:  # the search and the verdict start from it (a CLI exit 1)
+        run.log.append(NotConverged("baseline", base.message, "measurement"))
     names = [n for n in base.estimates if base.estimates[n].identifiable and base.estimates[n].value is not None]
     for n in base.estimates:
         if base_name(n) == "speed" and n in names:
@@ -212,6 +215,22 @@ def _baseline(run, baseline_params, held):
     values.update({n: base.estimates[n].value for n in names})
     run.log += [BaselineImplausible(r) for r in plausible(cfg, values, run.torque_rms, run.mean_torque)]
     return base, State(cfg, run.full_data, names, values)
+
+
+def _baseline_fit(run, names, values, scanned):
+    """The baseline's fit of `names` (the phase scan's start); one that no step left from a start
+    the start test finds NOT a minimum (friction reversals make the cost a staircase: the start can
+    sit on a step whose slope points standard errors away) is fitted once more from where its
+    Gauss-Newton step points, and the better of the two by RMS kept (its own converged flag stands)."""
+    base = _fit(run.cfg, run.full_data, names, values, 1, run.screen_data, screen_hold=scanned, adequacy=True)
+    if base.converged or not base.points_to:
+        return base
+    run.say("fitting the baseline again from where its slope points")
+    init = {**values, **{n: e.value for n, e in base.estimates.items() if e.value is not None}, **base.points_to}
+    again = _fit(run.cfg, run.full_data, names, init, 1, run.screen_data, multistart=False, screen_hold=scanned,
+                 adequacy=True)
+    run.log.append(BaselineRestarted(base.rms, again.rms, again.rms < base.rms))
+    return again if again.rms < base.rms else base
 
 
 def _search_step(run, state, current, detection, steps, screens) -> SearchStep:
@@ -266,6 +285,8 @@ def _add_effect(run, accepted, state, current, steps, screens):
 def _conclude(run, state, current, detection, steps, rival_pair):
     """Step 5: the last collinearity screen, the verdict and its notes (logged)."""
     opts, named = run.opts, {s.effect.name for s in steps}
+    if steps and not current.converged:  # the final model's whole-record fit, whose figures are reported
+        run.log.append(NotConverged("final", current.message, "measurement"))
     # a last screen for collinearity, whatever the residual: a white residual can hide an effect
     # that a fitted parameter absorbed (an offset inside mu at one speed)
     scr = state.on(run.screen_data)
@@ -286,15 +307,17 @@ def _conclude(run, state, current, detection, steps, rival_pair):
 
 
 def _final(current, state, detection, consistent) -> dict:
-    """The final model's JSON: its parameters (mu as the mean over the vanes), the detectors' p."""
+    """The final model's JSON: its parameters (mu as the mean over the vanes), whether its fit
+    converged, the detectors' p."""
     per_vane, mu_mean = vane_cofs(current, state.cfg)
     params = params_json(current, state.names, state.cfg)
     if "mu" in params and params["mu"]["value"] is not None:
         params["mu"] = mu_mean
     p = detection.p
-    return {"rms": current.rms, "params": params, "residual_white": consistent, "runs_p_value": p["runs_test"],
-            "ljung_box_p_value": p["ljung_box"], "synchronous_f_p_value": p["synchronous_f"],
-            "noise_level_p_value": p["noise_level"], "vane_mu": per_vane, "mu_definition": MU_DEFINITION}
+    return {"rms": current.rms, "params": params, "converged": current.converged, "residual_white": consistent,
+            "runs_p_value": p["runs_test"], "ljung_box_p_value": p["ljung_box"],
+            "synchronous_f_p_value": p["synchronous_f"], "noise_level_p_value": p["noise_level"],
+            "vane_mu": per_vane, "mu_definition": MU_DEFINITION}
 
 
 def _final_polar(steps, current, cfg) -> tuple:
@@ -318,7 +341,8 @@ def _result(run, base, state, current, detection, steps, ranking, screens, rival
     verdict = _conclude(run, state, current, detection, steps, rival_pair)
     polar, harmonics = _final_polar(steps, current, run.cfg)
     return DiagnosisResult(
-        baseline={"rms": base.rms, "params": params_json(base, list(base.estimates), run.cfg)},
+        baseline={"rms": base.rms, "params": params_json(base, list(base.estimates), run.cfg),
+                  "converged": base.converged},
         steps=tuple(steps), final=_final(current, state, detection, verdict.consistent),
         unexplained=not verdict.consistent, confounded=run.confounded, hidden_in_baseline=run.hidden,
         unexplained_where=[] if verdict.consistent else where_unexplained(current, run.datasets, detection, run.opts),

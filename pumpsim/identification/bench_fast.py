@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from ..pneumatics.pumpdown import orifice_factor
+from ..tolerances import STEP_SE
 from .bench_model import START_NAME
 
 MAP_POINTS = 8  # booster pressures mapped, geometric between the log's extremes
@@ -183,7 +184,8 @@ class FastProblem:
 
 FAST_ITERATIONS, FAST_TOL = 10, 1e-4  # the fast fit is a start: a few standard errors off is fine
 FULL_STEPS = 5  # full-model steps with its Jacobian, at most (the common case takes 2)
-STEP_SE = 0.2  # converged: every parameter's step below this many of its standard errors
+# converged: every parameter's step below STEP_SE of its standard errors (tolerances.py, shared
+# with optimiser.gauss_newton's iteration limit)
 # a full-model step updates the Jacobian (Broyden) when its largest parameter change is at least this
 # share of the difference step: the secant of two tight runs is then as accurate as a loose column
 # (its runs' errors over a longer step); over a step of about a standard error it is their noise

@@ -192,7 +192,9 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         diagnostics=residual_report(rk, prob.dt, w, fitted=k), method="", wall_time=0.0,
         unidentifiable=fit.unident, time=prob.time_axis(), measured=prob.y, fitted=fitted_prob.y - r,
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
-        keep=keep, adequacy=adequacy, intervals=intervals, residual_unit=prob.RESIDUAL_UNIT)
+        keep=keep, adequacy=adequacy, intervals=intervals, residual_unit=prob.RESIDUAL_UNIT,
+        points_to=None if fit.outcome is None or fit.outcome.points_to is None else
+        dict(zip(fitted_prob.names, map(float, fit.outcome.points_to))))
 
 
 def _channels(prob, keep) -> list:

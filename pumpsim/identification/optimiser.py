@@ -12,7 +12,7 @@ import numpy as np
 from .. import interrupt
 from ..distributions import f_sf
 from ..errors import ConfigError
-from ..tolerances import SINGULAR_COND
+from ..tolerances import SINGULAR_COND, STEP_SE
 
 METHODS = ("gauss-newton", "levenberg-marquardt", "ipopt")
 # IPOPT stops with a step below machine precision at a least-squares minimum whose gradient is at
@@ -32,6 +32,9 @@ class FitOutcome:
     converged: bool
     message: str
     keep: np.ndarray | None = None  # the samples the reversal-aware cost kept at x (None: all)
+    # a fit no step left from its start, which is NOT a minimum (start_test): where the Gauss-Newton
+    # step from it points (clipped to the bounds), the start to fit again from; None otherwise
+    points_to: np.ndarray | None = None
 
     def __iter__(self):  # unpacks as (x, residual, jacobian, history, converged, message)
         return iter((self.x, self.residual, self.jacobian, self.history, self.converged, self.message))
@@ -89,6 +92,12 @@ def _wrms(r, w) -> float:
 
 
 NO_DECREASE = "no further decrease of the residual"
+# A fit its iteration limit stops is converged when the Gauss-Newton step left is below STEP_SE
+# standard errors in every parameter (_remaining_step); the message says how long it is
+MAX_ITER = "maximum iterations reached"
+STEP_BELOW_SE = MAX_ITER + "; the remaining Gauss-Newton step is below {lim:g} standard errors (at most {se:.2g}, in {name})"
+STEP_ABOVE_SE = MAX_ITER + "; the remaining Gauss-Newton step is {se:.3g} standard errors in {name}"
+ALL_ON_BOUNDS = MAX_ITER + "; every parameter is on a bound the remaining Gauss-Newton step points past"
 # A start no step leaves counts as a minimum when the data cannot tell it from the one the
 # Gauss-Newton step points to: the F test of "the parameters are the start's" (the linear model's
 # reduction of the residual against the residual left) does not reject at this level, i.e. the start
@@ -135,14 +144,16 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     mask is fixed during a step (trial points compared on it) and recomputed between steps.
     final_jacobian=False: the point the last of max_iter steps reaches gets its model only (the
     trial's, remembered: no model run) and the outcome's `jacobian` is None -- for a scout that
-    only compares where a few steps lead (a Jacobian with interval columns costs ~10 model runs)."""
+    only compares where a few steps lead (a Jacobian with interval columns costs ~10 model runs).
+    A fit that reaches max_iter with its Jacobian is converged when the Gauss-Newton step left is
+    below STEP_SE standard errors in every parameter (_remaining_step): the flag and message only."""
     x = np.array(x0, dtype=float)
     m, J = start if start is not None else prob.model_and_jacobian(x)
     r, w = prob.y - m, _weights(prob, x)
     wt = (lambda v: v) if w is None else (lambda v: (w * v.T).T)  # noqa: E731
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)}]
     lam = 1e-3
-    converged, message = False, "maximum iterations reached"
+    converged, message, points_to = False, MAX_ITER, None
     for it in range(max_iter):
         rw = wt(r)
         scale, U, s, Vt = scaled_svd(wt(J))
@@ -158,7 +169,8 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
             converged, message = True, NO_DECREASE
             if not it:  # ... unless it never moved: a minimum only if the slope there is noise
-                converged, message = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w, scale, tol)
+                converged, message, points_to = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w,
+                                                               scale, tol)
             break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)
@@ -175,7 +187,40 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if history[-2]["rms"] - history[-1]["rms"] <= 1e-6 * history[-1]["rms"]:
             converged, message = True, "residual no longer decreases (relative change < 1e-6)"
             break
-    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0)
+    else:  # the iteration limit: still creeping, or there (a scout's end has no Jacobian to tell)
+        if J is not None:
+            converged, message = _remaining_step(prob, x, wt(r), wt(J), r.size if w is None else float(w.sum()))
+    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0, points_to)
+
+
+def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
+    """(converged, message) of a fit its iteration limit stopped at x: converged when the
+    Gauss-Newton step from x (to the linear model's minimum, rw and Jw weighted as in the fit) is
+    below STEP_SE standard errors in every parameter -- a fit still creeping by a few 1e-6 of its
+    RMS per step whose estimates would move by less than that is at its minimum as far as the
+    data can tell. Standard errors: sigma^2 (J'J)^-1, sigma^2 = rss / (n - k). A parameter on a
+    bound the step points past is held there (start_test's rule); a singular Jacobian tells nothing."""
+    scale, U, s, Vt = scaled_svd(Jw)
+    if s[-1] < s[0] / SINGULAR_COND:
+        return False, MAX_ITER
+    full = (Vt.T @ ((U.T @ rw) / s)) / scale
+    free = ~(((x <= prob.lower) & (full < 0)) | ((x >= prob.upper) & (full > 0)))
+    if not free.any():
+        return True, ALL_ON_BOUNDS
+    if not free.all():  # the step with the held ones out
+        scale, U, s, Vt = scaled_svd(Jw[:, free])
+        full = (Vt.T @ ((U.T @ rw) / s)) / scale
+    else:
+        full = full[free]
+    sigma2 = _sumsq(rw) / max(n - x.size, 1)
+    se = np.sqrt(sigma2 * np.sum((Vt.T / s) ** 2, axis=1)) / scale
+    ratio = np.zeros(x.size)
+    # noise-free data (sigma 0): only a zero step is below any share of its standard error
+    ratio[free] = np.divide(np.abs(full), se, out=np.where(full != 0, np.inf, 0.0), where=se > 0)
+    j = int(np.argmax(ratio))
+    if ratio[j] <= STEP_SE:
+        return True, STEP_BELOW_SE.format(lim=STEP_SE, se=ratio[j], name=prob.names[j])
+    return False, STEP_ABOVE_SE.format(se=ratio[j], name=prob.names[j])
 
 
 def _halved_step(prob, x, rw, wt, step):
@@ -204,15 +249,16 @@ def _damped_step(prob, x, rw, wt, svd, lam):
 
 
 def _stalled_start(prob, x, full, rw, Jw, w, scale, tol):
-    """(converged, message) of a fit no step leaves from its start: a minimum when the whole
-    Gauss-Newton step is below the step tolerance or the start passes start_test, else not
-    converged, with where the slope points."""
+    """(converged, message, points_to) of a fit no step leaves from its start: a minimum when the
+    whole Gauss-Newton step is below the step tolerance or the start passes start_test (points_to
+    None), else not converged, with where the slope points (in the message, and as points_to)."""
     se, p = start_test(x, full, rw, Jw, prob.lower, prob.upper, rw.size if w is None else float(w.sum()))
     if p >= START_TEST_LEVEL or np.all(np.abs(full) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale)):
-        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p)
+        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p), None
     to = np.clip(x + full, prob.lower, prob.upper)
     length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
-    return False, START_NOT_MINIMUM.format(se=length, p=p, to=", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to)))
+    where = ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to))
+    return False, START_NOT_MINIMUM.format(se=length, p=p, to=where), to
 
 
 def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:

@@ -66,6 +66,9 @@ class IdentificationResult:
     intervals: Intervals | None = None  # white or residual-aware intervals, the residual's structure
     notes: list = field(default_factory=list)  # what the estimates rest on beyond the data (sentences)
     residual_unit: str = "N m"  # the measured channel's (a transient fit compares speeds: rad/s)
+    # a fit that stalled at a start which is NOT a minimum (optimiser.start_test): {name: value} where
+    # the Gauss-Newton step from that start points -- a start to fit again from; None otherwise
+    points_to: dict | None = None
 
     @property
     def residual(self):

@@ -50,7 +50,12 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
                 f"(runs p = {runs_p:.3g}, Ljung–Box p = {lb_p:.3g})"
                 + ("; what remains is below the relevance bar (see the verdict)."
                    if not white and final["residual_white"] else "."))
-    parts.append(f"<p class={'ok' if final['residual_white'] and not out.unexplained else 'warn'}>{verdict}</p>")
+    stalled = out.unconverged()  # the figures of a fit that did not converge are not its minimum
+    clear = final["residual_white"] and not out.unexplained and not stalled
+    parts.append(f"<p class={'ok' if clear else 'warn'}>{verdict}</p>")
+    parts += [f"<p class=warn><b>{html.escape(s[0].upper() + s[1:])}</b>: its figures are not the fit's minimum and "
+              "the verdict may be wrong -- check the config's values against the pump (the vane COF first) and "
+              "diagnose again; the notes say how the fit stopped.</p>" for s in stalled]
     if out.unexplained:
         parts.append("<p class=warn><b>Unexplained residual</b>: no candidate effect explains it. Where: "
                      + ", ".join(nb(_where_text(w)) for w in out.unexplained_where) + ".</p>")

@@ -68,6 +68,7 @@ def test_cli_diagnose_json_contract(tmp_path, files):
     out = json.loads(js.read_text())
     assert set(out) >= {"baseline", "steps", "effects", "final", "unexplained", "confounded"}
     assert set(out["final"]) >= {"rms", "params", "residual_white"} and set(out["baseline"]) >= {"rms", "params"}
+    assert out["baseline"]["converged"] is True and out["final"]["converged"] is True  # exit 0 above
     final = out["final"]  # the tests' own answer beside the verdict's
     assert final["residual_tests_white"] == (min(final["runs_p_value"], final["ljung_box_p_value"]) >= 0.05)
     assert "data:image/png;base64," in rep.read_text()

@@ -72,3 +72,7 @@ def test_the_notes_say_what_a_fit_that_did_not_converge_leaves_open():
     assert base.startswith("the baseline fit is NOT converged (why)") and "the verdict may be wrong" in base
     refit = NotConverged("booster_leak", "why").text()
     assert refit.startswith("the refit of booster_leak is NOT converged (why)") and "understated" in refit
+    # the torque workflow's: its baseline advice names its data, its final model's whole-record fit
+    assert NotConverged("baseline", "why", "measurement").text().endswith("fit the measurement with pumpsim identify")
+    final = NotConverged("final", "why").text()
+    assert final.startswith("the final model's fit is NOT converged (why)") and "not the fit's minimum" in final

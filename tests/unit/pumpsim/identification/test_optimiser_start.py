@@ -84,3 +84,15 @@ def test_levenberg_marquardt_stalled_at_the_start_is_judged_the_same_way():
     assert not far.converged and len(far.history) == 1 and "NOT a minimum" in far.message
     near = gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0]), lm=True)
     assert near.converged and abs(near.x[0] - 0.9) < 0.01
+
+
+def test_a_start_that_is_not_a_minimum_says_where_its_slope_points():
+    """FitOutcome.points_to: the start the Gauss-Newton step from a stalled start points to (the
+    data's least-squares slope here), for a caller to fit again from; None for a start that is a
+    minimum and for a fit that left its start."""
+    prob = Kinked(0.9, noise=1e-3)
+    out = gauss_newton(prob, np.array([1.0]))
+    slope = float(prob.t @ prob.y / (prob.t @ prob.t))
+    assert not out.converged and out.points_to == pytest.approx([slope], rel=1e-12)
+    assert gauss_newton(Kinked(1.0, noise=1e-2, seed=1), np.array([1.0])).points_to is None
+    assert gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0])).points_to is None
