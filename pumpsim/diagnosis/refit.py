@@ -201,20 +201,32 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
         interval=interval if cand.symmetric else False, **kw)
     settled = True
     if len(starts) == 1:
-        res = fit(starts[0])
+        res = _past_stall(fit, starts[0], fit(starts[0]))
     else:  # a few steps from the starts (on the probe window), then the best one to convergence
         scout = _scout_window(state.data, opts)
 
         def finish(r, settle=True):
             if scout is not state.data or not r.converged:
                 at = {n: r.estimates[n].value for n in names if r.estimates[n].value is not None}
-                return fit(at) if settle else fit(at, max_iter=1, polish=False, final_jacobian=False)
+                return _past_stall(fit, at, fit(at)) if settle else fit(at, max_iter=1, polish=False,
+                                                                         final_jacobian=False)
             return r
         res, settled = _scouted(starts, lambda init, **kw: fit(init, scout, **kw), finish, opts,
                        None if needed is None else lambda r: needed(state_from(cfg, state.data, names, values, r,
                                                                                ripple), r),
                        None if behind is None or scout is state.data else behind)
     return state_from(cfg, state.data, names, values, res, ripple), res, settled
+
+
+def _past_stall(fit, init, res):
+    """A refit no step left from a start that is NOT a minimum (optimiser.start_test: its slope
+    points standard errors away -- a step of the friction reversals' staircase) fitted once more
+    from where its Gauss-Newton step points, the better kept: a contender stuck on a step would
+    understate what its effect explains."""
+    if res.converged or not res.points_to:
+        return res
+    again = fit({**init, **res.points_to})
+    return again if again.rms < res.rms else res
 
 
 def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed=None, behind=None):

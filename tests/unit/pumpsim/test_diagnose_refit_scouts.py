@@ -105,3 +105,30 @@ def test_incomplete_contenders_are_completed_and_sorted_again_only_past_the_judg
         ("lead", 1.0, None), ("oval2", 3.0, None), ("smooth", 5.0, None), ("offset", 6.0, None)]
     refit.completed_contenders(fits, 2)  # all complete: nothing more
     assert sorted(done) == ["offset", "oval2"]
+
+
+@dataclass
+class Stalled:
+    rms: float
+    converged: bool
+    points_to: dict | None
+    init: dict
+
+
+def test_a_refit_stalled_on_a_step_is_fitted_again_from_where_its_slope_points():
+    """A refit no step left from a start that is not a minimum goes on from the point its
+    Gauss-Newton step names (the other values kept), the better by RMS kept; a converged fit, or
+    one stalled at a minimum (no point named), is left as it is."""
+    calls = []
+
+    def fit(init, rms=0.8):
+        calls.append(init)
+        return Stalled(rms, True, None, init)
+    stalled = Stalled(1.0, False, {"b": 2.5}, {"a": 1.0, "b": 2.0})
+    again = refit._past_stall(fit, stalled.init, stalled)
+    assert calls == [{"a": 1.0, "b": 2.5}] and again.rms == 0.8
+    assert refit._past_stall(lambda init: fit(init, rms=1.2), stalled.init, stalled) is stalled  # worse: kept
+    calls.clear()
+    for res in (Stalled(1.0, True, None, {}), Stalled(1.0, False, None, {})):
+        assert refit._past_stall(fit, {}, res) is res
+    assert not calls
