@@ -8,6 +8,7 @@ from typing import Callable
 import numpy as np
 
 from ..identification import SMOOTH_COLUMNS, base_name, half_band
+from ..identification.optimiser import MAX_ITER
 
 from .effects import Candidate
 from .log import SpeedRefined
@@ -206,7 +207,7 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
         scout = _scout_window(state.data, opts)
 
         def finish(r, settle=True):
-            if scout is not state.data or not r.converged:
+            if scout is not state.data or not _stopped_at_minimum(r):
                 at = {n: r.estimates[n].value for n in names if r.estimates[n].value is not None}
                 return _past_stall(fit, at, fit(at)) if settle else fit(at, max_iter=1, polish=False,
                                                                          final_jacobian=False)
@@ -216,6 +217,14 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
                                                                                ripple), r),
                        None if behind is None or scout is state.data else behind)
     return state_from(cfg, state.data, names, values, res, ripple), res, settled
+
+
+def _stopped_at_minimum(res) -> bool:
+    """A scout a stop rule ended at its minimum -- not its iteration limit, even where the step
+    left is below the optimiser's standard-error bar (converged for a fit's flag): a scout's few
+    steps often end there, and finishing it can still reach another step of the staircase (on
+    the reduced grid, keeping such a scout named a concentric4 oval an eccentricity)."""
+    return res.converged and not res.message.startswith(MAX_ITER)
 
 
 def _past_stall(fit, init, res):

@@ -132,3 +132,13 @@ def test_a_refit_stalled_on_a_step_is_fitted_again_from_where_its_slope_points()
     for res in (Stalled(1.0, True, None, {}), Stalled(1.0, False, None, {})):
         assert refit._past_stall(fit, {}, res) is res
     assert not calls
+
+
+def test_a_scout_ended_by_its_iteration_limit_is_finished_even_if_its_flag_says_converged():
+    from types import SimpleNamespace as NS
+
+    from pumpsim.identification.optimiser import MAX_ITER, NO_DECREASE, STEP_BELOW_SE
+    below = STEP_BELOW_SE.format(lim=0.2, se=0.01, name="mu")
+    assert refit._stopped_at_minimum(NS(converged=True, message=NO_DECREASE))
+    assert not refit._stopped_at_minimum(NS(converged=True, message=below))  # converged by the s.e. bar
+    assert not refit._stopped_at_minimum(NS(converged=False, message=MAX_ITER))
