@@ -163,6 +163,7 @@ class BenchDetection:
         # in noise sigmas (each channel is scaled by its own): the systematic part of each channel
         # (its mean included) over that channel's high-frequency noise level, the largest
         self.sigma = 1.0
+        self.floor_sigma = self.sigma  # the relevance bar's noise (detectors.Detection's may be lower)
         self.systematic = max(math.sqrt(max(float(np.mean(r * r)) / self.per[c]["noise_level"]["sigma"] ** 2 - 1.0,
                                             0.0))
                               for c, r in self.pieces.items())

@@ -113,7 +113,7 @@ def verdict_notes(detection, kurtosis: dict, consistent: bool, opts: DiagnosisOp
     """What the verdict adds to the log: a remainder below the relevance bar, heavy tails."""
     notes = []
     if consistent and detection.p["family"] < opts.unexplained_alpha:
-        notes.append(SmallRemainder(detection.systematic, opts.relevant, detection.sigma, unit))
+        notes.append(SmallRemainder(detection.systematic, opts.relevant, detection.floor_sigma, unit))
     # claimed like a systematic residual: significant AND relevant (the tails add at least
     # `relevant` x the noise sigma in RMS; a lone sample a fit's moved reversal leaves is not)
     if kurtosis["p_value"] < opts.unexplained_alpha and kurtosis["excess_rms"] >= opts.relevant * kurtosis["mad_sigma"]:
