@@ -35,22 +35,29 @@ class Contender:
 
 def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
     """The contenders among the significant candidates `sig` -- the best by the one-step BIC,
-    the best by score p-value (a smooth effect whose one-step fit a probe grid happened to beat)
-    and the lowest significant orders -- refitted on the screen, sorted by their BIC there. A
-    contender that trails those before it beyond what completing its fit can gain is left
-    incomplete (Contender.complete; completed_contenders)."""
+    the best by score p-value (a smooth effect whose one-step fit a probe grid happened to beat),
+    the lowest significant orders and every other significant out-of-round order -- refitted on
+    the screen, sorted by their BIC there. A contender that trails those before it beyond what
+    completing its fit can gain is left incomplete (Contender.complete; completed_contenders).
+    The other orders are refitted because a lobing's one-step fit ranks it poorly (an order-6
+    lobing on the eccentric 5-vane rig: 15.3 sigma left by its one-step fit, 13.9 by order 4's,
+    which was named with a speed ripple for the rest); on a record longer than the probe window
+    each is first scouted there and left incomplete if that trails."""
     best = sig[:run.opts.contenders]
     contenders = best + [r for r in sorted(sig, key=lambda r_: r_.score.p_value)[:2]
                          if not any(r is b_ for b_ in best)]
     lowest = lowest_orders(sig)
     contenders += [r for r in lowest if not any(r is c_ for c_ in contenders)]
+    orders = [r for r in sig if r.cand.kind.harmonic_pair and not any(r is c_ for c_ in contenders)]
+    contenders += orders
 
     def polar(r):  # the lowest order of an out-of-round, an eccentricity
         return any(r is r_ for r_ in lowest) or (r.cand.symmetric and not r.cand.kind.harmonic_pair)
     screen_bic = _screen_bic(scr, state, rho)
 
-    def contender(c, s, is_polar, needed, behind=None):
-        st, res, settled = refit(scr, c, s, polar=is_polar, opts=run.opts, needed=needed, behind=behind)
+    def contender(c, s, is_polar, needed, behind=None, scout_first=False):
+        st, res, settled = refit(scr, c, s, polar=is_polar, opts=run.opts, needed=needed, behind=behind,
+                                 scout_first=scout_first)
         full = lambda: contender(c, s, is_polar, needed)  # noqa: E731  (every start, to the bit)
         if not settled:
             return Contender(c, s, st, res, screen_bic(st, res), full)
@@ -69,7 +76,8 @@ def contender_fits(run, scr, state, sig, rho) -> list[Contender]:
         lead = min(out, key=lambda f: f.bic_screen, default=None)
         out.append(contender(  # nothing to trail yet: every start, rephased
             c, s, polar(r), None if math.isinf(bar) else lambda st_, res_, bar=bar: screen_bic(st_, res_) < bar,
-            None if lead is None else lambda r_, lead=lead: _trails(r_, lead.screen_res, run.opts)))
+            None if lead is None else lambda r_, lead=lead: _trails(r_, lead.screen_res, run.opts),
+            any(r is o for o in orders)))
     out.sort(key=lambda f: f.bic_screen)
     return out
 
@@ -161,19 +169,19 @@ def full_fit(run, f):
 
 
 def refit(state: State, cand: Candidate, score: Score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None,
-          behind=None):
+          behind=None, scout_first=False):
     """_refit_from the score step and from each tied subset's (score_test), the lowest RMS kept:
     the subsets' one-step fits rank them only to first order (independent 4-vane ellipse, one vane
     25 % smoother with the baseline's phase a vane pitch off, so that vane is not vane 3 but vane 2:
     the best one-step subset, vane 3's factor, refitted to 1.266 at 1.05 sigma -- vane 2's to 0.749
     at the noise -- and a 0.0045 % speed ripple was named for the difference). `needed`: see
     _refit_from."""
-    fits = [_refit_from(state, cand, s, polar, opts, needed, behind) for s in (score, *score.tied)]
+    fits = [_refit_from(state, cand, s, polar, opts, needed, behind, scout_first) for s in (score, *score.tied)]
     return min(fits, key=lambda f: f[1].rms)  # (state, fit, settled)
 
 
 def _refit_from(state: State, cand: Candidate, score, polar=False, opts: DiagnosisOptions = OPTIONS, needed=None,
-                behind=None):
+                behind=None, scout_first=False):
     """Fit the current names plus the candidate's parameters, starting from the score step (on the
     state's data). A geometric defect (eccentricity, out-of-round) is fitted with the interval
     Jacobian columns (identification/problem.py: they carry the friction reversals' motion), and
@@ -185,7 +193,8 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
     estimate can be the mirror image of the truth). `needed(state, res)`: whether a fit could still
     matter to the selection (_scouted); without it every start is scouted in full. `behind(scout)`:
     whether the best scout on the probe window trails so far that it is not fitted to convergence
-    (its result then takes one step on the state's data): (state, fit, whether fitted to convergence)."""
+    (its result then takes one step on the state's data); with `scout_first` a one-start refit is
+    scouted so too before its fit: (state, fit, whether fitted to convergence)."""
     cfg = cand.config(state.cfg)
     values = dict(state.values)
     values.update(score.start or {})  # the joint one-step estimate
@@ -201,17 +210,21 @@ def _refit_from(state: State, cand: Candidate, score, polar=False, opts: Diagnos
         cfg, data, names, initial=init, multistart=False, ripple_order=ripple, extra=held,
         interval=interval if cand.symmetric else False, **kw)
     settled = True
-    if len(starts) == 1:
-        res = _past_stall(fit, starts[0], fit(starts[0]))
-    else:  # a few steps from the starts (on the probe window), then the best one to convergence
-        scout = _scout_window(state.data, opts)
+    scout = _scout_window(state.data, opts)
 
-        def finish(r, settle=True):
-            if scout is not state.data or not _stopped_at_minimum(r):
-                at = {n: r.estimates[n].value for n in names if r.estimates[n].value is not None}
-                return _past_stall(fit, at, fit(at)) if settle else fit(at, max_iter=1, polish=False,
-                                                                         final_jacobian=False)
-            return r
+    def finish(r, settle=True):
+        if scout is not state.data or not _stopped_at_minimum(r):
+            at = {n: r.estimates[n].value for n in names if r.estimates[n].value is not None}
+            return _past_stall(fit, at, fit(at)) if settle else fit(at, max_iter=1, polish=False, final_jacobian=False)
+        return r
+    if len(starts) == 1:
+        first = (fit(starts[0], scout, max_iter=opts.refit_scout_steps)
+                 if scout_first and behind is not None and scout is not state.data else None)
+        if first is not None and behind(first):
+            res, settled = finish(first, settle=False), False
+        else:
+            res = _past_stall(fit, starts[0], fit(starts[0]))
+    else:  # a few steps from the starts (on the probe window), then the best one to convergence
         res, settled = _scouted(starts, lambda init, **kw: fit(init, scout, **kw), finish, opts,
                        None if needed is None else lambda r: needed(state_from(cfg, state.data, names, values, r,
                                                                                ripple), r),
