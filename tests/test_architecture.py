@@ -244,3 +244,12 @@ def test_the_reports_import_no_algorithm_package():
     reaching = sorted((m, t) for m, ts in graph.items() if _in(m, ("pumpsim.report",)) for t in ts
                       if _in(t, algorithms))
     assert reaching == []
+
+
+def test_no_two_test_files_share_a_name():
+    """pytest imports a test module by its basename (rootdir-relative, no packages): two test
+    files of one name in different folders stop the whole run at collection."""
+    seen = defaultdict(list)
+    for p in (ROOT / "tests").rglob("test_*.py"):
+        seen[p.name].append(str(p.relative_to(ROOT)))
+    assert not {n: ps for n, ps in seen.items() if len(ps) > 1}
