@@ -242,6 +242,16 @@ def combined_p(per_measurement: list) -> dict:
     return out
 
 
+def systematic_rms(x, det: dict) -> float:
+    """RMS of the part of x that is not white noise: variance above the noise variance (the smaller
+    of the within-angle-bin and the high-frequency estimates)."""
+    x = np.asarray(x, dtype=float)
+    noise = det["noise_level"]["sigma"] ** 2
+    if det["synchronous_f"]["applicable"]:
+        noise = min(noise, det["synchronous_f"]["within_var"])
+    return math.sqrt(max(float(np.var(x)) - noise, 0.0))
+
+
 def _synchronous_power(t, y, w, bins):
     """Between-bin sum of squares of y binned by the angle w t mod 2 pi (y has zero mean)."""
     idx = np.minimum((np.mod(w * t, 2 * math.pi) * (bins / (2 * math.pi))).astype(int), bins - 1)
