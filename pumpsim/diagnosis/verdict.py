@@ -38,7 +38,8 @@ def method_text(opts: DiagnosisOptions = OPTIONS) -> str:
     return ("detectors: runs, Ljung-Box, synchronous-average F-test, high-frequency noise level "
             f"(family {opts.unexplained_alpha:g}, Bonferroni over detectors and measurements); candidates: "
             "prewhitened score tests (second order where symmetry cancels the first) and one-step "
-            f"nonlinear fits ranked by BIC; the {opts.contenders} best refitted, physical ranges enforced, "
+            f"nonlinear fits ranked by BIC; the {opts.contenders} best, the 2 best by p and every significant "
+            "out-of-round order refitted, physical ranges enforced, "
             f"acceptance by prewhitened likelihood ratio (p < {opts.lr_alpha:g}) and BIC on the whole record")
 
 

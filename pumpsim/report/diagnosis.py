@@ -75,8 +75,8 @@ def diagnosis_report(out, path, title="pumpsim diagnosis", cfg=None, data=None, 
     if out.screens:
         parts.append("<h2>Candidate ranking</h2><p class=note>Each screen tests every candidate of the library "
                      "by a score (Lagrange-multiplier) test at the current fit, no refit; the significant ones "
-                     "(p below the Bonferroni level) are ranked by p-value, the best few refitted and compared "
-                     "by BIC. ΔBIC &lt; 0 favours the candidate.</p>")
+                     "(p below the Bonferroni level) are ranked by p-value; the best few and every significant "
+                     "out-of-round order are refitted and compared by BIC. ΔBIC &lt; 0 favours the candidate.</p>")
         parts += [_ranking_table(i, sc) for i, sc in enumerate(out.screens)]
     parts += [f"<h2>{html.escape(d['text'])}</h2>" + _drift_figure(d) for d in out.drift]
     if out.notes:
