@@ -5,6 +5,7 @@ import json
 import sys
 from pathlib import Path
 
+from .. import interrupt
 from ..errors import ConfigError
 from .common import LOG, at_least, live, outputs, positive_int, staged, warn
 
@@ -40,26 +41,31 @@ def cmd_sweep(a) -> int:
         override_samples(study, a.samples)
     if a.summary:
         return _summary(a, study)
-    from ..design.execute import check_out_dir, read_manifest, run_study
+    from ..design.execute import check_out_dir, kept_note, read_manifest, run_study
     from ..design.summary import summary_text
 
     outs = outputs(a, _inputs(a, study), csv=None, report=None)
     check_out_dir(a.out, study.study_hash())
     df, stats = run_study(study, out=a.out, scheduler=a.scheduler, workers=a.workers,
                           batch_size=a.batch_size, progress=None if live() else False)
-    man = read_manifest(a.out) if a.out else None
-    print(summary_text(df, study.outputs, study.limits, man, sampler=study.sampler))
-    size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
-    print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
-          f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
-          f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
-    with staged(outs) as tmp:
-        if a.csv:
-            df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
-        if a.report:
-            from ..report.design import sweep_report  # (matplotlib: only for a report)
+    try:  # a signal after the study: its designs are all in the folder, the other outputs not written
+        man = read_manifest(a.out) if a.out else None
+        print(summary_text(df, study.outputs, study.limits, man, sampler=study.sampler))
+        size = f"of {stats.batch_size}" if not stats.guided else f"(guided: {stats.batch_size} designs first, shrinking)"
+        print(f"{stats.designs} designs in {stats.batches} batches {size} on {stats.workers} "
+              f"worker(s), {stats.wall:.2f} s evaluating ({stats.batches_skipped} batches resumed; "
+              f"workers idle {100 * stats.overhead_share:.1f} % of the time: {_idle_text(stats)})")
+        with staged(outs) as tmp:
+            if a.csv:
+                df.to_csv(tmp["--csv"], index=False, float_format="%.10g")
+            if a.report:
+                from ..report.design import sweep_report  # (matplotlib: only for a report)
 
-            sweep_report(df, study, tmp["--report"])
+                sweep_report(df, study, tmp["--report"])
+    except interrupt.Interrupted as e:
+        if a.out:
+            e.notes.append(kept_note(len(df), a.out))
+        raise
     return 0
 
 

@@ -467,18 +467,18 @@ def _run(study, X, man, out, scheduler, workers, batch_size, progress, on_batch,
         _evaluate(study, plan, todo, workers, client, stats, got)
         stats.wall = time.perf_counter() - t1
         _idle(stats, got.spans, w1, w1 + stats.wall)
+        return _table(study, plan, folder, got.tables, stats), stats  # (a signal here: the parts stay)
     except interrupt.Interrupted as e:
         if folder is not None and got.done_designs:
-            e.notes.append(_kept(got.done_designs, folder))
+            e.notes.append(kept_note(got.done_designs, folder))
         raise
     except OutputError as e:  # a full disk, say: what was written stays usable
         if folder is None or not got.done_designs:
             raise
-        raise OutputError(f"{e}; {_kept(got.done_designs, folder)}") from None
+        raise OutputError(f"{e}; {kept_note(got.done_designs, folder)}") from None
     finally:
         if got.bar is not None:
             got.bar.close()
-    return _table(study, plan, folder, got.tables, stats), stats
 
 
 def _table(study, plan, folder, tables, stats):
@@ -501,7 +501,8 @@ def _table(study, plan, folder, tables, stats):
     return ordered(df)
 
 
-def _kept(done, folder) -> str:
+def kept_note(done, folder) -> str:
+    """What an interrupted or failed run left in its results folder, for its message."""
     return f"the {done} designs done are kept in '{folder}' (the same command resumes there)"
 
 

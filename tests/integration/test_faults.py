@@ -448,3 +448,24 @@ def test_interrupted_kernel_build_leaves_no_temporary(tmp_path, monkeypatch):
     # (a variant's build lock file stays, empty: deleting it on release would race another process
     # taking it; it is no half-built variant)
     assert [f.name for f in cache.iterdir() if f.name.startswith(".") and not f.name.endswith(".build.lock")] == []
+
+
+def test_a_signal_after_the_study_names_the_designs_kept(tmp_path, monkeypatch, capsys):
+    """A signal once every design is done (while the CSV is written, say): 130, the CSV not written,
+    and the message names the designs kept in the results folder -- not "no output file written"
+    (a race the Ctrl-C test above can lose: the study may finish before its signal lands)."""
+    import pandas as pd
+
+    from pumpsim import interrupt
+    from pumpsim.cli import main
+
+    st, res, csv = sweep_study(tmp_path, samples=20), tmp_path / "res", tmp_path / "t.csv"
+
+    def stopped(*a, **kw):
+        raise interrupt.Interrupted(signal.SIGINT)
+    monkeypatch.setattr(pd.DataFrame, "to_csv", stopped)
+    code = main(["sweep", str(st), "--out", str(res), "--csv", str(csv), "--workers", "1"])
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert f"the 20 designs done are kept in '{res}'" in err, err
+    assert not csv.exists() and len(designs_in(res)) == 20
