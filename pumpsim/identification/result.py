@@ -192,7 +192,8 @@ def fit_estimates(names, x, initial, r, J, y=None, channels=None):
     values in r's units (the channels' spread, for the note). The correlation is the white one."""
     n, k = r.size, len(names)
     sigma2 = float(r @ r) / max(n - k, 1)
-    scale, _, s, Vt = scaled_svd(J)
+    scale, U, s, Vt = scaled_svd(J)
+    del U  # n x k: not held while the residual-aware covariance's n x k arrays are built
     bread = (Vt.T / s**2) @ Vt / np.outer(scale, scale)
     cov = bread * sigma2
     se = np.sqrt(np.diag(cov))

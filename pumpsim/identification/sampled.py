@@ -138,10 +138,12 @@ def pointwise_columns(fast, theta, z, k, kin, seeds):
         b = sl.stop - sl.start
         w, wd = _drive(zs, k, tau[sl], g[sl], gd[sl])
         w, wd = np.broadcast_to(w, (b,)), np.broadcast_to(wd, (b,))
-        tq[sl], D = JACOBIAN_RUNS.get(
-            ("jacobian", fast, z[:npar].tobytes(), dirs.tobytes(), dirs.shape), (theta[sl], w, wd),
-            lambda: fast.jacobian(theta[sl], w, wd, z[:npar], dirs, out=buf[:, :b],
-                                  threads=default_threads() if b >= FAST_THREADED else 1))
+        run = lambda: fast.jacobian(theta[sl], w, wd, z[:npar], dirs, out=buf[:, :b],  # noqa: E731
+                                    threads=default_threads() if b >= FAST_THREADED else 1)
+        # a long record's blocks are not remembered: each is short enough for the memory, and 32 of
+        # them held ~120 MiB on a 10^6-sample fit (a long run is rarely repeated)
+        tq[sl], D = run() if n > SAMPLE_BLOCK else JACOBIAN_RUNS.get(
+            ("jacobian", fast, z[:npar].tobytes(), dirs.tobytes(), dirs.shape), (theta[sl], w, wd), run)
         J[sl] = D[:m].T
         if moves:
             dw, dwd = drive_tangents(tau[sl], zs, k, g[sl], gd[sl], sd)

@@ -308,3 +308,25 @@ def test_a_quick_looks_smooth_columns_run_no_sub_samples(monkeypatch):
     assert np.array_equal(m_s, m_i) and np.array_equal(J_s[:, :2], J_i[:, :2])
     differ = J_s[:, 2] != J_i[:, 2]
     assert 0 < differ.mean() < 0.5  # a minority of the samples: the rest are the same bits
+
+
+def test_a_long_records_jacobian_blocks_are_not_remembered():
+    """The Jacobian's blocks (SAMPLE_BLOCK samples each) are remembered only for a record of one
+    block: a long record's would fill the memory with runs that are rarely repeated (32 blocks of a
+    10^6-sample fit held ~120 MiB). The columns are the same bits either way."""
+    from pumpsim.identification.runs import JACOBIAN_RUNS
+    from pumpsim.identification.sampled import SAMPLE_BLOCK
+
+    names = ["mu", "theta0"]
+    cfg = load_config(ROOT / "examples" / "ellipse_4vanes.toml")
+    for n, remembered in ((SAMPLE_BLOCK, True), (SAMPLE_BLOCK + 1000, False)):
+        t = np.arange(n) / 20000.0
+        prob = make_problem(cfg, Dataset(t, np.zeros(n)), names)
+        if prob._simd is None or not prob._simd.has_jacobian:
+            return  # no SIMD Jacobian entries on this machine: the CasADi map's path remembers nothing
+        JACOBIAN_RUNS.entries.clear()
+        m, J = prob.model_and_jacobian(prob.x0)
+        assert bool(JACOBIAN_RUNS.entries) == remembered
+        if remembered:
+            m2, J2 = prob.model_and_jacobian(prob.x0)  # from the memory: the same bits
+            assert np.array_equal(J, J2) and np.array_equal(m, m2)
