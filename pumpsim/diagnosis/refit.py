@@ -14,7 +14,8 @@ from .effects import Candidate
 from .log import SpeedRefined
 from .options import OPTIONS, DiagnosisOptions
 from .screen import Score
-from .state import Fitted, State, bic, common_keep, identify, lr_bic, measurement_of, refit_on, state_from, sum_squares, whitened_rss
+from .state import (Fitted, State, bic, common_keep, identify, lr_bic, measurement_of, past_stall, refit_on,
+                    state_from, sum_squares, whitened_rss)
 
 
 @dataclass(frozen=True, eq=False)
@@ -241,14 +242,9 @@ def _stopped_at_minimum(res) -> bool:
 
 
 def _past_stall(fit, init, res):
-    """A refit no step left from a start that is NOT a minimum (optimiser.start_test: its slope
-    points standard errors away -- a step of the friction reversals' staircase) fitted once more
-    from where its Gauss-Newton step points, the better kept: a contender stuck on a step would
-    understate what its effect explains."""
-    if res.converged or not res.points_to:
-        return res
-    again = fit({**init, **res.points_to})
-    return again if again.rms < res.rms else res
+    """A refit stalled on a step fitted again from where its slope points (state.past_stall): a
+    contender stuck on a step would understate what its effect explains."""
+    return past_stall(fit, init, res)[0]
 
 
 def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed=None, behind=None):

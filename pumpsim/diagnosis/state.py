@@ -160,3 +160,14 @@ def refit_on(st: State, data, multistart=False):
     res = identify(st.cfg, data, st.names, initial={n: st.values[n] for n in st.names},
                    multistart=multistart, ripple_order=st.ripple_order, extra=held)
     return state_from(st.cfg, data, st.names, st.values, res, st.ripple_order), res
+
+
+def past_stall(fit, init, res) -> tuple:
+    """A fit no step left from a start that is NOT a minimum (optimiser.start_test: its slope
+    points standard errors away -- a step of the friction reversals' staircase) fitted once more,
+    by `fit(values)`, from `init` with where its Gauss-Newton step points: (the better of the two
+    by RMS, the second fit or None when there was none)."""
+    if res.converged or not res.points_to:
+        return res, None
+    again = fit({**init, **res.points_to})
+    return (again if again.rms < res.rms else res), again

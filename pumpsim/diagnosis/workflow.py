@@ -23,7 +23,7 @@ from .refit import contender_fits, try_speed
 from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, vane_cofs
 from .screen import detected_ripple_orders, note_confounded, rank_candidates, score_test, screen_table
 from .selection import accept, drop_superseded, find_rival
-from .state import State, ar1, identify, measurement_of, on_kept
+from .state import State, ar1, identify, measurement_of, on_kept, past_stall
 from .verdict import confounded_notes, drift_findings, method_text, verdict_notes, verdict_of
 
 
@@ -226,11 +226,11 @@ def _baseline_fit(run, names, values, scanned):
     if base.converged or not base.points_to:
         return base
     run.say("fitting the baseline again from where its slope points")
-    init = {**values, **{n: e.value for n, e in base.estimates.items() if e.value is not None}, **base.points_to}
-    again = _fit(run.cfg, run.full_data, names, init, 1, run.screen_data, multistart=False, screen_hold=scanned,
-                 adequacy=True)
-    run.log.append(BaselineRestarted(base.rms, again.rms, again.rms < base.rms))
-    return again if again.rms < base.rms else base
+    kept, again = past_stall(lambda init: _fit(run.cfg, run.full_data, names, init, 1, run.screen_data,
+                                               multistart=False, screen_hold=scanned, adequacy=True),
+                             {**values, **{n: e.value for n, e in base.estimates.items() if e.value is not None}}, base)
+    run.log.append(BaselineRestarted(base.rms, again.rms, kept is again))
+    return kept
 
 
 def _search_step(run, state, current, detection, steps, screens) -> SearchStep:

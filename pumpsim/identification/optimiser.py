@@ -114,6 +114,12 @@ START_NOT_MINIMUM = (NO_STEP_FROM_START + ", yet the start is NOT a minimum: the
                      "(--start NAME=VALUE, e.g. the values the slope points to)")
 
 
+def _free_of_bounds(x, step, lower, upper) -> np.ndarray:
+    """The parameters a step may move: not those on a bound it points past (held there, the
+    minimum on that face is what counts)."""
+    return ~(((x <= lower) & (step < 0)) | ((x >= upper) & (step > 0)))
+
+
 def start_test(x, full, rw, Jw, lower, upper, n) -> tuple[float, float]:
     """(length, p): the Gauss-Newton step from x in standard errors, and the F test's p-value of
     "x is the minimum". The linear model's reduction of the residual's sum of squares, d, against
@@ -121,7 +127,7 @@ def start_test(x, full, rw, Jw, lower, upper, n) -> tuple[float, float]:
     in the estimate's covariance sigma^2 (J'J)^-1), F = d / k / sigma^2. rw, Jw: the weighted
     residual and Jacobian; n: the samples weighed (the reversal-aware cost's kept ones). A parameter
     on a bound the step points past is held there (the minimum on that face is what counts)."""
-    free = ~(((x <= lower) & (full < 0)) | ((x >= upper) & (full > 0)))
+    free = _free_of_bounds(x, full, lower, upper)
     if not free.any():  # every parameter is held by its bound: the start is the minimum on them
         return 0.0, 1.0
     U = scaled_svd(Jw[:, free])[1]
@@ -204,7 +210,7 @@ def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
     if s[-1] < s[0] / SINGULAR_COND:
         return False, MAX_ITER
     full = (Vt.T @ ((U.T @ rw) / s)) / scale
-    free = ~(((x <= prob.lower) & (full < 0)) | ((x >= prob.upper) & (full > 0)))
+    free = _free_of_bounds(x, full, prob.lower, prob.upper)
     if not free.any():
         return True, ALL_ON_BOUNDS
     if not free.all():  # the step with the held ones out
