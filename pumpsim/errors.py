@@ -13,6 +13,11 @@ class ConfigError(PumpsimError):
     exit_status = 2
 
 
+class StartError(ConfigError):
+    """The model is not finite at a fit's start: a start outside the pump's geometry or physics
+    (names the start values)."""
+
+
 class DataError(PumpsimError):
     """Bad measured data (names the row or the column)."""
 

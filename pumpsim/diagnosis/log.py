@@ -88,10 +88,13 @@ class BaselineRestarted(Note):
     fitted again from where its Gauss-Newton step pointed; the better of the two (by RMS) is kept."""
 
     rms_before: float
-    rms_after: float
+    rms_after: float | None  # None: the model is not finite where the step pointed (no second fit)
     kept_again: bool  # the fit from where the step pointed is the baseline
 
     def text(self) -> str:
+        if self.rms_after is None:
+            return ("baseline: no step left its start, which is not the fit's minimum, and its slope points out of "
+                    "the pump's geometry (the model is not finite there): the first fit kept")
         change = f"RMS {self.rms_before:.6g} -> {self.rms_after:.6g}"
         return ("baseline: no step left its start, which is not the fit's minimum (its slope points many standard "
                 f"errors away); fitted again from where the slope points ({change}): "

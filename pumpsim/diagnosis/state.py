@@ -9,6 +9,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..errors import StartError
 from ..identification import identify as _identification_fit
 from ..identification import make_problem as _identification_problem
 
@@ -166,8 +167,11 @@ def past_stall(fit, init, res) -> tuple:
     """A fit no step left from a start that is NOT a minimum (optimiser.start_test: its slope
     points standard errors away -- a step of the friction reversals' staircase) fitted once more,
     by `fit(values)`, from `init` with where its Gauss-Newton step points: (the better of the two
-    by RMS, the second fit or None when there was none)."""
+    by RMS, the second fit or None when there was none or its start is outside the model: StartError)."""
     if res.converged or not res.points_to:
         return res, None
-    again = fit({**init, **res.points_to})
+    try:
+        again = fit({**init, **res.points_to})
+    except StartError:  # the slope points out of the pump's geometry: no start to fit from
+        return res, None
     return (again if again.rms < res.rms else res), again

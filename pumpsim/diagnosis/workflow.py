@@ -229,7 +229,7 @@ def _baseline_fit(run, names, values, scanned):
     kept, again = past_stall(lambda init: _fit(run.cfg, run.full_data, names, init, 1, run.screen_data,
                                                multistart=False, screen_hold=scanned, adequacy=True),
                              {**values, **{n: e.value for n, e in base.estimates.items() if e.value is not None}}, base)
-    run.log.append(BaselineRestarted(base.rms, again.rms, kept is again))
+    run.log.append(BaselineRestarted(base.rms, None if again is None else again.rms, kept is again))
     return kept
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from ..config import PumpConfig
 from ..data import Dataset
 from ..signals import residual_report
-from ..errors import ConfigError
+from ..errors import ConfigError, StartError
 from .adequacy import VERDICTS, assess
 from .identifiability import to_fix
 from .joint import JointProblem
@@ -129,6 +129,8 @@ def fit_identifiable(prob, start, optimiser, reduced, at_start=None) -> _Fit:
     number; it is fixed and the others are fitted again. `at_start`: the model and Jacobian at
     `start` when the caller has them."""
     at_start = prob.model_and_jacobian(start) if at_start is None else at_start
+    if not (np.all(np.isfinite(at_start[0])) and np.all(np.isfinite(at_start[1]))):
+        raise StartError(not_finite_at(prob.names, start))
     m_start = at_start[0]
     fixed = dict(zip(prob.names, start))
     active, unident, no_effect = list(prob.names), [], []
@@ -150,6 +152,14 @@ def fit_identifiable(prob, start, optimiser, reduced, at_start=None) -> _Fit:
         if out.jacobian is None or not any(to_fix(active, out.jacobian, out.x, prob_fit.y - out.residual)):
             return _Fit(prob_fit, out, start, m_start, unident, no_effect, evaluations)
         start_fit = out.x  # flat at the fit: the loop's head fixes those parameters and refits
+
+
+def not_finite_at(names, start) -> str:
+    """The message of a start where the model (or its slope) is not finite."""
+    values = ", ".join(f"{n} = {v:.6g}" for n, v in zip(names, start))
+    return (f"the model is not finite at the fit's start ({values}): a start outside the pump's geometry "
+            "or physics (a housing centre or lobe beyond the clearance, a negative size); start nearer the "
+            "configured values (--start NAME=VALUE) or check the config")
 
 
 def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> IdentificationResult:

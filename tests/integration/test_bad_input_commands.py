@@ -93,6 +93,14 @@ def test_a_start_for_a_parameter_not_fitted_is_refused(capsys):
     assert code == 2 and "--start foo: not a fitted parameter" in err and "mu, theta0" in err, err
 
 
+def test_a_start_outside_the_pumps_geometry_is_refused_naming_it(capsys):
+    """A housing centre beyond the clearance: the model is not finite there (it was an internal
+    error from the first singular-value decomposition)."""
+    code, _, err = run(capsys, "identify", EXAMPLES / "ellipse_4vanes.toml", EXAMPLES / "data" / "ellipse_hidden_effects.csv",
+                       "--params", "mu,theta0,housing.center.1", "--start", "housing.center.1=0.19")
+    assert code == 2 and "not finite at the fit's start" in err and "housing.center.1 = 0.19" in err, err
+
+
 @pytest.mark.parametrize("changes,message", [
     ({"booster.pressure": 101.3, "booster.target": 30.0}, "booster.pressure = 101.3 Pa"),
     ({"booster.target": 30.0}, "booster.target = 30 Pa"),

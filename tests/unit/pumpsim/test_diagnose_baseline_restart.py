@@ -66,3 +66,25 @@ def test_a_second_fit_that_is_not_better_leaves_the_first(monkeypatch):
     assert workflow._baseline_fit(run, ["mu", "theta0"], {}, []) is stalled
     assert len(calls) == 2 and run.log == [BaselineRestarted(1.0, 1.0, False)]
     assert "the first fit kept" in run.log[0].text()
+
+
+def test_a_slope_pointing_out_of_the_pumps_geometry_is_not_followed(monkeypatch):
+    """A stall whose Gauss-Newton step points where the model is not finite (a housing centre
+    beyond the clearance: the identification raises StartError there) keeps the first fit, and
+    the note says why, with no traceback."""
+    from pumpsim.errors import StartError
+
+    stalled = Res(0.00043224, False, {"housing.center.1": 0.19})
+    calls = []
+
+    def fit(cfg, data, names, values, ripple, screen, multistart=True, screen_hold=(), adequacy=False):
+        calls.append(dict(values))
+        if len(calls) > 1:
+            raise StartError("the model is not finite at the fit's start")
+        return stalled
+
+    monkeypatch.setattr(workflow, "_fit", fit)
+    run = _run()
+    assert workflow._baseline_fit(run, ["mu", "theta0"], {"speed": 470.0}, []) is stalled
+    assert len(calls) == 2 and run.log == [BaselineRestarted(0.00043224, None, False)]
+    assert "not finite" in run.log[0].text() and "first fit kept" in run.log[0].text()
