@@ -96,3 +96,43 @@ def test_a_start_that_is_not_a_minimum_says_where_its_slope_points():
     assert not out.converged and out.points_to == pytest.approx([slope], rel=1e-12)
     assert gauss_newton(Kinked(1.0, noise=1e-2, seed=1), np.array([1.0])).points_to is None
     assert gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0])).points_to is None
+
+
+class _Counted:
+    """Counts the model runs of a problem (a Gauss-Newton trial runs the model once)."""
+
+    def __init__(self, prob):
+        self.prob, self.runs = prob, 0
+        self.names, self.lower, self.upper, self.y = prob.names, prob.lower, prob.upper, prob.y
+
+    def model(self, x):
+        self.runs += 1
+        return self.prob.model(x)
+
+    def model_and_jacobian(self, x):
+        return self.prob.model_and_jacobian(x)
+
+    def keep_at(self, x):
+        return None
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_halving_stops_at_a_step_the_data_cannot_tell(seed):
+    """On a kink near the data's slope (noise 1e-2: the Gauss-Newton step ~1 standard error) no
+    halving lowers the cost; the halvings stop once the step would be below STEP_SE standard
+    errors instead of running all ten: trials = 1 + the halvings down to that floor."""
+    from pumpsim.tolerances import STEP_SE
+
+    inner = Kinked(1.0, noise=1e-2, seed=seed)
+    prob = _Counted(inner)
+    out = gauss_newton(prob, np.array([1.0]))
+    assert len(out.history) == 1
+    t = inner.t
+    gn = t @ (inner.y - t) / (t @ t)  # the Gauss-Newton step from the start
+    step, se = abs(gn), np.sqrt(np.sum((inner.y - t - gn * t) ** 2) / (N - 1) / (t @ t))  # sigma: what it leaves
+    halvings = max(int(np.floor(np.log2(step / (STEP_SE * se)))), 0)  # the first below the floor is not tried
+    assert prob.runs == min(1 + halvings, 10)
+    # a start ~400 standard errors from the data's slope: even the ninth halving is above the floor
+    far = _Counted(Kinked(0.9, noise=1e-3))
+    gauss_newton(far, np.array([1.0]))
+    assert far.runs == 10
