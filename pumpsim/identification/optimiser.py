@@ -171,10 +171,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if lm:
             xn, lam = _damped_step(prob, x, rw, wt, (g, s, Vt, scale), lam)
         else:
-            # sigma from what the step would leave (start_test's): far from the minimum the residual
-            # is misfit, not noise, and would put the floor out of proportion
-            floor = STEP_SE * _standard_errors(rw, s, Vt, scale, r.size if w is None else float(w.sum()), x.size,
-                                               explained=_sumsq(g))
+            floor = STEP_SE * _standard_errors(rw, s, Vt, scale, r.size if w is None else float(w.sum()), x.size)
             xn = _halved_step(prob, x, rw, wt, relaxation * (Vt.T @ (g / s)) / scale, floor)
         if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
             converged, message = True, NO_DECREASE
@@ -247,11 +244,10 @@ def _halved_step(prob, x, rw, wt, step, floor):
     return None
 
 
-def _standard_errors(rw, s, Vt, scale, n, k, explained=0.0) -> np.ndarray:
+def _standard_errors(rw, s, Vt, scale, n, k) -> np.ndarray:
     """The parameters' standard errors from the weighted residual rw and the scaled SVD of the
-    weighted Jacobian (s, Vt, scale) over n weighed samples: sigma^2 (J'J)^-1, sigma^2 =
-    (rss - explained) / (n - k), `explained` the share of rss the Gauss-Newton step would remove."""
-    sigma2 = max(_sumsq(rw) - explained, 0.0) / max(n - k, 1)
+    weighted Jacobian (s, Vt, scale) over n weighed samples: sigma^2 (J'J)^-1, sigma^2 = rss / (n - k)."""
+    sigma2 = _sumsq(rw) / max(n - k, 1)
     return np.sqrt(sigma2 * np.sum((Vt.T / s) ** 2, axis=1)) / scale
 
 
