@@ -534,7 +534,9 @@ def method_text(opts: DiagnosisOptions = OPTIONS) -> str:
 
 def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wall0, guard) -> BenchDiagnosis:
     opts = run.opts
-    verdict = verdict_of(detection, [s.effect.name for s in steps], [], opts, NOISE_UNIT)
+    named = [s.effect.name for s in steps]
+    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ["baseline", *named])
+    verdict = verdict_of(detection, named, [], opts, NOISE_UNIT, unconverged=unconverged)
     text, withdrawn = verdict.text, ()
     # the names of a model that does not describe the log are no answer, nor is "consistent with
     # noise" (where the detectors already say unexplained and nothing is named, that verdict stands)

@@ -95,8 +95,11 @@ class Verdict:
     drifts: tuple  # identification.drift.Drift per drifting parameter
 
 
-def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS, unit: str = "N m") -> Verdict:
-    """The verdict of a detection (consistent(), p["family"], systematic); `unit`: the residual's."""
+def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS, unit: str = "N m",
+               unconverged=()) -> Verdict:
+    """The verdict of a detection (consistent(), p["family"], systematic); `unit`: the residual's;
+    `unconverged`: the reported fits ("baseline", "final") that did not converge -- the verdict
+    then says it is provisional, in its own words and not only in a note above it."""
     consistent = detection.consistent()
     # never "consistent with noise" while a detector rejects: a remainder below the relevance bar is
     # still said, with its size
@@ -106,6 +109,9 @@ def verdict_of(detection, effects, drifts, opts: DiagnosisOptions = OPTIONS, uni
         ("named effects and an unexplained remainder" if effects else "nothing named; unexplained")
     if drifts:
         text += "; " + ", ".join(d.text() for d in drifts)
+    if unconverged:
+        text += (f"; provisional: the {' and the '.join(unconverged)} fit{'s' if len(unconverged) > 1 else ''} "
+                 "did NOT converge")
     return Verdict(consistent, text, tuple(drifts))
 
 

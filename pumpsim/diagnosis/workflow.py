@@ -303,7 +303,8 @@ def _conclude(run, state, current, detection, steps, rival_pair):
     run.log += [Drifting(d.text(), len(d.segments), d.p_value) for d in drifts]
     if run.budget.get("bound"):
         run.log.append(BudgetReached(run.budget["seconds"], tuple(run.budget["cut"])))
-    return verdict_of(detection, [s.effect.name for s in steps], drifts, opts)
+    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ("baseline", "final"))
+    return verdict_of(detection, [s.effect.name for s in steps], drifts, opts, unconverged=unconverged)
 
 
 def _final(current, state, detection, consistent) -> dict:

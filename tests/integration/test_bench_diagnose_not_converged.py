@@ -33,5 +33,6 @@ def test_a_baseline_that_did_not_converge_is_said_everywhere(tmp_path, monkeypat
     out = json.loads(js.read_text())
     assert out["baseline"]["converged"] is False and out["final"]["converged"] is False
     assert any(n.startswith("the baseline fit is NOT converged") for n in out["notes"])
+    assert out["verdict"] == "consistent with noise; provisional: the baseline fit did NOT converge"
     html = page.read_text()
     assert "<div class=warn>" in html and "The baseline fit is NOT converged</b>: the verdict may be wrong" in html

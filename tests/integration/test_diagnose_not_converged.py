@@ -57,7 +57,7 @@ def test_a_healthy_diagnosis_is_converged_and_exits_0(tmp_path, ripple_record, c
     assert code == 0, captured.err
     assert out["effects"] == ["speed_ripple"]
     assert out["baseline"]["converged"] is True and out["final"]["converged"] is True
-    assert "NOT converged" not in captured.out and "NOT converged" not in html
+    assert "NOT converged" not in captured.out and "NOT converged" not in html and "provisional" not in out["verdict"]
     assert not any("NOT converged" in n for n in out["notes"])
 
 
@@ -75,6 +75,8 @@ def test_a_final_fit_that_did_not_converge_is_said_everywhere(tmp_path, ripple_r
     note = next(n for n in out["notes"] if n.startswith("the final model's fit is NOT converged"))
     assert "not the fit's minimum" in note and "diagnose again" in note
     assert "The final model's fit is NOT converged</b>: its figures are not the fit's minimum" in html
+    # the verdict itself says so, not only the note above it
+    assert out["verdict"].endswith("; provisional: the final fit did NOT converge")
     assert "<p class=ok>" not in html.split("<h2>")[0]  # no all-clear above the first section
 
 
@@ -90,3 +92,4 @@ def test_a_baseline_that_did_not_converge_is_said_everywhere(tmp_path, ripple_re
     assert out["baseline"]["converged"] is False and out["final"]["converged"] is False
     assert out["steps"] == [] and out["final"]["params"]
     assert "The baseline fit is NOT converged</b>" in html
+    assert out["verdict"].endswith("; provisional: the baseline fit did NOT converge")
