@@ -83,6 +83,23 @@ class BaselineImplausible(Note):
 
 
 @dataclass(frozen=True)
+class MismatchExplained(Note):
+    """The baseline missed its own shaft orders (identify's 'a config that is not this pump'), and
+    the one named effect accounts for them: the final model describes its own orders and leaves
+    nothing unexplained, so the name stands."""
+
+    misfit_before: float  # the share of the model's own shaft orders left in the residual
+    misfit_after: float | None
+
+    def text(self) -> str:
+        after = "" if self.misfit_after is None else f" ({100 * self.misfit_after:.0f} % left)"
+        return (f"baseline: {100 * self.misfit_before:.0f} % of the model's own shaft orders stayed in its residual, "
+                "as with a config of another pump; the one named effect accounts for them" + after + " and leaves "
+                "nothing unexplained, so it is reported -- a defect this large should be plain on the part: "
+                "check the named size against its measurement")
+
+
+@dataclass(frozen=True)
 class BaselineRestarted(Note):
     """The baseline fit stalled at its start, which the start test found NOT a minimum, and was
     fitted again from where its Gauss-Newton step pointed; the better of the two (by RMS) is kept."""

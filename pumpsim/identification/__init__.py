@@ -14,7 +14,7 @@ config value) to measured data.
 - `result.py`: estimates, standard errors, 95 % intervals, correlation, history, residual
   diagnostics, provenance; `fit.py`: the driver `identify`.
 """
-from .fit import identify, identify_transient, make_problem
+from .fit import adequacy_at, identify, identify_transient, make_problem
 from .joint import JointProblem
 from .optimiser import METHODS, FitOutcome, Optimiser, gauss_newton, ipopt_fit
 from .problem import (SMOOTH_COLUMNS, ConstantSpeedProblem, Problem, base_name, half_band, parameter_map,
@@ -22,7 +22,7 @@ from .problem import (SMOOTH_COLUMNS, ConstantSpeedProblem, Problem, base_name, 
 from .result import Estimate, IdentificationResult, provenance
 from .transient import TransientProblem
 
-__all__ = ["identify", "identify_transient", "make_problem", "Problem", "ConstantSpeedProblem",
+__all__ = ["adequacy_at", "identify", "identify_transient", "make_problem", "Problem", "ConstantSpeedProblem",
            "JointProblem", "TransientProblem", "Optimiser", "FitOutcome", "METHODS", "gauss_newton",
            "ipopt_fit", "IdentificationResult", "Estimate", "provenance", "base_name", "parameter_map",
            "sample_torque", "speed_band", "half_band", "SMOOTH_COLUMNS"]

@@ -195,7 +195,7 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
     n_eval = prob.n_eval + fit.evaluations + (fitted_prob.n_eval if fitted_prob is not prob else 0)
     keep = None if fit.outcome is None else fit.outcome.keep
     rk = r if keep is None else r[keep]
-    adequacy = _adequacy(fitted_prob, x, fitted_prob.y - r) if adequacy else None
+    adequacy = adequacy_at(fitted_prob, x, fitted_prob.y - r) if adequacy else None
     return IdentificationResult(
         estimates={nm: est[nm] for nm in prob.names}, iterations=history, rms=float(np.sqrt(np.mean(rk**2))),
         converged=converged, message=message, correlation=corr,
@@ -217,7 +217,7 @@ def _channels(prob, keep) -> list:
     return [(nm, int(kept[lo:hi].sum())) for nm, lo, hi in zip(names, edges[:-1], edges[1:])]
 
 
-def _adequacy(prob, x, fitted):
+def adequacy_at(prob, x, fitted):
     """The fit's adequacy (adequacy.py): per measurement of a joint fit, the worst one kept; None
     for a transient fit (its residual is a speed, not a torque)."""
     if isinstance(prob, TransientProblem):
