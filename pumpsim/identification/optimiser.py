@@ -171,8 +171,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if lm:
             xn, lam = _damped_step(prob, x, rw, wt, (g, s, Vt, scale), lam)
         else:
-            floor = STEP_SE * _standard_errors(rw, s, Vt, scale, r.size if w is None else float(w.sum()), x.size)
-            xn = _halved_step(prob, x, rw, wt, relaxation * (Vt.T @ (g / s)) / scale, floor)
+            xn = _halved_step(prob, x, rw, wt, relaxation * (Vt.T @ (g / s)) / scale)
         if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
             converged, message = True, NO_DECREASE
             if not it:  # ... unless it never moved: a minimum only if the slope there is noise
@@ -219,7 +218,8 @@ def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
         full = (Vt.T @ ((U.T @ rw) / s)) / scale
     else:
         full = full[free]
-    se = _standard_errors(rw, s, Vt, scale, n, x.size)
+    sigma2 = _sumsq(rw) / max(n - x.size, 1)
+    se = np.sqrt(sigma2 * np.sum((Vt.T / s) ** 2, axis=1)) / scale
     ratio = np.zeros(x.size)
     # noise-free data (sigma 0): only a zero step is below any share of its standard error
     ratio[free] = np.divide(np.abs(full), se, out=np.where(full != 0, np.inf, 0.0), where=se > 0)
@@ -229,26 +229,15 @@ def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
     return False, STEP_ABOVE_SE.format(se=ratio[j], name=prob.names[j])
 
 
-def _halved_step(prob, x, rw, wt, step, floor):
+def _halved_step(prob, x, rw, wt, step):
     """x + step, halved (up to 9 times) until the residual does not increase (trials run the model
-    only, the Jacobian once accepted); None when none lowers it, or when the halved step would be
-    below `floor` in every parameter (STEP_SE standard errors: a smaller move is not one the data
-    can tell, and on a staircase cost such trials were ~60 % of a diagnosis's rejected ones)."""
+    only, the Jacobian once accepted); None when none lowers it."""
     for _ in range(10):
         xn = np.clip(x + step, prob.lower, prob.upper)
         if _sumsq(wt(prob.y - prob.model(xn))) <= rw @ rw:
             return xn
         step = 0.5 * step
-        if np.all(np.abs(step) < floor):
-            return None
     return None
-
-
-def _standard_errors(rw, s, Vt, scale, n, k) -> np.ndarray:
-    """The parameters' standard errors from the weighted residual rw and the scaled SVD of the
-    weighted Jacobian (s, Vt, scale) over n weighed samples: sigma^2 (J'J)^-1, sigma^2 = rss / (n - k)."""
-    sigma2 = _sumsq(rw) / max(n - k, 1)
-    return np.sqrt(sigma2 * np.sum((Vt.T / s) ** 2, axis=1)) / scale
 
 
 def _damped_step(prob, x, rw, wt, svd, lam):
