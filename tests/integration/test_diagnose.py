@@ -104,7 +104,7 @@ def test_two_clean_speeds_together_are_consistent_with_noise():
 
 
 @pytest.mark.parametrize("order,amplitude", [(4, 5e-5), (6, 4e-5)])
-def test_an_out_of_round_bore_large_enough_to_move_the_pumps_own_orders_is_named(order, amplitude):
+def test_an_out_of_round_bore_large_enough_to_move_the_pumps_own_orders_is_named(order, amplitude, tmp_path):
     """An oval (order 4) of 50 um or an order-6 lobing of 40 um on the 4-vane ellipse moves the
     vane passing's own orders: the baseline leaves 71 % and 55 % of them in its residual, as a
     config of another pump would. The search runs anyway and names the lobing, its order and size
@@ -115,7 +115,13 @@ def test_an_out_of_round_bore_large_enough_to_move_the_pumps_own_orders_is_named
     truth = dataclasses.replace(cfg, angle=0.4).with_harmonics([[order, amplitude, 0.3]])
     ref = pumpsim.simulate(truth, duration=0.1, rate=10000)
     y = ref.torque + np.random.default_rng(0).normal(0, 0.05 * np.std(ref.torque), ref.time.size)
-    out = diagnose(cfg, Dataset(ref.time, y)).to_json()
+    data, js = tmp_path / "d.csv", tmp_path / "d.json"
+    np.savetxt(data, np.column_stack([ref.time, y]), delimiter=",", header="time,torque", comments="")
+    from pumpsim.cli import main
+
+    # the command's exit status too: no other pump, a converged fit
+    assert main(["diagnose", str(ROOT / "examples" / "ellipse_4vanes.toml"), str(data), "--json", str(js)]) == 0
+    out = json.loads(js.read_text())
     assert out["effects"] == ["housing_out_of_round"] and not out["unexplained"], out["verdict"]
     assert "not this pump" not in out["verdict"]
     p = out["steps"][0]["params"]
