@@ -259,13 +259,31 @@ def _scouted(starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS, needed
     win = min(sorted(scouts), key=lambda i: scouts[i].rms)
     if needed is not None and behind is not None and behind(scouts[win]):
         return finish(scouts[win], settle=False), False
-    res = finish(scouts[win])
+    res = _with_one_step_start(finish(scouts[win]), win, scouts, starts, scout_fit, finish, opts)
     if len(scouts) < len(starts) and needed(res):
         scouts.update({i: scout_fit(starts[i], max_iter=opts.refit_scout_steps)
                        for i in range(len(starts)) if i not in scouts})
         best = min(sorted(scouts), key=lambda i: scouts[i].rms)
-        res = res if best == win else finish(scouts[best])
+        res = res if best == win else _with_one_step_start(finish(scouts[best]), best, scouts, starts, scout_fit,
+                                                           finish, opts)
     return res, True
+
+
+def _with_one_step_start(res, win, scouts, starts, scout_fit, finish, opts: DiagnosisOptions = OPTIONS):
+    """The best scout's fit, or the one-step start's (starts[0], the score test's joint estimate)
+    fitted to convergence where its scout was still descending at its iteration limit and that
+    fit is lower. Ranking scouts by a few steps favours starts already in a shallow valley: on an
+    eccentric 5-vane circle with a 10 um oval, the best scouts sat converged at 1.45e-4 N m, the
+    one-step start's scout at 2.95e-4 went on to 1.17e-4 (the truth's valley 1.14e-4), and an
+    order-4 lobing was named instead."""
+    if win == 0:
+        return res
+    first = scouts.get(0) or scout_fit(starts[0], max_iter=opts.refit_scout_steps)
+    scouts[0] = first
+    if _stopped_at_minimum(first):
+        return res
+    alt = finish(first)
+    return alt if alt.rms < res.rms else res
 
 
 def _finalists(starts, scout_fit, opts: DiagnosisOptions = OPTIONS) -> list:
