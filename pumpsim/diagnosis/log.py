@@ -254,8 +254,16 @@ class NotConverged(Note):
     fit: str  # "baseline", "final", or the effect whose refit it is
     why: str
     data: str = "log"
+    # the baseline's: its remaining step's worth in noise variances and the least BIC gain of a named
+    # step, where that gain outweighs it (result.stall_outweighed): the verdict does not rest on it
+    outweighed_by: tuple | None = None
 
     def text(self) -> str:
+        if self.fit == "baseline" and self.outweighed_by:
+            left, gain = self.outweighed_by
+            return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, but its "
+                    f"remaining step is worth ~{left:.3g} noise variances against a BIC gain of at least {gain:.4g} "
+                    "for each named effect -- its stall cannot have decided them, and the verdict does not rest on it")
         if self.fit == "baseline":
             return (f"the baseline fit is NOT converged ({self.why}): its figures are not the fit's minimum, and the "
                     "residual tests and the search start from them -- the verdict may be wrong; check the config's "

@@ -17,11 +17,12 @@ from ..identification import adequacy_at, base_name, half_band, speed_band
 
 from .detectors import Detection, kurtosis_off_reversals, where_unexplained
 from .effects import candidates, harmonic_pair, plausible
-from .log import BaselineImplausible, BaselineRestarted, Budgeted, BudgetReached, Drifting, MismatchExplained, \
-    NotConverged, Rivals, SpeedColumnDrift, SpeedHeld
+from .log import BaselineImplausible, BaselineRestarted, Budgeted, BudgetReached, Drifting, \
+    MismatchExplained, NotConverged, Rivals, SpeedColumnDrift, SpeedHeld
 from .options import OPTIONS, DiagnosisOptions
 from .refit import contender_fits, try_speed
-from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, vane_cofs
+from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, \
+    stall_outweighed, vane_cofs
 from .screen import detected_ripple_orders, note_confounded, rank_candidates, score_test, screen_table
 from .selection import accept, drop_superseded, find_rival
 from .state import State, ar1, identify, measurement_of, on_kept, past_stall
@@ -337,8 +338,9 @@ def _add_effect(run, accepted, state, current, steps, screens):
     return new_state, res
 
 
-def _conclude(run, state, current, detection, steps, rival_pair):
-    """Step 5: the last collinearity screen, the verdict and its notes (logged)."""
+def _conclude(run, state, current, detection, steps, rival_pair, outweighed=False):
+    """Step 5: the last collinearity screen, the verdict and its notes (logged). `outweighed`: a
+    baseline that did not converge could not have decided the named steps (stall_outweighed)."""
     opts, named = run.opts, {s.effect.name for s in steps}
     if steps and not current.converged:  # the final model's whole-record fit, whose figures are reported
         run.log.append(NotConverged("final", current.message, "measurement"))
@@ -358,7 +360,8 @@ def _conclude(run, state, current, detection, steps, rival_pair):
     run.log += [Drifting(d.text(), len(d.segments), d.p_value) for d in drifts]
     if run.budget.get("bound"):
         run.log.append(BudgetReached(run.budget["seconds"], tuple(run.budget["cut"])))
-    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ("baseline", "final"))
+    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ("baseline", "final")
+                        and not (n.fit == "baseline" and outweighed))
     return verdict_of(detection, [s.effect.name for s in steps], drifts, opts, unconverged=unconverged)
 
 
@@ -396,11 +399,16 @@ def _result(run, base, found: Searched, wall0):
     """The DiagnosisResult."""
     state, current, detection, steps = found.state, found.current, found.detection, found.steps
     ranking, screens, history = found.ranking, found.screens, found.history
-    verdict = _conclude(run, state, current, detection, steps, found.rival_pair)
+    outweighed = stall_outweighed(base, steps, run.opts)
+    if outweighed:  # the baseline's note says so
+        by = (base.left_chi2, min(-s.delta_bic for s in steps))
+        run.log = [dataclasses.replace(n, outweighed_by=by) if isinstance(n, NotConverged) and n.fit == "baseline"
+                   else n for n in run.log]
+    verdict = _conclude(run, state, current, detection, steps, found.rival_pair, outweighed)
     polar, harmonics = _final_polar(steps, current, run.cfg)
     return DiagnosisResult(
         baseline={"rms": base.rms, "params": params_json(base, list(base.estimates), run.cfg),
-                  "converged": base.converged},
+                  "converged": base.converged, "stall_outweighed": outweighed},
         steps=tuple(steps), final=_final(current, state, detection, verdict.consistent),
         unexplained=not verdict.consistent, confounded=run.confounded, hidden_in_baseline=run.hidden,
         unexplained_where=[] if verdict.consistent else where_unexplained(current, run.datasets, detection, run.opts),

@@ -204,7 +204,8 @@ def _result(prob, fit: _Fit, wrap_phase: bool, adequacy: bool = True) -> Identif
         speed=w, angle=fitted_prob.angle(x), n_evaluations=n_eval, on_bound=on_bound, no_effect=fit.no_effect,
         keep=keep, adequacy=adequacy, intervals=intervals, residual_unit=prob.RESIDUAL_UNIT,
         points_to=None if fit.outcome is None or fit.outcome.points_to is None else
-        dict(zip(fitted_prob.names, map(float, fit.outcome.points_to))))
+        dict(zip(fitted_prob.names, map(float, fit.outcome.points_to))),
+        left_chi2=None if fit.outcome is None else fit.outcome.left_chi2)
 
 
 def _channels(prob, keep) -> list:

@@ -35,6 +35,9 @@ class FitOutcome:
     # a fit no step left from its start, which is NOT a minimum (start_test): where the Gauss-Newton
     # step from it points (clipped to the bounds), the start to fit again from; None otherwise
     points_to: np.ndarray | None = None
+    # a fit that did not converge: what the linear model says its remaining step would still take
+    # off the cost, in noise variances (the step's squared length in standard errors); None otherwise
+    left_chi2: float | None = None
 
     def __iter__(self):  # unpacks as (x, residual, jacobian, history, converged, message)
         return iter((self.x, self.residual, self.jacobian, self.history, self.converged, self.message))
@@ -159,7 +162,7 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
     wt = (lambda v: v) if w is None else (lambda v: (w * v.T).T)  # noqa: E731
     history = [{"params": dict(zip(prob.names, map(float, x))), "rms": _wrms(r, w)}]
     lam = 1e-3
-    converged, message, points_to = False, MAX_ITER, None
+    converged, message, points_to, left = False, MAX_ITER, None, None
     for it in range(max_iter):
         rw = wt(r)
         scale, U, s, Vt = scaled_svd(wt(J))
@@ -175,8 +178,8 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
         if xn is None:  # no step along the Gauss-Newton direction lowers the residual: at the minimum
             converged, message = True, NO_DECREASE
             if not it:  # ... unless it never moved: a minimum only if the slope there is noise
-                converged, message, points_to = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J), w,
-                                                               scale, tol)
+                converged, message, points_to, left = _stalled_start(prob, x, (Vt.T @ (g / s)) / scale, rw, wt(J),
+                                                                     w, scale, tol)
             break
         J = r = rw = None  # replaced below: not held while the next ones are evaluated (memory)
         mn, Jn = (prob.model(xn), None) if not final_jacobian and it == max_iter - 1 else prob.model_and_jacobian(xn)
@@ -195,8 +198,13 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
             break
     else:  # the iteration limit: still creeping, or there (a scout's end has no Jacobian to tell)
         if J is not None:
-            converged, message = _remaining_step(prob, x, wt(r), wt(J), r.size if w is None else float(w.sum()))
-    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0, points_to)
+            n = r.size if w is None else float(w.sum())
+            converged, message = _remaining_step(prob, x, wt(r), wt(J), n)
+            if not converged:
+                left = start_test(x, np.zeros(x.size), wt(r), wt(J), np.full(x.size, -np.inf),
+                                  np.full(x.size, np.inf), n)[0] ** 2
+    return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0, points_to,
+                      None if converged else left)
 
 
 def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
@@ -255,16 +263,17 @@ def _damped_step(prob, x, rw, wt, svd, lam):
 
 
 def _stalled_start(prob, x, full, rw, Jw, w, scale, tol):
-    """(converged, message, points_to) of a fit no step leaves from its start: a minimum when the
-    whole Gauss-Newton step is below the step tolerance or the start passes start_test (points_to
-    None), else not converged, with where the slope points (in the message, and as points_to)."""
+    """(converged, message, points_to, left_chi2) of a fit no step leaves from its start: a minimum
+    when the whole Gauss-Newton step is below the step tolerance or the start passes start_test
+    (points_to None), else not converged, with where the slope points (in the message, and as
+    points_to) and the step's squared length in standard errors."""
     se, p = start_test(x, full, rw, Jw, prob.lower, prob.upper, rw.size if w is None else float(w.sum()))
     if p >= START_TEST_LEVEL or np.all(np.abs(full) <= tol * (np.abs(x) + 1e-8 * scale.max() / scale)):
-        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p), None
+        return True, START_IS_MINIMUM.format(se=f"{se:.2g}", p=p), None, None
     to = np.clip(x + full, prob.lower, prob.upper)
     length = f"{se:.3g}" if np.isfinite(se) else "infinitely many (noise-free data)"
     where = ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(prob.names, to))
-    return False, START_NOT_MINIMUM.format(se=length, p=p, to=where), to
+    return False, START_NOT_MINIMUM.format(se=length, p=p, to=where), to, se ** 2
 
 
 def ipopt_fit(prob, x0, log=None, max_iter=200) -> FitOutcome:

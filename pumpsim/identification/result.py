@@ -69,6 +69,9 @@ class IdentificationResult:
     # a fit that stalled at a start which is NOT a minimum (optimiser.start_test): {name: value} where
     # the Gauss-Newton step from that start points -- a start to fit again from; None otherwise
     points_to: dict | None = None
+    # a fit that did not converge: what its remaining Gauss-Newton step would still take off the
+    # cost, in noise variances (optimiser.FitOutcome.left_chi2); None otherwise
+    left_chi2: float | None = None
 
     @property
     def residual(self):

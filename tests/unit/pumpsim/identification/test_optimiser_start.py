@@ -96,3 +96,18 @@ def test_a_start_that_is_not_a_minimum_says_where_its_slope_points():
     assert not out.converged and out.points_to == pytest.approx([slope], rel=1e-12)
     assert gauss_newton(Kinked(1.0, noise=1e-2, seed=1), np.array([1.0])).points_to is None
     assert gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0])).points_to is None
+
+
+def test_a_fit_that_did_not_converge_says_what_its_remaining_step_is_worth():
+    """FitOutcome.left_chi2: the remaining Gauss-Newton step's squared length in standard errors
+    (what the linear model would still take off the cost, in noise variances): the start test's
+    length squared for a stalled start, the same measure at an iteration limit; None once converged."""
+    prob = Kinked(0.9, noise=1e-3)
+    out = gauss_newton(prob, np.array([1.0]))
+    t = prob.t
+    gn = t @ (prob.y - t) / (t @ t)
+    length, _ = start_test(np.array([1.0]), np.array([gn]), prob.y - t, t[:, None], prob.lower, prob.upper, N)
+    assert not out.converged and out.left_chi2 == pytest.approx(length ** 2, rel=1e-12) and out.left_chi2 > 1e4
+    held = gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0]), relaxation=0.1, max_iter=1)
+    assert not held.converged and held.left_chi2 > 100  # 0.9 of a ~400-standard-error step left
+    assert gauss_newton(Kinked(0.9, kink=False, noise=1e-3), np.array([1.0])).left_chi2 is None
