@@ -198,29 +198,26 @@ def gauss_newton(prob, x0, relaxation=1.0, max_iter=50, tol=1e-6, lm=False, log=
             break
     else:  # the iteration limit: still creeping, or there (a scout's end has no Jacobian to tell)
         if J is not None:
-            n = r.size if w is None else float(w.sum())
-            converged, message = _remaining_step(prob, x, wt(r), wt(J), n)
-            if not converged:
-                left = start_test(x, np.zeros(x.size), wt(r), wt(J), np.full(x.size, -np.inf),
-                                  np.full(x.size, np.inf), n)[0] ** 2
+            converged, message, left = _remaining_step(prob, x, wt(r), wt(J), r.size if w is None else float(w.sum()))
     return FitOutcome(x, r, J, history, converged, message, None if w is None else w > 0, points_to,
                       None if converged else left)
 
 
-def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
-    """(converged, message) of a fit its iteration limit stopped at x: converged when the
+def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str, float | None]:
+    """(converged, message, left_chi2) of a fit its iteration limit stopped at x: converged when the
     Gauss-Newton step from x (to the linear model's minimum, rw and Jw weighted as in the fit) is
     below STEP_SE standard errors in every parameter -- a fit still creeping by a few 1e-6 of its
     RMS per step whose estimates would move by less than that is at its minimum as far as the
     data can tell. Standard errors: sigma^2 (J'J)^-1, sigma^2 = rss / (n - k). A parameter on a
-    bound the step points past is held there (start_test's rule); a singular Jacobian tells nothing."""
+    bound the step points past is held there (start_test's rule); a singular Jacobian tells nothing.
+    left_chi2 (not converged): the whole remaining step's squared length in standard errors."""
     scale, U, s, Vt = scaled_svd(Jw)
     if s[-1] < s[0] / SINGULAR_COND:
-        return False, MAX_ITER
+        return False, MAX_ITER, None
     full = (Vt.T @ ((U.T @ rw) / s)) / scale
     free = _free_of_bounds(x, full, prob.lower, prob.upper)
     if not free.any():
-        return True, ALL_ON_BOUNDS
+        return True, ALL_ON_BOUNDS, None
     if not free.all():  # the step with the held ones out
         scale, U, s, Vt = scaled_svd(Jw[:, free])
         full = (Vt.T @ ((U.T @ rw) / s)) / scale
@@ -233,8 +230,9 @@ def _remaining_step(prob, x, rw, Jw, n) -> tuple[bool, str]:
     ratio[free] = np.divide(np.abs(full), se, out=np.where(full != 0, np.inf, 0.0), where=se > 0)
     j = int(np.argmax(ratio))
     if ratio[j] <= STEP_SE:
-        return True, STEP_BELOW_SE.format(lim=STEP_SE, se=ratio[j], name=prob.names[j])
-    return False, STEP_ABOVE_SE.format(se=ratio[j], name=prob.names[j])
+        return True, STEP_BELOW_SE.format(lim=STEP_SE, se=ratio[j], name=prob.names[j]), None
+    left = start_test(x, np.zeros(x.size), rw, Jw, np.full(x.size, -np.inf), np.full(x.size, np.inf), n)[0] ** 2
+    return False, STEP_ABOVE_SE.format(se=ratio[j], name=prob.names[j]), left
 
 
 def _halved_step(prob, x, rw, wt, step):
