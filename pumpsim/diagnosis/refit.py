@@ -278,8 +278,9 @@ def _with_one_step_start(res, win, scouts, starts, scout_fit, finish, opts: Diag
     order-4 lobing was named instead."""
     if win == 0:
         return res
-    first = scouts.get(0) or scout_fit(starts[0], max_iter=opts.refit_scout_steps)
-    scouts[0] = first
+    if 0 not in scouts:  # (scouted once: the search's later scouting of every start takes it as it is)
+        scouts[0] = scout_fit(starts[0], max_iter=opts.refit_scout_steps)
+    first = scouts[0]
     if _stopped_at_minimum(first):
         return res
     alt = finish(first)

@@ -126,7 +126,7 @@ def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int | None = None, pro
     before = _snapshot(run) if mismatch else None
     found = _search(run, unsearched, datasets, options.max_effects if max_effects is None else max_effects)
     if mismatch:
-        left = adequacy_at(*_at(found.state))
+        left = adequacy_at(*_model_on_record(found.state))
         if len(found.steps) == 1 and found.detection.consistent() and not left.orders_missed():
             run.log.append(MismatchExplained(base.adequacy.order_misfit, left.order_misfit))
             mismatch = None
@@ -173,7 +173,7 @@ def _search(run, start: Searched, datasets, max_effects: int) -> Searched:
     return s
 
 
-def _at(state):
+def _model_on_record(state):
     """(problem, values, model) of a state's model on its whole record (adequacy_at's arguments)."""
     prob = state.problem()
     return prob, prob.x0, prob.model(prob.x0)
