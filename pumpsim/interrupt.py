@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
 
-_state = {"signal": None, "progress": None, "defer": 0, "stage": None}
+_state = {"signal": None, "progress": None, "defer": 0, "stage": None, "written": []}
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -38,9 +39,16 @@ class Interrupted(KeyboardInterrupt):
     def message(self) -> str:
         """One line: the signal, how far the run got, what is left on disk."""
         where = _state["progress"]
-        kept = "; ".join(self.notes) if self.notes else "no output file written"
+        unsaid = [w for w in _state["written"] if not any(w in n for n in self.notes)]  # (a note may name it)
+        parts = self.notes + ([", ".join(unsaid) + " written and complete"] if unsaid else [])
+        kept = "; ".join(parts) if parts else "no output file written"
         return (f"interrupted by {signal.Signals(self.signum).name}"
                 + (f" {where}" if where else "") + f"; {kept}")
+
+
+def written(paths) -> None:
+    """Outputs this run has put in place whole: an interruption after them says so."""
+    _state["written"] += [str(p) for p in paths]
 
 
 def pending() -> int | None:
@@ -99,11 +107,35 @@ def deferred():
     check()
 
 
+def _unraisable(u) -> None:
+    """The signal's exception raised where Python cannot propagate it (a garbage-collector callback,
+    a __del__: Dask's GC diagnosis) is not printed as 'Exception ignored': the signal stays recorded
+    and the command reports it once, where it can (pending() after the command)."""
+    if isinstance(u.exc_value, KeyboardInterrupt) and _state["signal"] is not None:
+        return
+    sys.__unraisablehook__(u)
+
+
+@contextlib.contextmanager
+def unsplit():
+    """A block a signal must not split (outputs renamed into place together): a signal arriving
+    meanwhile is raised after it. One from before -- an interruption's clean-up writing what it
+    keeps -- is not raised again."""
+    before = _state["signal"]
+    _state["defer"] += 1
+    try:
+        yield
+    finally:
+        _state["defer"] -= 1
+    if before is None and _state["signal"] is not None:
+        raise Interrupted(_state["signal"]) from None
+
+
 @contextlib.contextmanager
 def handling():
     """Route SIGINT and SIGTERM to Interrupted for the block (main thread only). A signal that is
     ignored when the run starts (nohup, a background job) stays ignored."""
-    _state.update(signal=None, progress=None, defer=0, stage=None)
+    _state.update(signal=None, progress=None, defer=0, stage=None, written=[])
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -114,9 +146,12 @@ def handling():
             continue
         old[s] = current
         signal.signal(s, _handler)
+    hook = sys.unraisablehook
+    sys.unraisablehook = _unraisable
     try:
         yield
     finally:
+        sys.unraisablehook = hook
         for s, h in old.items():
             signal.signal(s, h)
         _state["signal"] = None  # a run's signal ends with it: a later deferred() outside must not see it

@@ -14,6 +14,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import interrupt
 from .errors import ConfigError
 from .model_spec.manifest import umask_mode
 
@@ -115,10 +116,12 @@ class Outputs:
                 tmps[opt] = tmp
             yield dict(tmps)
             mode = umask_mode()
-            for opt, tmp in tmps.items():
-                os.chmod(tmp, mode)
-            for opt, tmp in tmps.items():
-                os.replace(tmp, self._entries[opt].path)
+            with interrupt.unsplit():  # all renamed or none: a signal here is raised after them
+                for opt, tmp in tmps.items():
+                    os.chmod(tmp, mode)
+                for opt, tmp in tmps.items():
+                    os.replace(tmp, self._entries[opt].path)
+                interrupt.written(self._entries[opt].path for opt in tmps)
         finally:
             for tmp in tmps.values():
                 if os.path.exists(tmp):
