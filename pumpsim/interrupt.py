@@ -51,6 +51,10 @@ def written(paths) -> None:
     _state["written"] += [str(p) for p in paths]
 
 
+def written_outputs() -> list[str]:
+    return list(_state["written"])
+
+
 def pending() -> int | None:
     """The signal received during this run, if any."""
     return _state["signal"]

@@ -109,7 +109,8 @@ def _main(argv) -> int:
             LOG.debug("%s took %.2f s (exit status %d)", a.command, time.perf_counter() - start, status)
             if interrupt.pending():  # a signal some native code took for its own failure, then went on
                 late = interrupt.Interrupted()
-                late.notes.append("the run had ended: its outputs are written, complete")
+                if not interrupt.written_outputs():  # (else the message names them as written and complete)
+                    late.notes.append("the run had ended: its outputs are written, complete")
                 raise late
             return status
     except BrokenPipeError:  # the reader of our output went away (`| head`): stop quietly
