@@ -279,6 +279,12 @@ class NotConverged(Note):
                 "rival in its place, or misstate its size")
 
 
+def unconverged_fits(log, fits) -> tuple:
+    """The fits among `fits` whose NotConverged note in `log` leaves the verdict provisional: all
+    but a baseline whose stall the named effects outweigh (NotConverged.outweighed_by)."""
+    return tuple(n.fit for n in log if isinstance(n, NotConverged) and n.fit in fits and not n.outweighed_by)
+
+
 @dataclass(frozen=True)
 class BudgetReached(Note):
     seconds: float

@@ -25,7 +25,7 @@ from ..identification.pumpdown_fit import UNITS
 from ..identification.result import fit_estimates
 from ..signals import high_frequency_noise, ljung_box, quantization_step, runs_test
 from ..tolerances import BENCH_FIT_ATOL, BENCH_FIT_RTOL
-from .log import Budgeted, BudgetReached, DataNote, Note, NotConverged, Rejected, TooSmall
+from .log import Budgeted, BudgetReached, DataNote, Note, NotConverged, Rejected, TooSmall, unconverged_fits
 from .options import OPTIONS, DiagnosisOptions
 from .pump_guard import Inconsistent, consistency
 from .pump_effects import OF_PARAM, Drives, EffectProblem, PumpEffect, library, unweighted
@@ -535,8 +535,8 @@ def method_text(opts: DiagnosisOptions = OPTIONS) -> str:
 def _result(run, base: Fit, current: Fit, detection, steps, history, ranking, wall0, guard) -> BenchDiagnosis:
     opts = run.opts
     named = [s.effect.name for s in steps]
-    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ["baseline", *named])
-    verdict = verdict_of(detection, named, [], opts, NOISE_UNIT, unconverged=unconverged)
+    verdict = verdict_of(detection, named, [], opts, NOISE_UNIT,
+                         unconverged=unconverged_fits(run.log, ["baseline", *named]))
     text, withdrawn = verdict.text, ()
     # the names of a model that does not describe the log are no answer, nor is "consistent with
     # noise" (where the detectors already say unexplained and nothing is named, that verdict stands)

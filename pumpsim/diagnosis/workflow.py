@@ -18,7 +18,7 @@ from ..identification import adequacy_at, base_name, half_band, speed_band
 from .detectors import Detection, kurtosis_off_reversals, where_unexplained
 from .effects import candidates, harmonic_pair, plausible
 from .log import BaselineImplausible, BaselineRestarted, Budgeted, BudgetReached, Drifting, \
-    MismatchExplained, NotConverged, Rivals, SpeedColumnDrift, SpeedHeld
+    MismatchExplained, NotConverged, Rivals, SpeedColumnDrift, SpeedHeld, unconverged_fits
 from .options import OPTIONS, DiagnosisOptions
 from .refit import contender_fits, try_speed
 from .result import MU_DEFINITION, DiagnosisResult, ModelFit, PolarEstimate, Step, effect_params, params_json, \
@@ -338,9 +338,8 @@ def _add_effect(run, accepted, state, current, steps, screens):
     return new_state, res
 
 
-def _conclude(run, state, current, detection, steps, rival_pair, outweighed=False):
-    """Step 5: the last collinearity screen, the verdict and its notes (logged). `outweighed`: a
-    baseline that did not converge could not have decided the named steps (stall_outweighed)."""
+def _conclude(run, state, current, detection, steps, rival_pair):
+    """Step 5: the last collinearity screen, the verdict and its notes (logged)."""
     opts, named = run.opts, {s.effect.name for s in steps}
     if steps and not current.converged:  # the final model's whole-record fit, whose figures are reported
         run.log.append(NotConverged("final", current.message, "measurement"))
@@ -360,9 +359,8 @@ def _conclude(run, state, current, detection, steps, rival_pair, outweighed=Fals
     run.log += [Drifting(d.text(), len(d.segments), d.p_value) for d in drifts]
     if run.budget.get("bound"):
         run.log.append(BudgetReached(run.budget["seconds"], tuple(run.budget["cut"])))
-    unconverged = tuple(n.fit for n in run.log if isinstance(n, NotConverged) and n.fit in ("baseline", "final")
-                        and not (n.fit == "baseline" and outweighed))
-    return verdict_of(detection, [s.effect.name for s in steps], drifts, opts, unconverged=unconverged)
+    return verdict_of(detection, [s.effect.name for s in steps], drifts, opts,
+                      unconverged=unconverged_fits(run.log, ("baseline", "final")))
 
 
 def _final(current, state, detection, consistent) -> dict:
@@ -404,7 +402,7 @@ def _result(run, base, found: Searched, wall0):
         by = (base.left_chi2, min(-s.delta_bic for s in steps))
         run.log = [dataclasses.replace(n, outweighed_by=by) if isinstance(n, NotConverged) and n.fit == "baseline"
                    else n for n in run.log]
-    verdict = _conclude(run, state, current, detection, steps, found.rival_pair, outweighed)
+    verdict = _conclude(run, state, current, detection, steps, found.rival_pair)
     polar, harmonics = _final_polar(steps, current, run.cfg)
     return DiagnosisResult(
         baseline={"rms": base.rms, "params": params_json(base, list(base.estimates), run.cfg),
