@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .blas import small_solves
 from .checks import PumpConfig, checked_config
 from .data import DataOptions, Dataset, load_data
 from .errors import ConfigError, DataError
@@ -89,6 +90,7 @@ def bench_log(config: PumpConfig, data, options: DataOptions | None = None):
     return None
 
 
+@small_solves
 def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0,
              initial=None, max_iter=50, options: DataOptions | None = None, force=False, log=None):
     """Fit model parameters to measured drive torque at constant speed.
@@ -151,6 +153,7 @@ def identify(config, data, params=None, *, method="gauss-newton", relaxation=1.0
     return res
 
 
+@small_solves
 def diagnose(config, data, *, options: DataOptions | None = None, force=False, progress=None,
              speed_tolerance=None, budget=None):
     """The discrepancy workflow: fit the baseline (mu, theta0 and the speed when the data has none),

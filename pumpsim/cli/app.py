@@ -38,23 +38,10 @@ def build_parser():
     return ap
 
 
-# the BLAS libraries NumPy may load, and the variable each reads its thread count from
-BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
-
-
-def one_blas_thread(environ=os.environ) -> None:
-    """One BLAS thread for the command's process unless the user set a count: its linear algebra
-    is small solves (a few columns by thousands of samples), where a second BLAS thread spinning on
-    a machine whose cores are busy cost more than it saved (a diagnosis's three 128 x 128 normal-
-    equation solves 7 ms quiet, 0.6 s wall at load 4); the kernels thread themselves. Read when
-    NumPy loads its BLAS, so set before: the CLI imports NumPy only after this."""
-    for name in BLAS_THREADS:
-        environ.setdefault(name, "1")
-
-
 def main(argv=None) -> int:
     """Run the command line with `argv` (default sys.argv[1:]); returns the exit status."""
     from .. import interrupt
+    from ..blas import one_blas_thread
 
     one_blas_thread()
     try:

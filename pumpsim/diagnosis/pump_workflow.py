@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..blas import small_solves
 from ..benchlog import start_above_atmosphere
 from ..distributions import chi2_sf, norm_sf
 from ..identification.bench_model import START_NAME
@@ -211,6 +212,7 @@ class Run(Budgeted):
     budget: dict = field(default_factory=dict)
 
 
+@small_solves
 def diagnose_bench(cfg, log, resistance_known: bool = False, max_effects: int | None = None, progress=None,
                    budget: float | None = None, rtol: float = BENCH_FIT_RTOL, atol: float = BENCH_FIT_ATOL,
                    options: DiagnosisOptions = OPTIONS, atmosphere_known: bool = False) -> BenchDiagnosis:

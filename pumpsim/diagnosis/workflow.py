@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..blas import small_solves
 from ..config import PumpConfig
 from ..data import Dataset
 from ..signals import synchronous_speed_scan
@@ -92,6 +93,7 @@ class SearchStep:
     rival_pair: list | None = None
 
 
+@small_solves
 def diagnose(cfg: PumpConfig, data: Dataset, max_effects: int | None = None, progress=None,
              baseline_params=None, speed_tolerance: float | None = None,
              budget: float | None = None, options: DiagnosisOptions = OPTIONS) -> DiagnosisResult:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..blas import small_solves
 from ..config import PumpConfig
 from ..data import Dataset
 from ..signals import residual_report
@@ -45,6 +46,7 @@ def make_problem(cfg, data, names, initial=None, extra=None, ripple_order=1, tra
     return prob
 
 
+@small_solves
 def identify(cfg: PumpConfig, data: Dataset, params=("mu", "theta0"), method="gauss-newton",
              relaxation=1.0, initial=None, max_iter=50, log=None, multistart=True,
              ripple_order=1, extra=None, transient=False, reversals=None,

@@ -102,7 +102,7 @@ def test_no_command_imports_the_heavy_stack_before_its_first_work(tmp_path):
 def test_a_command_runs_its_blas_on_one_thread_unless_the_user_said_otherwise():
     """The command's small solves on one BLAS thread (no spinning second thread on a busy machine):
     the counts are set before NumPy loads its BLAS, and a count the user set is kept."""
-    from pumpsim.cli.app import BLAS_THREADS, one_blas_thread
+    from pumpsim.blas import BLAS_THREADS, one_blas_thread
     env = {"MKL_NUM_THREADS": "4"}
     one_blas_thread(env)
     assert env == {**{n: "1" for n in BLAS_THREADS}, "MKL_NUM_THREADS": "4"}
