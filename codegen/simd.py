@@ -15,6 +15,10 @@ sin/cos/atan2 (libmvec) -- which it does only when
 - fmin/fmax/sign are selects, not calls (NaN behaviour kept: fmax returns the non-NaN operand), and
   every select is a branch-free bit blend (AVX2 has no masks to hide a branch's trapping operations).
 
+A divisor that divides several quotients is inverted once (simd_emit.shared_reciprocals; a rounding
+of the last bit against the scalar library). The rewrite is made on the SX graph, so the Jacobian
+entries, taken from the same graph, keep the torque entry's bits.
+
 The build fails unless gcc reports both vane loops vectorised and vector-math symbols (`_ZGV...`)
 are referenced: a silently scalar loop is not a SIMD library. Key and trust follow the scalar
 library's contract (pumpsim.model_spec.manifest: C source, options, CasADi, source fingerprint,
@@ -54,7 +58,7 @@ from pumpsim.model_spec.simd import LIBRARY, SIMD_CFLAGS, SUBSETS, simd_options,
 
 from .builder import Builder
 from .install import CC, install_library
-from .simd_emit import HELPERS, emit_loop
+from .simd_emit import HELPERS, emit_loop, shared_reciprocals
 from .simd_jacobian import jacobian_source
 from .simd_reduce import reduction_source
 
@@ -63,12 +67,13 @@ VECTOR_FUNCTIONS = ("sin", "cos", "atan2")  # the model's transcendentals with a
 
 # -- the model's functions, from the same builder and helpers as the scalar library -----------------
 def simd_functions(structure):
-    """SX functions the library loops over: the vane body (exactly the scalar library's), the
+    """SX functions the library loops over: the vane body (the scalar library's, its shared divisors
+    as reciprocals: simd_emit.shared_reciprocals), the
     per-vane arguments taken from p (slot angle, friction factor) and the rotor's torque sum."""
     if structure.model != "constrained":
         raise ValueError("the SIMD library covers the constrained model's inverse dynamics")
     b = Builder(structure)
-    vane = b.vane_constrained()
+    vane = shared_reciprocals(b.vane_constrained())
     N = structure.vanes
     args = ca.Function("vane_arguments", [b.p], [b.slot_angles(b.p).T, b.factors(b.p).T],
                        ["p"], ["phi", "factor"])

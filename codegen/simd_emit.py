@@ -47,6 +47,71 @@ static inline double pz_sel(int64_t c, double a, double b) {
 }"""
 
 
+# Inputs the emitter writes as C literals instead of reading them: a constant CasADi must not see
+# (it folds x * (1 / y) back into x / y; gcc, without -freciprocal-math, keeps what is written)
+LITERAL_INPUTS = {"pz_one": "1."}
+
+
+def shared_reciprocals(f: ca.Function) -> ca.Function:
+    """f with every quotient whose divisor divides more than once written as a product with that
+    divisor's reciprocal, computed once (one division per divisor instead of one per quotient: the
+    Cramer solves, the unit normals). The result may differ from f's in the last bit. The
+    reciprocal is pz_one / y, with pz_one an extra last input (LITERAL_INPUTS): written 1 / y,
+    CasADi would fold the products back into quotients. The quotient node becomes a product whose
+    derivatives use its operands, not itself, so an entry that also takes derivatives of f
+    (simd_jacobian) computes each product with the same uses -- and gcc contracts it into an FMA
+    or not alike: their f-values stay the same bits."""
+    n = f.n_instructions()
+    divides = [k for k in range(n) if f.instruction_id(k) == ca.OP_DIV]
+    sx_in = f.sx_in()
+    nodes = _replay(f, sx_in, {})  # the divisors' nodes, to count their divisions
+    uses = {}
+    for k in divides:
+        key = nodes[k][1].element_hash()
+        uses[key] = uses.get(key, 0) + 1
+    shared = {k: nodes[k][1].element_hash() for k in divides if uses[nodes[k][1].element_hash()] > 1}
+    if not shared:
+        return f
+    one = ca.SX.sym("pz_one")
+    reciprocal = {}
+
+    def quotient(k, a, b):
+        key = shared.get(k)
+        if key is None:
+            return ca.SX.binary(ca.OP_DIV, a, b)
+        if key not in reciprocal:
+            reciprocal[key] = ca.SX.binary(ca.OP_DIV, one, b)
+        return ca.SX.binary(ca.OP_MUL, a, reciprocal[key])
+
+    outs = _replay(f, sx_in, {"quotient": quotient}, outputs=True)
+    return ca.Function(f.name(), [*sx_in, one], outs, [*f.name_in(), "pz_one"], f.name_out())
+
+
+def _replay(f: ca.Function, sx_in, hooks: dict, outputs: bool = False):
+    """f's instruction list evaluated on SX: {instruction: (its value, its divisor)} for the
+    divisions, or (outputs=True) f's outputs. hooks["quotient"](k, a, b) builds instruction k's
+    quotient a / b."""
+    w, found = {}, {}
+    outs = [ca.SX.zeros(f.sparsity_out(i)) for i in range(f.n_out())]
+    quotient = hooks.get("quotient", lambda k, a, b: ca.SX.binary(ca.OP_DIV, a, b))
+    for k in range(f.n_instructions()):
+        op, ins, res = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
+        if op == ca.OP_INPUT:
+            w[res[0]] = sx_in[ins[0]].nz[ins[1]]
+        elif op == ca.OP_OUTPUT:
+            outs[res[0]].nz[res[1]] = w[ins[0]]
+        elif op == ca.OP_CONST:
+            w[res[0]] = ca.SX(f.instruction_constant(k))
+        elif op == ca.OP_DIV:
+            found[k] = (w[ins[0]], w[ins[1]])
+            w[res[0]] = quotient(k, w[ins[0]], w[ins[1]])
+        elif len(ins) == 1 or op in _UNARY:
+            w[res[0]] = ca.SX.unary(op, w[ins[0]])
+        else:
+            w[res[0]] = ca.SX.binary(op, w[ins[0]], w[ins[1]])
+    return outs if outputs else found
+
+
 def _const(x: float) -> str:
     if math.isnan(x):
         return "NAN"
@@ -72,6 +137,9 @@ def emit_loop(f: ca.Function, name: str, per_sample: set[int]) -> str:
         op = f.instruction_id(k)
         if op == ca.OP_INPUT:
             (i, j), (w,) = f.instruction_input(k), f.instruction_output(k)
+            if f.name_in(i) in LITERAL_INPUTS:
+                body.append(f"w{w} = {LITERAL_INPUTS[f.name_in(i)]};")
+                continue
             q = off_in[i] + j
             used_in.add((q, i in per_sample))
             body.append(f"w{w} = x{q}[s];" if i in per_sample else f"w{w} = x{q};")

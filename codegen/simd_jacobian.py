@@ -26,7 +26,7 @@ import casadi as ca
 
 from pumpsim.errors import CodegenError
 
-from .simd_emit import emit_loop
+from .simd_emit import LITERAL_INPUTS, emit_loop
 
 # vane inputs (theta, omega, omegadot, phi, factor, p...) as indices into u = (theta, omega,
 # omegadot, p...); phi and factor go through the arguments' Jacobian (ARG below)
@@ -204,7 +204,8 @@ def jacobian_source(fns: dict) -> tuple[str, dict]:
     library's loop_arguments_* and loop_torque_* are reused), and its manifest entries."""
     vane, args, torque = fns["vane"], fns["arguments"], fns["torque"]
     share = fns["outputs"][1 + fns["share_index"]]
-    vgrad, vcols = gradient_function(vane, share, list(range(vane.n_in())), "vane_grad")
+    inputs = [i for i in range(vane.n_in()) if vane.name_in(i) not in LITERAL_INPUTS]  # not pz_one
+    vgrad, vcols = gradient_function(vane, share, inputs, "vane_grad")
     rgrad, rcols = _rotor_gradient(torque)
     arg_jac = constant_jacobian(args, 0)
     n_in = vgrad.n_in()
