@@ -75,6 +75,10 @@ class DiagnosisOptions:
     # best scout's fit to convergence may gain as much again: a scout that trails by (1 + gain)^2 is
     # not fitted to convergence (refit._trails; completed if the selection reaches it)
     refit_gain: float = 0.1
+    # how much lower in RMS a contender's scout (refit_scout_steps steps on the interval columns)
+    # may end than its quick look: up to 2.0x seen on the reduced grid. A contender whose quick look
+    # trails by this much more than a scout may is not scouted (refit._refit_from)
+    quick_look_gain: float = 3.0
     # the polar starts' least radius, of the housing's larger semi-axis (~5 um on a 22 mm housing)
     refit_radius: float = 2e-4
     # the polar starts' radii, of that radius: the one-step size is itself read off a staircase

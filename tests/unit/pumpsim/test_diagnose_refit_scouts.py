@@ -176,3 +176,35 @@ def test_the_one_step_start_is_finished_where_its_scout_still_descends():
     # stopped at its minimum: not finished again
     res, _ = refit._scouted(list(range(7)), Scouts(QUICK, full), finish_deeper, OPTIONS)
     assert (res.start, res.rms) == (5, 0.5)
+
+
+def test_a_one_start_contender_far_behind_on_its_quick_look_is_not_scouted():
+    """The quick look decides only where it trails by more than a scout could gain over it
+    (OPTIONS.quick_look_gain in RMS) beyond behind's own margin; else the scout runs as before."""
+    lead = 1.0
+
+    def behind(r, allowance=1.0):  # trails the lead's RMS by more than 10 %, times the allowance
+        return r.rms > 1.1 * allowance * lead
+    far = 1.1 * OPTIONS.quick_look_gain * lead * 1.01
+    for quick, scouted in ((far, False), (0.99 * far, True), (1.05, True)):
+        sc = Scouts([quick], [0.9 * quick])
+        got = refit._scout_unless_far_behind(lambda **kw: sc(0, **kw), behind, OPTIONS)
+        kinds = [c[2] for c in sc.calls]  # polish: a full scout
+        assert kinds == ([False, True] if scouted else [False])
+        assert got.rms == (0.9 * quick if scouted else quick)
+
+
+def test_trailing_by_rss_on_the_common_samples_with_an_allowance():
+    import numpy as np
+
+    @dataclass
+    class Res:
+        residual: np.ndarray
+        keep: object = None
+    lead = Res(np.ones(100))
+    bar = (1 + OPTIONS.refit_gain) ** 2  # in RMS
+    assert refit._trails(Res(np.full(100, 1.01 * bar)), lead, OPTIONS)
+    assert not refit._trails(Res(np.full(100, 0.99 * bar)), lead, OPTIONS)
+    assert not refit._trails(Res(np.full(100, 2.9 * bar)), lead, OPTIONS, allowance=3.0)
+    assert refit._trails(Res(np.full(100, 3.1 * bar)), lead, OPTIONS, allowance=3.0)
+    assert not refit._trails(Res(np.full(100, 9.0)), Res(np.ones(50)), OPTIONS)  # a lead on fewer samples: never
