@@ -6,7 +6,7 @@ import re
 import casadi as ca
 import numpy as np
 
-from codegen.simd_emit import LITERAL_INPUTS, emit_loop, shared_reciprocals
+from pumpsim.codegen.simd_emit import LITERAL_INPUTS, emit_loop, shared_reciprocals
 
 
 def ops(f: ca.Function, op) -> int:
