@@ -239,8 +239,7 @@ def _scout_unless_far_behind(scout_fit, behind, opts: DiagnosisOptions = OPTIONS
     the smooth interval columns, ~0.2x a scout's cost) trails the best contender so far by more
     than the scout could gain over it (opts.quick_look_gain in RMS) on top of behind's margin, that
     quick look: it is left incomplete either way (Contender.complete), and where the selection
-    reaches it, completed as before. The out-of-round orders k = 5 and 7 of the make-bench record,
-    4.9x the named k = 4's RMS on the window, cost 0.24 and 0.28 CPU s of its 3.0 each."""
+    reaches it, completed as before (docs/explanation/discrepancy-workflow.md, Cost)."""
     quick = scout_fit(max_iter=opts.refit_quick_steps, polish=False, final_jacobian=False, interval=SMOOTH_COLUMNS)
     if behind(quick, opts.quick_look_gain):
         return quick
