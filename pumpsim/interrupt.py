@@ -14,11 +14,12 @@ the command line prints names it.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import sys
 import threading
 
-_state = {"signal": None, "progress": None, "defer": 0, "stage": None, "written": []}
+_state = {"signal": None, "progress": None, "defer": 0, "stage": None, "written": [], "ran": False}
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -135,11 +136,33 @@ def unsplit():
         raise Interrupted(_state["signal"]) from None
 
 
+def _outside(signum, frame):
+    """A signal outside a command's own handling: while the program starts -- nothing written --
+    or after the run, its outputs written (a Dask cluster closing). Its status, one line."""
+    name = signal.Signals(signum).name
+    if _state["ran"]:
+        msg = f"interrupted by {name} while exiting; the run had ended, its outputs are written"
+    else:
+        msg = f"interrupted by {name} while starting; nothing was written"
+    print(f"pumpsim: {msg}", file=sys.stderr, flush=True)
+    os._exit(128 + signum)
+
+
+def guard_process() -> None:
+    """For the `pumpsim` program's process (not a library caller's): SIGINT and SIGTERM outside a
+    command's handling give their status and one line (_outside) instead of the default action, a
+    silent kill. Set before the command runs, so that its handling restores it at the end and no
+    signal finds the default action in between. A signal ignored at the start stays ignored."""
+    for s in SIGNALS:
+        if signal.getsignal(s) is not signal.SIG_IGN:
+            signal.signal(s, _outside)
+
+
 @contextlib.contextmanager
 def handling():
     """Route SIGINT and SIGTERM to Interrupted for the block (main thread only). A signal that is
     ignored when the run starts (nohup, a background job) stays ignored."""
-    _state.update(signal=None, progress=None, defer=0, stage=None, written=[])
+    _state.update(signal=None, progress=None, defer=0, stage=None, written=[], ran=True)
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -5,6 +5,6 @@
 A command module registers its parser in `register(sub)` and runs in `run(args)`; it imports
 the numerical stack inside `run`, so `pumpsim --help`, `--version` and a bad option start fast.
 """
-from .app import build_parser, main
+from .app import build_parser, console, main
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "console", "main"]

@@ -38,6 +38,17 @@ def build_parser():
     return ap
 
 
+def console() -> int:
+    """The `pumpsim` program (its console script; `python -m pumpsim`): main() with a status for a
+    signal outside the command's own handling too (interrupt.guard_process), stdout flushed."""
+    from .. import interrupt
+
+    interrupt.guard_process()
+    status = main()
+    sys.stdout.flush()
+    return status
+
+
 def main(argv=None) -> int:
     """Run the command line with `argv` (default sys.argv[1:]); returns the exit status."""
     from .. import interrupt

@@ -476,3 +476,29 @@ def test_a_signal_after_the_study_names_the_designs_kept(tmp_path, monkeypatch, 
     assert code == 130, err
     assert f"the 20 designs done are kept in '{res}'" in err, err
     assert not csv.exists() and len(designs_in(res)) == 20
+
+
+@pytest.mark.parametrize("when", ["starting", "exiting"])
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_outside_the_commands_handling_still_gives_its_status(sig, when):
+    """`python -m pumpsim` (and the console script, cli.console) has a handler from before the
+    command line imports until the process exits: a signal just before the command's own handling starts, or just after it ended, gives
+    128 + signal and one line (the default action was a silent kill, status -signal)."""
+    probe = ("import os, signal, runpy, sys, time\n"
+             "import pumpsim.cli.app as app\n"
+             "real = app.main\n"
+             "def main(argv=None):\n"
+             f"    if {when!r} == 'starting':\n"
+             f"        os.kill(os.getpid(), {int(sig)}); time.sleep(5)\n"
+             "    status = real(['--version'])\n"
+             f"    os.kill(os.getpid(), {int(sig)}); time.sleep(5)\n"
+             "    return status\n"
+             "app.main = main\n"
+             "sys.argv = ['pumpsim']\n"
+             "runpy.run_module('pumpsim', run_name='__main__')\n")
+    r = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=_env(), capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 128 + sig, (r.returncode, r.stderr)
+    said = {"starting": "while starting; nothing was written",
+            "exiting": "while exiting; the run had ended, its outputs are written"}[when]
+    assert r.stderr.splitlines() == [f"pumpsim: interrupted by {sig.name} {said}"]
