@@ -13,6 +13,7 @@ the command line prints names it.
 """
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import signal
@@ -156,6 +157,15 @@ def guard_process() -> None:
     for s in SIGNALS:
         if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, _outside)
+    atexit.register(_hold_signals)  # registered first: runs after every later atexit function
+
+
+def _hold_signals() -> None:
+    """The interpreter's last teardown (after the atexit functions) resets the signal handlers to
+    the default action, a silent kill: hold SIGINT and SIGTERM from here on -- the run has ended
+    and the process is about to exit with its status; a signal then dies with it."""
+    with contextlib.suppress(AttributeError, OSError, ValueError):  # no pthread_sigmask on the platform
+        signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
 
 
 @contextlib.contextmanager

@@ -478,6 +478,13 @@ def test_a_signal_after_the_study_names_the_designs_kept(tmp_path, monkeypatch, 
     assert not csv.exists() and len(designs_in(res)) == 20
 
 
+def run_as_program(setup: str):
+    """`python -m pumpsim` after the Python code `setup` (in the same process)."""
+    code = setup + "import runpy\nrunpy.run_module('pumpsim', run_name='__main__')\n"
+    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=_env(), capture_output=True, text=True,
+                          timeout=60)
+
+
 @pytest.mark.parametrize("when", ["starting", "exiting"])
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_outside_the_commands_handling_still_gives_its_status(sig, when):
@@ -494,11 +501,27 @@ def test_a_signal_outside_the_commands_handling_still_gives_its_status(sig, when
              f"    os.kill(os.getpid(), {int(sig)}); time.sleep(5)\n"
              "    return status\n"
              "app.main = main\n"
-             "sys.argv = ['pumpsim']\n"
-             "runpy.run_module('pumpsim', run_name='__main__')\n")
-    r = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, env=_env(), capture_output=True, text=True,
-                       timeout=60)
+             "sys.argv = ['pumpsim']\n")
+    r = run_as_program(probe)
     assert r.returncode == 128 + sig, (r.returncode, r.stderr)
     said = {"starting": "while starting; nothing was written",
             "exiting": "while exiting; the run had ended, its outputs are written"}[when]
     assert r.stderr.splitlines() == [f"pumpsim: interrupted by {sig.name} {said}"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_signal_in_the_interpreters_last_teardown_leaves_the_runs_status(sig):
+    """After the atexit functions Python resets the signal handlers to the default action: a signal
+    there killed the finished run silently (status -signal; make test-all under load). It is held
+    now and the run's own status stands. The signal comes from an object torn down with the
+    modules, after the handlers' reset."""
+    probe = ("import os, runpy, sys, time, types\n"
+             "class Late:\n"
+             "    def __del__(self):\n"
+             f"        os.kill(os.getpid(), {int(sig)}); time.sleep(1)\n"
+             "m = types.ModuleType('pumpsim_late_probe'); m.late = Late(); sys.modules[m.__name__] = m\n"
+             "del m\n"
+             "sys.argv = ['pumpsim', '--version']\n")
+    r = run_as_program(probe)
+    assert (r.returncode, r.stderr) == (0, ""), (r.returncode, r.stderr)
+    assert r.stdout.startswith("pumpsim ")
