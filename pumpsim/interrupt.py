@@ -153,7 +153,12 @@ def guard_process() -> None:
     """For the `pumpsim` program's process (not a library caller's): SIGINT and SIGTERM outside a
     command's handling give their status and one line (_outside) instead of the default action, a
     silent kill. Set before the command runs, so that its handling restores it at the end and no
-    signal finds the default action in between. A signal ignored at the start stays ignored."""
+    signal finds the default action in between. A signal ignored at the start stays ignored.
+    Once per process (`python -m pumpsim` sets it before the command line imports, then runs the
+    console script's entry, which sets it too)."""
+    if _state.get("guarded"):
+        return
+    _state["guarded"] = True
     for s in SIGNALS:
         if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, _outside)
