@@ -162,15 +162,16 @@ def guard_process() -> None:
     for s in SIGNALS:
         if signal.getsignal(s) is not signal.SIG_IGN:
             signal.signal(s, _outside)
-    atexit.register(_hold_signals)  # registered first: runs after every later atexit function
+    atexit.register(_ignore_signals_in_teardown)  # registered first: runs after every later atexit function
 
 
-def _hold_signals() -> None:
-    """The interpreter's last teardown (after the atexit functions) resets the signal handlers to
-    the default action, a silent kill: hold SIGINT and SIGTERM from here on -- the run has ended
-    and the process is about to exit with its status; a signal then dies with it."""
-    with contextlib.suppress(AttributeError, OSError, ValueError):  # no pthread_sigmask on the platform
-        signal.pthread_sigmask(signal.SIG_BLOCK, SIGNALS)
+def _ignore_signals_in_teardown() -> None:
+    """The interpreter's last teardown (after the atexit functions) resets the handlers it set to
+    the default action, a silent kill -- of the whole process, whichever thread (a Dask loop's,
+    still alive) takes the signal -- but leaves an ignored signal ignored: ignore SIGINT and
+    SIGTERM from here on. The run has ended and the process exits with its own status."""
+    for s in SIGNALS:
+        signal.signal(s, signal.SIG_IGN)
 
 
 @contextlib.contextmanager

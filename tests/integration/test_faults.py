@@ -512,10 +512,12 @@ def test_a_signal_outside_the_commands_handling_still_gives_its_status(sig, when
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_signal_in_the_interpreters_last_teardown_leaves_the_runs_status(sig):
     """After the atexit functions Python resets the signal handlers to the default action: a signal
-    there killed the finished run silently (status -signal; make test-all under load). It is held
-    now and the run's own status stands. The signal comes from an object torn down with the
-    modules, after the handlers' reset."""
-    probe = ("import os, runpy, sys, time, types\n"
+    there killed the finished run silently (status -signal; make test-all under load, a sweep and a
+    diagnose). It is ignored now and the run's own status stands. The signal comes from an object
+    torn down with the modules, after the handlers' reset, with another thread alive (a Dask loop's:
+    blocking the signal in the main thread alone let that thread take it)."""
+    probe = ("import os, sys, threading, time, types\n"
+             "threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n"
              "class Late:\n"
              "    def __del__(self):\n"
              f"        os.kill(os.getpid(), {int(sig)}); time.sleep(1)\n"
