@@ -4,6 +4,7 @@ SX instruction, so that gcc vectorises the loop with glibc's vector math (see co
 from __future__ import annotations
 
 import math
+from collections import Counter
 
 import casadi as ca
 
@@ -61,39 +62,31 @@ def shared_reciprocals(f: ca.Function) -> ca.Function:
     derivatives use its operands, not itself, so an entry that also takes derivatives of f
     (simd_jacobian) computes each product with the same uses -- and gcc contracts it into an FMA
     or not alike: their f-values stay the same bits."""
-    n = f.n_instructions()
-    divides = [k for k in range(n) if f.instruction_id(k) == ca.OP_DIV]
     sx_in = f.sx_in()
-    nodes = _replay(f, sx_in, {})  # the divisors' nodes, to count their divisions
-    uses = {}
-    for k in divides:
-        key = nodes[k][1].element_hash()
-        uses[key] = uses.get(key, 0) + 1
-    shared = {k: nodes[k][1].element_hash() for k in divides if uses[nodes[k][1].element_hash()] > 1}
-    if not shared:
+    _, divisors = _replay(f, sx_in)  # instruction -> its divisor's node hash
+    uses = Counter(divisors.values())
+    if max(uses.values(), default=0) < 2:
         return f
     one = ca.SX.sym("pz_one")
     reciprocal = {}
 
     def quotient(k, a, b):
-        key = shared.get(k)
-        if key is None:
+        key = divisors[k]
+        if uses[key] < 2:
             return ca.SX.binary(ca.OP_DIV, a, b)
         if key not in reciprocal:
             reciprocal[key] = ca.SX.binary(ca.OP_DIV, one, b)
         return ca.SX.binary(ca.OP_MUL, a, reciprocal[key])
 
-    outs = _replay(f, sx_in, {"quotient": quotient}, outputs=True)
+    outs, _ = _replay(f, sx_in, quotient)
     return ca.Function(f.name(), [*sx_in, one], outs, [*f.name_in(), "pz_one"], f.name_out())
 
 
-def _replay(f: ca.Function, sx_in, hooks: dict, outputs: bool = False):
-    """f's instruction list evaluated on SX: {instruction: (its value, its divisor)} for the
-    divisions, or (outputs=True) f's outputs. hooks["quotient"](k, a, b) builds instruction k's
-    quotient a / b."""
-    w, found = {}, {}
+def _replay(f: ca.Function, sx_in, quotient=None):
+    """f's instruction list evaluated on SX: (f's outputs, {division instruction: its divisor's
+    node hash}); quotient(k, a, b) builds instruction k's a / b (default: the plain quotient)."""
+    w, divisors = {}, {}
     outs = [ca.SX.zeros(f.sparsity_out(i)) for i in range(f.n_out())]
-    quotient = hooks.get("quotient", lambda k, a, b: ca.SX.binary(ca.OP_DIV, a, b))
     for k in range(f.n_instructions()):
         op, ins, res = f.instruction_id(k), f.instruction_input(k), f.instruction_output(k)
         if op == ca.OP_INPUT:
@@ -103,13 +96,14 @@ def _replay(f: ca.Function, sx_in, hooks: dict, outputs: bool = False):
         elif op == ca.OP_CONST:
             w[res[0]] = ca.SX(f.instruction_constant(k))
         elif op == ca.OP_DIV:
-            found[k] = (w[ins[0]], w[ins[1]])
-            w[res[0]] = quotient(k, w[ins[0]], w[ins[1]])
+            a, b = w[ins[0]], w[ins[1]]
+            divisors[k] = b.element_hash()
+            w[res[0]] = quotient(k, a, b) if quotient else ca.SX.binary(ca.OP_DIV, a, b)
         elif len(ins) == 1 or op in _UNARY:
             w[res[0]] = ca.SX.unary(op, w[ins[0]])
         else:
             w[res[0]] = ca.SX.binary(op, w[ins[0]], w[ins[1]])
-    return outs if outputs else found
+    return outs, divisors
 
 
 def _const(x: float) -> str:

@@ -20,7 +20,7 @@ import signal
 import sys
 import threading
 
-_state = {"signal": None, "progress": None, "defer": 0, "stage": None, "written": [], "ran": False}
+_state = {"signal": None, "progress": None, "defer": 0, "stage": None, "written": [], "ran": False, "guarded": False}
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -156,7 +156,7 @@ def guard_process() -> None:
     signal finds the default action in between. A signal ignored at the start stays ignored.
     Once per process (`python -m pumpsim` sets it before the command line imports, then runs the
     console script's entry, which sets it too)."""
-    if _state.get("guarded"):
+    if _state["guarded"]:
         return
     _state["guarded"] = True
     for s in SIGNALS:
